@@ -1,0 +1,43 @@
+# The two commands of the README: `make run` and `make test`. Both set up on first use.
+SHELL := /bin/bash
+.DEFAULT_GOAL := help
+IN_ENV := source env.sh &&
+PY_SRC := src/bracing_sim/bracing_sim src/bracing_controller/bracing_controller src/bracing_bringup/bracing_bringup
+
+.PHONY: help setup test lint typecheck pytest run bench lock clean
+
+help:
+	@echo "make run    - set up if needed, run the paper scenario braced and unbraced, print the table"
+	@echo "make test   - set up if needed, then ruff, mypy and the pytest suite"
+	@echo "make bench  - benchmarks (engine vs MuJoCo, pair vs DDS bound, controller latency, scaling)"
+	@echo "make setup  - only the set-up (.venv, CMake fix, colcon build); idempotent"
+
+setup:
+	@bash tools/setup.sh
+
+lint: setup
+	@$(IN_ENV) ruff check src test bench tools
+
+typecheck: setup
+	@$(IN_ENV) mypy $(PY_SRC)
+
+pytest: setup
+	@$(IN_ENV) python -m pytest test $(PYTEST_ARGS)
+
+test: lint typecheck pytest
+
+run: setup
+	@$(IN_ENV) python -m bracing_bringup.paper_run --output out
+
+bench: setup
+	@$(IN_ENV) pip install --quiet --disable-pip-version-check -r requirements-bench.lock
+	@$(IN_ENV) python bench/run.py --output bench/latest.json
+
+# Re-pin after editing requirements.in (needs the registries).
+lock:
+	rm -rf /tmp/bracing-lock-venv && python3 -m venv /tmp/bracing-lock-venv
+	/tmp/bracing-lock-venv/bin/pip install -r requirements.in
+	/tmp/bracing-lock-venv/bin/pip freeze --exclude-editable > requirements.lock
+
+clean:
+	rm -rf build install log build.log out

@@ -1,0 +1,29 @@
+from setuptools import find_packages, setup
+
+package_name = "bracing_bringup"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/config", [
+            "../../config/paper_4link.yaml", "../../config/paper_4link.urdf"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="Bracing maintainers",
+    maintainer_email="maintainers@bracing-robotics.org",
+    description="Runs the simulator and controller as a pair, records a rosbag2 bag, and reports the paper's figures.",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "pair=bracing_bringup.pair:main",
+            "bracing-pair=bracing_bringup.pair:main",
+            "report=bracing_bringup.report:main",
+            "bracing-report=bracing_bringup.report:main",
+        ],
+    },
+)
