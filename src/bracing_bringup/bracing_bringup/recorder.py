@@ -1,0 +1,252 @@
+"""Record every topic of the bracing interface to a rosbag2 bag (mcap storage).
+
+Usage::
+
+    python -m bracing_bringup.recorder --output DIR/bag [--namespace NS] \
+        [--contacts elbow,...] [--ros-args ...]
+
+The bag embeds the message definitions (bracing_msgs included), so any rosbag2 reader
+decodes it. Messages are received already serialised (CDR, ``raw=True``) and written as
+they are; the bag timestamp of a message is its header stamp (``clock`` for ``/clock``).
+
+Prints ``recorder ready`` on stdout once every subscription exists. SIGINT or SIGTERM
+stops it: pending messages are drained (until nothing arrives for ``--drain-idle``
+seconds, at most ``--drain-timeout`` seconds) and the bag is closed cleanly.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import struct
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+import rclpy
+from rclpy.exceptions import InvalidHandle
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy, DurabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rclpy.utilities import remove_ros_args
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+from rosbags.typesys.store import Typestore
+
+from geometry_msgs.msg import WrenchStamped
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+
+from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState
+
+BAG_VERSION = 8
+"""rosbag2 metadata version written (8 is read by every Jazzy rosbag2)."""
+
+BRACING_MSGS = ("ContactState", "Contacts", "ControllerState", "MotorCommand", "MotorState")
+
+TAKE_BATCH = 1000
+"""Messages taken from one subscription per executor callback."""
+
+RECORD_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+"""Reliable and deep, so that nothing is lost in lockstep runs."""
+
+
+def bracing_msgs_dir() -> Path:
+    """Directory of the bracing_msgs ``.msg`` files (installed share dir, else source)."""
+    try:
+        from ament_index_python.packages import get_package_share_directory
+
+        share = Path(get_package_share_directory("bracing_msgs")) / "msg"
+        if all((share / f"{name}.msg").is_file() for name in BRACING_MSGS):
+            return share
+    except (ImportError, LookupError, ValueError):
+        pass
+    src = Path(__file__).resolve().parents[2] / "bracing_msgs" / "msg"
+    if all((src / f"{name}.msg").is_file() for name in BRACING_MSGS):
+        return src
+    msg = "cannot find the bracing_msgs .msg files (is the workspace sourced?)"
+    raise FileNotFoundError(msg)
+
+
+def bracing_typestore(msg_dir: Path | None = None) -> Typestore:
+    """A Jazzy typestore with the bracing_msgs types registered."""
+    store = get_typestore(Stores.ROS2_JAZZY)
+    folder = msg_dir if msg_dir is not None else bracing_msgs_dir()
+    types: dict[str, Any] = {}
+    for name in BRACING_MSGS:
+        text = (folder / f"{name}.msg").read_text(encoding="utf-8")
+        types.update(get_types_from_msg(text, f"bracing_msgs/msg/{name}"))
+    store.register(types)
+    return store
+
+
+def topic_table(contacts: Sequence[str]) -> list[tuple[str, type, str]]:
+    """(relative topic, rclpy type, ROS 2 type name) for every recorded topic."""
+    table: list[tuple[str, type, str]] = [
+        ("joint_states", JointState, "sensor_msgs/msg/JointState"),
+    ]
+    table += [
+        (f"contact_wrench/{name}", WrenchStamped, "geometry_msgs/msg/WrenchStamped")
+        for name in contacts
+    ]
+    table += [
+        ("contacts", Contacts, "bracing_msgs/msg/Contacts"),
+        ("motor_state", MotorState, "bracing_msgs/msg/MotorState"),
+        ("/clock", Clock, "rosgraph_msgs/msg/Clock"),
+        ("motor_command", MotorCommand, "bracing_msgs/msg/MotorCommand"),
+        ("controller_state", ControllerState, "bracing_msgs/msg/ControllerState"),
+    ]
+    return table
+
+
+def cdr_stamp_ns(data: bytes) -> int:
+    """Stamp [ns] of a CDR message whose first field is a builtin_interfaces/Time.
+
+    True for every recorded type: the std_msgs/Header ones and rosgraph_msgs/Clock.
+    """
+    endian = "<" if data[1] & 1 else ">"
+    sec, nanosec = struct.unpack_from(endian + "iI", data, 4)
+    return int(sec) * 1_000_000_000 + int(nanosec)
+
+
+class Recorder(Node):
+    """Subscribes to the bracing topics and writes them to an open rosbag2 writer."""
+
+    def __init__(
+        self,
+        writer: Writer,
+        typestore: Typestore,
+        *,
+        namespace: str = "",
+        contacts: Sequence[str] = (),
+    ) -> None:
+        super().__init__("bracing_recorder", namespace=namespace)
+        self.writer = writer
+        self.counts: dict[str, int] = {}
+        self.received = 0
+        self.last_receive = time.monotonic()
+        self._subs = []
+        for topic, msg_type, type_name in topic_table(contacts):
+            callback, holder = self._make_callback()
+            sub = self.create_subscription(msg_type, topic, callback, RECORD_QOS, raw=True)
+            resolved = sub.topic_name
+            holder.append(writer.add_connection(resolved, type_name, typestore=typestore))
+            holder.append(sub)
+            self.counts[resolved] = 0
+            self._subs.append(sub)
+
+    def _make_callback(self) -> tuple[Callable[[bytes], None], list[Any]]:
+        holder: list[Any] = []  # [connection, subscription], filled after creation
+
+        def callback(data: bytes) -> None:
+            connection, sub = holder
+            write = self.writer.write
+            write(connection, cdr_stamp_ns(data), data)
+            count = 1
+            # The executor costs far more per message than the write: take what else is
+            # already queued on this subscription directly (bounded, for fairness).
+            try:
+                with sub.handle:
+                    while count < TAKE_BATCH:
+                        taken = sub.handle.take_message(sub.msg_type, True)
+                        if taken is None:
+                            break
+                        write(connection, cdr_stamp_ns(taken[0]), taken[0])
+                        count += 1
+            except InvalidHandle:
+                pass
+            self.counts[connection.topic] += count
+            self.received += count
+            self.last_receive = time.monotonic()
+
+        return callback, holder
+
+
+def _parse(argv: Sequence[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog="bracing-recorder",
+        description="Record the bracing topics to a rosbag2 bag (mcap storage).",
+    )
+    parser.add_argument("--output", required=True, help="bag directory to create (must not exist)")
+    parser.add_argument("--namespace", default="", help="namespace of the recorded nodes")
+    parser.add_argument(
+        "--contacts", default="", help="comma-separated contact names (contact_wrench/<name>)")
+    parser.add_argument(
+        "--drain-idle", type=float, default=0.2,
+        help="on stop, keep receiving until idle this long [s] (default 0.2)")
+    parser.add_argument(
+        "--drain-timeout", type=float, default=3.0,
+        help="on stop, drain for at most this long [s] (default 3.0)")
+    return parser.parse_args(list(argv))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the recorder until SIGINT/SIGTERM; returns the exit code."""
+    full = list(sys.argv[1:] if argv is None else argv)
+    args = _parse(remove_ros_args(["recorder", *full])[1:])
+    contacts = [c.strip() for c in args.contacts.split(",") if c.strip()]
+    output = Path(args.output)
+    if output.exists():
+        print(f"recorder: error: {output} exists already, not overwriting", file=sys.stderr)
+        return 2
+
+    stop = {"requested": False, "urgent": False}
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        del frame
+        if stop["requested"]:
+            stop["urgent"] = True  # second signal: skip the drain, still close the bag
+        stop["requested"] = True
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+
+    try:
+        typestore = bracing_typestore()
+    except (FileNotFoundError, OSError) as exc:
+        print(f"recorder: error: {exc}", file=sys.stderr)
+        return 2
+
+    rclpy.init(args=["recorder", *full], signal_handler_options=SignalHandlerOptions.NO)
+    writer = Writer(output, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
+    writer.open()
+    node: Recorder | None = None
+    executor = SingleThreadedExecutor()
+    try:
+        node = Recorder(writer, typestore, namespace=args.namespace, contacts=contacts)
+        executor.add_node(node)
+        print("recorder ready", flush=True)
+        while not stop["requested"]:
+            executor.spin_once(timeout_sec=0.1)
+        # Drain what is still in flight: spin until idle for drain_idle (bounded).
+        start = time.monotonic()
+        node.last_receive = start
+        while not stop["urgent"]:
+            now = time.monotonic()
+            if now - node.last_receive >= args.drain_idle or now - start >= args.drain_timeout:
+                break
+            executor.spin_once(timeout_sec=0.05)
+    finally:
+        writer.close()
+        total = node.received if node is not None else 0
+        print(f"recorder wrote {total} messages to {output}", flush=True)
+        if node is not None:
+            executor.remove_node(node)
+            node.destroy_node()
+        executor.shutdown()
+        if rclpy.ok():
+            rclpy.shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

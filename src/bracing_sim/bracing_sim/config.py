@@ -1,0 +1,263 @@
+"""Typed configuration of the plant (robot, motors, contacts) and of the simulator.
+
+``SharedConfig`` is what both nodes read from the ``/**`` section of a scenario file;
+``Plant`` is the one robot model built from it, used by the simulator and the
+controller alike. Everything is validated here, once, with errors naming the parameter.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from bracing_sim.core.contacts import ContactSet, PlaneContact
+from bracing_sim.core.dynamics import ConstrainedDynamics, InputMode
+from bracing_sim.core.model import ModelError, RobotModel
+from bracing_sim.core.motors import MotorParams
+from bracing_sim.core.simulator import Simulator
+from bracing_sim.params import (
+    ConfigError,
+    Params,
+    check_known,
+    get_bool,
+    get_float,
+    get_floats,
+    get_int,
+    get_str,
+    get_strs,
+    resolve_file,
+)
+
+AXES = ("x", "y", "z")
+MOTOR_FIELDS = ("torque_constant", "resistance", "inductance", "rotor_inertia", "gear_ratio", "gear_damping")
+
+# Parameters read by both nodes (the scenario file's /** section), with defaults.
+SHARED_PARAMETERS: dict[str, object] = {
+    "robot.urdf": "",
+    "robot.joint_names": [],
+    "robot.gravity": [0.0, 0.0, -9.81],
+    "input_mode": "voltage",
+    **{f"motors.{f}": [] for f in MOTOR_FIELDS},
+    "motors.voltage_limit": 0.0,
+    "motors.torque_limit": 0.0,
+    "contacts.names": [],
+}
+# Fields of each contacts.<name> section.
+CONTACT_FIELDS: dict[str, object] = {
+    "frame": "",
+    "normal": [0.0, 0.0, 1.0],
+    "offset": 0.0,
+    "friction": 0.0,
+    "desired_normal_force": 0.0,
+    "brace_axes": [],
+    "kp": [],
+    "kd": [],
+    "target": [],
+}
+SIMULATOR_PARAMETERS: dict[str, object] = {
+    "initial_position": [],
+    "initial_velocity": [],
+    "step": 0.001,
+    "substeps": 1,
+    "duration": 10.0,
+    "baumgarte": 0.0,
+    "slip_epsilon": 1e-4,
+    "contact_tolerance": 1e-6,
+    "stepping": "lockstep",
+    "real_time_factor": 1.0,
+    "command_timeout": 5.0,
+    "watchdog_policy": "hold",
+    "min_subscribers": 1,
+    "publish_tf": False,
+    "divergence_residual": 0.01,
+}
+
+
+def axes_indices(name: str, axes: Sequence[str]) -> tuple[int, ...]:
+    for axis in axes:
+        if axis not in AXES:
+            raise ConfigError(f"{name}: axes must be among x, y, z, got {list(axes)}")
+    if len(set(axes)) != len(axes):
+        raise ConfigError(f"{name}: duplicate axes in {list(axes)}")
+    return tuple(AXES.index(a) for a in axes)
+
+
+@dataclass(frozen=True)
+class ContactConfig:
+    """contacts.<name>: the plane, and the controller's force and brace task for it."""
+
+    name: str
+    frame: str
+    normal: tuple[float, float, float]
+    offset: float  # c [m]
+    friction: float  # mu
+    desired_normal_force: float  # f_nd [N]
+    brace_axes: tuple[int, ...]  # world axis indices of the brace task
+    kp: tuple[float, ...]  # one per brace axis
+    kd: tuple[float, ...]
+    target: tuple[float, float, float] | None  # None: the brace point's initial position
+
+    @classmethod
+    def from_params(cls, params: Params, name: str) -> ContactConfig:
+        key = f"contacts.{name}."
+        frame = get_str(params, key + "frame", None)
+        normal = get_floats(params, key + "normal", [0.0, 0.0, 1.0], length=3)
+        if float(np.linalg.norm(normal)) < 1e-9:
+            raise ConfigError(f"{key}normal: must be a non-zero vector, got {list(normal)}")
+        axes_names = get_strs(params, key + "brace_axes", [])
+        axes = axes_indices(key + "brace_axes", axes_names)
+        hint = f"one per brace axis {list(axes_names)}"
+        kp = get_floats(params, key + "kp", [], length=len(axes), length_hint=hint)
+        kd = get_floats(params, key + "kd", [], length=len(axes), length_hint=hint)
+        target = get_floats(params, key + "target", [])
+        if target and len(target) != 3:
+            raise ConfigError(f"{key}target: expected [x, y, z] or an empty list, got {list(target)}")
+        return cls(
+            name=name,
+            frame=frame,
+            normal=(normal[0], normal[1], normal[2]),
+            offset=get_float(params, key + "offset", 0.0),
+            friction=get_float(params, key + "friction", 0.0, minimum=0.0),
+            desired_normal_force=get_float(params, key + "desired_normal_force", 0.0),
+            brace_axes=axes,
+            kp=kp,
+            kd=kd,
+            target=(target[0], target[1], target[2]) if target else None,
+        )
+
+    def plane(self) -> PlaneContact:
+        return PlaneContact(self.name, self.frame, np.array(self.normal), self.offset, self.friction)
+
+
+@dataclass(frozen=True)
+class SharedConfig:
+    """robot, motors, contacts, input mode: the plant both nodes agree on."""
+
+    urdf: Path
+    joint_names: tuple[str, ...]  # the configuration's joint order (motors are listed in it)
+    gravity: tuple[float, float, float]
+    input_mode: InputMode
+    motors: MotorParams  # in joint_names order
+    contacts: tuple[ContactConfig, ...]
+
+    @classmethod
+    def from_params(cls, params: Params, search_dirs: Sequence[Path] = ()) -> SharedConfig:
+        urdf = resolve_file(get_str(params, "robot.urdf", None), "robot.urdf", search_dirs)
+        joint_names = get_strs(params, "robot.joint_names", [])
+        if not joint_names:
+            raise ConfigError("robot.joint_names: expected the list of actuated joints, got none")
+        n = len(joint_names)
+        gravity = get_floats(params, "robot.gravity", [0.0, 0.0, -9.81], length=3)
+        mode = InputMode.parse(get_str(params, "input_mode", "voltage"))
+        hint = f"one per joint of robot.joint_names ({n})"
+        arrays = {f: np.array(get_floats(params, f"motors.{f}", None, length=n, length_hint=hint)) for f in MOTOR_FIELDS}
+        try:
+            motors = MotorParams(
+                **arrays,
+                voltage_limit=get_float(params, "motors.voltage_limit", 0.0, minimum=0.0),
+                torque_limit=get_float(params, "motors.torque_limit", 0.0, minimum=0.0),
+            )
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
+        names = get_strs(params, "contacts.names", [])
+        contacts = tuple(ContactConfig.from_params(params, name) for name in names)
+        return cls(urdf, joint_names, (gravity[0], gravity[1], gravity[2]), mode, motors, contacts)
+
+
+class Plant:
+    """The robot model, motors (model joint order) and contacts built from a SharedConfig.
+
+    One implementation for simulator and controller: both build their plant here.
+    """
+
+    def __init__(self, config: SharedConfig, slip_epsilon: float = 1e-4) -> None:
+        try:
+            self.robot = RobotModel.from_urdf(config.urdf, config.gravity)
+            # Index array taking configuration-ordered data to model order.
+            self.order = self.robot.joint_permutation(config.joint_names)
+            self.contact_set = ContactSet(self.robot, [c.plane() for c in config.contacts], slip_epsilon)
+        except ModelError as exc:
+            raise ConfigError(str(exc)) from None
+        self.config = config
+        self.joint_names = self.robot.joint_names  # model order: the order of every message
+        self.motors = config.motors.permuted(self.order)
+        self.mode = config.input_mode
+
+    def to_model_order(self, values: Sequence[float]) -> np.ndarray:
+        return np.asarray(values, dtype=float)[self.order]
+
+    def dynamics(self, baumgarte: float = 0.0) -> ConstrainedDynamics:
+        return ConstrainedDynamics(self.robot, self.motors, self.contact_set, self.mode, baumgarte)
+
+
+@dataclass(frozen=True)
+class SimulatorConfig:
+    shared: SharedConfig
+    initial_position: tuple[float, ...]  # [rad], robot.joint_names order
+    initial_velocity: tuple[float, ...]  # [rad/s]
+    step: float  # [s]
+    substeps: int
+    duration: float  # [s] of sim time, 0 = unbounded
+    baumgarte: float  # [1/s]
+    slip_epsilon: float  # [m/s]
+    contact_tolerance: float  # [m]
+    stepping: str  # lockstep | real_time
+    real_time_factor: float
+    command_timeout: float  # [s] wall time
+    watchdog_policy: str  # hold | zero
+    min_subscribers: int
+    publish_tf: bool
+    divergence_residual: float  # [m]; a larger |C| stops the simulation
+
+    @classmethod
+    def from_params(cls, params: Params, search_dirs: Sequence[Path] = ()) -> SimulatorConfig:
+        check_known(params, [*SHARED_PARAMETERS, *SIMULATOR_PARAMETERS], {"contacts.": CONTACT_FIELDS})
+        shared = SharedConfig.from_params(params, search_dirs)
+        n = len(shared.joint_names)
+        hint = f"one per joint of robot.joint_names ({n})"
+        q0 = get_floats(params, "initial_position", None, length=n, length_hint=hint)
+        dq0 = get_floats(params, "initial_velocity", [0.0] * n, length=n, length_hint=hint) or (0.0,) * n
+        return cls(
+            shared=shared,
+            initial_position=q0,
+            initial_velocity=dq0,
+            step=get_float(params, "step", 0.001, positive=True),
+            substeps=get_int(params, "substeps", 1, minimum=1),
+            duration=get_float(params, "duration", 10.0, minimum=0.0),
+            baumgarte=get_float(params, "baumgarte", 0.0, minimum=0.0),
+            slip_epsilon=get_float(params, "slip_epsilon", 1e-4, positive=True),
+            contact_tolerance=get_float(params, "contact_tolerance", 1e-6, positive=True),
+            stepping=get_str(params, "stepping", "lockstep", choices=("lockstep", "real_time")),
+            real_time_factor=get_float(params, "real_time_factor", 1.0, positive=True),
+            command_timeout=get_float(params, "command_timeout", 5.0, positive=True),
+            watchdog_policy=get_str(params, "watchdog_policy", "hold", choices=("hold", "zero")),
+            min_subscribers=get_int(params, "min_subscribers", 1, minimum=0),
+            publish_tf=get_bool(params, "publish_tf", False),
+            divergence_residual=get_float(params, "divergence_residual", 0.01, positive=True),
+        )
+
+
+def build_simulator(config: SimulatorConfig) -> tuple[Plant, Simulator]:
+    """The plant and a simulator at the configured start; refuses an infeasible start."""
+    plant = Plant(config.shared, config.slip_epsilon)
+    q0 = plant.to_model_order(config.initial_position)
+    dq0 = plant.to_model_order(config.initial_velocity)
+    simulator = Simulator(plant.dynamics(config.baumgarte), config.step, q0, dq0, config.substeps)
+    check_start(plant, simulator, config.contact_tolerance)
+    return plant, simulator
+
+
+def check_start(plant: Plant, simulator: Simulator, tolerance: float) -> None:
+    """A start state must satisfy every contact (|C| <= tolerance)."""
+    if not len(plant.contact_set):
+        return
+    terms = simulator.evaluate(np.zeros(simulator.n)).contacts
+    for contact, residual in zip(plant.config.contacts, terms.residual, strict=True):
+        if abs(residual) > tolerance:
+            raise ConfigError(
+                f"infeasible start: contact {contact.name!r} (frame {contact.frame!r}) is {residual:+.6g} m "
+                f"off its plane (tolerance {tolerance:g} m); change initial_position or the plane offset"
+            )

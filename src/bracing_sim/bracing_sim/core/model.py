@@ -1,0 +1,116 @@
+"""The robot model: a pinocchio model loaded from URDF, shared by simulator and controller.
+
+``RobotModel.compute(q, dq)`` runs one pinocchio pass (``computeAllTerms``) that fills
+the joint-space inertia M, the non-linear effects h + g, the joint Jacobians and the
+velocity-product ("drift") accelerations at ddq = 0; the accessors then read frame
+quantities from that pass without recomputing kinematics.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from bracing_sim.core.types import Vector
+
+_WORLD = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+
+class ModelError(ValueError):
+    """A robot description that cannot be used (missing file, unknown frame, bad joints)."""
+
+
+class RobotModel:
+    """Kinematics and dynamics of a fixed-base chain of 1-dof revolute/prismatic joints.
+
+    Joint order is pinocchio's (the URDF tree order); ``joint_names`` gives it.
+    Link-side viscous friction D comes from the URDF ``<dynamics damping>``.
+    """
+
+    def __init__(self, model: pin.Model, source: str = "<model>") -> None:
+        if model.nq != model.nv:
+            raise ModelError(f"{source}: only 1-dof revolute/prismatic joints are supported (nq={model.nq}, nv={model.nv})")
+        if model.nv == 0:
+            raise ModelError(f"{source}: the model has no moving joints")
+        self.model = model
+        self.data = model.createData()
+        self.source = source
+        self.joint_names: tuple[str, ...] = tuple(model.names[j] for j in range(1, model.njoints))
+        self.damping: Vector = np.array(model.damping, dtype=float)
+        self._symmetric_mass = np.zeros((model.nv, model.nv))
+
+    @classmethod
+    def from_urdf(cls, path: str | Path, gravity: Sequence[float] = (0.0, 0.0, -9.81)) -> RobotModel:
+        path = Path(path)
+        if not path.is_file():
+            raise ModelError(f"robot.urdf: file not found: {path}")
+        try:
+            model = pin.buildModelFromUrdf(str(path))
+        except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError on bad XML
+            raise ModelError(f"robot.urdf: pinocchio cannot load {path}: {exc}") from exc
+        gravity_vector = np.asarray(gravity, dtype=float)
+        if gravity_vector.shape != (3,) or not np.all(np.isfinite(gravity_vector)):
+            raise ModelError(f"robot.gravity: expected 3 finite numbers, got {list(gravity)}")
+        model.gravity.linear = gravity_vector
+        return cls(model, source=str(path))
+
+    @property
+    def nv(self) -> int:
+        return int(self.model.nv)
+
+    def frame_id(self, name: str) -> int:
+        if not self.model.existFrame(name):
+            frames = sorted({f.name for f in self.model.frames})
+            raise ModelError(f"unknown frame {name!r} in {self.source}; frames: {', '.join(frames)}")
+        return int(self.model.getFrameId(name))
+
+    def joint_permutation(self, names: Sequence[str]) -> np.ndarray:
+        """Index array p with ``names[p[k]] == joint_names[k]``: reorders per-name data to model order."""
+        if sorted(names) != sorted(self.joint_names) or len(set(names)) != len(names):
+            raise ModelError(f"joint names {list(names)} do not match the model's joints {list(self.joint_names)}")
+        position = {name: k for k, name in enumerate(names)}
+        return np.array([position[name] for name in self.joint_names], dtype=int)
+
+    # -- one pass ------------------------------------------------------------------
+    def compute(self, q: Vector, dq: Vector) -> None:
+        """M, h + g, Jacobians, frame placements and drift accelerations at (q, dq)."""
+        pin.computeAllTerms(self.model, self.data, q, dq)
+        pin.updateFramePlacements(self.model, self.data)
+
+    # -- reads of the last pass -------------------------------------------------------
+    def mass_matrix(self) -> Vector:
+        """M(q) (n x n, symmetric). pinocchio fills only the upper triangle."""
+        upper = self.data.M
+        out = self._symmetric_mass
+        np.copyto(out, upper)
+        lower = np.tril_indices(self.nv, -1)
+        out[lower] = upper.T[lower]
+        return out
+
+    def nonlinear_effects(self) -> Vector:
+        """h(q, dq) + g(q): Coriolis, centrifugal and gravity torques."""
+        return np.asarray(self.data.nle)
+
+    def gravity_torque(self, q: Vector) -> Vector:
+        return np.asarray(pin.computeGeneralizedGravity(self.model, self.data, q))
+
+    def frame_position(self, frame: int) -> Vector:
+        return np.asarray(self.data.oMf[frame].translation)
+
+    def frame_jacobian(self, frame: int) -> Vector:
+        """3 x n translational Jacobian of the frame origin, world axes."""
+        return np.asarray(pin.getFrameJacobian(self.model, self.data, frame, _WORLD)[:3])
+
+    def frame_drift(self, frame: int) -> Vector:
+        """dJ dq: the frame origin's acceleration at ddq = 0, world axes."""
+        return np.asarray(pin.getFrameClassicalAcceleration(self.model, self.data, frame, _WORLD).linear)
+
+    # -- energies (for diagnostics and tests) ---------------------------------------
+    def kinetic_energy(self, q: Vector, dq: Vector) -> float:
+        return float(pin.computeKineticEnergy(self.model, self.data, q, dq))
+
+    def potential_energy(self, q: Vector) -> float:
+        return float(pin.computePotentialEnergy(self.model, self.data, q))

@@ -1,0 +1,171 @@
+"""Flat ROS-style parameters (``"motors.resistance" -> [0.6, ...]``) and their validation.
+
+Both nodes and every in-process user (tests, benchmarks, sweeps) build their typed
+configuration from the same flat dict: a node gets it from its ROS parameters, the
+library from the scenario YAML (``load_params_file``). Errors name the parameter and
+what was expected.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+Params = Mapping[str, Any]
+
+
+class ConfigError(ValueError):
+    """An invalid or unknown parameter, or a missing file; the message names it."""
+
+
+def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in tree.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            out.update(flatten(value, name + "."))
+        else:
+            out[name] = value
+    return out
+
+
+def load_params_file(path: str | Path, node_name: str) -> dict[str, Any]:
+    """The flat parameters a node named ``node_name`` gets from a ROS 2 params file.
+
+    Sections ``/**`` and ``<node_name>`` (also ``/<node_name>``) are merged in file
+    order, as rcl does.
+    """
+    path = Path(path)
+    try:
+        document = yaml.safe_load(path.read_text())
+    except FileNotFoundError:
+        raise ConfigError(f"params file not found: {path}") from None
+    except (OSError, yaml.YAMLError) as exc:
+        raise ConfigError(f"params file {path} is not readable YAML: {exc}") from None
+    if not isinstance(document, Mapping):
+        raise ConfigError(f"params file {path}: expected a mapping of node sections")
+    params: dict[str, Any] = {}
+    for section, body in document.items():
+        if section in ("/**", node_name, "/" + node_name):
+            if not isinstance(body, Mapping) or not isinstance(body.get("ros__parameters"), Mapping):
+                raise ConfigError(f"params file {path}: section {section!r} needs a ros__parameters mapping")
+            params.update(flatten(body["ros__parameters"]))
+    return params
+
+
+def check_known(params: Params, known: Iterable[str], dynamic_prefixes: Mapping[str, Iterable[str]] = ()) -> None:
+    """Reject parameters that are not in the schema.
+
+    ``dynamic_prefixes`` maps a prefix such as ``"contacts."`` to the fields allowed in
+    its named sub-sections (``contacts.<any name>.<field>``).
+    """
+    known_set = set(known) | {"use_sim_time", "start_type_description_service"}
+    dynamic = {prefix: set(fields) for prefix, fields in dict(dynamic_prefixes).items()}
+    unknown = []
+    for name in params:
+        if name in known_set:
+            continue
+        for prefix, fields in dynamic.items():
+            rest = name[len(prefix):].split(".") if name.startswith(prefix) else []
+            if len(rest) == 2 and rest[1] in fields:
+                break
+        else:
+            unknown.append(name)
+    if unknown:
+        raise ConfigError(f"unknown parameter(s): {', '.join(sorted(unknown))}")
+
+
+# -- typed reads ------------------------------------------------------------------------
+def get_float(params: Params, name: str, default: float | None = None, *, minimum: float | None = None,
+              positive: bool = False) -> float:
+    value = params.get(name, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ConfigError(f"{name}: expected a finite number, got {value!r}")
+    if positive and value <= 0.0:
+        raise ConfigError(f"{name}: must be > 0, got {value!r}")
+    if minimum is not None and value < minimum:
+        raise ConfigError(f"{name}: must be >= {minimum}, got {value!r}")
+    return float(value)
+
+
+def get_int(params: Params, name: str, default: int, *, minimum: int | None = None) -> int:
+    value = params.get(name, default)
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ConfigError(f"{name}: expected an integer, got {value!r}")
+    if minimum is not None and value < minimum:
+        raise ConfigError(f"{name}: must be >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def get_bool(params: Params, name: str, default: bool) -> bool:
+    value = params.get(name, default)
+    if not isinstance(value, bool):
+        raise ConfigError(f"{name}: expected true or false, got {value!r}")
+    return value
+
+
+def get_str(params: Params, name: str, default: str | None = None, *, choices: Sequence[str] | None = None) -> str:
+    value = params.get(name, default)
+    if not isinstance(value, str) or (default is None and not value):
+        raise ConfigError(f"{name}: expected a non-empty string, got {value!r}")
+    if choices is not None and value not in choices:
+        raise ConfigError(f"{name}: expected one of {', '.join(choices)}, got {value!r}")
+    return value
+
+
+def get_floats(params: Params, name: str, default: Sequence[float] | None = None, *, length: int | None = None,
+               length_hint: str = "") -> tuple[float, ...]:
+    """A list of finite numbers; an empty or unset list reads as ``()``."""
+    value = params.get(name, default)
+    if value is None:
+        value = []
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        value = [value]
+    if not isinstance(value, (list, tuple)) or not all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value
+    ):
+        raise ConfigError(f"{name}: expected a list of finite numbers, got {value!r}")
+    if length is not None and len(value) != length:
+        hint = f" ({length_hint})" if length_hint else ""
+        raise ConfigError(f"{name}: expected {length} values{hint}, got {len(value)}")
+    return tuple(float(v) for v in value)
+
+
+def get_strs(params: Params, name: str, default: Sequence[str] = ()) -> tuple[str, ...]:
+    value = params.get(name, default)
+    if value is None:
+        return ()
+    if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) and v for v in value):
+        raise ConfigError(f"{name}: expected a list of non-empty strings, got {value!r}")
+    if len(set(value)) != len(value):
+        raise ConfigError(f"{name}: duplicate entries in {list(value)}")
+    return tuple(value)
+
+
+def resolve_file(name: str, parameter: str, search_dirs: Sequence[Path] = ()) -> Path:
+    """Find a configuration file: as given, then in the usual config directories."""
+    path = Path(name).expanduser()
+    if path.is_absolute():
+        if path.is_file():
+            return path
+        raise ConfigError(f"{parameter}: file not found: {path}")
+    candidates = [Path.cwd() / path, *(Path(d) / path for d in search_dirs)]
+    root = os.environ.get("BRACING_ROOT")
+    if root:
+        candidates.append(Path(root) / "config" / path)
+    try:
+        from ament_index_python.packages import get_package_share_directory
+
+        candidates.append(Path(get_package_share_directory("bracing_bringup")) / "config" / path)
+    except Exception:  # not in a ROS workspace: the other places still count
+        pass
+    for candidate in candidates:
+        if candidate.is_file():
+            return candidate.resolve()
+    tried = ", ".join(str(c) for c in candidates)
+    raise ConfigError(f"{parameter}: file {name!r} not found (looked in: {tried})")
