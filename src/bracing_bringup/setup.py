@@ -21,6 +21,8 @@ setup(
     entry_points={
         "console_scripts": [
             "pair=bracing_bringup.pair:main",
+            "recorder=bracing_bringup.recorder:main",
+            "bracing-recorder=bracing_bringup.recorder:main",
             "bracing-pair=bracing_bringup.pair:main",
             "report=bracing_bringup.report:main",
             "bracing-report=bracing_bringup.report:main",

@@ -1,0 +1,55 @@
+"""Validation of motor commands, independent of ROS message classes.
+
+A command is accepted only if every configured joint appears exactly once by name,
+every value is finite and the mode is the configured one. Over-limit values are
+saturated, not rejected. ``CommandError`` says what was wrong.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from bracing_sim.core.dynamics import InputMode
+from bracing_sim.core.types import Vector
+
+MODE_CODES = {InputMode.VOLTAGE: 0, InputMode.TORQUE: 1}  # bracing_msgs/MotorCommand constants
+
+
+class CommandError(ValueError):
+    """A command that must not be applied."""
+
+
+def command_vector(
+    names: Sequence[str],
+    values: Sequence[float],
+    mode_code: int,
+    joint_names: Sequence[str],
+    mode: InputMode,
+    limit: float = 0.0,
+) -> tuple[Vector, bool]:
+    """The command in ``joint_names`` order, and whether it was saturated to ``limit`` (0 = none)."""
+    expected_code = MODE_CODES[mode]
+    if mode_code != expected_code:
+        got = {v: k.value for k, v in MODE_CODES.items()}.get(mode_code, f"unknown ({mode_code})")
+        raise CommandError(f"mode {got} but the simulator is configured for {mode.value} input")
+    if len(names) != len(values):
+        raise CommandError(f"{len(names)} names but {len(values)} values")
+    if len(set(names)) != len(names):
+        duplicates = sorted({n for n in names if list(names).count(n) > 1})
+        raise CommandError(f"duplicate joint names {duplicates}")
+    unknown = sorted(set(names) - set(joint_names))
+    missing = sorted(set(joint_names) - set(names))
+    if unknown or missing:
+        raise CommandError(f"joint names do not match: unknown {unknown}, missing {missing}")
+    by_name = dict(zip(names, values, strict=True))
+    u = np.array([by_name[j] for j in joint_names], dtype=float)
+    if not np.all(np.isfinite(u)):
+        bad = [j for j, v in zip(joint_names, u, strict=True) if not np.isfinite(v)]
+        raise CommandError(f"non-finite values for {bad}")
+    saturated = False
+    if limit > 0.0 and np.any(np.abs(u) > limit):
+        u = np.clip(u, -limit, limit)
+        saturated = True
+    return u, saturated

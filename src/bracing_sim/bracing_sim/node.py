@@ -1,0 +1,273 @@
+"""bracing-simulator: publishes the simulated robot, applies motor commands.
+
+Thin: ROS parameters -> SimulatorConfig -> core Simulator; messages in and out.
+Lockstep (default): publish state k, wait for the command stamped with state k's
+stamp, step with it held. Real-time: a wall-clock timer steps with the latest command.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+import rclpy
+from bracing_msgs.msg import ContactState, Contacts, MotorCommand, MotorState
+from geometry_msgs.msg import Point, Vector3, WrenchStamped
+from rclpy.duration import Duration
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+
+from bracing_sim.commands import CommandError, command_vector
+from bracing_sim.config import SimulatorConfig, build_simulator
+from bracing_sim.core.dynamics import Derivative, InputMode
+from bracing_sim.core.simulator import DivergenceError
+from bracing_sim.core.types import Vector
+from bracing_sim.params import ConfigError
+from bracing_sim.ros_common import EXIT_CONFIG, EXIT_DIVERGED, STREAM_QOS, nanoseconds, read_parameters, run, stamp
+
+
+class SimulatorNode(Node):
+    def __init__(self, **kwargs: object) -> None:
+        super().__init__("bracing_simulator", **kwargs)  # type: ignore[arg-type]
+        self.config = SimulatorConfig.from_params(read_parameters(self))
+        self.plant, self.sim = build_simulator(self.config)
+        self.joint_names = list(self.plant.joint_names)
+        self.mode = self.config.shared.input_mode
+        motors = self.plant.motors
+        self.limit = motors.voltage_limit if self.mode is InputMode.VOLTAGE else motors.torque_limit
+        self.step_ns = int(round(self.config.step * 1e9))
+        duration = self.config.duration
+        self.total_steps = int(round(duration / self.config.step)) if duration > 0 else None
+
+        self.joint_pub = self.create_publisher(JointState, "joint_states", STREAM_QOS)
+        self.contacts_pub = self.create_publisher(Contacts, "contacts", STREAM_QOS)
+        self.motor_pub = self.create_publisher(MotorState, "motor_state", STREAM_QOS)
+        self.clock_pub = self.create_publisher(Clock, "/clock", STREAM_QOS)
+        self.wrench_pubs = [
+            self.create_publisher(WrenchStamped, f"contact_wrench/{c.name}", STREAM_QOS) for c in self.config.shared.contacts
+        ]
+        self.create_subscription(MotorCommand, "motor_command", self._on_command, STREAM_QOS)
+
+        self.command = np.zeros(self.sim.n)  # last applied (held) command
+        self._pending: dict[int, Vector] = {}  # lockstep: valid commands by stamp [ns]
+        self._latest: tuple[float, Vector] | None = None  # real-time: (wall time, command)
+        self.finished = False
+        self._next_progress = 0.0  # wall time of the next progress line
+        self.exit_code = 0
+        self.get_logger().info(
+            f"{self.mode.value} input, {len(self.plant.contact_set)} contact(s), step {self.config.step} s, "
+            f"{self.config.stepping}, duration {duration or 'unbounded'} s"
+        )
+
+    # -- commands -------------------------------------------------------------------
+    def _on_command(self, msg: MotorCommand) -> None:
+        try:
+            u, saturated = command_vector(msg.name, msg.value, msg.mode, self.joint_names, self.mode, self.limit)
+        except CommandError as exc:
+            self.get_logger().error(f"motor_command rejected: {exc}", throttle_duration_sec=1.0)
+            return
+        if saturated:
+            self.get_logger().warning(f"motor_command saturated to +/-{self.limit}", throttle_duration_sec=1.0)
+        stamp_ns = nanoseconds(msg.header.stamp)
+        if self.config.stepping == "real_time":
+            self._latest = (time.monotonic(), u)
+            return
+        now_ns = self.sim.steps_taken * self.step_ns
+        if stamp_ns != now_ns:
+            age = "stale" if stamp_ns < now_ns else "from the future"
+            self.get_logger().error(
+                f"motor_command rejected: stamp {stamp_ns * 1e-9:.6f} s is {age} (waiting for {now_ns * 1e-9:.6f} s)",
+                throttle_duration_sec=1.0,
+            )
+            return
+        self._pending[stamp_ns] = u
+
+    # -- publishing -----------------------------------------------------------------
+    def publish_state(self, effort: Vector) -> None:
+        t_ns = self.sim.steps_taken * self.step_ns
+        header_stamp = stamp(t_ns)
+        self.clock_pub.publish(Clock(clock=header_stamp))
+        msg = JointState()
+        msg.header.stamp = header_stamp
+        msg.name = self.joint_names
+        msg.position = self.sim.position.tolist()
+        msg.velocity = self.sim.velocity.tolist()
+        msg.effort = np.asarray(effort, dtype=float).tolist()
+        self.joint_pub.publish(msg)
+
+    def publish_step(self, t_ns: int, command: Vector, d: Derivative, current: Vector) -> None:
+        """Reports of one step: forces at its start under the held command, energies up to its start."""
+        header_stamp = stamp(t_ns)
+        contacts = Contacts()
+        contacts.header.stamp = header_stamp
+        contacts.header.frame_id = "world"
+        terms = d.contacts
+        for j, cfg in enumerate(self.config.shared.contacts):
+            normal = terms.normals[j]
+            friction = d.friction_force[j]
+            force = d.normal_force[j] * normal - friction * terms.slip_direction[j]
+            contacts.contacts.append(
+                ContactState(
+                    name=cfg.name,
+                    frame=cfg.frame,
+                    active=True,
+                    position=Point(x=terms.positions[j, 0], y=terms.positions[j, 1], z=terms.positions[j, 2]),
+                    normal=_vector(normal),
+                    normal_force=float(d.normal_force[j]),
+                    friction_force=float(friction),
+                    slip_velocity=_vector(terms.slip_velocity[j]),
+                    residual=float(terms.residual[j]),
+                )
+            )
+            wrench = WrenchStamped()
+            wrench.header = contacts.header
+            wrench.wrench.force = _vector(force)  # at the contact point, so no moment
+            self.wrench_pubs[j].publish(wrench)
+        self.contacts_pub.publish(contacts)
+        self.motor_pub.publish(self._motor_state(header_stamp, command, current, d))
+
+    def _motor_state(self, header_stamp: object, command: Vector, current: Vector, d: Derivative) -> MotorState:
+        energy = self.energy_at_start
+        msg = MotorState()
+        msg.header.stamp = header_stamp
+        msg.name = self.joint_names
+        if self.mode is InputMode.VOLTAGE:
+            msg.voltage = command.tolist()
+            msg.current = current.tolist()
+            msg.power = (command * current).tolist()
+        else:  # direct drive: mechanical power tau dq
+            msg.voltage = [0.0] * self.sim.n
+            msg.current = [0.0] * self.sim.n
+            msg.power = (command * self.sim.velocity).tolist()
+        msg.energy_consumed = energy.consumed
+        msg.energy_net = energy.net
+        msg.copper_loss = energy.copper_loss
+        return msg
+
+    # -- one step -------------------------------------------------------------------
+    def advance(self, command: Vector) -> None:
+        """Step with ``command`` held, publish the step's reports and the new state."""
+        t_ns = self.sim.steps_taken * self.step_ns
+        current = self.sim.current
+        self.energy_at_start = self.sim.energy
+        d = self.sim.step(command)
+        self.command = command
+        self.publish_step(t_ns, command, d, current)
+        residual = float(np.max(np.abs(d.contacts.residual))) if d.contacts.count else 0.0
+        if residual > self.config.divergence_residual:
+            raise DivergenceError(
+                f"constraint residual {residual:.3g} m exceeds divergence_residual {self.config.divergence_residual} m"
+            )
+        self.publish_state(self.state_effort())
+        now = time.monotonic()
+        if now >= self._next_progress:  # bracing-pair follows these lines
+            self._next_progress = now + 0.5
+            self.get_logger().info(f"progress t={self.sim.time:.3f}")
+
+    def state_effort(self) -> Vector:
+        """JointState.effort: link-side motor torque (the held command in torque mode)."""
+        if self.mode is InputMode.TORQUE:
+            return self.command
+        return self.sim.evaluate(self.command).effort
+
+    def done(self) -> bool:
+        return self.total_steps is not None and self.sim.steps_taken >= self.total_steps
+
+    def finish(self) -> None:
+        """Report the final state and let reliable subscribers receive everything."""
+        t_ns = self.sim.steps_taken * self.step_ns
+        self.energy_at_start = self.sim.energy
+        d = self.sim.evaluate(self.command)
+        self.publish_step(t_ns, self.command, d, self.sim.current)
+        for pub in (self.joint_pub, self.contacts_pub, self.motor_pub, self.clock_pub, *self.wrench_pubs):
+            pub.wait_for_all_acked(Duration(seconds=2.0))
+        self.finished = True
+        self.get_logger().info(f"progress t={self.sim.time:.3f}")
+        self.get_logger().info(f"finished at t = {self.sim.time:.6f} s")
+
+
+def _vector(v: Vector) -> Vector3:
+    return Vector3(x=float(v[0]), y=float(v[1]), z=float(v[2]))
+
+
+def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None:
+    cfg = node.config
+    # Wait for the controller (and a recorder, if asked) before the first state.
+    while node.joint_pub.get_subscription_count() < cfg.min_subscribers:
+        executor.spin_once(timeout_sec=0.05)
+    node.publish_state(node.state_effort())
+    while not node.done():
+        expected = node.sim.steps_taken * node.step_ns
+        deadline = time.monotonic() + cfg.command_timeout
+        while expected not in node._pending:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0.0:
+                break
+            executor.spin_once(timeout_sec=min(remaining, 0.1))
+        command = node._pending.pop(expected, None)
+        node._pending.clear()
+        if command is None:
+            policy = cfg.watchdog_policy
+            node.get_logger().warning(
+                f"no valid motor_command for t = {expected * 1e-9:.6f} s within {cfg.command_timeout} s: "
+                f"{'holding the last command' if policy == 'hold' else 'applying zero'}",
+                throttle_duration_sec=1.0,
+            )
+            command = node.command if policy == "hold" else np.zeros(node.sim.n)
+        node.advance(command)
+    node.finish()
+
+
+def spin_real_time(node: SimulatorNode, executor: SingleThreadedExecutor) -> None:
+    cfg = node.config
+    period = cfg.step / cfg.real_time_factor
+
+    def tick() -> None:
+        if node.done():
+            return
+        latest = node._latest
+        if latest is None or time.monotonic() - latest[0] > cfg.command_timeout:
+            if latest is not None:
+                node.get_logger().warning("motor_command stale: applying zero", throttle_duration_sec=1.0)
+            command = np.zeros(node.sim.n)
+        else:
+            command = latest[1]
+        node.advance(command)
+
+    node.publish_state(node.state_effort())
+    node.create_timer(period, tick)
+    while not node.done():
+        executor.spin_once(timeout_sec=0.1)
+    node.finish()
+
+
+def spin(node: SimulatorNode) -> int:
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        if node.config.stepping == "lockstep":
+            spin_lockstep(node, executor)
+        else:
+            spin_real_time(node, executor)
+    except DivergenceError as exc:
+        node.get_logger().fatal(f"simulation diverged at t = {node.sim.time:.6f} s: {exc}")
+        print(f"error: simulation diverged at t = {node.sim.time:.6f} s: {exc}", file=sys.stderr, flush=True)
+        return EXIT_DIVERGED
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    return 0
+
+
+def main(args: list[str] | None = None) -> int:
+    code = run(SimulatorNode, spin, args)  # type: ignore[arg-type]
+    sys.exit(code)
+
+
+__all__ = ["SimulatorNode", "main", "ConfigError", "EXIT_CONFIG", "rclpy"]
+
+
+if __name__ == "__main__":
+    main()

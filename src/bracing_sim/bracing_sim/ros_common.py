@@ -1,0 +1,74 @@
+"""ROS plumbing shared by the nodes: parameters, stamps, QoS, the main() wrapper."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+from typing import Any
+
+import rclpy
+from builtin_interfaces.msg import Time
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.exceptions import ParameterException
+from rclpy.node import Node
+from rclpy._rclpy_pybind11 import RCLError
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from bracing_sim.params import ConfigError
+
+# Reliable and deep: a lockstep run must not lose a message to a slower recorder.
+STREAM_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=2000, reliability=ReliabilityPolicy.RELIABLE)
+
+EXIT_CONFIG = 2
+EXIT_DIVERGED = 3
+
+
+def read_parameters(node: Node) -> dict[str, Any]:
+    """Declare every parameter the node was given and return them all as a flat dict.
+
+    Declared with dynamic typing so that ``offset: 0`` (an integer) or ``target: []``
+    (NOT_SET to rcl) reach the configuration layer, which validates types and names in
+    one place, with messages naming the parameter.
+    """
+    dynamic = ParameterDescriptor(dynamic_typing=True)
+    for name, parameter in node._parameter_overrides.items():  # rclpy keeps --ros-args overrides here
+        if not node.has_parameter(name):
+            node.declare_parameter(name, parameter.value, dynamic)
+    return {name: parameter.value for name, parameter in node.get_parameters_by_prefix("").items()}
+
+
+def stamp(nanoseconds: int) -> Time:
+    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
+
+
+def nanoseconds(time: Time) -> int:
+    return int(time.sec) * 1_000_000_000 + int(time.nanosec)
+
+
+def run(node_factory: Callable[[], Node], spin: Callable[[Node], int] | None = None, args: list[str] | None = None) -> int:
+    """Create the node, spin it, and turn start-up errors into one clear line and exit 2."""
+    code = 0
+    node: Node | None = None
+    try:
+        try:
+            rclpy.init(args=args if args is not None else sys.argv)
+        except RCLError as exc:  # e.g. a params file rcl cannot parse
+            raise ConfigError(str(exc).split(", at /")[0]) from None
+        node = node_factory()
+        code = spin(node) if spin is not None else _spin(node)
+    except (ConfigError, ParameterException) as exc:
+        print(f"error: {exc}", file=sys.stderr, flush=True)
+        code = EXIT_CONFIG
+    except KeyboardInterrupt:
+        code = 0
+    finally:
+        if node is not None:
+            node.destroy_node()
+        if rclpy.ok():
+            rclpy.try_shutdown()
+    return code
+
+
+def _spin(node: Node) -> int:
+    rclpy.spin(node)
+    return 0

@@ -1,0 +1,541 @@
+"""Recorder (rosbag2 over real DDS), bag summary and report.
+
+The ROS tests run the recorder and a synthetic publisher as subprocesses on a random
+ROS_DOMAIN_ID with discovery restricted to localhost. The same synthetic step builder
+(`make_step`) is used to publish over DDS and to write bags directly for the report
+tests, so the expected numbers are known exactly.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import queue
+import random
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+BRINGUP_SRC = ROOT / "src" / "bracing_bringup"
+try:
+    import bracing_bringup  # noqa: F401
+except ImportError:  # not built into the workspace yet: use the source tree
+    sys.path.insert(0, str(BRINGUP_SRC))
+
+from rosbags.highlevel import AnyReader  # noqa: E402
+
+from bracing_bringup.report import main as report_main  # noqa: E402
+from bracing_bringup.report import write_report  # noqa: E402
+from bracing_bringup.summary import (  # noqa: E402
+    SUMMARY_KEYS,
+    BagSeries,
+    ContactSeries,
+    compute_summary,
+    read_series,
+)
+
+N_STEPS = 200
+DT = 0.02  # 200 steps span 3.98 s, so the t >= 2 s window of the hand error is exercised
+CONTACTS = ("elbow", "wrist")
+JOINTS = ("joint1", "joint2", "joint3", "joint4")
+HAND_OFFSET_EARLY = 0.05  # hand error before t = 2 s (must not count)
+HAND_OFFSET = 0.01        # hand error from t = 2 s on
+BRACE_OFFSET = 0.002      # brace actual - desired [m], constant
+FORCE_DESIRED = 10.0
+FORCE_SWING = 0.5         # f_n = f_nd +- 0.5 alternating -> rms error 0.5 N
+RESIDUAL_AMPLITUDE = 3e-6
+
+
+# --------------------------------------------------------------------------- synthetic data
+
+def step_values(k: int) -> dict[str, Any]:
+    """Known numbers of step k (pure Python, shared by publisher and assertions)."""
+    t = k * DT
+    hand_d = (0.0, 1.1 + 0.2 * math.cos(-2 * math.pi * t / 10), 0.6 + 0.2 * math.sin(-2 * math.pi * t / 10))
+    off = HAND_OFFSET if t >= 2.0 - 1e-9 else HAND_OFFSET_EARLY
+    return {
+        "t": t,
+        "sec": int(round(k * DT * 1e9)) // 1_000_000_000,
+        "nanosec": int(round(k * DT * 1e9)) % 1_000_000_000,
+        "position": [0.1 * k + j for j in range(4)],
+        "hand_desired": hand_d,
+        "hand_actual": (hand_d[0], hand_d[1] + off, hand_d[2]),
+        "brace_desired": (0.0, 0.5878, 0.0),
+        "brace_actual": (0.0, 0.5878, BRACE_OFFSET),
+        "f_n": FORCE_DESIRED + (FORCE_SWING if k % 2 == 0 else -FORCE_SWING),
+        "residual": RESIDUAL_AMPLITUDE * math.sin(0.1 * k),
+        "energy": 0.1 * k,
+        "copper": 0.05 * k,
+        "command": [float(k), -float(k), 0.5, 2.0],
+    }
+
+
+def make_step(k: int, contacts: tuple[str, ...] = CONTACTS) -> dict[str, Any]:
+    """The rclpy messages of step k, by relative topic name."""
+    from builtin_interfaces.msg import Time
+    from geometry_msgs.msg import Point, Vector3, WrenchStamped
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import JointState
+
+    from bracing_msgs.msg import (
+        ContactState,
+        Contacts,
+        ControllerState,
+        MotorCommand,
+        MotorState,
+    )
+
+    v = step_values(k)
+    stamp = Time(sec=v["sec"], nanosec=v["nanosec"])
+    msgs: dict[str, Any] = {}
+    js = JointState()
+    js.header.stamp = stamp
+    js.name = list(JOINTS)
+    js.position = v["position"]
+    js.velocity = [0.0, 1.0, 2.0, 3.0]
+    js.effort = [float(k)] * 4
+    msgs["joint_states"] = js
+    for j, name in enumerate(contacts):
+        w = WrenchStamped()
+        w.header.stamp = stamp
+        w.header.frame_id = "world"
+        w.wrench.force.z = v["f_n"] + j
+        w.wrench.force.y = -0.1 * v["f_n"]
+        msgs[f"contact_wrench/{name}"] = w
+    cmsg = Contacts()
+    cmsg.header.stamp = stamp
+    for j, name in enumerate(contacts):
+        cmsg.contacts.append(ContactState(
+            name=name, frame=f"{name}_frame", active=True,
+            position=Point(x=0.0, y=0.5878, z=v["residual"]),
+            normal=Vector3(x=0.0, y=0.0, z=1.0),
+            normal_force=v["f_n"], friction_force=0.1 * v["f_n"],
+            slip_velocity=Vector3(x=0.0, y=1e-3 * k, z=0.0),
+            residual=v["residual"] * (j + 1)))
+    msgs["contacts"] = cmsg
+    ms = MotorState()
+    ms.header.stamp = stamp
+    ms.name = list(JOINTS)
+    ms.voltage = [1.0, 2.0, 3.0, 4.0]
+    ms.current = [0.5] * 4
+    ms.power = [0.5, 1.0, 1.5, 2.0]
+    ms.energy_consumed = v["energy"]
+    ms.energy_net = 0.9 * v["energy"]
+    ms.copper_loss = v["copper"]
+    msgs["motor_state"] = ms
+    msgs["/clock"] = Clock(clock=stamp)
+    mc = MotorCommand()
+    mc.header.stamp = stamp
+    mc.mode = MotorCommand.VOLTAGE
+    mc.name = list(JOINTS)
+    mc.value = v["command"]
+    msgs["motor_command"] = mc
+    cs = ControllerState()
+    cs.header.stamp = stamp
+    cs.hand_desired = Point(x=v["hand_desired"][0], y=v["hand_desired"][1], z=v["hand_desired"][2])
+    cs.hand_actual = Point(x=v["hand_actual"][0], y=v["hand_actual"][1], z=v["hand_actual"][2])
+    cs.contact_name = list(contacts)
+    cs.desired_normal_force = [FORCE_DESIRED] * len(contacts)
+    cs.brace_desired = [Point(x=v["brace_desired"][0], y=v["brace_desired"][1], z=v["brace_desired"][2])
+                        for _ in contacts]
+    cs.brace_actual = [Point(x=v["brace_actual"][0], y=v["brace_actual"][1], z=v["brace_actual"][2])
+                       for _ in contacts]
+    cs.command = v["command"]
+    cs.compute_time = 1e-4
+    msgs["controller_state"] = cs
+    return msgs
+
+
+def write_bag_directly(path: Path, n: int, contacts: tuple[str, ...]) -> None:
+    """A bag like the recorder's, written without DDS (for the report tests)."""
+    from rclpy.serialization import serialize_message
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    from bracing_bringup.recorder import BAG_VERSION, bracing_typestore, topic_table
+
+    store = bracing_typestore()
+    writer = Writer(path, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
+    writer.open()
+    conns = {}
+    for topic, _, type_name in topic_table(contacts):
+        name = topic if topic.startswith("/") else "/" + topic
+        conns[topic] = writer.add_connection(name, type_name, typestore=store)
+    for k in range(n):
+        v = step_values(k)
+        ns = v["sec"] * 1_000_000_000 + v["nanosec"]
+        for topic, msg in make_step(k, contacts).items():
+            writer.write(conns[topic], ns, serialize_message(msg))
+    writer.close()
+
+
+def publisher_main(namespace: str, contacts: str, n: int, period: float) -> None:
+    """Run in a subprocess: publish n synthetic steps of every topic."""
+    import rclpy
+    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    names = tuple(c for c in contacts.split(",") if c)
+    rclpy.init()
+    node = rclpy.create_node("synthetic_publisher", namespace=namespace)
+    qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+    pubs = {topic: node.create_publisher(type(msg), topic, qos)
+            for topic, msg in make_step(0, names).items()}
+    deadline = time.monotonic() + 15.0
+    while any(p.get_subscription_count() == 0 for p in pubs.values()):
+        if time.monotonic() > deadline:
+            print("publisher: recorder not discovered", flush=True)
+            sys.exit(3)
+        rclpy.spin_once(node, timeout_sec=0.02)
+    print("publishing", flush=True)
+    for k in range(n):
+        for topic, msg in make_step(k, names).items():
+            pubs[topic].publish(msg)
+        if period > 0:
+            time.sleep(period)
+    print("sent", flush=True)
+    for p in pubs.values():
+        p.wait_for_all_acked(rclpy.duration.Duration(seconds=5.0))
+    print("published", flush=True)
+    node.destroy_node()
+    rclpy.shutdown()
+
+
+# --------------------------------------------------------------------------- process helpers
+
+def ros_env() -> dict[str, str]:
+    env = dict(os.environ)
+    env["ROS_DOMAIN_ID"] = str(random.randint(100, 200))
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env["PYTHONPATH"] = os.pathsep.join(
+        [str(BRINGUP_SRC), str(Path(__file__).resolve().parent), env.get("PYTHONPATH", "")])
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
+
+
+class Proc:
+    """A subprocess whose stdout lines are collected by a reader thread."""
+
+    def __init__(self, args: list[str], env: dict[str, str]) -> None:
+        self.popen = subprocess.Popen(
+            args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.lines: queue.Queue[str] = queue.Queue()
+        self.stdout: list[str] = []
+        self._thread = threading.Thread(target=self._read, daemon=True)
+        self._thread.start()
+
+    def _read(self) -> None:
+        assert self.popen.stdout is not None
+        for line in self.popen.stdout:
+            self.stdout.append(line)
+            self.lines.put(line.rstrip("\n"))
+
+    def wait_line(self, text: str, timeout: float) -> None:
+        deadline = time.monotonic() + timeout
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                break
+            try:
+                if self.lines.get(timeout=min(left, 0.1)) == text:
+                    return
+            except queue.Empty:
+                if self.popen.poll() is not None and self.lines.empty():
+                    break
+        err = self.popen.stderr.read() if self.popen.poll() is not None and self.popen.stderr else ""
+        pytest.fail(f"no line {text!r} within {timeout} s from {self.popen.args}: {err}")
+
+    def finish(self, timeout: float) -> tuple[int, str]:
+        try:
+            self.popen.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.popen.kill()
+            self.popen.wait()
+            pytest.fail(f"{self.popen.args} did not exit within {timeout} s")
+        self._thread.join(timeout=5.0)
+        err = self.popen.stderr.read() if self.popen.stderr else ""
+        return self.popen.returncode, err
+
+    def kill(self) -> None:
+        if self.popen.poll() is None:
+            self.popen.kill()
+            self.popen.wait()
+
+
+@pytest.fixture
+def procs() -> Iterator[list[Proc]]:
+    started: list[Proc] = []
+    yield started
+    for p in started:
+        p.kill()
+
+
+def start_recorder(procs: list[Proc], env: dict[str, str], bag: Path, namespace: str,
+                   contacts: tuple[str, ...]) -> Proc:
+    args = [sys.executable, "-m", "bracing_bringup.recorder", "--output", str(bag),
+            "--contacts", ",".join(contacts)]
+    if namespace:
+        args += ["--namespace", namespace]
+    rec = Proc(args, env)
+    procs.append(rec)
+    rec.wait_line("recorder ready", timeout=15.0)
+    return rec
+
+
+def start_publisher(procs: list[Proc], env: dict[str, str], namespace: str,
+                    contacts: tuple[str, ...], n: int, period: float) -> Proc:
+    code = ("import test_recorder_report as t; "
+            f"t.publisher_main({namespace!r}, {','.join(contacts)!r}, {n}, {period})")
+    pub = Proc([sys.executable, "-c", code], env)
+    procs.append(pub)
+    return pub
+
+
+def read_bag(bag: Path) -> dict[str, list[tuple[int, Any]]]:
+    """topic -> [(bag timestamp, message)], decoded with the bag's own definitions only."""
+    out: dict[str, list[tuple[int, Any]]] = {}
+    with AnyReader([bag]) as reader:  # no default typestore: definitions from the bag
+        for conn in reader.connections:
+            out.setdefault(conn.topic, [])
+        for conn, stamp, raw in reader.messages():
+            out[conn.topic].append((stamp, reader.deserialize(raw, conn.msgtype)))
+    return out
+
+
+def expected_topics(namespace: str, contacts: tuple[str, ...]) -> set[str]:
+    prefix = "/" + namespace.strip("/") if namespace.strip("/") else ""
+    rel = ["joint_states", "contacts", "motor_state", "motor_command", "controller_state"]
+    rel += [f"contact_wrench/{c}" for c in contacts]
+    return {f"{prefix}/{t}" for t in rel} | {"/clock"}
+
+
+# --------------------------------------------------------------------------- recorder tests
+
+def test_recorder_records_every_topic_exactly(tmp_path: Path, procs: list[Proc]) -> None:
+    env = ros_env()
+    bag = tmp_path / "run" / "bag"
+    rec = start_recorder(procs, env, bag, "", CONTACTS)
+    pub = start_publisher(procs, env, "", CONTACTS, N_STEPS, period=0.0)  # burst: backlog
+    pub.wait_line("sent", timeout=30.0)
+    # Stop at once, while messages are still queued: the recorder must drain them.
+    rec.popen.send_signal(signal.SIGINT)
+    rc, err = rec.finish(timeout=15.0)
+    assert rc == 0, err
+    assert f"recorder wrote {N_STEPS * 8} messages" in "".join(rec.stdout)
+    pub.kill()
+
+    meta = (bag / "metadata.yaml").read_text()
+    assert "storage_identifier: mcap" in meta
+    assert list(bag.glob("*.mcap"))
+
+    data = read_bag(bag)
+    assert set(data) == expected_topics("", CONTACTS)
+    for topic, msgs in data.items():
+        assert len(msgs) == N_STEPS, topic
+
+    for k, (stamp, js) in enumerate(sorted(data["/joint_states"], key=lambda x: x[0])):
+        v = step_values(k)
+        assert stamp == v["sec"] * 1_000_000_000 + v["nanosec"]  # bag time = header stamp
+        assert list(js.name) == list(JOINTS)
+        assert np.array_equal(js.position, v["position"])
+        assert np.array_equal(js.velocity, [0.0, 1.0, 2.0, 3.0])
+    for j, name in enumerate(CONTACTS):
+        forces = sorted((s, m.wrench.force.z) for s, m in data[f"/contact_wrench/{name}"])
+        assert [f for _, f in forces] == [step_values(k)["f_n"] + j for k in range(N_STEPS)]
+        assert all(m.header.frame_id == "world" for _, m in data[f"/contact_wrench/{name}"])
+    clocks = sorted(s for s, _ in data["/clock"])
+    assert clocks == sorted(s for s, _ in data["/joint_states"])
+    assert all(s == m.clock.sec * 1_000_000_000 + m.clock.nanosec for s, m in data["/clock"])
+    stamp0, c0 = min(data["/contacts"], key=lambda x: x[0])
+    assert stamp0 == 0
+    assert [c.name for c in c0.contacts] == list(CONTACTS)
+    assert c0.contacts[0].active and c0.contacts[0].frame == "elbow_frame"
+    assert c0.contacts[1].normal.z == 1.0
+    last_cmd = max(data["/motor_command"], key=lambda x: x[0])[1]
+    assert last_cmd.mode == 0 and list(last_cmd.value) == step_values(N_STEPS - 1)["command"]
+    last_ms = max(data["/motor_state"], key=lambda x: x[0])[1]
+    assert last_ms.energy_consumed == pytest.approx(step_values(N_STEPS - 1)["energy"])
+    assert list(last_ms.power) == [0.5, 1.0, 1.5, 2.0]
+    cs = max(data["/controller_state"], key=lambda x: x[0])[1]
+    assert list(cs.contact_name) == list(CONTACTS)
+    assert cs.brace_actual[1].z == BRACE_OFFSET
+    assert cs.hand_actual.y == step_values(N_STEPS - 1)["hand_actual"][1]
+
+    # The summary of the recorded run has the designed errors.
+    summary = compute_summary(read_series(bag), wall_time_s=2.0)
+    assert summary["hand_rms_error_m"] == pytest.approx(HAND_OFFSET, abs=1e-12)
+    assert summary["hand_max_error_m"] == pytest.approx(HAND_OFFSET, abs=1e-12)
+    assert summary["brace_rms_error_m"] == pytest.approx(BRACE_OFFSET, abs=1e-12)
+    assert summary["normal_force_rms_error_n"] == pytest.approx(FORCE_SWING, abs=1e-12)
+    assert summary["sim_time_s"] == pytest.approx((N_STEPS - 1) * DT)
+    assert summary["real_time_factor"] == pytest.approx((N_STEPS - 1) * DT / 2.0)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_recorder_stopped_mid_stream_leaves_readable_bag(
+        tmp_path: Path, procs: list[Proc], sig: signal.Signals) -> None:
+    env = ros_env()
+    bag = tmp_path / "bag"
+    contacts = ("elbow",)
+    rec = start_recorder(procs, env, bag, "robot1", contacts)
+    total = 100000  # far more than gets sent before the stop
+    pub = start_publisher(procs, env, "robot1", contacts, total, period=0.001)
+    pub.wait_line("publishing", timeout=15.0)
+    time.sleep(0.8)
+    rec.popen.send_signal(sig)
+    rc, err = rec.finish(timeout=15.0)
+    assert rc == 0, err
+    assert pub.popen.poll() is None, "publisher finished before the stop: test too slow"
+    pub.kill()
+
+    data = read_bag(bag)
+    assert set(data) == expected_topics("robot1", contacts)
+    stamps = sorted(s for s, _ in data["/robot1/joint_states"])
+    assert 10 < len(stamps) < total
+    # Reliable, in-order delivery: what was recorded is an unbroken prefix of the stream.
+    expected = [step_values(k)["sec"] * 1_000_000_000 + step_values(k)["nanosec"]
+                for k in range(len(stamps))]
+    assert stamps == expected
+    for _, msg in data["/robot1/controller_state"]:
+        assert list(msg.contact_name) == ["elbow"]
+
+
+def test_recorder_refuses_existing_output(tmp_path: Path) -> None:
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    res = subprocess.run(
+        [sys.executable, "-m", "bracing_bringup.recorder", "--output", str(bag)],
+        env=ros_env(), capture_output=True, text=True, timeout=30)
+    assert res.returncode == 2
+    assert "exists already" in res.stderr
+    assert list(bag.iterdir()) == []
+
+
+# --------------------------------------------------------------------------- summary tests
+
+def _series(n: int = 401, dt: float = 0.01) -> BagSeries:
+    t = np.arange(n) * dt
+    hand_d = np.stack([np.zeros(n), 1.1 + 0.2 * np.cos(t), 0.6 + 0.2 * np.sin(t)], axis=1)
+    s = BagSeries(joint_t=t.copy(), t=t.copy(), hand_desired=hand_d,
+                  hand_actual=hand_d + np.array([0.0, 0.0, 0.01]))
+    s.motor_t = t.copy()
+    s.energy_consumed = 2.0 * t
+    s.energy_net = 1.5 * t
+    s.copper_loss = 0.5 * t
+    return s
+
+
+def test_summary_constant_hand_offset_and_no_contacts() -> None:
+    s = _series()
+    s.hand_actual[t_early := s.t < 2.0] += np.array([0.0, 1.0, 0.0])  # huge, but before 2 s
+    assert t_early.any()
+    out = compute_summary(s)
+    assert list(out) == list(SUMMARY_KEYS)
+    assert out["hand_rms_error_m"] == pytest.approx(0.01, abs=1e-12)
+    assert out["hand_max_error_m"] == pytest.approx(0.01, abs=1e-12)
+    assert out["brace_rms_error_m"] == 0.0
+    assert out["normal_force_rms_error_n"] == 0.0
+    assert out["constraint_residual_max_m"] == 0.0
+    assert out["energy_consumed_j"] == pytest.approx(8.0)
+    assert out["copper_loss_j"] == pytest.approx(2.0)
+    assert out["sim_time_s"] == pytest.approx(4.0)
+    assert out["wall_time_s"] is None and out["real_time_factor"] is None
+    json.dumps(out, allow_nan=False)
+
+
+def test_summary_contacts_errors_and_rtf() -> None:
+    s = _series(n=101, dt=0.05)
+    n = s.t.size
+    # 3-4-5 triangle: brace error 0.005 everywhere.
+    cs = ContactSeries(name="elbow", t=s.t.copy(), t_ctrl=s.t.copy())
+    cs.brace_desired = np.zeros((n, 3))
+    cs.brace_actual = np.tile([0.0, 0.003, 0.004], (n, 1))
+    cs.normal_force = 10.0 + np.where(np.arange(n) % 2 == 0, 2.0, -2.0)
+    cs.normal_force_desired = np.full(n, 10.0)
+    cs.t_matched = s.t.copy()
+    cs.normal_force_error = cs.normal_force - 10.0
+    cs.residual = np.linspace(-2e-6, 1e-6, n)
+    s.contacts["elbow"] = cs
+    out = compute_summary(s, wall_time_s=2.5)
+    assert out["brace_rms_error_m"] == pytest.approx(0.005)
+    assert out["normal_force_rms_error_n"] == pytest.approx(2.0)
+    assert out["constraint_residual_max_m"] == pytest.approx(2e-6)
+    assert out["sim_time_s"] == pytest.approx(5.0)
+    assert out["wall_time_s"] == 2.5
+    assert out["real_time_factor"] == pytest.approx(2.0)
+
+
+def test_read_series_matches_force_by_stamp(tmp_path: Path) -> None:
+    bag = tmp_path / "bag"
+    write_bag_directly(bag, N_STEPS, ("elbow",))
+    s = read_series(bag)
+    assert s.t0_ns == 0
+    assert np.allclose(s.joint_t, np.arange(N_STEPS) * DT)
+    el = s.contacts["elbow"]
+    assert el.t_matched.size == N_STEPS
+    assert np.allclose(np.abs(el.normal_force_error), FORCE_SWING)
+    assert np.allclose(el.normal_force_desired, FORCE_DESIRED)
+    assert s.hand_actual.shape == (N_STEPS, 3)
+    expected_res = max(abs(step_values(k)["residual"]) for k in range(N_STEPS))
+    out = compute_summary(s)
+    assert out["constraint_residual_max_m"] == pytest.approx(expected_res)
+    assert out["energy_consumed_j"] == pytest.approx(step_values(N_STEPS - 1)["energy"])
+    assert out["copper_loss_j"] == pytest.approx(step_values(N_STEPS - 1)["copper"])
+
+
+# --------------------------------------------------------------------------- report tests
+
+PLOTS = ("hand_y.png", "hand_z.png", "brace_y.png", "normal_force.png", "energy.png")
+
+
+def test_report_writes_plots_and_summary(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bag = tmp_path / "run" / "bag"
+    write_bag_directly(bag, N_STEPS, CONTACTS)
+    (tmp_path / "run" / "summary.json").write_text(json.dumps({"wall_time_s": 1.99}))
+    assert report_main([str(bag)]) == 0
+    run = tmp_path / "run"
+    for name in PLOTS:
+        png = run / name
+        assert png.stat().st_size > 5000, name
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    summary = json.loads((run / "summary.json").read_text())
+    assert list(summary) == list(SUMMARY_KEYS)
+    assert summary["wall_time_s"] == 1.99  # kept from the existing summary.json
+    assert summary["real_time_factor"] == pytest.approx((N_STEPS - 1) * DT / 1.99)
+    assert summary["hand_rms_error_m"] == pytest.approx(HAND_OFFSET, abs=1e-12)
+    assert summary["brace_rms_error_m"] == pytest.approx(BRACE_OFFSET, abs=1e-12)
+    assert "hand_rms_error_m" in capsys.readouterr().out
+
+
+def test_report_without_contacts_skips_brace_plots(tmp_path: Path) -> None:
+    bag = tmp_path / "bag"
+    write_bag_directly(bag, 150, ())
+    out = tmp_path / "figs"
+    summary = write_report(bag, out)
+    written = sorted(p.name for p in out.glob("*.png"))
+    assert written == ["energy.png", "hand_y.png", "hand_z.png"]
+    assert summary["brace_rms_error_m"] == 0.0
+    assert summary["normal_force_rms_error_n"] == 0.0
+    assert summary["wall_time_s"] is None
+    assert json.loads((out / "summary.json").read_text()) == summary
+
+
+def test_report_missing_or_broken_bag_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert report_main([str(tmp_path / "nope" / "bag")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "bag not found" in err
+    broken = tmp_path / "broken"
+    broken.mkdir()
+    (broken / "metadata.yaml").write_text("rosbag2_bagfile_information: {version: 8}\n")
+    assert report_main([str(broken)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("bracing-report: error: cannot read bag") and err.count("\n") == 1
+    assert not list(tmp_path.glob("*.png"))
