@@ -124,6 +124,12 @@ def ctl_params() -> dict[str, Any]:
 
 
 @pytest.fixture(scope="session")
+def paper_params() -> Callable[..., dict[str, Any]]:
+    """``paper_params(node, shared=None, own=None)``: fresh flat parameters of the paper scenario."""
+    return node_params
+
+
+@pytest.fixture(scope="session")
 def scenario() -> Callable[..., Scenario]:
     """``scenario(shared=..., sim=..., ctl=..., with_controller=True)``: a fresh plant/sim/controller."""
     return build_scenario
