@@ -1,0 +1,128 @@
+"""bracing-pair: real node processes over DDS, a rosbag2 bag, the report."""
+
+from __future__ import annotations
+
+import json
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import PAPER_YAML, build_scenario, run_closed_loop
+from rosbags.highlevel import AnyReader
+from ros_helpers import REPO_ROOT, isolated_env
+
+from bracing_bringup.summary import compute_summary, read_series
+
+STEP_TOPICS = ["joint_states", "motor_command", "motor_state", "contacts", "controller_state",
+               "contact_wrench/elbow", "/clock"]
+
+
+def pair_command(output: Path, *extra: str) -> list[str]:
+    return [sys.executable, "-m", "bracing_bringup.pair", "--config", str(PAPER_YAML), "--output", str(output),
+            "--quiet", "--domain-id", str(random.randint(102, 232)), *extra]
+
+
+def read_bag(bag: Path) -> dict[str, list[tuple[int, object]]]:
+    messages: dict[str, list[tuple[int, object]]] = {}
+    with AnyReader([bag]) as reader:  # definitions come from the bag itself
+        for connection, timestamp, raw in reader.messages():
+            messages.setdefault(connection.topic.lstrip("/") if connection.topic != "/clock" else "/clock", []).append(
+                (timestamp, reader.deserialize(raw, connection.msgtype)))
+    return messages
+
+
+@pytest.fixture(scope="module")
+def paper_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    output = tmp_path_factory.mktemp("pair") / "run"
+    done = subprocess.run(pair_command(output, "--duration", "1.0"), env=isolated_env(), capture_output=True,
+                          text=True, timeout=300, cwd=REPO_ROOT)
+    assert done.returncode == 0, done.stdout + done.stderr
+    return output
+
+
+def test_bag_has_every_topic_and_no_missing_step(paper_run: Path) -> None:
+    messages = read_bag(paper_run / "bag")
+    steps = 1001  # states 0..1000 of a 1 s run at 1 ms
+    for topic in STEP_TOPICS:
+        assert topic in messages, f"{topic} missing from the bag"
+        stamps = sorted(msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec if hasattr(msg, "header")
+                        else msg.clock.sec * 10**9 + msg.clock.nanosec for _, msg in messages[topic])
+        assert stamps == [k * 1_000_000 for k in range(steps)], f"{topic}: steps missing or repeated"
+
+
+def test_pair_trajectory_equals_in_process_loop(paper_run: Path) -> None:
+    messages = read_bag(paper_run / "bag")
+    states = sorted(messages["joint_states"], key=lambda m: (m[1].header.stamp.sec, m[1].header.stamp.nanosec))
+    reference = run_closed_loop(build_scenario(), 1.0)
+    positions = np.array([m.position for _, m in states])
+    np.testing.assert_allclose(positions[:-1], reference.position, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(positions[-1], reference.final_position, rtol=0, atol=1e-9)
+    forces = np.array([m.contacts[0].normal_force for _, m in sorted(
+        messages["contacts"], key=lambda m: (m[1].header.stamp.sec, m[1].header.stamp.nanosec))])
+    np.testing.assert_allclose(forces[:-1], reference.normal_force[:, 0], rtol=0, atol=1e-7)
+
+
+def test_summary_agrees_with_the_bag(paper_run: Path) -> None:
+    summary = json.loads((paper_run / "summary.json").read_text())
+    recomputed = compute_summary(read_series(paper_run / "bag"), wall_time_s=summary["wall_time_s"])
+    assert summary.keys() == recomputed.keys()
+    for key, value in recomputed.items():
+        if value is None:  # e.g. hand errors over t >= 2 s of a 1 s run
+            assert summary[key] is None, key
+        else:
+            assert summary[key] == pytest.approx(value, rel=1e-12, abs=1e-15), key
+    assert summary["sim_time_s"] == pytest.approx(1.0)
+    assert summary["constraint_residual_max_m"] < 1e-9
+    for png in ("hand_y.png", "hand_z.png", "brace_y.png", "normal_force.png", "energy.png"):
+        assert (paper_run / png).stat().st_size > 10_000
+
+
+def _wait_for_progress(output: Path, timeout: float = 60.0) -> None:
+    log = output / "logs" / "simulator.log"
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if log.exists() and "progress t=0." in log.read_text(errors="replace"):
+            return
+        time.sleep(0.1)
+    raise AssertionError("the simulator never made progress")
+
+
+def test_sigint_mid_run_leaves_a_readable_bag(tmp_path: Path) -> None:
+    output = tmp_path / "run"
+    proc = subprocess.Popen(pair_command(output, "--duration", "30"), env=isolated_env(), stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, cwd=REPO_ROOT)
+    try:
+        _wait_for_progress(output)
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGINT)
+        out = proc.communicate(timeout=60)[0]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, out
+    assert "interrupted" in out
+    messages = read_bag(output / "bag")
+    assert len(messages["joint_states"]) > 10
+    assert subprocess.run(["pgrep", "-f", str(output)], capture_output=True).stdout == b""  # nothing left running
+
+
+def test_killed_controller_fails_the_run_with_a_clear_message(tmp_path: Path) -> None:
+    output = tmp_path / "run"
+    proc = subprocess.Popen(pair_command(output, "--duration", "30"), env=isolated_env(), stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, cwd=REPO_ROOT)
+    try:
+        _wait_for_progress(output)
+        subprocess.run(["pkill", "-KILL", "-f", f"bracing_controller.node.*{output}"], check=True)
+        out = proc.communicate(timeout=60)[0]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 1, out
+    assert "controller exited" in out
+    assert "controller|" in out  # the tail of its log is shown
+    read_bag(output / "bag")  # still readable
