@@ -4,6 +4,11 @@
         each joint_states with a known voltage sequence (joint names shuffled), N states
     python lockstep_driver.py controller F   -> plays simulator for the controller node: publishes
         the joint states in JSON file F one by one and collects the motor_command answers
+    python lockstep_driver.py sim-bad N      -> as sim, but every valid command is preceded by
+        malformed ones (NaN, inf, wrong length, unknown/duplicate names, wrong mode, stale and
+        future stamps)
+    python lockstep_driver.py sim-skip N K   -> as sim, but never answers state K (watchdog)
+    python lockstep_driver.py sim-scale N S  -> as sim, with every command multiplied by S
 """
 
 from __future__ import annotations
@@ -13,9 +18,9 @@ import sys
 import time
 
 import rclpy
-from bracing_msgs.msg import MotorCommand
 from sensor_msgs.msg import JointState
 
+from bracing_msgs.msg import MotorCommand
 from bracing_sim.ros_common import STREAM_QOS
 
 JOINTS = ["joint1", "joint2", "joint3", "joint4"]
@@ -27,7 +32,31 @@ def known_command(k: int) -> list[float]:
     return [2.0 * ((k * (j + 3)) % 7 - 3) / 3.0 + 0.5 * j for j in range(4)]
 
 
-def drive_simulator(node: rclpy.node.Node, steps: int) -> dict[str, object]:
+def bad_commands(msg: JointState, values: list[float]) -> list[MotorCommand]:
+    """One command for each way a command can be wrong."""
+    def make(names: list[str], vals: list[float], mode: int = MotorCommand.VOLTAGE, dt_ns: int = 0) -> MotorCommand:
+        command = MotorCommand(mode=mode, name=names, value=vals)
+        total = max(msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec + dt_ns, 0)  # no stale one at k = 0
+        command.header.stamp.sec, command.header.stamp.nanosec = divmod(total, 10**9)
+        return command
+
+    nan = [float("nan"), *values[1:]]
+    inf = [*values[:3], float("inf")]
+    return [
+        make(JOINTS, nan),
+        make(JOINTS, inf),
+        make(JOINTS, values[:3]),
+        make(JOINTS[:3], values[:3]),
+        make([*JOINTS[:3], "joint9"], values),
+        make([*JOINTS[:3], "joint1"], values),
+        make(JOINTS, [v * 1e6 for v in values], mode=MotorCommand.TORQUE),
+        make(JOINTS, values, mode=7),
+        *([make(JOINTS, [v + 100.0 for v in values], dt_ns=-1_000_000)] if msg.header.stamp.nanosec else []),  # stale
+        make(JOINTS, [v + 100.0 for v in values], dt_ns=+1_000_000),  # from the future
+    ]
+
+
+def drive_simulator(node: rclpy.node.Node, steps: int, mode: str = "sim", arg: float = 0.0) -> dict[str, object]:
     states: list[dict[str, object]] = []
     pub = node.create_publisher(MotorCommand, "motor_command", STREAM_QOS)
 
@@ -36,6 +65,13 @@ def drive_simulator(node: rclpy.node.Node, steps: int) -> dict[str, object]:
         states.append({"stamp": [msg.header.stamp.sec, msg.header.stamp.nanosec], "name": list(msg.name),
                        "position": list(msg.position), "velocity": list(msg.velocity), "effort": list(msg.effort)})
         values = known_command(k)
+        if mode == "sim-skip" and k == int(arg):
+            return
+        if mode == "sim-scale":
+            values = [v * arg for v in values]
+        if mode == "sim-bad":
+            for bad in bad_commands(msg, values):
+                pub.publish(bad)
         command = MotorCommand(mode=MotorCommand.VOLTAGE, name=[JOINTS[j] for j in SHUFFLED],
                                value=[values[j] for j in SHUFFLED])
         command.header.stamp = msg.header.stamp
@@ -65,7 +101,7 @@ def drive_controller(node: rclpy.node.Node, path: str) -> dict[str, object]:
         msg = JointState(name=state["name"], position=state["position"], velocity=state["velocity"])
         msg.header.stamp.sec, msg.header.stamp.nanosec = k // 1000, (k % 1000) * 1_000_000  # t = k ms
         pub.publish(msg)
-        deadline = time.monotonic() + 10.0
+        deadline = time.monotonic() + 3.0
         while k not in answers and time.monotonic() < deadline:
             rclpy.spin_once(node, timeout_sec=0.05)
     return {"answers": [answers.get(k) for k in range(len(inputs))]}
@@ -74,7 +110,11 @@ def drive_controller(node: rclpy.node.Node, path: str) -> dict[str, object]:
 def main() -> None:
     rclpy.init()
     node = rclpy.create_node("lockstep_driver")
-    result = drive_simulator(node, int(sys.argv[2])) if sys.argv[1] == "sim" else drive_controller(node, sys.argv[2])
+    role = sys.argv[1]
+    if role.startswith("sim"):
+        result = drive_simulator(node, int(sys.argv[2]), role, float(sys.argv[3]) if len(sys.argv) > 3 else 0.0)
+    else:
+        result = drive_controller(node, sys.argv[2])
     print(json.dumps(result), flush=True)
     node.destroy_node()
     rclpy.try_shutdown()

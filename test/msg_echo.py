@@ -11,9 +11,10 @@ import sys
 import time
 
 import rclpy
-from bracing_msgs.msg import ContactState, Contacts, ControllerState, MotorCommand, MotorState
 from geometry_msgs.msg import Point, Vector3
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+from bracing_msgs.msg import Contacts, ContactState, ControllerState, MotorCommand, MotorState
 
 QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -60,7 +61,7 @@ def main() -> None:
     else:
         received: dict[str, object] = {}
 
-        def keep(name: str):  # noqa: ANN202
+        def keep(name: str):
             return lambda msg: received.setdefault(name, message_to_ordereddict(msg))
 
         subs = [node.create_subscription(type(msg), f"test_{name}", keep(name), QOS) for name, msg in msgs.items()]

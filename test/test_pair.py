@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import PAPER_YAML, build_scenario, run_closed_loop
-from rosbags.highlevel import AnyReader
 from ros_helpers import REPO_ROOT, isolated_env
+from rosbags.highlevel import AnyReader
 
 from bracing_bringup.summary import compute_summary, read_series
 

@@ -65,8 +65,8 @@ def step_values(k: int) -> dict[str, Any]:
     off = HAND_OFFSET if t >= 2.0 - 1e-9 else HAND_OFFSET_EARLY
     return {
         "t": t,
-        "sec": int(round(k * DT * 1e9)) // 1_000_000_000,
-        "nanosec": int(round(k * DT * 1e9)) % 1_000_000_000,
+        "sec": round(k * DT * 1e9) // 1_000_000_000,
+        "nanosec": round(k * DT * 1e9) % 1_000_000_000,
         "position": [0.1 * k + j for j in range(4)],
         "hand_desired": hand_d,
         "hand_actual": (hand_d[0], hand_d[1] + off, hand_d[2]),
@@ -88,8 +88,8 @@ def make_step(k: int, contacts: tuple[str, ...] = CONTACTS) -> dict[str, Any]:
     from sensor_msgs.msg import JointState
 
     from bracing_msgs.msg import (
-        ContactState,
         Contacts,
+        ContactState,
         ControllerState,
         MotorCommand,
         MotorState,
@@ -178,8 +178,12 @@ def write_bag_directly(path: Path, n: int, contacts: tuple[str, ...]) -> None:
     writer.close()
 
 
-def publisher_main(namespace: str, contacts: str, n: int, period: float) -> None:
-    """Run in a subprocess: publish n synthetic steps of every topic."""
+def publisher_main(namespace: str, contacts: str, n: int, period: float, wait_go: bool) -> None:
+    """Run in a subprocess: publish n synthetic steps of every topic.
+
+    Prints "matched" once every topic has a subscriber (then, with `wait_go`, waits for
+    a line on stdin), "sent" after the last publish and "published" once all is acked.
+    """
     import rclpy
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -195,7 +199,9 @@ def publisher_main(namespace: str, contacts: str, n: int, period: float) -> None
             print("publisher: recorder not discovered", flush=True)
             sys.exit(3)
         rclpy.spin_once(node, timeout_sec=0.02)
-    print("publishing", flush=True)
+    print("matched", flush=True)
+    if wait_go:
+        sys.stdin.readline()
     for k in range(n):
         for topic, msg in make_step(k, names).items():
             pubs[topic].publish(msg)
@@ -226,7 +232,8 @@ class Proc:
 
     def __init__(self, args: list[str], env: dict[str, str]) -> None:
         self.popen = subprocess.Popen(
-            args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            args, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE, text=True)
         self.lines: queue.Queue[str] = queue.Queue()
         self.stdout: list[str] = []
         self._thread = threading.Thread(target=self._read, daemon=True)
@@ -302,14 +309,15 @@ FAST_HEARTBEAT_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
 
 
 def start_publisher(procs: list[Proc], env: dict[str, str], tmp_path: Path, namespace: str,
-                    contacts: tuple[str, ...], n: int, period: float) -> Proc:
+                    contacts: tuple[str, ...], n: int, period: float,
+                    wait_go: bool = False) -> Proc:
     # Fast DDS's default 3 s writer heartbeat would delay any retransmission (and the
     # final acknowledgements) by up to 3 s; 20 ms keeps delivery prompt and the test fast.
     profile = tmp_path / "fastdds_publisher.xml"
     profile.write_text(FAST_HEARTBEAT_PROFILE)
     env = {**env, "FASTRTPS_DEFAULT_PROFILES_FILE": str(profile)}
     code = ("import test_recorder_report as t; "
-            f"t.publisher_main({namespace!r}, {','.join(contacts)!r}, {n}, {period})")
+            f"t.publisher_main({namespace!r}, {','.join(contacts)!r}, {n}, {period}, {wait_go})")
     pub = Proc([sys.executable, "-c", code], env)
     procs.append(pub)
     return pub
@@ -339,14 +347,26 @@ def test_recorder_records_every_topic_exactly(tmp_path: Path, procs: list[Proc])
     env = ros_env()
     bag = tmp_path / "run" / "bag"
     rec = start_recorder(procs, env, bag, "", CONTACTS)
-    pub = start_publisher(procs, env, tmp_path, "", CONTACTS, N_STEPS, period=0.0)  # burst
-    pub.wait_line("sent", timeout=30.0)
-    # Stop at once, while messages are still queued: the recorder must drain them.
-    rec.popen.send_signal(signal.SIGINT)
+    pub = start_publisher(procs, env, tmp_path, "", CONTACTS, N_STEPS, period=0.0,
+                          wait_go=True)
+    pub.wait_line("matched", timeout=20.0)
+    # Freeze the recorder while everything is published, then ask it to stop and let it
+    # run again: every message is still pending, so only the drain can record them.
+    rec.popen.send_signal(signal.SIGSTOP)
+    try:
+        assert pub.popen.stdin is not None
+        pub.popen.stdin.write("go\n")
+        pub.popen.stdin.flush()
+        pub.wait_line("sent", timeout=20.0)
+        time.sleep(0.2)
+        rec.popen.send_signal(signal.SIGINT)
+    finally:
+        rec.popen.send_signal(signal.SIGCONT)
     rc, err = rec.finish(timeout=15.0)
     assert rc == 0, err
     assert f"recorder wrote {N_STEPS * 8} messages" in "".join(rec.stdout)
-    pub.kill()
+    pub.wait_line("published", timeout=10.0)  # the publisher saw every message acked
+    assert pub.finish(timeout=10.0)[0] == 0
 
     meta = (bag / "metadata.yaml").read_text()
     assert "storage_identifier: mcap" in meta
@@ -406,7 +426,7 @@ def test_recorder_stopped_mid_stream_leaves_readable_bag(
     rec = start_recorder(procs, env, bag, "robot1", contacts)
     total = 100000  # far more than gets sent before the stop
     pub = start_publisher(procs, env, tmp_path, "robot1", contacts, total, period=0.001)
-    pub.wait_line("publishing", timeout=15.0)
+    pub.wait_line("matched", timeout=15.0)
     time.sleep(0.5)
     assert pub.popen.poll() is None
     rec.popen.send_signal(sig)

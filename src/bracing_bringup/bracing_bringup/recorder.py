@@ -24,26 +24,25 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import FrameType
-from typing import Any
+from typing import Any, Literal
 
 import rclpy
+from geometry_msgs.msg import WrenchStamped
 from rclpy.exceptions import InvalidHandle
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy, DurabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 from rosbags.rosbag2 import StoragePlugin, Writer
-from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
-
-from geometry_msgs.msg import WrenchStamped
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState
 
-BAG_VERSION = 8
+BAG_VERSION: Literal[8] = 8
 """rosbag2 metadata version written (8 is read by every Jazzy rosbag2)."""
 
 BRACING_MSGS = ("ContactState", "Contacts", "ControllerState", "MotorCommand", "MotorState")

@@ -21,10 +21,10 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-from matplotlib.axes import Axes  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
 
-from bracing_bringup.summary import (  # noqa: E402
+from bracing_bringup.summary import (
     BagReadError,
     BagSeries,
     compute_summary,

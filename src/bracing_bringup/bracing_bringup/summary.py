@@ -126,7 +126,7 @@ def read_series(bag: str | Path) -> BagSeries:
                 if c.msgtype in (_JOINT_STATE, _CONTACTS, _CONTROLLER_STATE, _MOTOR_STATE)
             ]
             for conn, _, raw in reader.messages(connections=wanted):
-                msg = reader.deserialize(raw, conn.msgtype)
+                msg: Any = reader.deserialize(raw, conn.msgtype)
                 stamp = _stamp_ns(msg)
                 if conn.msgtype == _JOINT_STATE:
                     joint.append(stamp)

@@ -10,16 +10,16 @@ import sys
 import time
 
 import numpy as np
-from bracing_msgs.msg import ControllerState, MotorCommand
 from geometry_msgs.msg import Point
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from bracing_controller.config import ControllerConfig
 from bracing_controller.law import ControlOutput, DecoupledController
+from bracing_msgs.msg import ControllerState, MotorCommand
 from bracing_sim.commands import MODE_CODES
 from bracing_sim.core.types import Vector
-from bracing_sim.ros_common import STREAM_QOS, nanoseconds, read_parameters, run
+from bracing_sim.ros_common import STREAM_QOS, RateLimitedLog, nanoseconds, read_parameters, run
 
 
 class StateError(ValueError):
@@ -60,6 +60,7 @@ class ControllerNode(Node):
         self.command_pub = self.create_publisher(MotorCommand, "motor_command", STREAM_QOS)
         self.state_pub = self.create_publisher(ControllerState, "controller_state", STREAM_QOS)
         self.create_subscription(JointState, "joint_states", self._on_state, STREAM_QOS)
+        self.report = RateLimitedLog(self)
         self.get_logger().info(
             f"{self.config.shared.input_mode.value} output, contacts {self.contact_names or 'none'}, "
             f"task dimension {self.config.task_dimension}"
@@ -69,17 +70,17 @@ class ControllerNode(Node):
         try:
             q, dq = joint_vectors(msg, self.joint_names)
         except StateError as exc:
-            self.get_logger().error(f"joint_states ignored: {exc}", throttle_duration_sec=1.0)
+            self.report("error", str(exc).split(" ")[0], f"joint_states ignored: {exc}")
             return
         t = nanoseconds(msg.header.stamp) * 1e-9
         start = time.perf_counter()
         out = self.law.update(t, q, dq)
         compute_time = time.perf_counter() - start
         if not np.all(np.isfinite(out.command)):
-            self.get_logger().error(f"non-finite command at t = {t:.6f} s: not sent", throttle_duration_sec=1.0)
+            self.report("error", "command", f"non-finite command at t = {t:.6f} s: not sent")
             return
         if out.damped:
-            self.get_logger().warning("B is near-singular: using a damped inverse", throttle_duration_sec=1.0)
+            self.report("warning", "damped", "B is near-singular: using a damped inverse")
         command = MotorCommand(mode=self.mode_code, name=self.joint_names, value=out.command.tolist())
         command.header.stamp = msg.header.stamp
         self.command_pub.publish(command)

@@ -18,7 +18,11 @@ MODE_CODES = {InputMode.VOLTAGE: 0, InputMode.TORQUE: 1}  # bracing_msgs/MotorCo
 
 
 class CommandError(ValueError):
-    """A command that must not be applied."""
+    """A command that must not be applied; ``kind`` groups errors for rate-limited logging."""
+
+    def __init__(self, kind: str, message: str) -> None:
+        super().__init__(message)
+        self.kind = kind
 
 
 def command_vector(
@@ -33,21 +37,21 @@ def command_vector(
     expected_code = MODE_CODES[mode]
     if mode_code != expected_code:
         got = {v: k.value for k, v in MODE_CODES.items()}.get(mode_code, f"unknown ({mode_code})")
-        raise CommandError(f"mode {got} but the simulator is configured for {mode.value} input")
+        raise CommandError(f"mode-{mode_code}", f"mode {got} but the simulator is configured for {mode.value} input")
     if len(names) != len(values):
-        raise CommandError(f"{len(names)} names but {len(values)} values")
+        raise CommandError("length", f"{len(names)} names but {len(values)} values")
     if len(set(names)) != len(names):
         duplicates = sorted({n for n in names if list(names).count(n) > 1})
-        raise CommandError(f"duplicate joint names {duplicates}")
+        raise CommandError("duplicate", f"duplicate joint names {duplicates}")
     unknown = sorted(set(names) - set(joint_names))
     missing = sorted(set(joint_names) - set(names))
     if unknown or missing:
-        raise CommandError(f"joint names do not match: unknown {unknown}, missing {missing}")
+        raise CommandError("unknown-names" if unknown else "missing-names", f"joint names do not match: unknown {unknown}, missing {missing}")
     by_name = dict(zip(names, values, strict=True))
     u = np.array([by_name[j] for j in joint_names], dtype=float)
     if not np.all(np.isfinite(u)):
         bad = [j for j, v in zip(joint_names, u, strict=True) if not np.isfinite(v)]
-        raise CommandError(f"non-finite values for {bad}")
+        raise CommandError("non-finite", f"non-finite values for {bad}")
     saturated = False
     if limit > 0.0 and np.any(np.abs(u) > limit):
         u = np.clip(u, -limit, limit)

@@ -12,7 +12,6 @@ import time
 
 import numpy as np
 import rclpy
-from bracing_msgs.msg import ContactState, Contacts, MotorCommand, MotorState
 from geometry_msgs.msg import Point, Vector3, WrenchStamped
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -20,13 +19,23 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
+from bracing_msgs.msg import Contacts, ContactState, MotorCommand, MotorState
 from bracing_sim.commands import CommandError, command_vector
 from bracing_sim.config import SimulatorConfig, build_simulator
 from bracing_sim.core.dynamics import Derivative, InputMode
 from bracing_sim.core.simulator import DivergenceError
 from bracing_sim.core.types import Vector
 from bracing_sim.params import ConfigError
-from bracing_sim.ros_common import EXIT_CONFIG, EXIT_DIVERGED, STREAM_QOS, nanoseconds, read_parameters, run, stamp
+from bracing_sim.ros_common import (
+    EXIT_CONFIG,
+    EXIT_DIVERGED,
+    STREAM_QOS,
+    RateLimitedLog,
+    nanoseconds,
+    read_parameters,
+    run,
+    stamp,
+)
 
 
 class SimulatorNode(Node):
@@ -50,6 +59,7 @@ class SimulatorNode(Node):
             self.create_publisher(WrenchStamped, f"contact_wrench/{c.name}", STREAM_QOS) for c in self.config.shared.contacts
         ]
         self.create_subscription(MotorCommand, "motor_command", self._on_command, STREAM_QOS)
+        self.report = RateLimitedLog(self)
 
         self.command = np.zeros(self.sim.n)  # last applied (held) command
         self._pending: dict[int, Vector] = {}  # lockstep: valid commands by stamp [ns]
@@ -67,10 +77,10 @@ class SimulatorNode(Node):
         try:
             u, saturated = command_vector(msg.name, msg.value, msg.mode, self.joint_names, self.mode, self.limit)
         except CommandError as exc:
-            self.get_logger().error(f"motor_command rejected: {exc}", throttle_duration_sec=1.0)
+            self.report("error", exc.kind, f"motor_command rejected: {exc}")
             return
         if saturated:
-            self.get_logger().warning(f"motor_command saturated to +/-{self.limit}", throttle_duration_sec=1.0)
+            self.report("warning", "saturated", f"motor_command saturated to +/-{self.limit}")
         stamp_ns = nanoseconds(msg.header.stamp)
         if self.config.stepping == "real_time":
             self._latest = (time.monotonic(), u)
@@ -78,9 +88,9 @@ class SimulatorNode(Node):
         now_ns = self.sim.steps_taken * self.step_ns
         if stamp_ns != now_ns:
             age = "stale" if stamp_ns < now_ns else "from the future"
-            self.get_logger().error(
-                f"motor_command rejected: stamp {stamp_ns * 1e-9:.6f} s is {age} (waiting for {now_ns * 1e-9:.6f} s)",
-                throttle_duration_sec=1.0,
+            self.report(
+                "error", age, f"motor_command rejected: stamp {stamp_ns * 1e-9:.6f} s is {age} "
+                f"(waiting for {now_ns * 1e-9:.6f} s)"
             )
             return
         self._pending[stamp_ns] = u
@@ -211,10 +221,10 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
         node._pending.clear()
         if command is None:
             policy = cfg.watchdog_policy
-            node.get_logger().warning(
+            node.report(
+                "warning", "watchdog",
                 f"no valid motor_command for t = {expected * 1e-9:.6f} s within {cfg.command_timeout} s: "
                 f"{'holding the last command' if policy == 'hold' else 'applying zero'}",
-                throttle_duration_sec=1.0,
             )
             command = node.command if policy == "hold" else np.zeros(node.sim.n)
         node.advance(command)
@@ -231,7 +241,7 @@ def spin_real_time(node: SimulatorNode, executor: SingleThreadedExecutor) -> Non
         latest = node._latest
         if latest is None or time.monotonic() - latest[0] > cfg.command_timeout:
             if latest is not None:
-                node.get_logger().warning("motor_command stale: applying zero", throttle_duration_sec=1.0)
+                node.report("warning", "watchdog", "motor_command stale: applying zero")
             command = np.zeros(node.sim.n)
         else:
             command = latest[1]
@@ -266,7 +276,7 @@ def main(args: list[str] | None = None) -> int:
     sys.exit(code)
 
 
-__all__ = ["SimulatorNode", "main", "ConfigError", "EXIT_CONFIG", "rclpy"]
+__all__ = ["EXIT_CONFIG", "ConfigError", "SimulatorNode", "main", "rclpy"]
 
 
 if __name__ == "__main__":

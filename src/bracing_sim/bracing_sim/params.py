@@ -58,14 +58,14 @@ def load_params_file(path: str | Path, node_name: str) -> dict[str, Any]:
     return params
 
 
-def check_known(params: Params, known: Iterable[str], dynamic_prefixes: Mapping[str, Iterable[str]] = ()) -> None:
+def check_known(params: Params, known: Iterable[str], dynamic_prefixes: Mapping[str, Iterable[str]] | None = None) -> None:
     """Reject parameters that are not in the schema.
 
     ``dynamic_prefixes`` maps a prefix such as ``"contacts."`` to the fields allowed in
     its named sub-sections (``contacts.<any name>.<field>``).
     """
     known_set = set(known) | {"use_sim_time", "start_type_description_service"}
-    dynamic = {prefix: set(fields) for prefix, fields in dict(dynamic_prefixes).items()}
+    dynamic = {prefix: set(fields) for prefix, fields in (dynamic_prefixes or {}).items()}
     unknown = []
     for name in params:
         if name in known_set:

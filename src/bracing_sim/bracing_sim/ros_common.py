@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 import sys
+import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 import rclpy
 from builtin_interfaces.msg import Time
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
-from rclpy._rclpy_pybind11 import RCLError
+from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from bracing_sim.params import ConfigError
@@ -21,6 +23,30 @@ STREAM_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=2000, reliability
 
 EXIT_CONFIG = 2
 EXIT_DIVERGED = 3
+
+
+class RateLimitedLog:
+    """At most one message per ``kind`` per ``period`` seconds, with a count of those held back.
+
+    rclpy's throttle is per call site; one site reporting several kinds of bad input
+    would hide all but the first kind.
+    """
+
+    def __init__(self, node: Node, period: float = 1.0) -> None:
+        self._logger = node.get_logger()
+        self._period = period
+        self._last: dict[str, float] = {}
+        self._held: dict[str, int] = {}
+
+    def __call__(self, level: str, kind: str, message: str) -> None:
+        now = time.monotonic()
+        if now - self._last.get(kind, -1e18) < self._period:
+            self._held[kind] = self._held.get(kind, 0) + 1
+            return
+        held = self._held.pop(kind, 0)
+        self._last[kind] = now
+        suffix = f" ({held} more like this since the last report)" if held else ""
+        getattr(self._logger, level)(message + suffix)
 
 
 def read_parameters(node: Node) -> dict[str, Any]:
@@ -34,7 +60,9 @@ def read_parameters(node: Node) -> dict[str, Any]:
     for name, parameter in node._parameter_overrides.items():  # rclpy keeps --ros-args overrides here
         if not node.has_parameter(name):
             node.declare_parameter(name, parameter.value, dynamic)
-    return {name: parameter.value for name, parameter in node.get_parameters_by_prefix("").items()}
+    # get_parameters_by_prefix returns Parameter objects (its annotation says values).
+    parameters = cast(dict[str, Parameter], node.get_parameters_by_prefix(""))
+    return {name: parameter.value for name, parameter in parameters.items()}
 
 
 def stamp(nanoseconds: int) -> Time:

@@ -11,9 +11,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import pinocchio as pin
 
 from bracing_sim.core.model import RobotModel
 from bracing_sim.core.types import Vector
+
+_WORLD = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 
 @dataclass(frozen=True)
@@ -71,14 +74,11 @@ class ContactSet:
         if not self.slip_epsilon > 0.0:
             raise ValueError(f"slip_epsilon: must be > 0, got {self.slip_epsilon}")
         self.frame_ids = [self.robot.frame_id(c.frame) for c in self.contacts]
-        p, n = len(self.contacts), self.robot.nv
+        p = len(self.contacts)
         self._normals = np.array([c.normal for c in self.contacts], dtype=float).reshape(p, 3)
         self._offsets = np.array([c.offset for c in self.contacts], dtype=float)
         self._friction = np.array([c.friction for c in self.contacts], dtype=float)
         self._tangent_projectors = np.array([np.eye(3) - np.outer(m, m) for m in self._normals]).reshape(p, 3, 3)
-        self._jacobians = np.zeros((p, 3, n))
-        self._positions = np.zeros((p, 3))
-        self._drift_vectors = np.zeros((p, 3))
 
     @property
     def names(self) -> list[str]:
@@ -89,25 +89,34 @@ class ContactSet:
 
     def evaluate(self, dq: Vector) -> ContactTerms:
         """Contact terms from the robot's last ``compute(q, dq)`` pass."""
-        robot = self.robot
+        return self.evaluate_data(self.robot.model, self.robot.data, dq)
+
+    def evaluate_data(self, model: pin.Model, data: pin.Data, dq: Vector) -> ContactTerms:
+        """Contact terms from a pinocchio (model, data) after ``computeAllTerms(q, dq)``.
+
+        ``model`` must be this robot's model or a copy of it (e.g. ``RobotModel.with_armature``):
+        the frame ids are the robot's.
+        """
+        p, n = len(self.frame_ids), self.robot.nv
+        positions = np.empty((p, 3))
+        jacobians = np.empty((p, 3, n))
+        drift_vectors = np.empty((p, 3))
         for j, frame in enumerate(self.frame_ids):
-            self._positions[j] = robot.frame_position(frame)
-            self._jacobians[j] = robot.frame_jacobian(frame)
-            self._drift_vectors[j] = robot.frame_drift(frame)
+            positions[j] = pin.updateFramePlacement(model, data, frame).translation
+            jacobians[j] = pin.getFrameJacobian(model, data, frame, _WORLD)[:3]
+            drift_vectors[j] = pin.getFrameClassicalAcceleration(model, data, frame, _WORLD).linear
         normals = self._normals
-        jacobians = self._jacobians.copy()
-        positions = self._positions.copy()
         velocity = jacobians @ dq  # (p, 3)
-        slip = np.einsum("pij,pj->pi", self._tangent_projectors, velocity)
-        slip_norm = np.sqrt(np.einsum("pi,pi->p", slip, slip) + self.slip_epsilon**2)
+        slip = velocity - normals * (normals * velocity).sum(axis=1)[:, None]  # tangential part
+        slip_norm = np.sqrt((slip * slip).sum(axis=1) + self.slip_epsilon**2)
         direction = slip / slip_norm[:, None]
         return ContactTerms(
             positions=positions,
             jacobians=jacobians,
-            normal_jacobian=np.einsum("pi,pin->pn", normals, jacobians),
-            tangent_jacobian=np.einsum("pi,pin->pn", direction, jacobians),
-            drift=np.einsum("pi,pi->p", normals, self._drift_vectors),
-            residual=np.einsum("pi,pi->p", normals, positions) - self._offsets,
+            normal_jacobian=np.matmul(normals[:, None, :], jacobians)[:, 0, :],
+            tangent_jacobian=np.matmul(direction[:, None, :], jacobians)[:, 0, :],
+            drift=(normals * drift_vectors).sum(axis=1),
+            residual=(normals * positions).sum(axis=1) - self._offsets,
             slip_velocity=slip,
             slip_direction=direction,
             friction=self._friction,

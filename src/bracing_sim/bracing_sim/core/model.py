@@ -4,6 +4,12 @@
 the joint-space inertia M, the non-linear effects h + g, the joint Jacobians and the
 velocity-product ("drift") accelerations at ddq = 0; the accessors then read frame
 quantities from that pass without recomputing kinematics.
+
+``RobotModel.with_armature(J_m)`` gives an independent copy (own pinocchio Model and Data)
+whose ``model.armature`` holds a diagonal rotor inertia, so that pinocchio's ``crba`` /
+``computeAllTerms`` return M + J_m directly and ``pinocchio.cholesky`` factorises it; the
+simulator's dynamics and the controller each keep such a copy, so their passes do not
+disturb the shared model's Data.
 """
 
 from __future__ import annotations
@@ -41,6 +47,8 @@ class RobotModel:
         self.joint_names: tuple[str, ...] = tuple(model.names[j] for j in range(1, model.njoints))
         self.damping: Vector = np.array(model.damping, dtype=float)
         self._symmetric_mass = np.zeros((model.nv, model.nv))
+        self._lower = np.tril_indices(model.nv, -1)
+        self._upper_of_lower = (self._lower[1], self._lower[0])  # (j, i) for each (i, j) below the diagonal
 
     @classmethod
     def from_urdf(cls, path: str | Path, gravity: Sequence[float] = (0.0, 0.0, -9.81)) -> RobotModel:
@@ -56,6 +64,19 @@ class RobotModel:
             raise ModelError(f"robot.gravity: expected 3 finite numbers, got {list(gravity)}")
         model.gravity.linear = gravity_vector
         return cls(model, source=str(path))
+
+    def with_armature(self, armature: Vector) -> RobotModel:
+        """A copy (own pinocchio Model and Data) whose joint-space inertia is M + diag(armature).
+
+        ``armature`` is per joint in model order (e.g. the reflected rotor inertia J_m).
+        Everything else (frames, gravity, damping, joint order) is the same as this model's.
+        """
+        values = np.asarray(armature, dtype=float)
+        if values.shape != (self.nv,) or not np.all(np.isfinite(values)) or np.any(values < 0.0):
+            raise ModelError(f"armature: expected {self.nv} finite values >= 0, got {np.ravel(values).tolist()}")
+        model = self.model.copy()
+        model.armature[:] = model.armature + values
+        return RobotModel(model, source=self.source)
 
     @property
     def nv(self) -> int:
@@ -86,8 +107,7 @@ class RobotModel:
         upper = self.data.M
         out = self._symmetric_mass
         np.copyto(out, upper)
-        lower = np.tril_indices(self.nv, -1)
-        out[lower] = upper.T[lower]
+        out[self._lower] = upper[self._upper_of_lower]
         return out
 
     def nonlinear_effects(self) -> Vector:

@@ -1,0 +1,116 @@
+"""Bad input never crashes a node, never reaches the integrator, and loses nothing."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import PAPER_YAML, build_scenario
+from lockstep_driver import JOINTS, known_command
+from ros_helpers import REPO_ROOT, isolated_env
+from test_nodes import DRIVER, _params_file
+
+from bracing_sim.commands import CommandError, command_vector
+from bracing_sim.core.dynamics import InputMode
+
+
+def _drive(tmp_path: Path, overrides: dict[str, object], driver_args: list[str]) -> tuple[list[dict], str]:
+    env = isolated_env()
+    extra = _params_file(tmp_path, "bracing_simulator", overrides)
+    node = subprocess.Popen(
+        [sys.executable, "-m", "bracing_sim.node", "--ros-args", "--params-file", str(PAPER_YAML),
+         "--params-file", str(extra)], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        cwd=REPO_ROOT)
+    try:
+        driver = subprocess.run([sys.executable, DRIVER, *driver_args], env=env, capture_output=True, text=True,
+                                timeout=180)
+        node.wait(30)  # it must finish by itself
+    finally:
+        if node.poll() is None:
+            node.kill()
+        log = node.communicate(timeout=20)[0]
+    assert driver.returncode == 0, driver.stdout + driver.stderr + log
+    assert node.returncode == 0, log
+    return json.loads(driver.stdout.strip().splitlines()[-1])["states"], log
+
+
+def _reference(commands: list[np.ndarray], limit: float = 0.0) -> list[np.ndarray]:
+    sim = build_scenario(with_controller=False).sim
+    positions = [sim.position]
+    for u in commands:
+        sim.step(np.clip(u, -limit, limit) if limit else u)
+        positions.append(sim.position)
+    return positions
+
+
+def test_malformed_commands_are_rejected_and_never_integrated(tmp_path: Path) -> None:
+    steps = 40
+    states, log = _drive(tmp_path, {"duration": (steps - 1) * 1e-3}, ["sim-bad", str(steps)])
+    reference = _reference([np.asarray(known_command(k)) for k in range(steps - 1)])
+    assert len(states) == steps
+    for state, expected in zip(states, reference, strict=True):
+        np.testing.assert_allclose(state["position"], expected, rtol=0, atol=1e-12)
+    for reason in ("non-finite values", "1 names but", "missing ['joint4']", "unknown ['joint9']",
+                   "duplicate joint names", "configured for voltage", "mode unknown (7)", "is stale", "from the future"):
+        assert reason in log or reason.replace("1 names", "4 names") in log, reason
+
+
+def test_over_limit_commands_are_saturated(tmp_path: Path) -> None:
+    steps, scale, limit = 30, 50.0, 5.0
+    states, log = _drive(tmp_path, {"duration": (steps - 1) * 1e-3, "motors.voltage_limit": limit},
+                         ["sim-scale", str(steps), str(scale)])
+    reference = _reference([scale * np.asarray(known_command(k)) for k in range(steps - 1)], limit)
+    for state, expected in zip(states, reference, strict=True):
+        np.testing.assert_allclose(state["position"], expected, rtol=0, atol=1e-12)
+    assert "saturated to +/-5.0" in log
+
+
+@pytest.mark.parametrize("policy", ["hold", "zero"])
+def test_lockstep_watchdog_applies_its_policy(tmp_path: Path, policy: str) -> None:
+    steps, skipped = 20, 7
+    states, log = _drive(tmp_path, {"duration": (steps - 1) * 1e-3, "command_timeout": 0.3, "watchdog_policy": policy},
+                         ["sim-skip", str(steps), str(skipped)])
+    commands = [np.asarray(known_command(k)) for k in range(steps - 1)]
+    commands[skipped] = commands[skipped - 1] if policy == "hold" else np.zeros(4)
+    for state, expected in zip(states, _reference(commands), strict=True):
+        np.testing.assert_allclose(state["position"], expected, rtol=0, atol=1e-12)
+    assert "no valid motor_command" in log
+
+
+def test_command_vector_matches_by_name_and_validates() -> None:
+    u, saturated = command_vector(["b", "a"], [2.0, 1.0], 0, ["a", "b"], InputMode.VOLTAGE)
+    assert u.tolist() == [1.0, 2.0] and not saturated
+    u, saturated = command_vector(["a", "b"], [20.0, -30.0], 1, ["a", "b"], InputMode.TORQUE, limit=10.0)
+    assert u.tolist() == [10.0, -10.0] and saturated
+    for names, values, mode in ((["a"], [1.0], 0), (["a", "a"], [1.0, 1.0], 0), (["a", "b"], [1.0], 0),
+                                (["a", "b"], [np.nan, 1.0], 0), (["a", "b"], [1.0, 1.0], 1), (["a", "c"], [1.0, 1.0], 0)):
+        with pytest.raises(CommandError):
+            command_vector(names, values, mode, ["a", "b"], InputMode.VOLTAGE)
+
+
+def test_controller_ignores_malformed_joint_states(tmp_path: Path) -> None:
+    good = {"name": JOINTS, "position": (np.array([-0.2, -0.6, 0.8, -0.4]) * np.pi).tolist(), "velocity": [0.0] * 4}
+    inputs = [good, {**good, "name": JOINTS[:3], "position": good["position"][:3], "velocity": [0.0] * 3},
+              {**good, "position": [float("nan"), *good["position"][1:]]},
+              {**good, "velocity": [0.0] * 3}, good]
+    states_file = tmp_path / "states.json"
+    states_file.write_text(json.dumps(inputs))
+    env = isolated_env()
+    node = subprocess.Popen([sys.executable, "-m", "bracing_controller.node", "--ros-args", "--params-file",
+                             str(PAPER_YAML)], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            cwd=REPO_ROOT)
+    try:
+        driver = subprocess.run([sys.executable, DRIVER, "controller", str(states_file)], env=env, capture_output=True,
+                                text=True, timeout=120)
+        assert node.poll() is None, "the controller died"
+    finally:
+        node.terminate()
+        log = node.communicate(timeout=20)[0]
+    answers = json.loads(driver.stdout.strip().splitlines()[-1])["answers"]
+    assert answers[0] is not None and answers[4] is not None
+    assert answers[1] is None and answers[2] is None and answers[3] is None
+    assert "missing joints ['joint4']" in log and "non-finite" in log and "3 velocities" in log
