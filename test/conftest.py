@@ -79,7 +79,7 @@ class Run:
 def run_closed_loop(scenario: Scenario, duration: float) -> Run:
     sim, controller = scenario.sim, scenario.controller
     assert controller is not None
-    steps = int(round(duration / sim.step_size))
+    steps = round(duration / sim.step_size)
     n, p = sim.n, len(scenario.plant.contact_set)
     rec = {key: np.zeros((steps, n)) for key in ("position", "velocity", "current", "command")}
     time, hand_error = np.zeros(steps), np.zeros(steps)

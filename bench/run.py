@@ -1,0 +1,226 @@
+"""make bench: how fast the engine, the controller and the ROS pair are, measured side by side
+in one run on this machine, with medians of repeats. Prints a table, writes bench/latest.json.
+
+- engine vs MuJoCo: the simulator core stepping the paper model in-process (voltage input,
+  RK4, 1 ms, elbow braced) against MuJoCo stepping an equivalent MJCF (bench/mujoco_paper.py);
+- the ROS pair vs the DDS bound: bracing-pair in lockstep for 10 s of sim time, against the
+  round trips/s of two bare rclpy processes ping-ponging messages of the same size, times
+  the step (bench/dds_bound.py);
+- controller update latency (p50, p99);
+- engine steps/s for generated chains of n links with p = 1 and 2 contacts, and the
+  fitted growth exponent of cost with n.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import random
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+PAPER = ROOT / "config" / "paper_4link.yaml"
+sys.path.insert(0, str(HERE))
+
+
+def _median_rate(run_once: Any, repeats: int) -> tuple[float, list[float]]:
+    samples = [run_once() for _ in range(repeats)]
+    return statistics.median(samples), samples
+
+
+def engine_steps_per_s(steps: int = 3000, repeats: int = 5, scenario: Any = None) -> tuple[float, list[float]]:
+    from bracing_bringup.inprocess import build_scenario
+
+    def once() -> float:
+        sim = (scenario() if scenario else build_scenario(PAPER, with_controller=False)).sim
+        command = np.full(sim.n, 1.0)
+        for _ in range(50):  # warm-up
+            sim.step(command)
+        start = time.perf_counter()
+        for _ in range(steps):
+            sim.step(command)
+        return steps / (time.perf_counter() - start)
+
+    return _median_rate(once, repeats)
+
+
+def controller_latency_us(updates: int = 3000) -> dict[str, float]:
+    from bracing_bringup.inprocess import build_scenario
+
+    scenario = build_scenario(PAPER)
+    sim, controller = scenario.sim, scenario.controller
+    assert controller is not None
+    samples = np.zeros(updates)
+    for k in range(updates):
+        q, dq, t = sim.position, sim.velocity, sim.time
+        start = time.perf_counter()
+        out = controller.update(t, q, dq)
+        samples[k] = (time.perf_counter() - start) * 1e6
+        sim.step(out.command)
+    return {"p50": float(np.percentile(samples, 50)), "p99": float(np.percentile(samples, 99))}
+
+
+def chain_scenario(n: int, p: int) -> Any:
+    """An n-link chain of the paper's links with p contacts on horizontal planes through the
+    contact frames' start positions (feasible by construction)."""
+    from bracing_sim.config import Plant, SharedConfig, build_simulator, SimulatorConfig  # noqa: F401
+    from bracing_sim.core.chain_urdf import chain_urdf
+
+    links = [max(1, (n * (j + 1)) // (2 * p)) for j in range(p)] if p else []
+    tmp = Path(tempfile.mkdtemp(prefix="bench_chain_"))
+    urdf = tmp / f"chain{n}.urdf"
+    urdf.write_text(chain_urdf(f"chain{n}", [1.0] * n, [0.5] * n, [0.03] * n, [2.0] * n,
+                               {f"c{j}": link for j, link in enumerate(links)}))
+    rng = np.random.default_rng(n)
+    q0 = rng.uniform(-0.6, 0.6, n).tolist()
+    params: dict[str, Any] = {
+        "robot.urdf": str(urdf), "robot.joint_names": [f"joint{k + 1}" for k in range(n)],
+        "input_mode": "voltage", "initial_position": q0,
+        **{f"motors.{f}": [v] * n for f, v in (("torque_constant", 0.2), ("resistance", 0.6), ("inductance", 0.17),
+                                               ("rotor_inertia", 0.000164), ("gear_ratio", 3.0),
+                                               ("gear_damping", 0.1))},
+        "contacts.names": [f"c{j}" for j in range(p)],
+    }
+    for j in range(p):
+        params[f"contacts.c{j}.frame"] = f"c{j}"
+        params[f"contacts.c{j}.friction"] = 0.1
+        params[f"contacts.c{j}.offset"] = 0.0
+    # Put each plane through its frame's start position.
+    from bracing_sim.core.model import RobotModel
+
+    robot = RobotModel.from_urdf(urdf)
+    robot.compute(np.array(q0), np.zeros(n))
+    for j in range(p):
+        params[f"contacts.c{j}.offset"] = float(robot.frame_position(robot.frame_id(f"c{j}"))[2])
+
+    def build() -> Any:
+        from bracing_bringup.inprocess import Scenario
+
+        plant, sim = build_simulator(SimulatorConfig.from_params(params))
+        return Scenario(plant, sim, None)
+
+    return build
+
+
+def scaling(repeats: int = 3) -> dict[str, Any]:
+    results: dict[str, Any] = {}
+    for p in (1, 2):
+        rates = {}
+        for n in (4, 8, 16, 32):
+            rates[n], _ = engine_steps_per_s(steps=1000, repeats=repeats, scenario=chain_scenario(n, p))
+        ns = np.array(list(rates))
+        cost = 1.0 / np.array(list(rates.values()))
+        exponent = float(np.polyfit(np.log(ns), np.log(cost), 1)[0])
+        results[f"p{p}"] = {"steps_per_s": {str(k): v for k, v in rates.items()}, "cost_exponent": exponent}
+    return results
+
+
+def pair_real_time_factor(duration: float = 10.0) -> dict[str, float]:
+    """bracing-pair in lockstep: sim time over the wall time of the stepping itself (from the
+    simulator's first to last progress line) and over the whole run including start-up."""
+    out = Path(tempfile.mkdtemp(prefix="bench_pair_")) / "run"
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    start = time.monotonic()
+    done = subprocess.run([sys.executable, "-m", "bracing_bringup.pair", "--config", str(PAPER), "--duration",
+                           str(duration), "--output", str(out), "--quiet", "--domain-id",
+                           str(random.randint(150, 230))], env=env, capture_output=True, text=True, timeout=1800)
+    total = time.monotonic() - start
+    if done.returncode != 0:
+        raise RuntimeError(f"bracing-pair failed: {done.stderr[-2000:]}")
+    stamps = []
+    for line in (out / "logs" / "simulator.log").read_text().splitlines():
+        if "progress t=" in line:
+            wall = float(line.split("] [")[1].split("]")[0])
+            stamps.append((wall, float(line.rsplit("t=", 1)[1])))
+    (w0, t0), (w1, t1) = stamps[0], stamps[-1]
+    return {"stepping": (t1 - t0) / (w1 - w0), "whole_run": duration / total}
+
+
+def machine() -> dict[str, Any]:
+    versions = {}
+    for dist in ("numpy", "pin", "mujoco", "ros-jazzy-rclpy", "rosbags"):
+        try:
+            versions[dist] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            versions[dist] = None
+    return {"cores": os.cpu_count(), "python": platform.python_version(), "platform": platform.platform(),
+            "processor": platform.processor() or platform.machine(), "versions": versions,
+            "date": time.strftime("%Y-%m-%d")}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
+    parser.add_argument("--output", type=Path, default=HERE / "latest.json")
+    parser.add_argument("--quick", action="store_true", help="fewer repeats (for a smoke test)")
+    args = parser.parse_args(argv)
+    repeats = 2 if args.quick else 5
+
+    from dds_bound import dds_round_trips_per_s
+    from mujoco_paper import mujoco_steps_per_s
+
+    print("engine ...", flush=True)
+    engine, engine_samples = engine_steps_per_s(repeats=repeats)
+    print("mujoco ...", flush=True)
+    mj = mujoco_steps_per_s(n_steps=10000, repeats=repeats)
+    print("controller ...", flush=True)
+    latency = controller_latency_us()
+    print("dds bound ...", flush=True)
+    dds = dds_round_trips_per_s(n=2000, repeats=3)
+    step = 0.001
+    print("pair (10 s of sim time) ...", flush=True)
+    pair = pair_real_time_factor(2.0 if args.quick else 10.0)
+    print("scaling ...", flush=True)
+    scale = scaling(repeats=2 if args.quick else 3)
+    bound = dds["round_trips_per_s"] * step
+    result = {
+        "engine_steps_per_s": engine,
+        "engine_samples": engine_samples,
+        "mujoco_steps_per_s": mj["steps_per_s"],
+        "mujoco_samples": mj["samples"],
+        "engine_vs_mujoco": engine / mj["steps_per_s"],
+        "pair_real_time_factor": pair["stepping"],
+        "pair_real_time_factor_whole_run": pair["whole_run"],
+        "dds_bound_real_time_factor": bound,
+        "dds_round_trip_us": dds["round_trip_us"],
+        "pair_vs_bound": pair["stepping"] / bound,
+        "controller_update_us_p50": latency["p50"],
+        "controller_update_us_p99": latency["p99"],
+        "scaling": scale,
+        "machine": machine(),
+    }
+    args.output.write_text(json.dumps(result, indent=2) + "\n")
+    rows = [
+        ("engine steps/s (paper model, voltage, RK4, 1 ms)", f"{engine:,.0f}"),
+        ("MuJoCo steps/s (equivalent MJCF, RK4, 1 ms)", f"{mj['steps_per_s']:,.0f}"),
+        ("engine / MuJoCo", f"{result['engine_vs_mujoco']:.3f}"),
+        ("pair real-time factor (lockstep stepping)", f"{pair['stepping']:.2f}"),
+        ("pair real-time factor (whole run, with start-up)", f"{pair['whole_run']:.2f}"),
+        ("DDS bound real-time factor (round trips/s x 1 ms)", f"{bound:.2f}"),
+        ("pair / bound", f"{result['pair_vs_bound']:.3f}"),
+        ("controller update p50 / p99 [us]", f"{latency['p50']:.1f} / {latency['p99']:.1f}"),
+    ]
+    for p in (1, 2):
+        s = scale[f"p{p}"]
+        rates = ", ".join(f"n={n}: {v:,.0f}" for n, v in s["steps_per_s"].items())
+        rows.append((f"scaling p={p} steps/s", f"{rates}; cost ~ n^{s['cost_exponent']:.2f}"))
+    width = max(len(r[0]) for r in rows)
+    for label, value in rows:
+        print(f"{label:<{width}}  {value}")
+    print(f"written to {args.output}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
