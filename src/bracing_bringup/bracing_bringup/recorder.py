@@ -54,9 +54,11 @@ RECORD_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=100000,
     reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
-"""Reliable and deep, so that nothing is lost in lockstep runs."""
+"""Reliable, deep and transient-local, so that nothing is lost in lockstep runs: a publisher
+that starts before the recorder has discovered it still delivers its first messages.
+(It matches the nodes' transient-local publishers; a volatile publisher is not recorded.)"""
 
 
 def bracing_msgs_dir() -> Path:

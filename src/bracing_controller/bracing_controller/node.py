@@ -19,7 +19,7 @@ from bracing_controller.law import ControlOutput, DecoupledController
 from bracing_msgs.msg import ControllerState, MotorCommand
 from bracing_sim.commands import MODE_CODES
 from bracing_sim.core.types import Vector
-from bracing_sim.ros_common import STREAM_QOS, RateLimitedLog, nanoseconds, read_parameters, run
+from bracing_sim.ros_common import STREAM_QOS, SUBSCRIBE_QOS, RateLimitedLog, nanoseconds, read_parameters, run
 
 
 class StateError(ValueError):
@@ -59,7 +59,7 @@ class ControllerNode(Node):
         self.contact_names = [c.name for c in self.config.shared.contacts]
         self.command_pub = self.create_publisher(MotorCommand, "motor_command", STREAM_QOS)
         self.state_pub = self.create_publisher(ControllerState, "controller_state", STREAM_QOS)
-        self.create_subscription(JointState, "joint_states", self._on_state, STREAM_QOS)
+        self.create_subscription(JointState, "joint_states", self._on_state, SUBSCRIBE_QOS)
         self.report = RateLimitedLog(self)
         self.get_logger().info(
             f"{self.config.shared.input_mode.value} output, contacts {self.contact_names or 'none'}, "

@@ -30,6 +30,7 @@ from bracing_sim.ros_common import (
     EXIT_CONFIG,
     EXIT_DIVERGED,
     STREAM_QOS,
+    SUBSCRIBE_QOS,
     RateLimitedLog,
     nanoseconds,
     read_parameters,
@@ -58,7 +59,7 @@ class SimulatorNode(Node):
         self.wrench_pubs = [
             self.create_publisher(WrenchStamped, f"contact_wrench/{c.name}", STREAM_QOS) for c in self.config.shared.contacts
         ]
-        self.create_subscription(MotorCommand, "motor_command", self._on_command, STREAM_QOS)
+        self.create_subscription(MotorCommand, "motor_command", self._on_command, SUBSCRIBE_QOS)
         self.report = RateLimitedLog(self)
 
         self.command = np.zeros(self.sim.n)  # last applied (held) command

@@ -14,12 +14,27 @@ from rclpy._rclpy_pybind11 import RCLError
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from bracing_sim.params import ConfigError
 
-# Reliable and deep: a lockstep run must not lose a message to a slower recorder.
-STREAM_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=2000, reliability=ReliabilityPolicy.RELIABLE)
+# Reliable and deep: a lockstep run must not lose a message to a slower recorder. Transient-local:
+# a subscriber that discovers a publisher late (the recorder and the controller's first
+# commands) still receives what was sent before the match.
+STREAM_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=2000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+# The nodes' own subscriptions are volatile: a node (re)started mid-run must answer the
+# current state, not replay history. (A volatile subscription matches the publishers above.)
+SUBSCRIBE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=2000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
 
 EXIT_CONFIG = 2
 EXIT_DIVERGED = 3
