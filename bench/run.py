@@ -75,7 +75,7 @@ def controller_latency_us(updates: int = 3000) -> dict[str, float]:
 def chain_scenario(n: int, p: int) -> Any:
     """An n-link chain of the paper's links with p contacts on horizontal planes through the
     contact frames' start positions (feasible by construction)."""
-    from bracing_sim.config import Plant, SharedConfig, build_simulator, SimulatorConfig  # noqa: F401
+    from bracing_sim.config import SimulatorConfig, build_simulator
     from bracing_sim.core.chain_urdf import chain_urdf
 
     links = [max(1, (n * (j + 1)) // (2 * p)) for j in range(p)] if p else []
@@ -139,11 +139,14 @@ def pair_real_time_factor(duration: float = 10.0) -> dict[str, float]:
     total = time.monotonic() - start
     if done.returncode != 0:
         raise RuntimeError(f"bracing-pair failed: {done.stderr[-2000:]}")
+    from bracing_bringup.pair import PROGRESS
+
     stamps = []
     for line in (out / "logs" / "simulator.log").read_text().splitlines():
-        if "progress t=" in line:
-            wall = float(line.split("] [")[1].split("]")[0])
-            stamps.append((wall, float(line.rsplit("t=", 1)[1])))
+        found = PROGRESS.search(line)
+        if found:
+            wall = float(line.split("] [")[1].split("]")[0])  # rcutils log time [s]
+            stamps.append((wall, float(found.group(1))))
     (w0, t0), (w1, t1) = stamps[0], stamps[-1]
     return {"stepping": (t1 - t0) / (w1 - w0), "whole_run": duration / total}
 

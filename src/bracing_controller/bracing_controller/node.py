@@ -11,6 +11,7 @@ import time
 
 import numpy as np
 from geometry_msgs.msg import Point
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
@@ -19,7 +20,15 @@ from bracing_controller.law import ControlOutput, DecoupledController
 from bracing_msgs.msg import ControllerState, MotorCommand
 from bracing_sim.commands import MODE_CODES
 from bracing_sim.core.types import Vector
-from bracing_sim.ros_common import STREAM_QOS, SUBSCRIBE_QOS, RateLimitedLog, nanoseconds, read_parameters, run
+from bracing_sim.ros_common import (
+    STREAM_QOS,
+    SUBSCRIBE_QOS,
+    RateLimitedLog,
+    SubscriptionWaiter,
+    nanoseconds,
+    read_parameters,
+    run,
+)
 
 
 class StateError(ValueError):
@@ -59,7 +68,7 @@ class ControllerNode(Node):
         self.contact_names = [c.name for c in self.config.shared.contacts]
         self.command_pub = self.create_publisher(MotorCommand, "motor_command", STREAM_QOS)
         self.state_pub = self.create_publisher(ControllerState, "controller_state", STREAM_QOS)
-        self.create_subscription(JointState, "joint_states", self._on_state, SUBSCRIBE_QOS)
+        self.state_sub = self.create_subscription(JointState, "joint_states", self._on_state, SUBSCRIBE_QOS)
         self.report = RateLimitedLog(self)
         self.get_logger().info(
             f"{self.config.shared.input_mode.value} output, contacts {self.contact_names or 'none'}, "
@@ -101,8 +110,27 @@ class ControllerNode(Node):
         return state
 
 
+def spin(node: ControllerNode) -> int:
+    """Answer states as they come (a wait set on joint_states), serving the executor in between."""
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    waiter = SubscriptionWaiter(node, node.state_sub)
+    answered = 0
+    try:
+        while True:
+            messages = waiter.take(0.1)
+            for msg in messages:
+                node._on_state(msg)
+            answered += len(messages)
+            if not messages or answered >= 100:
+                answered = 0
+                executor.spin_once(timeout_sec=0.0)  # parameter services and the like
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 0
+
+
 def main(args: list[str] | None = None) -> int:
-    sys.exit(run(ControllerNode, None, args))
+    sys.exit(run(ControllerNode, spin, args))  # type: ignore[arg-type]
 
 
 if __name__ == "__main__":

@@ -32,6 +32,7 @@ from bracing_sim.ros_common import (
     STREAM_QOS,
     SUBSCRIBE_QOS,
     RateLimitedLog,
+    SubscriptionWaiter,
     nanoseconds,
     read_parameters,
     run,
@@ -59,7 +60,7 @@ class SimulatorNode(Node):
         self.wrench_pubs = [
             self.create_publisher(WrenchStamped, f"contact_wrench/{c.name}", STREAM_QOS) for c in self.config.shared.contacts
         ]
-        self.create_subscription(MotorCommand, "motor_command", self._on_command, SUBSCRIBE_QOS)
+        self.command_sub = self.create_subscription(MotorCommand, "motor_command", self._on_command, SUBSCRIBE_QOS)
         self.report = RateLimitedLog(self)
 
         self.command = np.zeros(self.sim.n)  # last applied (held) command
@@ -67,6 +68,7 @@ class SimulatorNode(Node):
         self._latest: tuple[float, Vector] | None = None  # real-time: (wall time, command)
         self.finished = False
         self._next_progress = 0.0  # wall time of the next progress line
+        self.max_residual = 0.0  # [m], over the run so far
         self.exit_code = 0
         self.get_logger().info(
             f"{self.mode.value} input, {len(self.plant.contact_set)} contact(s), step {self.config.step} s, "
@@ -168,6 +170,7 @@ class SimulatorNode(Node):
         self.command = command
         self.publish_step(t_ns, command, d, current)
         residual = float(np.max(np.abs(d.contacts.residual))) if d.contacts.count else 0.0
+        self.max_residual = max(self.max_residual, residual)
         if residual > self.config.divergence_residual:
             raise DivergenceError(
                 f"constraint residual {residual:.3g} m exceeds divergence_residual {self.config.divergence_residual} m"
@@ -176,7 +179,7 @@ class SimulatorNode(Node):
         now = time.monotonic()
         if now >= self._next_progress:  # bracing-pair follows these lines
             self._next_progress = now + 0.5
-            self.get_logger().info(f"progress t={self.sim.time:.3f}")
+            self.get_logger().info(f"progress t={self.sim.time:.3f} max_residual={self.max_residual:.3e}")
 
     def state_effort(self) -> Vector:
         """JointState.effort: link-side motor torque (the held command in torque mode)."""
@@ -196,7 +199,7 @@ class SimulatorNode(Node):
         for pub in (self.joint_pub, self.contacts_pub, self.motor_pub, self.clock_pub, *self.wrench_pubs):
             pub.wait_for_all_acked(Duration(seconds=2.0))
         self.finished = True
-        self.get_logger().info(f"progress t={self.sim.time:.3f}")
+        self.get_logger().info(f"progress t={self.sim.time:.3f} max_residual={self.max_residual:.3e}")
         self.get_logger().info(f"finished at t = {self.sim.time:.6f} s")
 
 
@@ -209,15 +212,19 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
     # Wait for the controller (and a recorder, if asked) before the first state.
     while node.joint_pub.get_subscription_count() < cfg.min_subscribers:
         executor.spin_once(timeout_sec=0.05)
+    waiter = SubscriptionWaiter(node, node.command_sub)
     node.publish_state(node.state_effort())
     while not node.done():
         expected = node.sim.steps_taken * node.step_ns
         deadline = time.monotonic() + cfg.command_timeout
+        if node.sim.steps_taken % 100 == 0:
+            executor.spin_once(timeout_sec=0.0)  # parameter services and the like
         while expected not in node._pending:
             remaining = deadline - time.monotonic()
             if remaining <= 0.0:
                 break
-            executor.spin_once(timeout_sec=min(remaining, 0.1))
+            for msg in waiter.take(min(remaining, 0.1)):
+                node._on_command(msg)
         command = node._pending.pop(expected, None)
         node._pending.clear()
         if command is None:

@@ -12,7 +12,11 @@ from builtin_interfaces.msg import Time
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerGuardCondition
+from rclpy.subscription import Subscription
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -62,6 +66,38 @@ class RateLimitedLog:
         self._last[kind] = now
         suffix = f" ({held} more like this since the last report)" if held else ""
         getattr(self._logger, level)(message + suffix)
+
+
+class SubscriptionWaiter:
+    """Waits on one subscription with a wait set of its own and takes its messages.
+
+    The hot loop of a lockstep node: an executor rebuilds its wait set (parameter services,
+    timers, ...) on every spin, which costs more than a whole simulation step; this waits
+    on the one subscription that matters (and on Ctrl-C). Call the executor now and then
+    so that the node's services still answer.
+    """
+
+    def __init__(self, node: Node, subscription: Subscription) -> None:
+        self._subscription = subscription
+        self._context = node.context
+        self._wait_set = _rclpy.WaitSet(1, 1, 0, 0, 0, 0, node.context.handle)
+        self._interrupt = SignalHandlerGuardCondition(context=node.context)
+
+    def take(self, timeout_sec: float) -> list[Any]:
+        """Every message available now, waiting up to ``timeout_sec`` for the first one."""
+        handle = self._subscription.handle
+        wait_set = self._wait_set
+        wait_set.clear_entities()
+        wait_set.add_subscription(handle)
+        wait_set.add_guard_condition(self._interrupt.handle)
+        wait_set.wait(int(timeout_sec * 1e9))
+        if not self._context.ok():
+            raise ExternalShutdownException()
+        messages = []
+        if handle.pointer in wait_set.get_ready_entities("subscription"):
+            while (taken := handle.take_message(self._subscription.msg_type, self._subscription.raw)) is not None:
+                messages.append(taken[0])
+        return messages
 
 
 def read_parameters(node: Node) -> dict[str, Any]:
