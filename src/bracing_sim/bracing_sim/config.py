@@ -151,7 +151,10 @@ class SharedConfig:
             raise ConfigError("robot.joint_names: expected the list of actuated joints, got none")
         n = len(joint_names)
         gravity = get_floats(params, "robot.gravity", [0.0, 0.0, -9.81], length=3)
-        mode = InputMode.parse(get_str(params, "input_mode", "voltage"))
+        try:
+            mode = InputMode.parse(get_str(params, "input_mode", "voltage"))
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
         hint = f"one per joint of robot.joint_names ({n})"
         arrays = {f: np.array(get_floats(params, f"motors.{f}", None, length=n, length_hint=hint)) for f in MOTOR_FIELDS}
         try:

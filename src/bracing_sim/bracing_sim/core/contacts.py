@@ -33,7 +33,8 @@ class PlaneContact:
         normal = np.asarray(self.normal, dtype=float)
         norm = float(np.linalg.norm(normal)) if normal.shape == (3,) else 0.0
         if normal.shape != (3,) or not np.isfinite(norm) or norm < 1e-9:
-            raise ValueError(f"contacts.{self.name}.normal: expected a non-zero 3-vector, got {np.ravel(self.normal).tolist()}")
+            raise ValueError(
+                f"contacts.{self.name}.normal: expected a non-zero 3-vector, got {np.ravel(self.normal).tolist()}")
         object.__setattr__(self, "normal", normal / norm)
         if not np.isfinite(self.offset):
             raise ValueError(f"contacts.{self.name}.offset: must be finite")
@@ -78,7 +79,6 @@ class ContactSet:
         self._normals = np.array([c.normal for c in self.contacts], dtype=float).reshape(p, 3)
         self._offsets = np.array([c.offset for c in self.contacts], dtype=float)
         self._friction = np.array([c.friction for c in self.contacts], dtype=float)
-        self._tangent_projectors = np.array([np.eye(3) - np.outer(m, m) for m in self._normals]).reshape(p, 3, 3)
 
     @property
     def names(self) -> list[str]:
