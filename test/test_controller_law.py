@@ -243,9 +243,6 @@ def test_unknown_contact_frame_is_named(ctl_params: dict) -> None:
         DecoupledController(ControllerConfig.from_params(ctl_params, [CONFIG_DIR]))
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
-    "src bug: law.py:65 resolves hand.frame with RobotModel.frame_id, whose ModelError is not a ConfigError and "
-    "does not name the parameter hand.frame"))
 def test_unknown_hand_frame_is_a_config_error(ctl_params: dict) -> None:
     ctl_params["hand.frame"] = "no_such_hand"
     try:

@@ -123,28 +123,27 @@ def _open_loop_voltage(t: float, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
     return np.array([6.0 * math.sin(3.0 * t), -4.0 * math.cos(2.0 * t), 3.0 * math.sin(5.0 * t), 2.0])
 
 
-STICK_SLIP_XFAIL = pytest.mark.xfail(strict=True, reason=(
-    "numerical stiffness (src/bracing_sim core, not the bookkeeping): with the default slip_epsilon = 1e-4 m/s "
-    "the regularised friction acts, near zero slip, like a damper mu f_n / eps ~ 1e5 N s/m on the elbow; explicit "
-    "RK4 at h = 1 ms is far outside its stability region there, so stick phases chatter (slip changes sign on "
-    "consecutive steps) and the energy books close only to ~5e-4; with substeps = 16 or eps = 1e-2 they close"))
-
+# Near zero slip the regularised friction (default slip_epsilon = 1e-4 m/s) acts like a damper
+# mu f_n / eps ~ 1e5 N s/m on the elbow: explicit RK4 at h = 1 ms is outside its stability region
+# there, so stick phases chatter and the books close only to ~5e-4 (a known limit, in the README).
+# Sub-steps (or a larger eps) are the remedy; both are asserted here.
 BALANCE_CASES = {
-    # name: (shared overrides, simulator overrides, paper controller in the loop?)
-    "paper_controller": ({}, {}, True),
-    "open_loop_mu0.3_eps1e-2": ({"contacts.elbow.friction": 0.3}, {"slip_epsilon": 1e-2}, False),
-    "open_loop_mu0.3_default_eps": ({"contacts.elbow.friction": 0.3}, {}, False),
+    # name: (shared overrides, simulator overrides, paper controller in the loop?, relative bound)
+    "paper_controller": ({}, {}, True, 1e-5),  # measured ~3e-7
+    "open_loop_mu0.3_eps1e-2": ({"contacts.elbow.friction": 0.3}, {"slip_epsilon": 1e-2}, False, 1e-5),  # ~1e-9
+    # stick-slip at the default eps: the issue's 1e-4 bound (measured ~1.6e-5)
+    "open_loop_mu0.3_default_eps_16_substeps": ({"contacts.elbow.friction": 0.3}, {"substeps": 16}, False, 1e-4),
 }
 
 
 @pytest.mark.parametrize("case", [
     "paper_controller",
     "open_loop_mu0.3_eps1e-2",
-    pytest.param("open_loop_mu0.3_default_eps", marks=STICK_SLIP_XFAIL),
+    "open_loop_mu0.3_default_eps_16_substeps",
 ])
 def test_electrical_energy_balance_braced_voltage(case: str, scenario: Callable, paper_params: Callable) -> None:
     """int v.i = copper + d(L i^2/2) + d(KE + PE) + d(dq^T J_m dq/2) + viscous + friction - constraint work."""
-    shared, sim_overrides, closed = BALANCE_CASES[case]
+    shared, sim_overrides, closed, bound = BALANCE_CASES[case]
     sc = scenario(shared, sim=sim_overrides)
     sim, plant = sc.sim, sc.plant
     params = paper_params("bracing_simulator", shared, sim_overrides)
@@ -202,7 +201,7 @@ def test_electrical_energy_balance_braced_voltage(case: str, scenario: Callable,
           f"+ mech {d_mech:.4f} + rotor {d_rotor:.6f} + viscous {e.viscous_loss:.4f} + friction "
           f"{e.friction_loss:.5f} - constraint {e.constraint_work:.3g}; imbalance {balance:.3g} J "
           f"({relative:.3g} of consumed {e.consumed:.2f} J)")
-    assert relative < 1e-5  # measured ~3e-7 (paper controller), ~1e-9 (open loop, eps = 1e-2)
+    assert relative < bound
     # Each integral agrees with an independent trapezoid quadrature of its definition.
     for name, value in (("net", e.net), ("consumed", e.consumed), ("copper", e.copper_loss),
                         ("viscous", e.viscous_loss), ("friction", e.friction_loss)):
@@ -353,9 +352,6 @@ def test_start_within_tolerance_is_accepted(sim_params: dict) -> None:
         build_simulator(SimulatorConfig.from_params(sim_params, [CONFIG_DIR]))
 
 
-@pytest.mark.xfail(strict=True, reason="src bug: a contact whose J_c row is identically zero (normal perpendicular "
-                   "to the motion plane) makes the KKT matrix singular; build_simulator lets numpy's LinAlgError "
-                   "escape instead of a ConfigError naming the contact")
 def test_degenerate_contact_is_a_config_error(sim_params: dict) -> None:
     sim_params["contacts.elbow.normal"] = [1.0, 0.0, 0.0]  # x = 0 holds, but n^T J = 0 for this planar arm
     with pytest.raises(ConfigError, match="elbow"):

@@ -185,12 +185,14 @@ def publisher_main(namespace: str, contacts: str, n: int, period: float, wait_go
     a line on stdin), "sent" after the last publish and "published" once all is acked.
     """
     import rclpy
-    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
     names = tuple(c for c in contacts.split(",") if c)
     rclpy.init()
     node = rclpy.create_node("synthetic_publisher", namespace=namespace)
-    qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+    # As the nodes publish: reliable and transient-local (the recorder requests transient-local).
+    qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
     pubs = {topic: node.create_publisher(type(msg), topic, qos)
             for topic, msg in make_step(0, names).items()}
     deadline = time.monotonic() + 15.0

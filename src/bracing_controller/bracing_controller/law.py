@@ -79,7 +79,7 @@ class DecoupledController:
         contacts = config.shared.contacts
         self.desired_normal_force = np.array([c.desired_normal_force for c in contacts], dtype=float)
         hand = config.hand
-        self._hand = _Task(robot.frame_id(hand.frame), np.eye(3)[list(hand.axes)], np.array(hand.kp), np.array(hand.kd))
+        self._hand = _Task(self.plant.frame_id(hand.frame, "hand.frame"), np.eye(3)[list(hand.axes)], np.array(hand.kp), np.array(hand.kd))
         self._braces = [
             _Task(fid, np.eye(3)[list(c.brace_axes)], np.array(c.kp), np.array(c.kd))
             for fid, c in zip(self.contact_set.frame_ids, contacts, strict=True)

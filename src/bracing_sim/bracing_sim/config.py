@@ -181,13 +181,22 @@ class Plant:
             self.robot = RobotModel.from_urdf(config.urdf, config.gravity)
             # Index array taking configuration-ordered data to model order.
             self.order = self.robot.joint_permutation(config.joint_names)
-            self.contact_set = ContactSet(self.robot, [c.plane() for c in config.contacts], slip_epsilon)
         except ModelError as exc:
             raise ConfigError(str(exc)) from None
+        for contact in config.contacts:
+            self.frame_id(contact.frame, f"contacts.{contact.name}.frame")
+        self.contact_set = ContactSet(self.robot, [c.plane() for c in config.contacts], slip_epsilon)
         self.config = config
         self.joint_names = self.robot.joint_names  # model order: the order of every message
         self.motors = config.motors.permuted(self.order)
         self.mode = config.input_mode
+
+    def frame_id(self, name: str, parameter: str) -> int:
+        """The model frame ``name``; a ConfigError naming ``parameter`` if there is none."""
+        try:
+            return self.robot.frame_id(name)
+        except ModelError as exc:
+            raise ConfigError(f"{parameter}: {exc}") from None
 
     def to_model_order(self, values: Sequence[float]) -> np.ndarray:
         return np.asarray(values, dtype=float)[self.order]
@@ -254,10 +263,20 @@ def build_simulator(config: SimulatorConfig) -> tuple[Plant, Simulator]:
 
 
 def check_start(plant: Plant, simulator: Simulator, tolerance: float) -> None:
-    """A start state must satisfy every contact (|C| <= tolerance)."""
+    """A start state must satisfy every contact (|C| <= tolerance), and every contact must be
+    able to push: a frame that no joint can move along the plane's normal (n^T J = 0) gives a
+    singular system."""
     if not len(plant.contact_set):
         return
-    terms = simulator.evaluate(np.zeros(simulator.n)).contacts
+    plant.robot.compute(simulator.position, simulator.velocity)
+    terms = plant.contact_set.evaluate(simulator.velocity)
+    for contact, row in zip(plant.config.contacts, terms.normal_jacobian, strict=True):
+        if float(np.linalg.norm(row)) < 1e-9:
+            raise ConfigError(
+                f"contacts.{contact.name}: no joint moves frame {contact.frame!r} along the normal "
+                f"{list(contact.normal)} at the start (n^T J = 0), so the contact cannot hold a force; "
+                f"check contacts.{contact.name}.normal"
+            )
     for contact, residual in zip(plant.config.contacts, terms.residual, strict=True):
         if abs(residual) > tolerance:
             raise ConfigError(

@@ -42,6 +42,14 @@ class RobotModel:
                 f"{source}: only 1-dof revolute/prismatic joints are supported (nq={model.nq}, nv={model.nv})")
         if model.nv == 0:
             raise ModelError(f"{source}: the model has no moving joints")
+        for joint in range(1, model.njoints):
+            mass = float(model.inertias[joint].mass)
+            if not mass > 0.0:  # also catches NaN
+                links = [f.name for f in model.frames if f.parentJoint == joint and f.type == pin.FrameType.BODY]
+                raise ModelError(
+                    f"{source}: link {links[0] if links else model.names[joint]!r} (moved by {model.names[joint]!r}) "
+                    f"has mass {mass} kg; every moving link needs a positive mass"
+                )
         self.model = model
         self.data = model.createData()
         self.source = source
