@@ -56,6 +56,7 @@ CONTACT_FIELDS: dict[str, object] = {
     "kp": [],
     "kd": [],
     "target": [],
+    "unilateral": False,
 }
 SIMULATOR_PARAMETERS: dict[str, object] = {
     "initial_position": [],
@@ -99,6 +100,7 @@ class ContactConfig:
     kp: tuple[float, ...]  # one per brace axis
     kd: tuple[float, ...]
     target: tuple[float, float, float] | None  # None: the brace point's initial position
+    unilateral: bool = False  # the plane only pushes: release and touchdown (bilateral: the paper)
 
     @classmethod
     def from_params(cls, params: Params, name: str) -> ContactConfig:
@@ -126,10 +128,11 @@ class ContactConfig:
             kp=kp,
             kd=kd,
             target=(target[0], target[1], target[2]) if target else None,
+            unilateral=get_bool(params, key + "unilateral", False),
         )
 
     def plane(self) -> PlaneContact:
-        return PlaneContact(self.name, self.frame, np.array(self.normal), self.offset, self.friction)
+        return PlaneContact(self.name, self.frame, np.array(self.normal), self.offset, self.friction, self.unilateral)
 
 
 @dataclass(frozen=True)
@@ -277,8 +280,11 @@ def check_start(plant: Plant, simulator: Simulator, tolerance: float) -> None:
                 f"{list(contact.normal)} at the start (n^T J = 0), so the contact cannot hold a force; "
                 f"check contacts.{contact.name}.normal"
             )
-    for contact, residual in zip(plant.config.contacts, terms.residual, strict=True):
-        if abs(residual) > tolerance:
+    above = np.array([c.unilateral for c in plant.config.contacts]) & (terms.residual > tolerance)
+    if above.any():  # a unilateral contact above its plane starts released, in flight
+        simulator.set_active(~above)
+    for contact, residual, released in zip(plant.config.contacts, terms.residual, above, strict=True):
+        if abs(residual) > tolerance and not released:
             raise ConfigError(
                 f"infeasible start: contact {contact.name!r} (frame {contact.frame!r}) is {residual:+.6g} m "
                 f"off its plane (tolerance {tolerance:g} m); change initial_position or the plane offset"

@@ -68,7 +68,8 @@ class SimulatorNode(Node):
         self._latest: tuple[float, Vector] | None = None  # real-time: (wall time, command)
         self.finished = False
         self._next_progress = 0.0  # wall time of the next progress line
-        self.max_residual = 0.0  # [m], over the run so far
+        self.max_residual = 0.0  # [m], over the run so far (contacts holding a force)
+        self._events_logged = 0
         self.exit_code = 0
         self.get_logger().info(
             f"{self.mode.value} input, {len(self.plant.contact_set)} contact(s), step {self.config.step} s, "
@@ -118,6 +119,7 @@ class SimulatorNode(Node):
         contacts.header.stamp = header_stamp
         contacts.header.frame_id = "world"
         terms = d.contacts
+        active = d.active if d.active is not None else np.ones(terms.count, dtype=bool)
         for j, cfg in enumerate(self.config.shared.contacts):
             normal = terms.normals[j]
             friction = d.friction_force[j]
@@ -126,7 +128,7 @@ class SimulatorNode(Node):
                 ContactState(
                     name=cfg.name,
                     frame=cfg.frame,
-                    active=True,
+                    active=bool(active[j]),
                     position=Point(x=terms.positions[j, 0], y=terms.positions[j, 1], z=terms.positions[j, 2]),
                     normal=_vector(normal),
                     normal_force=float(d.normal_force[j]),
@@ -169,7 +171,12 @@ class SimulatorNode(Node):
         d = self.sim.step(command)
         self.command = command
         self.publish_step(t_ns, command, d, current)
-        residual = float(np.max(np.abs(d.contacts.residual))) if d.contacts.count else 0.0
+        for event in self.sim.events[self._events_logged :]:
+            extra = f", {event.impact_loss:.4g} J lost in the impact" if event.kind == "touchdown" else ""
+            self.get_logger().info(f"contact {event.contact!r}: {event.kind} at t = {event.time:.6f} s{extra}")
+        self._events_logged = len(self.sim.events)
+        held = d.contacts.residual if d.active is None else d.contacts.residual[d.active]
+        residual = float(np.max(np.abs(held))) if held.size else 0.0
         self.max_residual = max(self.max_residual, residual)
         if residual > self.config.divergence_residual:
             raise DivergenceError(

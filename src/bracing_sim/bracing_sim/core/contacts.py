@@ -21,13 +21,18 @@ _WORLD = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 @dataclass(frozen=True)
 class PlaneContact:
-    """A robot frame held on the plane ``normal . r = offset`` (normal is normalised)."""
+    """A robot frame held on the plane ``normal . r = offset`` (normal is normalised).
+
+    Bilateral (the paper): the plane holds the frame both ways. Unilateral: it only pushes;
+    the contact releases when the force would pull and re-engages at touchdown.
+    """
 
     name: str
     frame: str
     normal: Vector
     offset: float = 0.0
     friction: float = 0.0
+    unilateral: bool = False
 
     def __post_init__(self) -> None:
         normal = np.asarray(self.normal, dtype=float)
@@ -79,6 +84,10 @@ class ContactSet:
         self._normals = np.array([c.normal for c in self.contacts], dtype=float).reshape(p, 3)
         self._offsets = np.array([c.offset for c in self.contacts], dtype=float)
         self._friction = np.array([c.friction for c in self.contacts], dtype=float)
+
+    def subset(self, indices: Sequence[int]) -> ContactSet:
+        """The contacts at ``indices`` (in that order), on the same robot."""
+        return ContactSet(self.robot, [self.contacts[j] for j in indices], self.slip_epsilon)
 
     @property
     def names(self) -> list[str]:

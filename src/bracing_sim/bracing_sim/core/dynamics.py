@@ -69,6 +69,7 @@ class Derivative:
     normal_force: Vector  # f_n (p,) [N], on the robot along +normal
     effort: Vector  # link-side motor torque tau [N m]
     contacts: ContactTerms
+    active: Vector | None = None  # (p,) bool: contacts holding a force; None = all
 
     @property
     def friction_force(self) -> Vector:
@@ -160,6 +161,10 @@ class ConstrainedDynamics:
     @property
     def n(self) -> int:
         return self.robot.nv
+
+    def with_contacts(self, contacts: ContactSet) -> ConstrainedDynamics:
+        """The same robot, motors, mode and Baumgarte gain with another set of contacts."""
+        return ConstrainedDynamics(self.robot, self.motors, contacts, self.mode, self.baumgarte)
 
     def evaluate(self, q: Vector, dq: Vector, current: Vector, command: Vector) -> Derivative:
         """ddq, di, f_n at state (q, dq, i) under the held input (v or tau)."""

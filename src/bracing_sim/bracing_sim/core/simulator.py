@@ -20,11 +20,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import pinocchio as pin
+
+from bracing_sim.core.contacts import ContactTerms
 from bracing_sim.core.dynamics import ConstrainedDynamics, Derivative, InputMode
 from bracing_sim.core.types import Vector
 
+_compute_all_terms = pin.computeAllTerms
+_cholesky_decompose = pin.cholesky.decompose
+_cholesky_solve = pin.cholesky.solve
+
 # Order of the energy integrals appended to the state vector.
-ENERGY_KEYS = ("consumed", "net", "copper_loss", "viscous_loss", "friction_loss", "constraint_work")
+ENERGY_KEYS = ("consumed", "net", "copper_loss", "viscous_loss", "friction_loss", "constraint_work", "impact_loss")
 
 
 class DivergenceError(RuntimeError):
@@ -38,7 +45,8 @@ class Energy:
     consumed = int sum |v i| dt, net = int sum v i dt, copper_loss = int sum R i^2 dt
     (voltage mode; torque mode uses the mechanical power tau dq and no copper loss);
     viscous_loss = int dq^T Dc dq dt, friction_loss = int sum mu f_n (dir . slip) dt,
-    constraint_work = int f_n . (J_c dq) dt (zero for an ideal, satisfied constraint).
+    constraint_work = int f_n . (J_c dq) dt (zero for an ideal, satisfied constraint),
+    impact_loss = kinetic energy taken by inelastic touchdowns of unilateral contacts.
     """
 
     consumed: float
@@ -47,6 +55,17 @@ class Energy:
     viscous_loss: float
     friction_loss: float
     constraint_work: float
+    impact_loss: float = 0.0
+
+
+@dataclass(frozen=True)
+class ContactEvent:
+    """A unilateral contact letting go (``release``) or landing (``touchdown``)."""
+
+    time: float  # [s]
+    contact: str
+    kind: str  # release | touchdown
+    impact_loss: float = 0.0  # [J], touchdown only
 
 
 class Simulator:
@@ -70,7 +89,13 @@ class Simulator:
         for name, value in (("initial_position", q0), ("initial_velocity", dq0)):
             if value.shape != (n,) or not np.all(np.isfinite(value)):
                 raise ValueError(f"{name}: expected {n} finite values, got {np.ravel(value).tolist()}")
-        self.dynamics = dynamics
+        self.dynamics = dynamics  # of the contacts holding a force now (all, unless some released)
+        self.full_dynamics = dynamics
+        contacts = dynamics.contacts
+        self._unilateral = np.array([c.unilateral for c in contacts.contacts], dtype=bool)
+        self.active = np.ones(len(contacts), dtype=bool)
+        self._by_active: dict[tuple[bool, ...], ConstrainedDynamics] = {tuple(self.active.tolist()): dynamics}
+        self.events: list[ContactEvent] = []
         self.step_size = float(step)
         self.substeps = int(substeps)
         self.n = n
@@ -147,7 +172,7 @@ class Simulator:
         if u.shape == (n,):
             # The next step starts from this state: keep what it can reuse (see ``step``).
             self._cached = (state, dynamics.baumgarte, u, rates, friction_power, constraint_power, d)
-        return d
+        return self._report(d)
 
     def _rate(self, y: Vector, command: Vector) -> tuple[Vector, Derivative]:
         """d/dt of the full state vector y = [q, dq, i, energies] and the model's answer there."""
@@ -163,7 +188,7 @@ class Simulator:
         power = u * i if self._voltage else u * dq
         copper = float(self._resistance @ (i * i)) if self._voltage else 0.0
         energy_rates = [float(np.abs(power).sum()), float(power.sum()), copper,
-                        float(dq @ (self.dynamics.total_damping * dq)), friction_power, constraint_power]
+                        float(dq @ (self.dynamics.total_damping * dq)), friction_power, constraint_power, 0.0]
         return np.concatenate([rates, energy_rates]), d
 
     def _reuse(self, u: Vector) -> tuple[Vector, float, float, Derivative] | None:
@@ -203,6 +228,9 @@ class Simulator:
         # A finite u . u means every entry is finite; otherwise check exactly (u . u may overflow).
         if u.shape != (self.n,) or (not math.isfinite(u.dot(u)) and not np.isfinite(u).all()):
             raise ValueError(f"command: expected {self.n} finite values, got {np.ravel(u).tolist()}")
+        unilateral = self._unilateral.any()
+        if unilateral:
+            self._release(u)
         dynamics = self.dynamics
         solve = dynamics._solve
         dynamics._set_input(u)
@@ -238,7 +266,107 @@ class Simulator:
             y = y + weights.dot(work).dot(self._increment_map)
         if not math.isfinite(y.dot(y)) and not np.isfinite(y).all():
             raise DivergenceError(f"non-finite state after the step at t = {self.time:.6f} s; state kept")
+        report = self._report(first) if first is not None else None  # contact terms at the step's start
         self._y = y
         self.steps_taken += 1
-        assert first is not None
-        return first
+        if unilateral and not self.active.all():
+            self._touchdown()
+        assert report is not None
+        return report
+
+    # -- unilateral contacts ----------------------------------------------------------
+    def _dynamics_for(self, active: np.ndarray) -> ConstrainedDynamics:
+        key = tuple(active.tolist())
+        if key not in self._by_active:
+            subset = self.full_dynamics.contacts.subset(np.flatnonzero(active).tolist())
+            self._by_active[key] = self.full_dynamics.with_contacts(subset)
+        return self._by_active[key]
+
+    def set_active(self, active: np.ndarray) -> None:
+        """Which contacts hold a force (bilateral ones always do); e.g. a unilateral contact
+        that starts above its plane starts released."""
+        active = np.asarray(active, dtype=bool)
+        if active.shape != self.active.shape or np.any(~active & ~self._unilateral):
+            raise ValueError("only unilateral contacts can be released")
+        self._set_active(active.copy())
+
+    def _set_active(self, active: np.ndarray) -> None:
+        self.active = active
+        self.dynamics = self._dynamics_for(active)
+        self._cached = None
+
+    def _all_contact_terms(self) -> ContactTerms:
+        """Terms of every contact (active or not) at the current state."""
+        full = self.full_dynamics
+        n = self.n
+        q, dq = self._y[:n], self._y[n : 2 * n]
+        _compute_all_terms(full._model, full._data, q, dq)
+        return full.contacts.evaluate_data(full._model, full._data, dq)
+
+    def _report(self, d: Derivative) -> Derivative:
+        """A Derivative over all contacts (released ones: zero force, ``active`` False)."""
+        if self.active.all():
+            return d
+        force = np.zeros(self.active.size)
+        force[self.active] = d.normal_force
+        return Derivative(d.acceleration, d.current_rate, force, d.effort, self._all_contact_terms(),
+                          self.active.copy())
+
+    def _release(self, u: Vector) -> None:
+        """At the start of a step: unilateral contacts whose force would pull let go, the
+        most negative first, until every held force pushes."""
+        while self.active.any():
+            self.dynamics._set_input(u)
+            state = np.append(self._y[: self._m], 1.0)
+            _, _, d = self.dynamics._solve(self.dynamics._stage(state, np.empty(self._m)), True)
+            assert d is not None
+            indices = np.flatnonzero(self.active)
+            pulling = [(force, j) for force, j in zip(d.normal_force, indices, strict=True)
+                       if self._unilateral[j] and force < 0.0]
+            if not pulling:
+                return
+            j = min(pulling)[1]
+            active = self.active.copy()
+            active[j] = False
+            self.events.append(ContactEvent(self.time, self.full_dynamics.contacts.contacts[j].name, "release"))
+            self._set_active(active)
+
+    def _touchdown(self) -> None:
+        """At the end of a step: released contacts that reached their plane while approaching
+        land (inelastic impact), so no state the simulator shows is below a plane."""
+        terms = self._all_contact_terms()
+        approach = terms.normal_jacobian.dot(self._y[self.n : 2 * self.n])
+        landing = ~self.active & (terms.residual <= 0.0) & (approach < 0.0)
+        if landing.any():
+            loss = self._impact(self.active | landing)
+            for j in np.flatnonzero(landing):
+                self.events.append(ContactEvent(self.time, self.full_dynamics.contacts.contacts[j].name,
+                                                "touchdown", loss))
+            self._set_active(self.active | landing)
+
+    def _impact(self, active: np.ndarray) -> float:
+        """Inelastic, frictionless touchdown: put the active contact points back on their planes
+        (mass-weighted projection of q) and remove their normal velocity with the impulse
+        Mc^-1 J_c^T lambda. Returns the kinetic energy lost [J] (added to impact_loss)."""
+        full, n = self.full_dynamics, self.n
+        model, data = full._model, full._data
+        rows = np.flatnonzero(active)
+        q, dq = self._y[:n].copy(), self._y[n : 2 * n].copy()
+        for _ in range(10):  # Newton on C(q) = 0 along the mass-weighted direction
+            _compute_all_terms(model, data, q, dq)
+            _cholesky_decompose(model, data)
+            terms = full.contacts.evaluate_data(model, data, dq)
+            residual, jc = terms.residual[rows], terms.normal_jacobian[rows]
+            y = np.column_stack([_cholesky_solve(model, data, row) for row in jc])  # Mc^-1 J_c^T
+            if np.max(np.abs(residual)) < 1e-13:
+                break
+            q = q + y.dot(np.linalg.solve(jc.dot(y), -residual))
+        normal_velocity = jc.dot(dq)
+        delassus = jc.dot(y)
+        impulse = -np.linalg.solve(delassus, normal_velocity)
+        dq = dq + y.dot(impulse)
+        loss = 0.5 * float(normal_velocity.dot(-impulse))  # (J_c dq)^T (J_c Mc^-1 J_c^T)^-1 (J_c dq) / 2
+        self._y[:n], self._y[n : 2 * n] = q, dq
+        self._y[self._m + ENERGY_KEYS.index("impact_loss")] += loss
+        self._cached = None
+        return loss
