@@ -14,6 +14,7 @@
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 
@@ -78,7 +79,7 @@ def drive_simulator(node: rclpy.node.Node, steps: int, mode: str = "sim", arg: f
         pub.publish(command)
 
     node.create_subscription(JointState, "joint_states", on_state, STREAM_QOS)
-    deadline = time.monotonic() + 120.0
+    deadline = time.monotonic() + float(os.environ.get("DRIVER_TIMEOUT", "120"))
     while len(states) < steps and time.monotonic() < deadline:
         rclpy.spin_once(node, timeout_sec=0.1)
     return {"states": states}

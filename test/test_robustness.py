@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import random
 import subprocess
 import sys
 from pathlib import Path
@@ -114,3 +115,42 @@ def test_controller_ignores_malformed_joint_states(tmp_path: Path) -> None:
     assert answers[0] is not None and answers[4] is not None
     assert answers[1] is None and answers[2] is None and answers[3] is None
     assert "missing joints ['joint4']" in log and "non-finite" in log and "3 velocities" in log
+
+
+def test_divergence_stops_the_simulator_with_a_clear_error(tmp_path: Path) -> None:
+    """Finite but absurd voltages (1e300 V) make the state non-finite: the simulator keeps the
+    last good state, says so, exits 3; no published state holds a NaN."""
+    env = isolated_env()
+    extra = _params_file(tmp_path, "bracing_simulator", {"duration": 1.0})
+    node = subprocess.Popen(
+        [sys.executable, "-m", "bracing_sim.node", "--ros-args", "--params-file", str(PAPER_YAML),
+         "--params-file", str(extra)], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        cwd=REPO_ROOT)
+    driver = subprocess.Popen([sys.executable, DRIVER, "sim-scale", "3", "1e300"], env={**env, "DRIVER_TIMEOUT": "10"}, stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, text=True)
+    try:
+        log = node.communicate(timeout=60)[0]
+        out = driver.communicate(timeout=60)[0]
+    finally:
+        for proc in (node, driver):
+            if proc.poll() is None:
+                proc.kill()
+    assert node.returncode == 3, log
+    assert "simulation diverged" in log and "non-finite state" in log
+    states = json.loads(out.strip().splitlines()[-1])["states"]
+    assert states and all(np.isfinite(s["position"]).all() and np.isfinite(s["velocity"]).all() for s in states)
+
+
+def test_pair_reports_divergence_and_keeps_the_bag(tmp_path: Path) -> None:
+    config = tmp_path / "scenario.yaml"
+    text = PAPER_YAML.read_text().replace("urdf: paper_4link.urdf", f"urdf: {REPO_ROOT / 'config' / 'paper_4link.urdf'}")
+    config.write_text(text.replace("divergence_residual: 0.01", "divergence_residual: 1.0e-30"))
+    done = subprocess.run([sys.executable, "-m", "bracing_bringup.pair", "--config", str(config), "--output",
+                           str(tmp_path / "run"), "--quiet", "--domain-id", str(random.randint(102, 232))],
+                          env=isolated_env(), capture_output=True, text=True, timeout=120)
+    assert done.returncode == 1
+    assert "simulator exited with code 3" in done.stderr and "divergence_residual" in done.stderr
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([tmp_path / "run" / "bag"]) as reader:
+        assert any(c.topic == "/joint_states" for c in reader.connections)

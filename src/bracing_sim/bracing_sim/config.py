@@ -72,7 +72,6 @@ SIMULATOR_PARAMETERS: dict[str, object] = {
     "command_timeout": 5.0,
     "watchdog_policy": "hold",
     "min_subscribers": 1,
-    "publish_tf": False,
     "divergence_residual": 0.01,
 }
 
@@ -224,7 +223,6 @@ class SimulatorConfig:
     command_timeout: float  # [s] wall time
     watchdog_policy: str  # hold | zero
     min_subscribers: int
-    publish_tf: bool
     divergence_residual: float  # [m]; a larger |C| stops the simulation
 
     @classmethod
@@ -250,7 +248,6 @@ class SimulatorConfig:
             command_timeout=get_float(params, "command_timeout", 5.0, positive=True),
             watchdog_policy=get_str(params, "watchdog_policy", "hold", choices=("hold", "zero")),
             min_subscribers=get_int(params, "min_subscribers", 1, minimum=0),
-            publish_tf=get_bool(params, "publish_tf", False),
             divergence_residual=get_float(params, "divergence_residual", 0.01, positive=True),
         )
 
