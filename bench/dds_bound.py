@@ -133,9 +133,7 @@ def _ping_main(n: int, repeats: int, warmup: int, discovery_timeout: float) -> i
         deadline = time.monotonic() + discovery_timeout
         while pub.get_subscription_count() < 1 or sub.get_publisher_count() < 1:
             if time.monotonic() > deadline:
-                raise RuntimeError(
-                    f"pong not discovered within {discovery_timeout:.0f} s"
-                )
+                raise RuntimeError(f"pong not discovered within {discovery_timeout:.0f} s")
             executor.spin_once(timeout_sec=0.05)
 
         # Warm-up; the first messages after matching may still be in flight, so resend.
@@ -185,9 +183,7 @@ def _stop(proc: subprocess.Popen) -> None:
         proc.wait(timeout=3.0)
 
 
-def dds_round_trips_per_s(
-    n: int = 3000, repeats: int = 3, warmup: int = 200, timeout_s: float = 60.0
-) -> dict:
+def dds_round_trips_per_s(n: int = 3000, repeats: int = 3, warmup: int = 200, timeout_s: float = 60.0) -> dict:
     """Median (and samples) of lockstep round trips/s between two rclpy processes.
 
     One round trip = publish a 4-joint JointState, receive the 4-value MotorCommand
@@ -224,9 +220,7 @@ def dds_round_trips_per_s(
             try:
                 out, err = ping.communicate(timeout=timeout_s)
             except subprocess.TimeoutExpired as exc:
-                raise RuntimeError(
-                    f"ping side did not finish within {timeout_s} s"
-                ) from exc
+                raise RuntimeError(f"ping side did not finish within {timeout_s} s") from exc
             if ping.returncode != 0:
                 pong_err.seek(0)
                 raise RuntimeError(
@@ -254,9 +248,7 @@ def dds_round_trips_per_s(
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "role", nargs="?", choices=("bench", "ping", "pong"), default="bench"
-    )
+    parser.add_argument("role", nargs="?", choices=("bench", "ping", "pong"), default="bench")
     parser.add_argument("--n", type=int, default=3000)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--warmup", type=int, default=200)
@@ -266,9 +258,7 @@ def main(argv: list[str] | None = None) -> int:
         return _pong_main()
     if args.role == "ping":
         return _ping_main(args.n, args.repeats, args.warmup, args.discovery_timeout)
-    print(
-        json.dumps(dds_round_trips_per_s(args.n, args.repeats, args.warmup), indent=2)
-    )
+    print(json.dumps(dds_round_trips_per_s(args.n, args.repeats, args.warmup), indent=2))
     return 0
 
 

@@ -47,9 +47,7 @@ PRESS_FORCE_N = 10.0  # f_nd of the paper
 SEGMENT_STEPS = 4000
 
 
-def _cylinder_inertia(
-    mass: float, radius: float, length: float
-) -> tuple[float, float, float]:
+def _cylinder_inertia(mass: float, radius: float, length: float) -> tuple[float, float, float]:
     """(ixx, iyy, izz) of a solid cylinder along z about its centre (same as the URDF)."""
     i_perp = mass * (3.0 * radius**2 + length**2) / 12.0
     return i_perp, i_perp, 0.5 * mass * radius**2
@@ -59,7 +57,7 @@ def paper_mjcf() -> str:
     """The MJCF string of the paper's 4-link arm with the elbow sphere and the floor."""
     half = LINK_LENGTH / 2.0
     body_open: list[str] = []
-    for idx, (mass, radius) in enumerate(zip(MASSES, RADII), start=1):
+    for idx, (mass, radius) in enumerate(zip(MASSES, RADII, strict=True), start=1):
         ixx, iyy, izz = _cylinder_inertia(mass, radius, LINK_LENGTH)
         pos = "0 0 0" if idx == 1 else f"0 0 {LINK_LENGTH!r}"
         extra = ""
@@ -267,6 +265,4 @@ def mujoco_steps_per_s(n_steps: int = 10000, repeats: int = 5) -> dict:
 if __name__ == "__main__":
     import json
 
-    print(
-        json.dumps({"sanity": sanity_check(), "timing": mujoco_steps_per_s()}, indent=2)
-    )
+    print(json.dumps({"sanity": sanity_check(), "timing": mujoco_steps_per_s()}, indent=2))

@@ -81,16 +81,29 @@ def chain_scenario(n: int, p: int) -> Any:
     links = [max(1, (n * (j + 1)) // (2 * p)) for j in range(p)] if p else []
     tmp = Path(tempfile.mkdtemp(prefix="bench_chain_"))
     urdf = tmp / f"chain{n}.urdf"
-    urdf.write_text(chain_urdf(f"chain{n}", [1.0] * n, [0.5] * n, [0.03] * n, [2.0] * n,
-                               {f"c{j}": link for j, link in enumerate(links)}))
+    urdf.write_text(
+        chain_urdf(
+            f"chain{n}", [1.0] * n, [0.5] * n, [0.03] * n, [2.0] * n, {f"c{j}": link for j, link in enumerate(links)}
+        )
+    )
     rng = np.random.default_rng(n)
     q0 = rng.uniform(-0.6, 0.6, n).tolist()
     params: dict[str, Any] = {
-        "robot.urdf": str(urdf), "robot.joint_names": [f"joint{k + 1}" for k in range(n)],
-        "input_mode": "voltage", "initial_position": q0,
-        **{f"motors.{f}": [v] * n for f, v in (("torque_constant", 0.2), ("resistance", 0.6), ("inductance", 0.17),
-                                               ("rotor_inertia", 0.000164), ("gear_ratio", 3.0),
-                                               ("gear_damping", 0.1))},
+        "robot.urdf": str(urdf),
+        "robot.joint_names": [f"joint{k + 1}" for k in range(n)],
+        "input_mode": "voltage",
+        "initial_position": q0,
+        **{
+            f"motors.{f}": [v] * n
+            for f, v in (
+                ("torque_constant", 0.2),
+                ("resistance", 0.6),
+                ("inductance", 0.17),
+                ("rotor_inertia", 0.000164),
+                ("gear_ratio", 3.0),
+                ("gear_damping", 0.1),
+            )
+        },
         "contacts.names": [f"c{j}" for j in range(p)],
     }
     for j in range(p):
@@ -133,9 +146,26 @@ def pair_real_time_factor(duration: float = 10.0) -> dict[str, float]:
     out = Path(tempfile.mkdtemp(prefix="bench_pair_")) / "run"
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     start = time.monotonic()
-    done = subprocess.run([sys.executable, "-m", "bracing_bringup.pair", "--config", str(PAPER), "--duration",
-                           str(duration), "--output", str(out), "--quiet", "--domain-id",
-                           str(random.randint(150, 230))], env=env, capture_output=True, text=True, timeout=1800)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "bracing_bringup.pair",
+            "--config",
+            str(PAPER),
+            "--duration",
+            str(duration),
+            "--output",
+            str(out),
+            "--quiet",
+            "--domain-id",
+            str(random.randint(150, 230)),
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=1800,
+    )
     total = time.monotonic() - start
     if done.returncode != 0:
         raise RuntimeError(f"bracing-pair failed: {done.stderr[-2000:]}")
@@ -158,9 +188,14 @@ def machine() -> dict[str, Any]:
             versions[dist] = metadata.version(dist)
         except metadata.PackageNotFoundError:
             versions[dist] = None
-    return {"cores": os.cpu_count(), "python": platform.python_version(), "platform": platform.platform(),
-            "processor": platform.processor() or platform.machine(), "versions": versions,
-            "date": time.strftime("%Y-%m-%d")}
+    return {
+        "cores": os.cpu_count(),
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "processor": platform.processor() or platform.machine(),
+        "versions": versions,
+        "date": time.strftime("%Y-%m-%d"),
+    }
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,14 +1,14 @@
 """Child process for the node tests: drives one node over DDS and prints what it saw as JSON.
 
-    python lockstep_driver.py sim N          -> plays controller for the simulator node: answers
-        each joint_states with a known voltage sequence (joint names shuffled), N states
-    python lockstep_driver.py controller F   -> plays simulator for the controller node: publishes
-        the joint states in JSON file F one by one and collects the motor_command answers
-    python lockstep_driver.py sim-bad N      -> as sim, but every valid command is preceded by
-        malformed ones (NaN, inf, wrong length, unknown/duplicate names, wrong mode, stale and
-        future stamps)
-    python lockstep_driver.py sim-skip N K   -> as sim, but never answers state K (watchdog)
-    python lockstep_driver.py sim-scale N S  -> as sim, with every command multiplied by S
+python lockstep_driver.py sim N          -> plays controller for the simulator node: answers
+    each joint_states with a known voltage sequence (joint names shuffled), N states
+python lockstep_driver.py controller F   -> plays simulator for the controller node: publishes
+    the joint states in JSON file F one by one and collects the motor_command answers
+python lockstep_driver.py sim-bad N      -> as sim, but every valid command is preceded by
+    malformed ones (NaN, inf, wrong length, unknown/duplicate names, wrong mode, stale and
+    future stamps)
+python lockstep_driver.py sim-skip N K   -> as sim, but never answers state K (watchdog)
+python lockstep_driver.py sim-scale N S  -> as sim, with every command multiplied by S
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ def known_command(k: int) -> list[float]:
 
 def bad_commands(msg: JointState, values: list[float]) -> list[MotorCommand]:
     """One command for each way a command can be wrong."""
+
     def make(names: list[str], vals: list[float], mode: int = MotorCommand.VOLTAGE, dt_ns: int = 0) -> MotorCommand:
         command = MotorCommand(mode=mode, name=names, value=vals)
         total = max(msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec + dt_ns, 0)  # no stale one at k = 0
@@ -63,8 +64,15 @@ def drive_simulator(node: rclpy.node.Node, steps: int, mode: str = "sim", arg: f
 
     def on_state(msg: JointState) -> None:
         k = len(states)
-        states.append({"stamp": [msg.header.stamp.sec, msg.header.stamp.nanosec], "name": list(msg.name),
-                       "position": list(msg.position), "velocity": list(msg.velocity), "effort": list(msg.effort)})
+        states.append(
+            {
+                "stamp": [msg.header.stamp.sec, msg.header.stamp.nanosec],
+                "name": list(msg.name),
+                "position": list(msg.position),
+                "velocity": list(msg.velocity),
+                "effort": list(msg.effort),
+            }
+        )
         values = known_command(k)
         if mode == "sim-skip" and k == int(arg):
             return
@@ -73,8 +81,9 @@ def drive_simulator(node: rclpy.node.Node, steps: int, mode: str = "sim", arg: f
         if mode == "sim-bad":
             for bad in bad_commands(msg, values):
                 pub.publish(bad)
-        command = MotorCommand(mode=MotorCommand.VOLTAGE, name=[JOINTS[j] for j in SHUFFLED],
-                               value=[values[j] for j in SHUFFLED])
+        command = MotorCommand(
+            mode=MotorCommand.VOLTAGE, name=[JOINTS[j] for j in SHUFFLED], value=[values[j] for j in SHUFFLED]
+        )
         command.header.stamp = msg.header.stamp
         pub.publish(command)
 

@@ -1,7 +1,7 @@
 """Child process for test_messages: publish or receive every bracing_msgs message.
 
-    python msg_echo.py send   -> publishes one filled instance of each message type, repeatedly
-    python msg_echo.py receive -> prints one JSON line per type received, then exits
+python msg_echo.py send   -> publishes one filled instance of each message type, repeatedly
+python msg_echo.py receive -> prints one JSON line per type received, then exits
 """
 
 from __future__ import annotations
@@ -31,19 +31,45 @@ def message_to_ordereddict(msg: object) -> object:
 def samples() -> dict[str, object]:
     command = MotorCommand(mode=MotorCommand.TORQUE, name=["joint2", "joint1"], value=[1.5, -2.25])
     command.header.stamp.sec, command.header.stamp.nanosec = 3, 1000
-    state = MotorState(name=["joint1"], voltage=[12.0], current=[0.5], power=[6.0],
-                       energy_consumed=1.25, energy_net=-0.5, copper_loss=0.125)
+    state = MotorState(
+        name=["joint1"],
+        voltage=[12.0],
+        current=[0.5],
+        power=[6.0],
+        energy_consumed=1.25,
+        energy_net=-0.5,
+        copper_loss=0.125,
+    )
     state.header.frame_id = "motors"
-    contact = ContactState(name="elbow", frame="elbow", active=True, position=Point(x=0.0, y=0.5878, z=1e-12),
-                           normal=Vector3(x=0.0, y=0.0, z=1.0), normal_force=10.0, friction_force=1.0,
-                           slip_velocity=Vector3(x=0.0, y=-0.01, z=0.0), residual=-3e-15)
+    contact = ContactState(
+        name="elbow",
+        frame="elbow",
+        active=True,
+        position=Point(x=0.0, y=0.5878, z=1e-12),
+        normal=Vector3(x=0.0, y=0.0, z=1.0),
+        normal_force=10.0,
+        friction_force=1.0,
+        slip_velocity=Vector3(x=0.0, y=-0.01, z=0.0),
+        residual=-3e-15,
+    )
     contacts = Contacts(contacts=[contact, ContactState(name="knee", active=False)])
-    controller = ControllerState(hand_desired=Point(x=0.0, y=1.3, z=0.6), hand_actual=Point(x=0.0, y=1.29, z=0.61),
-                                 contact_name=["elbow"], desired_normal_force=[10.0],
-                                 brace_desired=[Point(y=0.5878)], brace_actual=[Point(y=0.58)],
-                                 command=[1.0, 2.0, 3.0, 4.0], compute_time=2.5e-5)
-    return {"MotorCommand": command, "MotorState": state, "Contacts": contacts, "ControllerState": controller,
-            "ContactState": contact}
+    controller = ControllerState(
+        hand_desired=Point(x=0.0, y=1.3, z=0.6),
+        hand_actual=Point(x=0.0, y=1.29, z=0.61),
+        contact_name=["elbow"],
+        desired_normal_force=[10.0],
+        brace_desired=[Point(y=0.5878)],
+        brace_actual=[Point(y=0.58)],
+        command=[1.0, 2.0, 3.0, 4.0],
+        compute_time=2.5e-5,
+    )
+    return {
+        "MotorCommand": command,
+        "MotorState": state,
+        "Contacts": contacts,
+        "ControllerState": controller,
+        "ContactState": contact,
+    }
 
 
 def main() -> None:

@@ -29,7 +29,11 @@ SIM_CASES: list[tuple[str, dict[str, Any], str]] = [
     ("unknown parameter", {"stpe": 0.001}, "unknown parameter(s): stpe"),
     ("unknown contact field", {"contacts.elbow.frictoin": 0.1}, "unknown parameter(s): contacts.elbow.frictoin"),
     ("initial position length", {"initial_position": [0.0, 0.0]}, "initial_position: expected 4 values"),
-    ("wrong joint names", {"robot.joint_names": ["joint1", "joint2", "joint3", "wrist"]}, "do not match the model's joints"),
+    (
+        "wrong joint names",
+        {"robot.joint_names": ["joint1", "joint2", "joint3", "wrist"]},
+        "do not match the model's joints",
+    ),
     ("infeasible start", {"initial_position": [-0.6, -1.88, 2.51, -1.26]}, "infeasible start: contact 'elbow'"),
     ("zero normal", {"contacts.elbow.normal": [0.0, 0.0, 0.0]}, "contacts.elbow.normal: must be a non-zero vector"),
     ("negative friction", {"contacts.elbow.friction": -0.1}, "contacts.elbow.friction: must be >= 0"),
@@ -45,8 +49,11 @@ def test_simulator_configuration_errors(case: str, overrides: dict[str, Any], me
 
 
 CONTROLLER_CASES: list[tuple[str, dict[str, Any], str]] = [
-    ("task above n - p", {"contacts.elbow.brace_axes": ["y", "z"], "contacts.elbow.kp": [1.0, 1.0],
-                          "contacts.elbow.kd": [1.0, 1.0]}, "exceeds n - p = 4 - 1 = 3"),
+    (
+        "task above n - p",
+        {"contacts.elbow.brace_axes": ["y", "z"], "contacts.elbow.kp": [1.0, 1.0], "contacts.elbow.kd": [1.0, 1.0]},
+        "exceeds n - p = 4 - 1 = 3",
+    ),
     ("hand gains length", {"hand.kp": [300.0]}, "hand.kp: expected 2 values"),
     ("brace gains length", {"contacts.elbow.kd": [20.0, 1.0]}, "contacts.elbow.kd: expected 1 values"),
     ("unknown hand frame", {"hand.frame": "gripper"}, "unknown frame 'gripper'"),
@@ -66,16 +73,17 @@ def test_controller_configuration_errors(case: str, overrides: dict[str, Any], m
 
 def test_non_positive_mass_in_the_urdf_is_refused(tmp_path: Path) -> None:
     urdf = tmp_path / "bad.urdf"
-    urdf.write_text(chain_urdf("bad", (1.0, 0.0, 0.5, 1.0), (0.5,) * 4, (0.03,) * 4, (2.0,) * 4,
-                               {"elbow": 2, "hand": 4}))
-    with pytest.raises(ConfigError, match="link2.*mass"):
+    urdf.write_text(
+        chain_urdf("bad", (1.0, 0.0, 0.5, 1.0), (0.5,) * 4, (0.03,) * 4, (2.0,) * 4, {"elbow": 2, "hand": 4})
+    )
+    with pytest.raises(ConfigError, match=r"link2.*mass"):
         build_simulator(SimulatorConfig.from_params(node_params("bracing_simulator", {"robot.urdf": str(urdf)})))
 
 
 def test_unreadable_urdf_is_refused(tmp_path: Path) -> None:
     urdf = tmp_path / "broken.urdf"
     urdf.write_text("<robot name='x'><link name='a'>")
-    with pytest.raises(ConfigError, match="robot.urdf: pinocchio cannot load"):
+    with pytest.raises(ConfigError, match=r"robot\.urdf: pinocchio cannot load"):
         build_simulator(SimulatorConfig.from_params(node_params("bracing_simulator", {"robot.urdf": str(urdf)})))
 
 
@@ -88,9 +96,14 @@ def test_missing_params_file_is_refused(tmp_path: Path) -> None:
 def test_nodes_exit_with_one_line_naming_the_problem(tmp_path: Path, module: str) -> None:
     extra = tmp_path / "bad.yaml"
     extra.write_text("/**:\n  ros__parameters:\n    robot:\n      urdf: /nonexistent/robot.urdf\n")
-    done = subprocess.run([sys.executable, "-m", module, "--ros-args", "--params-file", str(PAPER_YAML),
-                           "--params-file", str(extra)], env=isolated_env(), capture_output=True, text=True,
-                          timeout=60, cwd=REPO_ROOT)
+    done = subprocess.run(
+        [sys.executable, "-m", module, "--ros-args", "--params-file", str(PAPER_YAML), "--params-file", str(extra)],
+        env=isolated_env(),
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=REPO_ROOT,
+    )
     assert done.returncode == 2
     assert done.stderr.strip() == "error: robot.urdf: file not found: /nonexistent/robot.urdf"
 
@@ -98,8 +111,14 @@ def test_nodes_exit_with_one_line_naming_the_problem(tmp_path: Path, module: str
 def test_unparsable_params_file_is_one_clear_line(tmp_path: Path) -> None:
     bad = tmp_path / "bad.yaml"
     bad.write_text("bracing_simulator:\n  ros__parameters:\n    step: [1.0, 'a']\n")
-    done = subprocess.run([sys.executable, "-m", "bracing_sim.node", "--ros-args", "--params-file", str(bad)],
-                          env=isolated_env(), capture_output=True, text=True, timeout=60, cwd=REPO_ROOT)
+    done = subprocess.run(
+        [sys.executable, "-m", "bracing_sim.node", "--ros-args", "--params-file", str(bad)],
+        env=isolated_env(),
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=REPO_ROOT,
+    )
     assert done.returncode == 2
     assert "Traceback" not in done.stderr
     last = done.stderr.strip().splitlines()[-1]  # rcl logs a line of its own first
@@ -108,10 +127,18 @@ def test_unparsable_params_file_is_one_clear_line(tmp_path: Path) -> None:
 
 def test_pair_refuses_a_bad_configuration_before_starting_anything(tmp_path: Path) -> None:
     config = tmp_path / "scenario.yaml"
-    config.write_text(PAPER_YAML.read_text().replace("resistance: [0.6, 0.6, 0.6, 0.6]", "resistance: [0.6, 0.6]")
-                      .replace("urdf: paper_4link.urdf", f"urdf: {CONFIG_DIR / 'paper_4link.urdf'}"))
-    done = subprocess.run([sys.executable, "-m", "bracing_bringup.pair", "--config", str(config), "--output",
-                           str(tmp_path / "run")], env=isolated_env(), capture_output=True, text=True, timeout=60)
+    config.write_text(
+        PAPER_YAML.read_text()
+        .replace("resistance: [0.6, 0.6, 0.6, 0.6]", "resistance: [0.6, 0.6]")
+        .replace("urdf: paper_4link.urdf", f"urdf: {CONFIG_DIR / 'paper_4link.urdf'}")
+    )
+    done = subprocess.run(
+        [sys.executable, "-m", "bracing_bringup.pair", "--config", str(config), "--output", str(tmp_path / "run")],
+        env=isolated_env(),
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert done.returncode == 2
     assert "motors.resistance: expected 4 values" in done.stderr
     assert not (tmp_path / "run" / "bag").exists()

@@ -62,8 +62,10 @@ class Reference:
 def paper_circle(t: float) -> tuple[np.ndarray, np.ndarray]:
     """SPEC section 3: y = 1.1 + 0.2 cos(-2 pi t / 10), z = 0.6 + 0.2 sin(-2 pi t / 10)."""
     w = -2.0 * math.pi / 10.0
-    return (np.array([0.0, 1.1 + 0.2 * math.cos(w * t), 0.6 + 0.2 * math.sin(w * t)]),
-            np.array([0.0, -0.2 * w * math.sin(w * t), 0.2 * w * math.cos(w * t)]))
+    return (
+        np.array([0.0, 1.1 + 0.2 * math.cos(w * t), 0.6 + 0.2 * math.sin(w * t)]),
+        np.array([0.0, -0.2 * w * math.sin(w * t), 0.2 * w * math.cos(w * t)]),
+    )
 
 
 def controller_for(paper_params: Callable, shared: dict | None = None, own: dict | None = None) -> DecoupledController:
@@ -80,17 +82,24 @@ TILT = 0.3  # [rad]
 # A floor sloped by TILT through the elbow's start. On the paper floor the constraint is
 # linear in q (2 q1 + q2 = -pi, equal link lengths), so gamma = 0 along the motion; the
 # sloped floor makes gamma != 0 and tests that term of eq. 37 as well.
-SLOPED_FLOOR = {"contacts.elbow.normal": [0.0, math.sin(TILT), math.cos(TILT)],
-                "contacts.elbow.offset": math.sin(TILT) * 0.5877852522924731}
+SLOPED_FLOOR = {
+    "contacts.elbow.normal": [0.0, math.sin(TILT), math.cos(TILT)],
+    "contacts.elbow.offset": math.sin(TILT) * 0.5877852522924731,
+}
 
 
 @pytest.mark.parametrize("plane", ["paper_floor", "sloped_floor"])
 @pytest.mark.parametrize("friction", [0.0, 0.1, 0.3])
 @pytest.mark.parametrize("force", [5.0, 10.0, 20.0])
-def test_torque_input_force_is_exact_every_step(force: float, friction: float, plane: str,
-                                                scenario: Callable) -> None:
-    sc = scenario({"input_mode": "torque", "contacts.elbow.friction": friction,
-                   "contacts.elbow.desired_normal_force": force, **(SLOPED_FLOOR if plane == "sloped_floor" else {})})
+def test_torque_input_force_is_exact_every_step(force: float, friction: float, plane: str, scenario: Callable) -> None:
+    sc = scenario(
+        {
+            "input_mode": "torque",
+            "contacts.elbow.friction": friction,
+            "contacts.elbow.desired_normal_force": force,
+            **(SLOPED_FLOOR if plane == "sloped_floor" else {}),
+        }
+    )
     sim, controller = sc.sim, sc.controller
     assert controller is not None
     errors, hand = [], []
@@ -100,8 +109,10 @@ def test_torque_input_force_is_exact_every_step(force: float, friction: float, p
         errors.append(abs(float(d.normal_force[0]) - force))
         hand.append(float(np.linalg.norm(out.hand_desired - out.hand_actual)))
     worst = max(errors)
-    print(f"\n{plane}, f_nd = {force:g} N, mu = {friction:g}: max |f_n - f_nd| = {worst:.3g} N, "
-          f"final hand error {hand[-1]:.4f} m")
+    print(
+        f"\n{plane}, f_nd = {force:g} N, mu = {friction:g}: max |f_n - f_nd| = {worst:.3g} N, "
+        f"final hand error {hand[-1]:.4f} m"
+    )
     assert worst < 1e-9
     assert np.all(np.isfinite(sim.position)) and hand[-1] < hand[0]  # the position task proceeds meanwhile
 
@@ -122,16 +133,18 @@ TWO_CONTACTS = {
 
 @pytest.mark.parametrize("contacts", ["paper", "two_contacts"])
 @pytest.mark.parametrize("mode", ["voltage", "torque"])
-def test_null_space_projection_leaves_contact_accelerations_alone(mode: str, contacts: str,
-                                                                  paper_params: Callable) -> None:
+def test_null_space_projection_leaves_contact_accelerations_alone(
+    mode: str, contacts: str, paper_params: Callable
+) -> None:
     """B (I - B^+ B) l = 0 and B B^+ = I, B = J_c Mc^-1 from pinocchio; and eq. 38 gives B tau = a - A f_nd."""
     shared = {"input_mode": mode, **(TWO_CONTACTS if contacts == "two_contacts" else {})}
     params = paper_params("bracing_controller", shared)
     controller = controller_for(paper_params, shared)
     voltage = mode == "voltage"
     ref = Reference(rotor_inertia_of(params) if voltage else None)
-    damping = LINK_DAMPING + (np.array(params["motors.gear_damping"]) * np.array(params["motors.gear_ratio"]) ** 2
-                              if voltage else 0.0)
+    damping = LINK_DAMPING + (
+        np.array(params["motors.gear_damping"]) * np.array(params["motors.gear_ratio"]) ** 2 if voltage else 0.0
+    )
     names = params["contacts.names"]
     frames = [params[f"contacts.{c}.frame"] for c in names]
     normals = [np.array(params[f"contacts.{c}.normal"]) / np.linalg.norm(params[f"contacts.{c}.normal"]) for c in names]
@@ -167,8 +180,10 @@ def test_null_space_projection_leaves_contact_accelerations_alone(mode: str, con
         residual = b @ out.torque - (a_vector - a_matrix @ f_nd)
         worst_law = max(worst_law, float(np.abs(residual).max()))
         assert np.abs(residual).max() < 1e-8 * max(1.0, float(np.abs(a_vector).max()))
-    print(f"\n{mode}, {contacts}: max |B (I - B+B) l| = {worst_projection:.3g}, "
-          f"max |B tau - (a - A f_nd)| = {worst_law:.3g}")
+    print(
+        f"\n{mode}, {contacts}: max |B (I - B+B) l| = {worst_projection:.3g}, "
+        f"max |B tau - (a - A f_nd)| = {worst_law:.3g}"
+    )
 
 
 # -- 3. voltage input: transient force error -----------------------------------------------
@@ -177,9 +192,11 @@ def test_voltage_input_force_error_decays(closed_loop: Callable) -> None:
     error = np.abs(run.normal_force[:, 0] - run.desired_normal_force[0])
     early, late = error[run.window(0.0, 0.5)], error[run.window(5.0)]
     rms = float(np.sqrt(np.mean(error**2)))
-    print(f"\nvoltage input |f_n - f_nd|: peak {error.max():.3g} N at t = {run.time[int(np.argmax(error))]:.3f} s; "
-          f"max {early.max():.3g} N (t < 0.5 s), max {late.max():.3g} N (t >= 5 s); "
-          f"RMS {rms:.3g} N over 10 s, {float(np.sqrt(np.mean(late**2))):.3g} N over t >= 5 s")
+    print(
+        f"\nvoltage input |f_n - f_nd|: peak {error.max():.3g} N at t = {run.time[int(np.argmax(error))]:.3f} s; "
+        f"max {early.max():.3g} N (t < 0.5 s), max {late.max():.3g} N (t >= 5 s); "
+        f"RMS {rms:.3g} N over 10 s, {float(np.sqrt(np.mean(late**2))):.3g} N over t >= 5 s"
+    )
     assert early.max() > 5.0 * late.max()  # measured 14.9 N vs 1.24 N
     assert run.time[int(np.argmax(error))] < 0.5  # the worst is in the start-up transient (L/R = 0.28 s)
     assert float(np.sqrt(np.mean(late**2))) < 1.0
@@ -189,8 +206,9 @@ def test_voltage_input_force_error_decays(closed_loop: Callable) -> None:
 @pytest.mark.parametrize("gravity_compensation", [False, True])
 def test_unbraced_command_is_task_torque(gravity_compensation: bool, paper_params: Callable) -> None:
     gains = [0.5, 1.0, 2.0, 4.0]
-    controller = controller_for(paper_params, {"contacts.names": []},
-                                {"voltage_gain": gains, "gravity_compensation": gravity_compensation})
+    controller = controller_for(
+        paper_params, {"contacts.names": []}, {"voltage_gain": gains, "gravity_compensation": gravity_compensation}
+    )
     ref = Reference()
     rng = np.random.default_rng(3)
     kp, kd = 300.0, 50.0
@@ -213,10 +231,14 @@ def test_unbraced_command_is_task_torque(gravity_compensation: bool, paper_param
 # -- 5. the paper's claim: bracing lowers energy and hand error ----------------------------
 def test_bracing_lowers_energy_and_hand_error(closed_loop: Callable) -> None:
     braced, free = closed_loop(), closed_loop({"contacts.names": []})
-    rms = {name: float(np.sqrt(np.mean(run.hand_error[run.window(2.0)] ** 2)))
-           for name, run in (("braced", braced), ("unbraced", free))}
-    print(f"\nbraced: hand RMS (t >= 2 s) {rms['braced']:.4f} m, consumed {braced.energy.consumed:.1f} J; "
-          f"unbraced: {rms['unbraced']:.4f} m, {free.energy.consumed:.1f} J")
+    rms = {
+        name: float(np.sqrt(np.mean(run.hand_error[run.window(2.0)] ** 2)))
+        for name, run in (("braced", braced), ("unbraced", free))
+    }
+    print(
+        f"\nbraced: hand RMS (t >= 2 s) {rms['braced']:.4f} m, consumed {braced.energy.consumed:.1f} J; "
+        f"unbraced: {rms['unbraced']:.4f} m, {free.energy.consumed:.1f} J"
+    )
     assert braced.energy.consumed < 0.8 * free.energy.consumed  # measured 3150 J vs 10932 J
     assert rms["braced"] < 0.9 * rms["unbraced"]  # measured 0.0506 m vs 0.0755 m
     assert braced.energy.consumed > 0.0 and np.all(np.isfinite(free.final_position))
@@ -224,8 +246,13 @@ def test_bracing_lowers_energy_and_hand_error(closed_loop: Callable) -> None:
 
 # -- 6. configuration errors ---------------------------------------------------------------
 def test_task_dimension_above_n_minus_p_is_rejected(ctl_params: dict) -> None:
-    ctl_params.update({"contacts.elbow.brace_axes": ["y", "z"], "contacts.elbow.kp": [100.0, 100.0],
-                       "contacts.elbow.kd": [20.0, 20.0]})
+    ctl_params.update(
+        {
+            "contacts.elbow.brace_axes": ["y", "z"],
+            "contacts.elbow.kp": [100.0, 100.0],
+            "contacts.elbow.kd": [20.0, 20.0],
+        }
+    )
     with pytest.raises(ConfigError, match=r"n - p") as info:
         ControllerConfig.from_params(ctl_params, [CONFIG_DIR])
     assert "4" in str(info.value) and "3" in str(info.value)
@@ -255,14 +282,17 @@ def test_unknown_hand_frame_is_a_config_error(ctl_params: dict) -> None:
         raise AssertionError("no error for an unknown hand.frame")
 
 
-@pytest.mark.parametrize("name, value, expected", [
-    ("hand.kp", [300.0], "hand.kp"),
-    ("hand.kd", [50.0, 50.0, 50.0], "hand.kd"),
-    ("contacts.elbow.kp", [100.0, 1.0], "contacts.elbow.kp"),
-    ("voltage_gain", [1.0, 1.0], "voltage_gain"),
-    ("hand.gain", 3.0, "unknown parameter"),
-    ("contacts.elbow.stiffness", 3.0, "unknown parameter"),
-])
+@pytest.mark.parametrize(
+    "name, value, expected",
+    [
+        ("hand.kp", [300.0], "hand.kp"),
+        ("hand.kd", [50.0, 50.0, 50.0], "hand.kd"),
+        ("contacts.elbow.kp", [100.0, 1.0], "contacts.elbow.kp"),
+        ("voltage_gain", [1.0, 1.0], "voltage_gain"),
+        ("hand.gain", 3.0, "unknown parameter"),
+        ("contacts.elbow.stiffness", 3.0, "unknown parameter"),
+    ],
+)
 def test_bad_parameters_are_named(name: str, value: object, expected: str, ctl_params: dict) -> None:
     ctl_params[name] = value
     with pytest.raises(ConfigError, match=expected) as info:
@@ -310,8 +340,9 @@ def test_nearly_dependent_contacts_are_damped_and_bounded(paper_params: Callable
     controller = controller_for(paper_params, shared)
     rng = np.random.default_rng(5)
     worst = 0.0
-    for q, dq in [(PAPER_Q0, np.zeros(N))] + [(rng.uniform(-math.pi, math.pi, N), rng.uniform(-2, 2, N))
-                                               for _ in range(10)]:
+    for q, dq in [(PAPER_Q0, np.zeros(N))] + [
+        (rng.uniform(-math.pi, math.pi, N), rng.uniform(-2, 2, N)) for _ in range(10)
+    ]:
         out = controller.update(1.0, q, dq)
         assert out.damped
         assert np.all(np.isfinite(out.command))

@@ -40,13 +40,16 @@ def reference_model(urdf: Path = PAPER_URDF, armature: np.ndarray | None = None)
 def reflected_motor_terms(params: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """K_m = K k, J_m = I_m k^2, D_m = d_m k^2 from the flat parameters (joint order = model order here)."""
     k = np.array(params["motors.gear_ratio"])
-    return (np.array(params["motors.torque_constant"]) * k,
-            np.array(params["motors.rotor_inertia"]) * k**2,
-            np.array(params["motors.gear_damping"]) * k**2)
+    return (
+        np.array(params["motors.torque_constant"]) * k,
+        np.array(params["motors.rotor_inertia"]) * k**2,
+        np.array(params["motors.gear_damping"]) * k**2,
+    )
 
 
-def contact_terms(model: pin.Model, data: pin.Data, frame: str, normal: np.ndarray, q: np.ndarray,
-                  dq: np.ndarray) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+def contact_terms(
+    model: pin.Model, data: pin.Data, frame: str, normal: np.ndarray, q: np.ndarray, dq: np.ndarray
+) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
     """J (3 x n), gamma = n . (dJ dq), contact position, from pinocchio's frame kinematics."""
     fid = model.getFrameId(frame)
     pin.forwardKinematics(model, data, q, dq, np.zeros(model.nv))  # a = 0: the drift
@@ -62,8 +65,16 @@ def mechanical_energy(model: pin.Model, data: pin.Data, q: np.ndarray, dq: np.nd
 
 def free_chain_urdf(tmp_path: Path, damping: float) -> Path:
     path = tmp_path / "free_chain.urdf"
-    path.write_text(chain_urdf("paper_4link", (1.0, 1.0, 0.5, 1.0), (0.5,) * 4, (0.03, 0.03, 0.01, 0.03),
-                               (damping,) * 4, {"elbow": 2, "hand": 4}))
+    path.write_text(
+        chain_urdf(
+            "paper_4link",
+            (1.0, 1.0, 0.5, 1.0),
+            (0.5,) * 4,
+            (0.03, 0.03, 0.01, 0.03),
+            (damping,) * 4,
+            {"elbow": 2, "hand": 4},
+        )
+    )
     return path
 
 
@@ -99,8 +110,11 @@ def test_energy_conserved_unpowered_undamped_unbraced(tmp_path: Path, scenario: 
 def test_viscous_loss_equals_energy_decrease(scenario: Callable) -> None:
     """Unpowered, unbraced, URDF damping D = 2: KE + PE drops by exactly int dq^T D dq dt."""
     model, data = reference_model()
-    sc = scenario({"contacts.names": [], "input_mode": "torque"}, sim={"initial_velocity": [1.0, -2.0, 1.5, 3.0]},
-                  with_controller=False)
+    sc = scenario(
+        {"contacts.names": [], "input_mode": "torque"},
+        sim={"initial_velocity": [1.0, -2.0, 1.5, 3.0]},
+        with_controller=False,
+    )
     sim = sc.sim
     np.testing.assert_array_equal(sim.dynamics.total_damping, np.full(N, LINK_DAMPING))
     e0 = mechanical_energy(model, data, sim.position, sim.velocity)
@@ -136,11 +150,14 @@ BALANCE_CASES = {
 }
 
 
-@pytest.mark.parametrize("case", [
-    "paper_controller",
-    "open_loop_mu0.3_eps1e-2",
-    "open_loop_mu0.3_default_eps_16_substeps",
-])
+@pytest.mark.parametrize(
+    "case",
+    [
+        "paper_controller",
+        "open_loop_mu0.3_eps1e-2",
+        "open_loop_mu0.3_default_eps_16_substeps",
+    ],
+)
 def test_electrical_energy_balance_braced_voltage(case: str, scenario: Callable, paper_params: Callable) -> None:
     """int v.i = copper + d(L i^2/2) + d(KE + PE) + d(dq^T J_m dq/2) + viscous + friction - constraint work."""
     shared, sim_overrides, closed, bound = BALANCE_CASES[case]
@@ -166,8 +183,11 @@ def test_electrical_energy_balance_braced_voltage(case: str, scenario: Callable,
         command_fn = _open_loop_voltage
 
     def stored(q: np.ndarray, dq: np.ndarray, i: np.ndarray) -> tuple[float, float, float]:
-        return (mechanical_energy(model, data, q, dq), 0.5 * float(dq @ (rotor_inertia * dq)),
-                0.5 * float(i @ (inductance * i)))
+        return (
+            mechanical_energy(model, data, q, dq),
+            0.5 * float(dq @ (rotor_inertia * dq)),
+            0.5 * float(i @ (inductance * i)),
+        )
 
     def friction_power(q: np.ndarray, dq: np.ndarray, fn: float) -> float:
         jacobian, _, _, _ = contact_terms(model, data, "elbow", normal, q, dq)
@@ -194,17 +214,25 @@ def test_electrical_energy_balance_braced_voltage(case: str, scenario: Callable,
     end = stored(q, dq, i)
     e = sim.energy
     d_mech, d_rotor, d_magnetic = (b - a for a, b in zip(start, end, strict=True))
-    balance = (e.net - e.copper_loss - d_magnetic - d_mech - d_rotor - e.viscous_loss - e.friction_loss
-               + e.constraint_work)
+    balance = (
+        e.net - e.copper_loss - d_magnetic - d_mech - d_rotor - e.viscous_loss - e.friction_loss + e.constraint_work
+    )
     relative = abs(balance) / e.consumed
-    print(f"\n{case}: net {e.net:.4f} J = copper {e.copper_loss:.4f} + magnetic {d_magnetic:.4f} "
-          f"+ mech {d_mech:.4f} + rotor {d_rotor:.6f} + viscous {e.viscous_loss:.4f} + friction "
-          f"{e.friction_loss:.5f} - constraint {e.constraint_work:.3g}; imbalance {balance:.3g} J "
-          f"({relative:.3g} of consumed {e.consumed:.2f} J)")
+    print(
+        f"\n{case}: net {e.net:.4f} J = copper {e.copper_loss:.4f} + magnetic {d_magnetic:.4f} "
+        f"+ mech {d_mech:.4f} + rotor {d_rotor:.6f} + viscous {e.viscous_loss:.4f} + friction "
+        f"{e.friction_loss:.5f} - constraint {e.constraint_work:.3g}; imbalance {balance:.3g} J "
+        f"({relative:.3g} of consumed {e.consumed:.2f} J)"
+    )
     assert relative < bound
     # Each integral agrees with an independent trapezoid quadrature of its definition.
-    for name, value in (("net", e.net), ("consumed", e.consumed), ("copper", e.copper_loss),
-                        ("viscous", e.viscous_loss), ("friction", e.friction_loss)):
+    for name, value in (
+        ("net", e.net),
+        ("consumed", e.consumed),
+        ("copper", e.copper_loss),
+        ("viscous", e.viscous_loss),
+        ("friction", e.friction_loss),
+    ):
         assert abs(quad[name] - value) <= 2e-3 * abs(value) + 1e-9, (name, quad[name], value)
     # The small terms are not negligible against the tolerance, so a sign error would show.
     assert e.viscous_loss > 1e-5 * e.consumed and abs(d_rotor) > 0.0
@@ -264,8 +292,9 @@ def _plane(kind: str) -> dict:
 
 @pytest.mark.parametrize("kind", ["paper_floor", "sloped_floor"])
 @pytest.mark.parametrize("baumgarte", [0.0, 20.0])
-def test_constraint_residual_over_10s(kind: str, baumgarte: float, closed_loop: Callable,
-                                      paper_params: Callable) -> None:
+def test_constraint_residual_over_10s(
+    kind: str, baumgarte: float, closed_loop: Callable, paper_params: Callable
+) -> None:
     """The elbow stays on its plane for 10 s of the paper task (voltage input).
 
     On the paper floor the two 0.5 m links make C = 0.5 (cos q1 + cos(q1 + q2)) = 0 the
@@ -285,8 +314,10 @@ def test_constraint_residual_over_10s(kind: str, baumgarte: float, closed_loop: 
 
     independent = max(abs(residual(q)) for q in [*run.position[::10], run.final_position])
     reported = float(np.abs(run.residual).max())
-    print(f"\n{kind}, a = {baumgarte:g}/s: max |C| over 10 s = {independent:.3g} m (reported {reported:.3g} m), "
-          f"final {abs(residual(run.final_position)):.3g} m")
+    print(
+        f"\n{kind}, a = {baumgarte:g}/s: max |C| over 10 s = {independent:.3g} m (reported {reported:.3g} m), "
+        f"final {abs(residual(run.final_position)):.3g} m"
+    )
     assert abs(reported - max(abs(residual(q)) for q in run.position)) < 1e-12
     if baumgarte > 0.0:
         assert independent < 1e-9
@@ -359,21 +390,32 @@ def test_degenerate_contact_is_a_config_error(sim_params: dict) -> None:
 
 
 # -- 7. input validation ----------------------------------------------------------------------
-@pytest.mark.parametrize("command", [
-    [math.nan, 0.0, 0.0, 0.0],
-    [0.0, math.inf, 0.0, 0.0],
-    [1.0, 1.0, 1.0],
-    [1.0, 1.0, 1.0, 1.0, 1.0],
-    [[1.0, 1.0, 1.0, 1.0]],
-    [],
-], ids=["nan", "inf", "short", "long", "2d", "empty"])
+@pytest.mark.parametrize(
+    "command",
+    [
+        [math.nan, 0.0, 0.0, 0.0],
+        [0.0, math.inf, 0.0, 0.0],
+        [1.0, 1.0, 1.0],
+        [1.0, 1.0, 1.0, 1.0, 1.0],
+        [[1.0, 1.0, 1.0, 1.0]],
+        [],
+    ],
+    ids=["nan", "inf", "short", "long", "2d", "empty"],
+)
 def test_step_rejects_bad_command_and_keeps_state(command: list, scenario: Callable) -> None:
     sim = scenario(with_controller=False).sim
     for _ in range(20):
         sim.step(np.array([3.0, -2.0, 1.0, 0.5]))
+
     def snapshot() -> tuple:
-        return (sim.position.tolist(), sim.velocity.tolist(), sim.current.tolist(), sim.time, sim.energy,
-                sim.steps_taken)
+        return (
+            sim.position.tolist(),
+            sim.velocity.tolist(),
+            sim.current.tolist(),
+            sim.time,
+            sim.energy,
+            sim.steps_taken,
+        )
 
     before = snapshot()
     assert any(before[2])  # a non-trivial state (currents flowing)

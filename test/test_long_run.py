@@ -31,11 +31,21 @@ def test_ten_minutes_of_lockstep_without_growth_or_drift(tmp_path: Path) -> None
     extra.write_text(f"bracing_simulator:\n  ros__parameters:\n    duration: {SIM_SECONDS}\n")
     args = ["--ros-args", "--params-file", str(PAPER_YAML), "--params-file", str(extra)]
     sim_log = tmp_path / "sim.log"
-    controller = subprocess.Popen([sys.executable, "-m", "bracing_controller.node", *args], env=env,
-                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=REPO_ROOT)
+    controller = subprocess.Popen(
+        [sys.executable, "-m", "bracing_controller.node", *args],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        cwd=REPO_ROOT,
+    )
     with sim_log.open("w") as log:
-        sim = subprocess.Popen([sys.executable, "-m", "bracing_sim.node", *args], env=env, stdout=log,
-                               stderr=subprocess.STDOUT, cwd=REPO_ROOT)
+        sim = subprocess.Popen(
+            [sys.executable, "-m", "bracing_sim.node", *args],
+            env=env,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            cwd=REPO_ROOT,
+        )
     samples: list[tuple[float, int, int]] = []  # (sim time, sim RSS, controller RSS)
     try:
         while sim.poll() is None:

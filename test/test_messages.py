@@ -13,16 +13,22 @@ ECHO = str(REPO_ROOT / "test" / "msg_echo.py")
 
 def test_every_message_crosses_processes_intact() -> None:
     env = isolated_env()
-    sender = subprocess.Popen([sys.executable, ECHO, "send"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    sender = subprocess.Popen(
+        [sys.executable, ECHO, "send"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+    )
     try:
-        receiver = subprocess.run([sys.executable, ECHO, "receive"], env=env, capture_output=True, text=True, timeout=60)
+        receiver = subprocess.run(
+            [sys.executable, ECHO, "receive"], env=env, capture_output=True, text=True, timeout=60
+        )
     finally:
         sender.terminate()
         sender.wait(10)
     assert receiver.returncode == 0, receiver.stderr
     result = json.loads(receiver.stdout.strip().splitlines()[-1])
-    assert sorted(result["received"]) == sorted(result["expected"]) == sorted(
-        ["MotorCommand", "MotorState", "Contacts", "ControllerState", "ContactState"]
+    assert (
+        sorted(result["received"])
+        == sorted(result["expected"])
+        == sorted(["MotorCommand", "MotorState", "Contacts", "ControllerState", "ContactState"])
     )
     assert result["received"] == result["expected"]
     assert result["received"]["MotorCommand"]["mode"] == 1
@@ -39,12 +45,14 @@ def test_motor_command_constants() -> None:
 
 def test_two_domains_do_not_see_each_other() -> None:
     """The isolation the tests rely on: a sender in another domain is not received."""
-    sender = subprocess.Popen([sys.executable, ECHO, "send"], env=isolated_env(120), stdout=subprocess.DEVNULL,
-                              stderr=subprocess.DEVNULL)
+    sender = subprocess.Popen(
+        [sys.executable, ECHO, "send"], env=isolated_env(120), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
     try:
         env = isolated_env(121)
-        receiver = subprocess.run([sys.executable, ECHO, "receive", "4"], env=env, capture_output=True, text=True,
-                                  timeout=60)
+        receiver = subprocess.run(
+            [sys.executable, ECHO, "receive", "4"], env=env, capture_output=True, text=True, timeout=60
+        )
     finally:
         sender.terminate()
         sender.wait(10)

@@ -32,11 +32,16 @@ def _run_node(module: str, node: str, overrides: dict[str, object], driver_args:
     extra = _params_file(tmp_path, node, overrides)
     node_proc = subprocess.Popen(
         [sys.executable, "-m", module, "--ros-args", "--params-file", str(PAPER_YAML), "--params-file", str(extra)],
-        env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPO_ROOT,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        cwd=REPO_ROOT,
     )
     try:
-        driver = subprocess.run([sys.executable, DRIVER, *driver_args], env=env, capture_output=True, text=True,
-                                timeout=180)
+        driver = subprocess.run(
+            [sys.executable, DRIVER, *driver_args], env=env, capture_output=True, text=True, timeout=180
+        )
     finally:
         node_proc.terminate()
         log = node_proc.communicate(timeout=20)[0]
@@ -48,8 +53,9 @@ def test_simulator_node_in_lockstep_matches_core(tmp_path: Path) -> None:
     """Driven with a known voltage sequence (joint names shuffled in every command), the node's
     joint states equal the core Simulator stepped directly with the same inputs, to 1e-12."""
     steps = 300
-    result = _run_node("bracing_sim.node", "bracing_simulator", {"duration": (steps - 1) * 0.001}, ["sim", str(steps)],
-                       tmp_path)
+    result = _run_node(
+        "bracing_sim.node", "bracing_simulator", {"duration": (steps - 1) * 0.001}, ["sim", str(steps)], tmp_path
+    )
     states = result["states"]
     assert len(states) == steps
     sim = build_scenario(with_controller=False).sim
@@ -58,7 +64,9 @@ def test_simulator_node_in_lockstep_matches_core(tmp_path: Path) -> None:
         assert state["stamp"] == [0, k * 1_000_000]
         np.testing.assert_allclose(state["position"], sim.position, rtol=0, atol=1e-12)
         np.testing.assert_allclose(state["velocity"], sim.velocity, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(state["effort"], sim.evaluate(np.asarray(known_command(k))).effort, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(
+            state["effort"], sim.evaluate(np.asarray(known_command(k))).effort, rtol=0, atol=1e-9
+        )
         if k + 1 < steps:
             sim.step(np.asarray(known_command(k)))
     assert np.ptp([s["position"] for s in states], axis=0).max() > 1e-3  # the inputs did move the arm
@@ -72,11 +80,14 @@ def test_controller_node_publishes_the_core_command(tmp_path: Path) -> None:
     inputs = []
     for _ in range(40):
         q, dq = q0 + rng.normal(0, 0.05, 4), rng.normal(0, 0.3, 4)
-        inputs.append({"name": [JOINTS[j] for j in order], "position": q[order].tolist(), "velocity": dq[order].tolist()})
+        inputs.append(
+            {"name": [JOINTS[j] for j in order], "position": q[order].tolist(), "velocity": dq[order].tolist()}
+        )
     states_file = tmp_path / "states.json"
     states_file.write_text(json.dumps(inputs))
-    answers = _run_node("bracing_controller.node", "bracing_controller", {}, ["controller", str(states_file)],
-                        tmp_path)["answers"]
+    answers = _run_node(
+        "bracing_controller.node", "bracing_controller", {}, ["controller", str(states_file)], tmp_path
+    )["answers"]
     law = DecoupledController(ControllerConfig.from_params(node_params("bracing_controller"), [REPO_ROOT / "config"]))
     for k, (state, answer) in enumerate(zip(inputs, answers, strict=True)):
         assert answer is not None, f"no command for state {k}"
@@ -90,8 +101,22 @@ def test_controller_node_publishes_the_core_command(tmp_path: Path) -> None:
 def test_node_refuses_bad_configuration_with_one_clear_line(tmp_path: Path) -> None:
     extra = _params_file(tmp_path, "bracing_simulator", {"motors.resistance": [0.6, 0.6, 0.6]})
     done = subprocess.run(
-        [sys.executable, "-m", "bracing_sim.node", "--ros-args", "--params-file", str(PAPER_YAML),
-         "--params-file", str(extra)], env=isolated_env(), capture_output=True, text=True, timeout=60, cwd=REPO_ROOT)
+        [
+            sys.executable,
+            "-m",
+            "bracing_sim.node",
+            "--ros-args",
+            "--params-file",
+            str(PAPER_YAML),
+            "--params-file",
+            str(extra),
+        ],
+        env=isolated_env(),
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=REPO_ROOT,
+    )
     assert done.returncode == 2
     assert "motors.resistance: expected 4 values" in done.stderr
     assert "Traceback" not in done.stderr + done.stdout
@@ -103,7 +128,21 @@ def test_infeasible_start_is_refused_naming_the_contact(tmp_path: Path) -> None:
     q[1] += 0.1  # lifts the elbow off the floor
     extra = _params_file(tmp_path, "bracing_simulator", {"initial_position": q})
     done = subprocess.run(
-        [sys.executable, "-m", "bracing_sim.node", "--ros-args", "--params-file", str(PAPER_YAML),
-         "--params-file", str(extra)], env=isolated_env(), capture_output=True, text=True, timeout=60, cwd=REPO_ROOT)
+        [
+            sys.executable,
+            "-m",
+            "bracing_sim.node",
+            "--ros-args",
+            "--params-file",
+            str(PAPER_YAML),
+            "--params-file",
+            str(extra),
+        ],
+        env=isolated_env(),
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=REPO_ROOT,
+    )
     assert done.returncode == 2
     assert "contact 'elbow'" in done.stderr and "off its plane" in done.stderr

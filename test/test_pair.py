@@ -18,13 +18,31 @@ from rosbags.highlevel import AnyReader
 
 from bracing_bringup.summary import compute_summary, read_series
 
-STEP_TOPICS = ["joint_states", "motor_command", "motor_state", "contacts", "controller_state",
-               "contact_wrench/elbow", "/clock"]
+STEP_TOPICS = [
+    "joint_states",
+    "motor_command",
+    "motor_state",
+    "contacts",
+    "controller_state",
+    "contact_wrench/elbow",
+    "/clock",
+]
 
 
 def pair_command(output: Path, *extra: str) -> list[str]:
-    return [sys.executable, "-m", "bracing_bringup.pair", "--config", str(PAPER_YAML), "--output", str(output),
-            "--quiet", "--domain-id", str(random.randint(102, 232)), *extra]
+    return [
+        sys.executable,
+        "-m",
+        "bracing_bringup.pair",
+        "--config",
+        str(PAPER_YAML),
+        "--output",
+        str(output),
+        "--quiet",
+        "--domain-id",
+        str(random.randint(102, 232)),
+        *extra,
+    ]
 
 
 def read_bag(bag: Path) -> dict[str, list[tuple[int, object]]]:
@@ -32,15 +50,22 @@ def read_bag(bag: Path) -> dict[str, list[tuple[int, object]]]:
     with AnyReader([bag]) as reader:  # definitions come from the bag itself
         for connection, timestamp, raw in reader.messages():
             messages.setdefault(connection.topic.lstrip("/") if connection.topic != "/clock" else "/clock", []).append(
-                (timestamp, reader.deserialize(raw, connection.msgtype)))
+                (timestamp, reader.deserialize(raw, connection.msgtype))
+            )
     return messages
 
 
 @pytest.fixture(scope="module")
 def paper_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     output = tmp_path_factory.mktemp("pair") / "run"
-    done = subprocess.run(pair_command(output, "--duration", "1.0"), env=isolated_env(), capture_output=True,
-                          text=True, timeout=300, cwd=REPO_ROOT)
+    done = subprocess.run(
+        pair_command(output, "--duration", "1.0"),
+        env=isolated_env(),
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=REPO_ROOT,
+    )
     assert done.returncode == 0, done.stdout + done.stderr
     return output
 
@@ -50,8 +75,12 @@ def test_bag_has_every_topic_and_no_missing_step(paper_run: Path) -> None:
     steps = 1001  # states 0..1000 of a 1 s run at 1 ms
     for topic in STEP_TOPICS:
         assert topic in messages, f"{topic} missing from the bag"
-        stamps = sorted(msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec if hasattr(msg, "header")
-                        else msg.clock.sec * 10**9 + msg.clock.nanosec for _, msg in messages[topic])
+        stamps = sorted(
+            msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+            if hasattr(msg, "header")
+            else msg.clock.sec * 10**9 + msg.clock.nanosec
+            for _, msg in messages[topic]
+        )
         assert stamps == [k * 1_000_000 for k in range(steps)], f"{topic}: steps missing or repeated"
 
 
@@ -62,8 +91,12 @@ def test_pair_trajectory_equals_in_process_loop(paper_run: Path) -> None:
     positions = np.array([m.position for _, m in states])
     np.testing.assert_allclose(positions[:-1], reference.position, rtol=0, atol=1e-9)
     np.testing.assert_allclose(positions[-1], reference.final_position, rtol=0, atol=1e-9)
-    forces = np.array([m.contacts[0].normal_force for _, m in sorted(
-        messages["contacts"], key=lambda m: (m[1].header.stamp.sec, m[1].header.stamp.nanosec))])
+    forces = np.array(
+        [
+            m.contacts[0].normal_force
+            for _, m in sorted(messages["contacts"], key=lambda m: (m[1].header.stamp.sec, m[1].header.stamp.nanosec))
+        ]
+    )
     np.testing.assert_allclose(forces[:-1], reference.normal_force[:, 0], rtol=0, atol=1e-7)
 
 
@@ -94,8 +127,14 @@ def _wait_for_progress(output: Path, timeout: float = 60.0) -> None:
 
 def test_sigint_mid_run_leaves_a_readable_bag(tmp_path: Path) -> None:
     output = tmp_path / "run"
-    proc = subprocess.Popen(pair_command(output, "--duration", "30"), env=isolated_env(), stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, cwd=REPO_ROOT)
+    proc = subprocess.Popen(
+        pair_command(output, "--duration", "30"),
+        env=isolated_env(),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        cwd=REPO_ROOT,
+    )
     try:
         _wait_for_progress(output)
         time.sleep(0.5)
@@ -113,8 +152,14 @@ def test_sigint_mid_run_leaves_a_readable_bag(tmp_path: Path) -> None:
 
 def test_killed_controller_fails_the_run_with_a_clear_message(tmp_path: Path) -> None:
     output = tmp_path / "run"
-    proc = subprocess.Popen(pair_command(output, "--duration", "30"), env=isolated_env(), stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, cwd=REPO_ROOT)
+    proc = subprocess.Popen(
+        pair_command(output, "--duration", "30"),
+        env=isolated_env(),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        cwd=REPO_ROOT,
+    )
     try:
         _wait_for_progress(output)
         subprocess.run(["pkill", "-KILL", "-f", f"bracing_controller.node.*{output}"], check=True)

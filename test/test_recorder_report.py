@@ -49,14 +49,15 @@ DT = 0.02  # 200 steps span 3.98 s, so the t >= 2 s window of the hand error is 
 CONTACTS = ("elbow", "wrist")
 JOINTS = ("joint1", "joint2", "joint3", "joint4")
 HAND_OFFSET_EARLY = 0.05  # hand error before t = 2 s (must not count)
-HAND_OFFSET = 0.01        # hand error from t = 2 s on
-BRACE_OFFSET = 0.002      # brace actual - desired [m], constant
+HAND_OFFSET = 0.01  # hand error from t = 2 s on
+BRACE_OFFSET = 0.002  # brace actual - desired [m], constant
 FORCE_DESIRED = 10.0
-FORCE_SWING = 0.5         # f_n = f_nd +- 0.5 alternating -> rms error 0.5 N
+FORCE_SWING = 0.5  # f_n = f_nd +- 0.5 alternating -> rms error 0.5 N
 RESIDUAL_AMPLITUDE = 3e-6
 
 
 # --------------------------------------------------------------------------- synthetic data
+
 
 def step_values(k: int) -> dict[str, Any]:
     """Known numbers of step k (pure Python, shared by publisher and assertions)."""
@@ -115,13 +116,19 @@ def make_step(k: int, contacts: tuple[str, ...] = CONTACTS) -> dict[str, Any]:
     cmsg = Contacts()
     cmsg.header.stamp = stamp
     for j, name in enumerate(contacts):
-        cmsg.contacts.append(ContactState(
-            name=name, frame=f"{name}_frame", active=True,
-            position=Point(x=0.0, y=0.5878, z=v["residual"]),
-            normal=Vector3(x=0.0, y=0.0, z=1.0),
-            normal_force=v["f_n"], friction_force=0.1 * v["f_n"],
-            slip_velocity=Vector3(x=0.0, y=1e-3 * k, z=0.0),
-            residual=v["residual"] * (j + 1)))
+        cmsg.contacts.append(
+            ContactState(
+                name=name,
+                frame=f"{name}_frame",
+                active=True,
+                position=Point(x=0.0, y=0.5878, z=v["residual"]),
+                normal=Vector3(x=0.0, y=0.0, z=1.0),
+                normal_force=v["f_n"],
+                friction_force=0.1 * v["f_n"],
+                slip_velocity=Vector3(x=0.0, y=1e-3 * k, z=0.0),
+                residual=v["residual"] * (j + 1),
+            )
+        )
     msgs["contacts"] = cmsg
     ms = MotorState()
     ms.header.stamp = stamp
@@ -146,10 +153,10 @@ def make_step(k: int, contacts: tuple[str, ...] = CONTACTS) -> dict[str, Any]:
     cs.hand_actual = Point(x=v["hand_actual"][0], y=v["hand_actual"][1], z=v["hand_actual"][2])
     cs.contact_name = list(contacts)
     cs.desired_normal_force = [FORCE_DESIRED] * len(contacts)
-    cs.brace_desired = [Point(x=v["brace_desired"][0], y=v["brace_desired"][1], z=v["brace_desired"][2])
-                        for _ in contacts]
-    cs.brace_actual = [Point(x=v["brace_actual"][0], y=v["brace_actual"][1], z=v["brace_actual"][2])
-                       for _ in contacts]
+    cs.brace_desired = [
+        Point(x=v["brace_desired"][0], y=v["brace_desired"][1], z=v["brace_desired"][2]) for _ in contacts
+    ]
+    cs.brace_actual = [Point(x=v["brace_actual"][0], y=v["brace_actual"][1], z=v["brace_actual"][2]) for _ in contacts]
     cs.command = v["command"]
     cs.compute_time = 1e-4
     msgs["controller_state"] = cs
@@ -191,10 +198,12 @@ def publisher_main(namespace: str, contacts: str, n: int, period: float, wait_go
     rclpy.init()
     node = rclpy.create_node("synthetic_publisher", namespace=namespace)
     # As the nodes publish: reliable and transient-local (the recorder requests transient-local).
-    qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    pubs = {topic: node.create_publisher(type(msg), topic, qos)
-            for topic, msg in make_step(0, names).items()}
+    qos = QoSProfile(
+        history=HistoryPolicy.KEEP_ALL,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )
+    pubs = {topic: node.create_publisher(type(msg), topic, qos) for topic, msg in make_step(0, names).items()}
     deadline = time.monotonic() + 15.0
     while any(p.get_subscription_count() == 0 for p in pubs.values()):
         if time.monotonic() > deadline:
@@ -219,12 +228,14 @@ def publisher_main(namespace: str, contacts: str, n: int, period: float, wait_go
 
 # --------------------------------------------------------------------------- process helpers
 
+
 def ros_env() -> dict[str, str]:
     env = dict(os.environ)
     env["ROS_DOMAIN_ID"] = str(random.randint(100, 200))
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env["PYTHONPATH"] = os.pathsep.join(
-        [str(BRINGUP_SRC), str(Path(__file__).resolve().parent), env.get("PYTHONPATH", "")])
+        [str(BRINGUP_SRC), str(Path(__file__).resolve().parent), env.get("PYTHONPATH", "")]
+    )
     env["PYTHONUNBUFFERED"] = "1"
     return env
 
@@ -234,8 +245,8 @@ class Proc:
 
     def __init__(self, args: list[str], env: dict[str, str]) -> None:
         self.popen = subprocess.Popen(
-            args, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE, text=True)
+            args, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
         self.lines: queue.Queue[str] = queue.Queue()
         self.stdout: list[str] = []
         self._thread = threading.Thread(target=self._read, daemon=True)
@@ -287,10 +298,10 @@ def procs() -> Iterator[list[Proc]]:
         p.kill()
 
 
-def start_recorder(procs: list[Proc], env: dict[str, str], bag: Path, namespace: str,
-                   contacts: tuple[str, ...]) -> Proc:
-    args = [sys.executable, "-m", "bracing_bringup.recorder", "--output", str(bag),
-            "--contacts", ",".join(contacts)]
+def start_recorder(
+    procs: list[Proc], env: dict[str, str], bag: Path, namespace: str, contacts: tuple[str, ...]
+) -> Proc:
+    args = [sys.executable, "-m", "bracing_bringup.recorder", "--output", str(bag), "--contacts", ",".join(contacts)]
     if namespace:
         args += ["--namespace", namespace]
     rec = Proc(args, env)
@@ -310,16 +321,25 @@ FAST_HEARTBEAT_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
 """
 
 
-def start_publisher(procs: list[Proc], env: dict[str, str], tmp_path: Path, namespace: str,
-                    contacts: tuple[str, ...], n: int, period: float,
-                    wait_go: bool = False) -> Proc:
+def start_publisher(
+    procs: list[Proc],
+    env: dict[str, str],
+    tmp_path: Path,
+    namespace: str,
+    contacts: tuple[str, ...],
+    n: int,
+    period: float,
+    wait_go: bool = False,
+) -> Proc:
     # Fast DDS's default 3 s writer heartbeat would delay any retransmission (and the
     # final acknowledgements) by up to 3 s; 20 ms keeps delivery prompt and the test fast.
     profile = tmp_path / "fastdds_publisher.xml"
     profile.write_text(FAST_HEARTBEAT_PROFILE)
     env = {**env, "FASTRTPS_DEFAULT_PROFILES_FILE": str(profile)}
-    code = ("import test_recorder_report as t; "
-            f"t.publisher_main({namespace!r}, {','.join(contacts)!r}, {n}, {period}, {wait_go})")
+    code = (
+        "import test_recorder_report as t; "
+        f"t.publisher_main({namespace!r}, {','.join(contacts)!r}, {n}, {period}, {wait_go})"
+    )
     pub = Proc([sys.executable, "-c", code], env)
     procs.append(pub)
     return pub
@@ -345,12 +365,12 @@ def expected_topics(namespace: str, contacts: tuple[str, ...]) -> set[str]:
 
 # --------------------------------------------------------------------------- recorder tests
 
+
 def test_recorder_records_every_topic_exactly(tmp_path: Path, procs: list[Proc]) -> None:
     env = ros_env()
     bag = tmp_path / "run" / "bag"
     rec = start_recorder(procs, env, bag, "", CONTACTS)
-    pub = start_publisher(procs, env, tmp_path, "", CONTACTS, N_STEPS, period=0.0,
-                          wait_go=True)
+    pub = start_publisher(procs, env, tmp_path, "", CONTACTS, N_STEPS, period=0.0, wait_go=True)
     pub.wait_line("matched", timeout=20.0)
     # Freeze the recorder while everything is published, then ask it to stop and let it
     # run again: every message is still pending, so only the drain can record them.
@@ -417,11 +437,10 @@ def test_recorder_records_every_topic_exactly(tmp_path: Path, procs: list[Proc])
     assert summary["real_time_factor"] == pytest.approx((N_STEPS - 1) * DT / 2.0)
 
 
-@pytest.mark.parametrize(("sig", "publisher_keeps_going"),
-                         [(signal.SIGINT, True), (signal.SIGTERM, False)])
+@pytest.mark.parametrize(("sig", "publisher_keeps_going"), [(signal.SIGINT, True), (signal.SIGTERM, False)])
 def test_recorder_stopped_mid_stream_leaves_readable_bag(
-        tmp_path: Path, procs: list[Proc], sig: signal.Signals,
-        publisher_keeps_going: bool) -> None:
+    tmp_path: Path, procs: list[Proc], sig: signal.Signals, publisher_keeps_going: bool
+) -> None:
     env = ros_env()
     bag = tmp_path / "bag"
     contacts = ("elbow",)
@@ -447,8 +466,7 @@ def test_recorder_stopped_mid_stream_leaves_readable_bag(
     assert stamps[0] == 0 and len(set(stamps)) == len(stamps)
     if publisher_keeps_going:
         # Reliable, in-order delivery: the recording is an unbroken prefix of the stream.
-        expected = [step_values(k)["sec"] * 1_000_000_000 + step_values(k)["nanosec"]
-                    for k in range(len(stamps))]
+        expected = [step_values(k)["sec"] * 1_000_000_000 + step_values(k)["nanosec"] for k in range(len(stamps))]
         assert stamps == expected
     for _, msg in data["/robot1/controller_state"]:
         assert list(msg.contact_name) == ["elbow"]
@@ -459,7 +477,11 @@ def test_recorder_refuses_existing_output(tmp_path: Path) -> None:
     bag.mkdir()
     res = subprocess.run(
         [sys.executable, "-m", "bracing_bringup.recorder", "--output", str(bag)],
-        env=ros_env(), capture_output=True, text=True, timeout=30)
+        env=ros_env(),
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
     assert res.returncode == 2
     assert "exists already" in res.stderr
     assert list(bag.iterdir()) == []
@@ -467,11 +489,11 @@ def test_recorder_refuses_existing_output(tmp_path: Path) -> None:
 
 # --------------------------------------------------------------------------- summary tests
 
+
 def _series(n: int = 401, dt: float = 0.01) -> BagSeries:
     t = np.arange(n) * dt
     hand_d = np.stack([np.zeros(n), 1.1 + 0.2 * np.cos(t), 0.6 + 0.2 * np.sin(t)], axis=1)
-    s = BagSeries(joint_t=t.copy(), t=t.copy(), hand_desired=hand_d,
-                  hand_actual=hand_d + np.array([0.0, 0.0, 0.01]))
+    s = BagSeries(joint_t=t.copy(), t=t.copy(), hand_desired=hand_d, hand_actual=hand_d + np.array([0.0, 0.0, 0.01]))
     s.motor_t = t.copy()
     s.energy_consumed = 2.0 * t
     s.energy_net = 1.5 * t

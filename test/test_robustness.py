@@ -23,12 +23,26 @@ def _drive(tmp_path: Path, overrides: dict[str, object], driver_args: list[str])
     env = isolated_env()
     extra = _params_file(tmp_path, "bracing_simulator", overrides)
     node = subprocess.Popen(
-        [sys.executable, "-m", "bracing_sim.node", "--ros-args", "--params-file", str(PAPER_YAML),
-         "--params-file", str(extra)], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-        cwd=REPO_ROOT)
+        [
+            sys.executable,
+            "-m",
+            "bracing_sim.node",
+            "--ros-args",
+            "--params-file",
+            str(PAPER_YAML),
+            "--params-file",
+            str(extra),
+        ],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        cwd=REPO_ROOT,
+    )
     try:
-        driver = subprocess.run([sys.executable, DRIVER, *driver_args], env=env, capture_output=True, text=True,
-                                timeout=180)
+        driver = subprocess.run(
+            [sys.executable, DRIVER, *driver_args], env=env, capture_output=True, text=True, timeout=180
+        )
         node.wait(30)  # it must finish by itself
     finally:
         if node.poll() is None:
@@ -55,15 +69,25 @@ def test_malformed_commands_are_rejected_and_never_integrated(tmp_path: Path) ->
     assert len(states) == steps
     for state, expected in zip(states, reference, strict=True):
         np.testing.assert_allclose(state["position"], expected, rtol=0, atol=1e-12)
-    for reason in ("non-finite values", "1 names but", "missing ['joint4']", "unknown ['joint9']",
-                   "duplicate joint names", "configured for voltage", "mode unknown (7)", "is stale", "from the future"):
+    for reason in (
+        "non-finite values",
+        "1 names but",
+        "missing ['joint4']",
+        "unknown ['joint9']",
+        "duplicate joint names",
+        "configured for voltage",
+        "mode unknown (7)",
+        "is stale",
+        "from the future",
+    ):
         assert reason in log or reason.replace("1 names", "4 names") in log, reason
 
 
 def test_over_limit_commands_are_saturated(tmp_path: Path) -> None:
     steps, scale, limit = 30, 50.0, 5.0
-    states, log = _drive(tmp_path, {"duration": (steps - 1) * 1e-3, "motors.voltage_limit": limit},
-                         ["sim-scale", str(steps), str(scale)])
+    states, log = _drive(
+        tmp_path, {"duration": (steps - 1) * 1e-3, "motors.voltage_limit": limit}, ["sim-scale", str(steps), str(scale)]
+    )
     reference = _reference([scale * np.asarray(known_command(k)) for k in range(steps - 1)], limit)
     for state, expected in zip(states, reference, strict=True):
         np.testing.assert_allclose(state["position"], expected, rtol=0, atol=1e-12)
@@ -73,8 +97,11 @@ def test_over_limit_commands_are_saturated(tmp_path: Path) -> None:
 @pytest.mark.parametrize("policy", ["hold", "zero"])
 def test_lockstep_watchdog_applies_its_policy(tmp_path: Path, policy: str) -> None:
     steps, skipped = 20, 7
-    states, log = _drive(tmp_path, {"duration": (steps - 1) * 1e-3, "command_timeout": 0.3, "watchdog_policy": policy},
-                         ["sim-skip", str(steps), str(skipped)])
+    states, log = _drive(
+        tmp_path,
+        {"duration": (steps - 1) * 1e-3, "command_timeout": 0.3, "watchdog_policy": policy},
+        ["sim-skip", str(steps), str(skipped)],
+    )
     commands = [np.asarray(known_command(k)) for k in range(steps - 1)]
     commands[skipped] = commands[skipped - 1] if policy == "hold" else np.zeros(4)
     for state, expected in zip(states, _reference(commands), strict=True):
@@ -87,26 +114,46 @@ def test_command_vector_matches_by_name_and_validates() -> None:
     assert u.tolist() == [1.0, 2.0] and not saturated
     u, saturated = command_vector(["a", "b"], [20.0, -30.0], 1, ["a", "b"], InputMode.TORQUE, limit=10.0)
     assert u.tolist() == [10.0, -10.0] and saturated
-    for names, values, mode in ((["a"], [1.0], 0), (["a", "a"], [1.0, 1.0], 0), (["a", "b"], [1.0], 0),
-                                (["a", "b"], [np.nan, 1.0], 0), (["a", "b"], [1.0, 1.0], 1), (["a", "c"], [1.0, 1.0], 0)):
+    for names, values, mode in (
+        (["a"], [1.0], 0),
+        (["a", "a"], [1.0, 1.0], 0),
+        (["a", "b"], [1.0], 0),
+        (["a", "b"], [np.nan, 1.0], 0),
+        (["a", "b"], [1.0, 1.0], 1),
+        (["a", "c"], [1.0, 1.0], 0),
+    ):
         with pytest.raises(CommandError):
             command_vector(names, values, mode, ["a", "b"], InputMode.VOLTAGE)
 
 
 def test_controller_ignores_malformed_joint_states(tmp_path: Path) -> None:
     good = {"name": JOINTS, "position": (np.array([-0.2, -0.6, 0.8, -0.4]) * np.pi).tolist(), "velocity": [0.0] * 4}
-    inputs = [good, {**good, "name": JOINTS[:3], "position": good["position"][:3], "velocity": [0.0] * 3},
-              {**good, "position": [float("nan"), *good["position"][1:]]},
-              {**good, "velocity": [0.0] * 3}, good]
+    inputs = [
+        good,
+        {**good, "name": JOINTS[:3], "position": good["position"][:3], "velocity": [0.0] * 3},
+        {**good, "position": [float("nan"), *good["position"][1:]]},
+        {**good, "velocity": [0.0] * 3},
+        good,
+    ]
     states_file = tmp_path / "states.json"
     states_file.write_text(json.dumps(inputs))
     env = isolated_env()
-    node = subprocess.Popen([sys.executable, "-m", "bracing_controller.node", "--ros-args", "--params-file",
-                             str(PAPER_YAML)], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            cwd=REPO_ROOT)
+    node = subprocess.Popen(
+        [sys.executable, "-m", "bracing_controller.node", "--ros-args", "--params-file", str(PAPER_YAML)],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        cwd=REPO_ROOT,
+    )
     try:
-        driver = subprocess.run([sys.executable, DRIVER, "controller", str(states_file)], env=env, capture_output=True,
-                                text=True, timeout=120)
+        driver = subprocess.run(
+            [sys.executable, DRIVER, "controller", str(states_file)],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         assert node.poll() is None, "the controller died"
     finally:
         node.terminate()
@@ -123,11 +170,29 @@ def test_divergence_stops_the_simulator_with_a_clear_error(tmp_path: Path) -> No
     env = isolated_env()
     extra = _params_file(tmp_path, "bracing_simulator", {"duration": 1.0})
     node = subprocess.Popen(
-        [sys.executable, "-m", "bracing_sim.node", "--ros-args", "--params-file", str(PAPER_YAML),
-         "--params-file", str(extra)], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-        cwd=REPO_ROOT)
-    driver = subprocess.Popen([sys.executable, DRIVER, "sim-scale", "3", "1e300"], env={**env, "DRIVER_TIMEOUT": "10"}, stdout=subprocess.PIPE,
-                              stderr=subprocess.STDOUT, text=True)
+        [
+            sys.executable,
+            "-m",
+            "bracing_sim.node",
+            "--ros-args",
+            "--params-file",
+            str(PAPER_YAML),
+            "--params-file",
+            str(extra),
+        ],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        cwd=REPO_ROOT,
+    )
+    driver = subprocess.Popen(
+        [sys.executable, DRIVER, "sim-scale", "3", "1e300"],
+        env={**env, "DRIVER_TIMEOUT": "10"},
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     try:
         log = node.communicate(timeout=60)[0]
         out = driver.communicate(timeout=60)[0]
@@ -143,11 +208,28 @@ def test_divergence_stops_the_simulator_with_a_clear_error(tmp_path: Path) -> No
 
 def test_pair_reports_divergence_and_keeps_the_bag(tmp_path: Path) -> None:
     config = tmp_path / "scenario.yaml"
-    text = PAPER_YAML.read_text().replace("urdf: paper_4link.urdf", f"urdf: {REPO_ROOT / 'config' / 'paper_4link.urdf'}")
+    text = PAPER_YAML.read_text().replace(
+        "urdf: paper_4link.urdf", f"urdf: {REPO_ROOT / 'config' / 'paper_4link.urdf'}"
+    )
     config.write_text(text.replace("divergence_residual: 0.01", "divergence_residual: 1.0e-30"))
-    done = subprocess.run([sys.executable, "-m", "bracing_bringup.pair", "--config", str(config), "--output",
-                           str(tmp_path / "run"), "--quiet", "--domain-id", str(random.randint(102, 232))],
-                          env=isolated_env(), capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "bracing_bringup.pair",
+            "--config",
+            str(config),
+            "--output",
+            str(tmp_path / "run"),
+            "--quiet",
+            "--domain-id",
+            str(random.randint(102, 232)),
+        ],
+        env=isolated_env(),
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 1
     assert "simulator exited with code 3" in done.stderr and "divergence_residual" in done.stderr
     from rosbags.highlevel import AnyReader

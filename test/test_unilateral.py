@@ -40,8 +40,10 @@ def test_release_when_the_force_would_pull() -> None:
 def test_touchdown_is_inelastic_without_penetration() -> None:
     """Unpowered, the arm falls from 5 cm above the floor; at touchdown the elbow is put on the
     plane, its normal velocity removed, and the kinetic energy lost is booked."""
-    sc = build_scenario({**UNILATERAL, "input_mode": "torque", "contacts.elbow.offset": -0.05,
-                         "contacts.elbow.friction": 0.0}, with_controller=False)
+    sc = build_scenario(
+        {**UNILATERAL, "input_mode": "torque", "contacts.elbow.offset": -0.05, "contacts.elbow.friction": 0.0},
+        with_controller=False,
+    )
     sim, robot = sc.sim, sc.plant.robot
     elbow = robot.frame_id("elbow")
     assert not sim.active[0]  # starts released, above its plane

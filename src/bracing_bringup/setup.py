@@ -9,8 +9,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
-        ("share/" + package_name + "/config", [
-            "../../config/paper_4link.yaml", "../../config/paper_4link.urdf"]),
+        ("share/" + package_name + "/config", ["../../config/paper_4link.yaml", "../../config/paper_4link.urdf"]),
     ],
     install_requires=["setuptools"],
     zip_safe=True,

@@ -42,15 +42,22 @@ class Scenario:
     controller: DecoupledController | None  # built on its own plant, as in the node
 
 
-def build_scenario(config: str | Path, shared: Overrides = None, sim: Overrides = None, ctl: Overrides = None,
-                   with_controller: bool = True) -> Scenario:
+def build_scenario(
+    config: str | Path,
+    shared: Overrides = None,
+    sim: Overrides = None,
+    ctl: Overrides = None,
+    with_controller: bool = True,
+) -> Scenario:
     search = [Path(config).resolve().parent]
     plant, simulator = build_simulator(
-        SimulatorConfig.from_params(node_params(config, "bracing_simulator", shared, sim), search))
+        SimulatorConfig.from_params(node_params(config, "bracing_simulator", shared, sim), search)
+    )
     controller = None
     if with_controller:
         controller = DecoupledController(
-            ControllerConfig.from_params(node_params(config, "bracing_controller", shared, ctl), search))
+            ControllerConfig.from_params(node_params(config, "bracing_controller", shared, ctl), search)
+        )
     return Scenario(plant, simulator, controller)
 
 
@@ -78,7 +85,7 @@ def run_closed_loop(scenario: Scenario, duration: float) -> Run:
     sim, controller = scenario.sim, scenario.controller
     if controller is None:
         raise ValueError("run_closed_loop needs a scenario built with a controller")
-    steps = int(round(duration / sim.step_size))
+    steps = round(duration / sim.step_size)
     n, p = sim.n, len(scenario.plant.contact_set)
     rec = {key: np.zeros((steps, n)) for key in ("position", "velocity", "current", "command")}
     time, hand_error = np.zeros(steps), np.zeros(steps)
@@ -93,5 +100,16 @@ def run_closed_loop(scenario: Scenario, duration: float) -> Run:
         derivative = sim.step(out.command)
         normal_force[k] = derivative.normal_force
         residual[k] = derivative.contacts.residual
-    return Run(time, rec["position"], rec["velocity"], rec["current"], rec["command"], normal_force,
-               controller.desired_normal_force.copy(), residual, hand_error, sim.position, sim.energy)
+    return Run(
+        time,
+        rec["position"],
+        rec["velocity"],
+        rec["current"],
+        rec["command"],
+        normal_force,
+        controller.desired_normal_force.copy(),
+        residual,
+        hand_error,
+        sim.position,
+        sim.energy,
+    )

@@ -190,8 +190,11 @@ def run_pair(options: RunOptions) -> RunResult:
     message, code = "", 0
     try:
         pair.say(f"bracing-pair: ROS_DOMAIN_ID={domain}, output {out}")
-        pair.start("recorder", [sys.executable, "-m", "bracing_bringup.recorder", "--output", str(bag),
-                                "--contacts", ",".join(contacts)], env)
+        pair.start(
+            "recorder",
+            [sys.executable, "-m", "bracing_bringup.recorder", "--output", str(bag), "--contacts", ",".join(contacts)],
+            env,
+        )
         if not pair.wait_for_line("recorder", "recorder ready", 30.0):
             raise _Failure("recorder", "the recorder did not start")
         pair.start("controller", [sys.executable, "-m", "bracing_controller.node", *ros_args], env)
@@ -253,7 +256,9 @@ class _Interrupted(Exception):
 
 def parse_args(argv: Sequence[str] | None) -> RunOptions:
     parser = argparse.ArgumentParser(prog="bracing-pair", description=__doc__.split("\n\n")[0] if __doc__ else None)
-    parser.add_argument("--config", required=True, type=Path, help="scenario params file (e.g. config/paper_4link.yaml)")
+    parser.add_argument(
+        "--config", required=True, type=Path, help="scenario params file (e.g. config/paper_4link.yaml)"
+    )
     parser.add_argument("--duration", type=float, default=None, help="sim time [s] (default: the file's)")
     parser.add_argument("--output", type=Path, default=None, help="run directory (default: out/<time>)")
     parser.add_argument("--mode", choices=("voltage", "torque"), default=None, help="input mode override")
@@ -265,8 +270,9 @@ def parse_args(argv: Sequence[str] | None) -> RunOptions:
     if args.duration is not None and args.duration <= 0:
         parser.error("--duration must be > 0")
     output = args.output or Path("out") / time.strftime("%Y%m%d-%H%M%S")
-    return RunOptions(args.config, output, args.duration, args.mode, not args.no_bracing, args.real_time,
-                      args.domain_id, args.quiet)
+    return RunOptions(
+        args.config, output, args.duration, args.mode, not args.no_bracing, args.real_time, args.domain_id, args.quiet
+    )
 
 
 def main(argv: Sequence[str] | None = None) -> int:

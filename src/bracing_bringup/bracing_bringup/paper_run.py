@@ -28,11 +28,19 @@ ROWS: list[tuple[str, str, str]] = [
 def table(braced: dict[str, Any], unbraced: dict[str, Any]) -> str:
     lines = [f"{'':28s} {'braced':>12s} {'unbraced':>12s}", "-" * 54]
     for key, label, unit in ROWS:
-        cells = [f"{s[key]:12.4g}" if isinstance(s.get(key), (int, float)) else f"{'n/a':>12s}" for s in (braced, unbraced)]
+        cells = [
+            f"{s[key]:12.4g}" if isinstance(s.get(key), (int, float)) else f"{'n/a':>12s}" for s in (braced, unbraced)
+        ]
         lines.append(f"{label + (f' [{unit}]' if unit else ''):28s} {cells[0]} {cells[1]}")
-    ratio = braced["energy_consumed_j"] / unbraced["energy_consumed_j"] if unbraced["energy_consumed_j"] else float("nan")
+    ratio = (
+        braced["energy_consumed_j"] / unbraced["energy_consumed_j"] if unbraced["energy_consumed_j"] else float("nan")
+    )
     hand = braced["hand_rms_error_m"] / unbraced["hand_rms_error_m"] if unbraced["hand_rms_error_m"] else float("nan")
-    lines += ["-" * 54, f"energy ratio braced / unbraced: {ratio:.3f}", f"hand RMS error ratio braced / unbraced: {hand:.3f}"]
+    lines += [
+        "-" * 54,
+        f"energy ratio braced / unbraced: {ratio:.3f}",
+        f"hand RMS error ratio braced / unbraced: {hand:.3f}",
+    ]
     return "\n".join(lines)
 
 
@@ -48,7 +56,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         output = args.output / name
         if output.exists():
             shutil.rmtree(output)  # this command owns out/braced and out/unbraced
-        print(f"== {name}: bracing-pair --config {args.config} --output {output}" + ("" if bracing else " --no-bracing"))
+        print(
+            f"== {name}: bracing-pair --config {args.config} --output {output}" + ("" if bracing else " --no-bracing")
+        )
         try:
             result = run_pair(RunOptions(args.config, output, args.duration, args.mode, bracing))
         except ConfigError as exc:

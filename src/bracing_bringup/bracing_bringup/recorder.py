@@ -95,10 +95,7 @@ def topic_table(contacts: Sequence[str]) -> list[tuple[str, type, str]]:
     table: list[tuple[str, type, str]] = [
         ("joint_states", JointState, "sensor_msgs/msg/JointState"),
     ]
-    table += [
-        (f"contact_wrench/{name}", WrenchStamped, "geometry_msgs/msg/WrenchStamped")
-        for name in contacts
-    ]
+    table += [(f"contact_wrench/{name}", WrenchStamped, "geometry_msgs/msg/WrenchStamped") for name in contacts]
     table += [
         ("contacts", Contacts, "bracing_msgs/msg/Contacts"),
         ("motor_state", MotorState, "bracing_msgs/msg/MotorState"),
@@ -179,14 +176,13 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
     )
     parser.add_argument("--output", required=True, help="bag directory to create (must not exist)")
     parser.add_argument("--namespace", default="", help="namespace of the recorded nodes")
+    parser.add_argument("--contacts", default="", help="comma-separated contact names (contact_wrench/<name>)")
     parser.add_argument(
-        "--contacts", default="", help="comma-separated contact names (contact_wrench/<name>)")
+        "--drain-idle", type=float, default=0.2, help="on stop, keep receiving until idle this long [s] (default 0.2)"
+    )
     parser.add_argument(
-        "--drain-idle", type=float, default=0.2,
-        help="on stop, keep receiving until idle this long [s] (default 0.2)")
-    parser.add_argument(
-        "--drain-timeout", type=float, default=3.0,
-        help="on stop, drain for at most this long [s] (default 3.0)")
+        "--drain-timeout", type=float, default=3.0, help="on stop, drain for at most this long [s] (default 3.0)"
+    )
     return parser.parse_args(list(argv))
 
 

@@ -53,8 +53,9 @@ def _save(fig: Figure, ax: Axes, path: Path) -> Path:
 
 
 def _plot_hand(series: BagSeries, out: Path, axis: int, name: str) -> Path:
-    fig, ax = _figure(f"Hand {name} position (paper Figs. {'6, 9, 13' if axis == 1 else '7, 10, 14'})",
-                      f"hand {name} [m]")
+    fig, ax = _figure(
+        f"Hand {name} position (paper Figs. {'6, 9, 13' if axis == 1 else '7, 10, 14'})", f"hand {name} [m]"
+    )
     ax.plot(series.t, series.hand_desired[:, axis], "--", color="tab:red", label=f"target {name}_dh")
     ax.plot(series.t, series.hand_actual[:, axis], color="tab:blue", label=f"hand {name}_h")
     return _save(fig, ax, out / f"hand_{name}.png")
@@ -72,8 +73,7 @@ def _plot_brace(series: BagSeries, out: Path) -> Path:
 
 
 def _plot_force(series: BagSeries, out: Path) -> Path:
-    fig, ax = _figure("Reaction (normal) force at the brace (paper Figs. 12, 16)",
-                      "normal force f_n [N]")
+    fig, ax = _figure("Reaction (normal) force at the brace (paper Figs. 12, 16)", "normal force f_n [N]")
     for cs in series.contacts.values():
         if cs.t_ctrl.size:
             ax.plot(cs.t_ctrl, cs.normal_force_desired, "--", label=f"{cs.name} desired f_nd")
@@ -159,10 +159,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         description="Plot a recorded bracing run (paper Figs. 6-16) and write summary.json.",
     )
     parser.add_argument("bag", help="rosbag2 bag directory (DIR/bag)")
-    parser.add_argument("--output", default=None,
-                        help="output directory (default: the bag's parent directory)")
-    parser.add_argument("--wall-time", type=float, default=None,
-                        help="wall-clock duration of the run [s] (for real_time_factor)")
+    parser.add_argument("--output", default=None, help="output directory (default: the bag's parent directory)")
+    parser.add_argument(
+        "--wall-time", type=float, default=None, help="wall-clock duration of the run [s] (for real_time_factor)"
+    )
     args = parser.parse_args(None if argv is None else list(argv))
     try:
         summary = write_report(args.bag, args.output, wall_time_s=args.wall_time)

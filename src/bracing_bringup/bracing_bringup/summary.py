@@ -57,20 +57,20 @@ class ContactSeries:
 
     name: str
     # From `contacts` (the simulator):
-    t: FloatArray = field(default_factory=_empty)               # [s]
-    normal_force: FloatArray = field(default_factory=_empty)    # f_n [N]
+    t: FloatArray = field(default_factory=_empty)  # [s]
+    normal_force: FloatArray = field(default_factory=_empty)  # f_n [N]
     friction_force: FloatArray = field(default_factory=_empty)  # f_t [N]
-    residual: FloatArray = field(default_factory=_empty)        # C = n . r - c [m]
+    residual: FloatArray = field(default_factory=_empty)  # C = n . r - c [m]
     active: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
     position: FloatArray = field(default_factory=lambda: _empty(3))  # [m]
     # From `controller_state` (the controller):
-    t_ctrl: FloatArray = field(default_factory=_empty)                    # [s]
-    normal_force_desired: FloatArray = field(default_factory=_empty)      # f_nd [N]
+    t_ctrl: FloatArray = field(default_factory=_empty)  # [s]
+    normal_force_desired: FloatArray = field(default_factory=_empty)  # f_nd [N]
     brace_desired: FloatArray = field(default_factory=lambda: _empty(3))  # [m]
-    brace_actual: FloatArray = field(default_factory=lambda: _empty(3))   # [m]
+    brace_actual: FloatArray = field(default_factory=lambda: _empty(3))  # [m]
     # contacts and controller_state samples with the same header stamp:
-    t_matched: FloatArray = field(default_factory=_empty)                 # [s]
-    normal_force_error: FloatArray = field(default_factory=_empty)        # f_n - f_nd [N]
+    t_matched: FloatArray = field(default_factory=_empty)  # [s]
+    normal_force_error: FloatArray = field(default_factory=_empty)  # f_n - f_nd [N]
 
 
 @dataclass
@@ -78,16 +78,16 @@ class BagSeries:
     """Time series of one run (see the module docstring for the time base)."""
 
     t0_ns: int = 0
-    joint_t: FloatArray = field(default_factory=_empty)      # joint_states stamps [s]
-    t: FloatArray = field(default_factory=_empty)            # controller_state stamps [s]
+    joint_t: FloatArray = field(default_factory=_empty)  # joint_states stamps [s]
+    t: FloatArray = field(default_factory=_empty)  # controller_state stamps [s]
     hand_desired: FloatArray = field(default_factory=lambda: _empty(3))  # [m]
-    hand_actual: FloatArray = field(default_factory=lambda: _empty(3))   # [m]
+    hand_actual: FloatArray = field(default_factory=lambda: _empty(3))  # [m]
     contacts: dict[str, ContactSeries] = field(default_factory=dict)
-    motor_t: FloatArray = field(default_factory=_empty)          # motor_state stamps [s]
+    motor_t: FloatArray = field(default_factory=_empty)  # motor_state stamps [s]
     energy_consumed: FloatArray = field(default_factory=_empty)  # [J]
-    energy_net: FloatArray = field(default_factory=_empty)       # [J]
-    copper_loss: FloatArray = field(default_factory=_empty)      # [J]
-    topic_counts: dict[str, int] = field(default_factory=dict)   # messages per topic
+    energy_net: FloatArray = field(default_factory=_empty)  # [J]
+    copper_loss: FloatArray = field(default_factory=_empty)  # [J]
+    topic_counts: dict[str, int] = field(default_factory=dict)  # messages per topic
 
 
 def _stamp_ns(msg: Any) -> int:
@@ -122,8 +122,7 @@ def read_series(bag: str | Path) -> BagSeries:
             for conn in reader.connections:
                 counts[conn.topic] = counts.get(conn.topic, 0) + conn.msgcount
             wanted = [
-                c for c in reader.connections
-                if c.msgtype in (_JOINT_STATE, _CONTACTS, _CONTROLLER_STATE, _MOTOR_STATE)
+                c for c in reader.connections if c.msgtype in (_JOINT_STATE, _CONTACTS, _CONTROLLER_STATE, _MOTOR_STATE)
             ]
             for conn, _, raw in reader.messages(connections=wanted):
                 msg: Any = reader.deserialize(raw, conn.msgtype)
@@ -135,8 +134,7 @@ def read_series(bag: str | Path) -> BagSeries:
                 elif conn.msgtype == _CONTACTS:
                     contacts.append((stamp, msg))
                 else:
-                    motor.append((stamp, float(msg.energy_consumed), float(msg.energy_net),
-                                  float(msg.copper_loss)))
+                    motor.append((stamp, float(msg.energy_consumed), float(msg.energy_net), float(msg.copper_loss)))
     except BagReadError:
         raise
     except Exception as exc:  # rosbags raises many kinds on a damaged bag
@@ -174,16 +172,22 @@ def read_series(bag: str | Path) -> BagSeries:
     sim_rows: dict[str, list[tuple[int, float, float, float, bool, tuple[float, ...]]]] = {}
     for stamp, msg in contacts:
         for c in msg.contacts:
-            sim_rows.setdefault(str(c.name), []).append((
-                stamp, float(c.normal_force), float(c.friction_force), float(c.residual),
-                bool(c.active), _xyz(c.position)))
+            sim_rows.setdefault(str(c.name), []).append(
+                (
+                    stamp,
+                    float(c.normal_force),
+                    float(c.friction_force),
+                    float(c.residual),
+                    bool(c.active),
+                    _xyz(c.position),
+                )
+            )
     # Per contact, from the controller.
     ctrl_rows: dict[str, list[tuple[int, float, tuple[float, ...], tuple[float, ...]]]] = {}
     for stamp, msg in ctrl:
         names = list(msg.contact_name)
         for j, name in enumerate(names):
-            fnd = float(msg.desired_normal_force[j]) if j < len(msg.desired_normal_force) \
-                else math.nan
+            fnd = float(msg.desired_normal_force[j]) if j < len(msg.desired_normal_force) else math.nan
             bd = _xyz(msg.brace_desired[j]) if j < len(msg.brace_desired) else (math.nan,) * 3
             ba = _xyz(msg.brace_actual[j]) if j < len(msg.brace_actual) else (math.nan,) * 3
             ctrl_rows.setdefault(str(name), []).append((stamp, fnd, bd, ba))
@@ -237,8 +241,7 @@ def compute_summary(series: BagSeries, wall_time_s: float | None = None) -> dict
         out["normal_force_rms_error_n"] = 0.0
         out["constraint_residual_max_m"] = 0.0
     else:
-        brace = np.concatenate([
-            np.linalg.norm(c.brace_desired - c.brace_actual, axis=1) for c in contacts])
+        brace = np.concatenate([np.linalg.norm(c.brace_desired - c.brace_actual, axis=1) for c in contacts])
         brace = brace[np.isfinite(brace)]
         if brace.size:
             out["brace_rms_error_m"] = _rms(brace)

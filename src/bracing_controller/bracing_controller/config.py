@@ -107,8 +107,9 @@ class ControllerConfig:
             kd=get_floats(params, "hand.kd", None, length=len(axes), length_hint=hint),
             trajectory=trajectory,
         )
-        voltage_gain = get_floats(params, "voltage_gain", [1.0] * n, length=n,
-                                  length_hint=f"one per joint of robot.joint_names ({n})")
+        voltage_gain = get_floats(
+            params, "voltage_gain", [1.0] * n, length=n, length_hint=f"one per joint of robot.joint_names ({n})"
+        )
         if any(k <= 0.0 for k in voltage_gain):
             raise ConfigError(f"voltage_gain: K_V must be positive definite, got {list(voltage_gain)}")
         config = cls(

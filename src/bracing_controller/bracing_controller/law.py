@@ -79,7 +79,12 @@ class DecoupledController:
         contacts = config.shared.contacts
         self.desired_normal_force = np.array([c.desired_normal_force for c in contacts], dtype=float)
         hand = config.hand
-        self._hand = _Task(self.plant.frame_id(hand.frame, "hand.frame"), np.eye(3)[list(hand.axes)], np.array(hand.kp), np.array(hand.kd))
+        self._hand = _Task(
+            self.plant.frame_id(hand.frame, "hand.frame"),
+            np.eye(3)[list(hand.axes)],
+            np.array(hand.kp),
+            np.array(hand.kd),
+        )
         self._braces = [
             _Task(fid, np.eye(3)[list(c.brace_axes)], np.array(c.kp), np.array(c.kd))
             for fid, c in zip(self.contact_set.frame_ids, contacts, strict=True)
@@ -121,8 +126,10 @@ class DecoupledController:
             point = cfg.point if cfg.point is not None else tuple(data.oMf[self._hand.frame].translation)
             self._hand_trajectory = Hold((float(point[0]), float(point[1]), float(point[2])))
         self._brace_targets = np.array(
-            [c.target if c.target is not None else data.oMf[t.frame].translation.copy()
-             for c, t in zip(self.config.shared.contacts, self._braces, strict=True)],
+            [
+                c.target if c.target is not None else data.oMf[t.frame].translation.copy()
+                for c, t in zip(self.config.shared.contacts, self._braces, strict=True)
+            ],
             dtype=float,
         ).reshape(len(self._braces), 3)
 
@@ -146,8 +153,9 @@ class DecoupledController:
         a0, a1, a2 = hand_actual.tolist()
         v0, v1, v2 = hand_velocity_desired.tolist()
         w0, w1, w2 = jacobian.dot(dq).tolist()
-        force = np.array((p0 * (r0 - a0) + d0 * (v0 - w0), p1 * (r1 - a1) + d1 * (v1 - w1),
-                          p2 * (r2 - a2) + d2 * (v2 - w2)))
+        force = np.array(
+            (p0 * (r0 - a0) + d0 * (v0 - w0), p1 * (r1 - a1) + d1 * (v1 - w1), p2 * (r2 - a2) + d2 * (v2 - w2))
+        )
         null_input = force.dot(jacobian)  # J^T force
         brace_targets = self._brace_targets
         brace_actual = np.empty((len(self._braces), 3))
@@ -162,8 +170,9 @@ class DecoupledController:
             a0, a1, a2 = actual.tolist()
             w0, w1, w2 = jacobian.dot(dq).tolist()
             # desired brace velocity: 0
-            force = np.array((p0 * (r0 - a0) + d0 * (0.0 - w0), p1 * (r1 - a1) + d1 * (0.0 - w1),
-                              p2 * (r2 - a2) + d2 * (0.0 - w2)))
+            force = np.array(
+                (p0 * (r0 - a0) + d0 * (0.0 - w0), p1 * (r1 - a1) + d1 * (0.0 - w1), p2 * (r2 - a2) + d2 * (0.0 - w2))
+            )
             null_input += force.dot(jacobian)
         if self.config.gravity_compensation:
             null_input += pin.computeGeneralizedGravity(model, data, q)
@@ -180,8 +189,9 @@ class DecoupledController:
             a_matrix = b @ (jc - terms.friction[:, None] * terms.tangent_jacobian).T
             a_vector = b @ (self._nle + self._damping * dq) - terms.drift
             b_pinv, damped = self._pseudo_inverse(b)
-            torque = (b_pinv @ (a_vector - a_matrix @ self.desired_normal_force)
-                      + (self._identity - b_pinv @ b) @ null_input)
+            torque = (
+                b_pinv @ (a_vector - a_matrix @ self.desired_normal_force) + (self._identity - b_pinv @ b) @ null_input
+            )
         else:
             torque = null_input
         command = self._voltage_gain * torque if self.mode is InputMode.VOLTAGE else torque

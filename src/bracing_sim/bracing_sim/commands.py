@@ -46,7 +46,10 @@ def command_vector(
     unknown = sorted(set(names) - set(joint_names))
     missing = sorted(set(joint_names) - set(names))
     if unknown or missing:
-        raise CommandError("unknown-names" if unknown else "missing-names", f"joint names do not match: unknown {unknown}, missing {missing}")
+        raise CommandError(
+            "unknown-names" if unknown else "missing-names",
+            f"joint names do not match: unknown {unknown}, missing {missing}",
+        )
     by_name = dict(zip(names, values, strict=True))
     u = np.array([by_name[j] for j in joint_names], dtype=float)
     if not np.all(np.isfinite(u)):

@@ -158,7 +158,9 @@ class SharedConfig:
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
         hint = f"one per joint of robot.joint_names ({n})"
-        arrays = {f: np.array(get_floats(params, f"motors.{f}", None, length=n, length_hint=hint)) for f in MOTOR_FIELDS}
+        arrays = {
+            f: np.array(get_floats(params, f"motors.{f}", None, length=n, length_hint=hint)) for f in MOTOR_FIELDS
+        }
         try:
             motors = MotorParams(
                 **arrays,

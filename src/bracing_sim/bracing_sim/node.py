@@ -49,16 +49,17 @@ class SimulatorNode(Node):
         self.mode = self.config.shared.input_mode
         motors = self.plant.motors
         self.limit = motors.voltage_limit if self.mode is InputMode.VOLTAGE else motors.torque_limit
-        self.step_ns = int(round(self.config.step * 1e9))
+        self.step_ns = round(self.config.step * 1e9)
         duration = self.config.duration
-        self.total_steps = int(round(duration / self.config.step)) if duration > 0 else None
+        self.total_steps = round(duration / self.config.step) if duration > 0 else None
 
         self.joint_pub = self.create_publisher(JointState, "joint_states", STREAM_QOS)
         self.contacts_pub = self.create_publisher(Contacts, "contacts", STREAM_QOS)
         self.motor_pub = self.create_publisher(MotorState, "motor_state", STREAM_QOS)
         self.clock_pub = self.create_publisher(Clock, "/clock", STREAM_QOS)
         self.wrench_pubs = [
-            self.create_publisher(WrenchStamped, f"contact_wrench/{c.name}", STREAM_QOS) for c in self.config.shared.contacts
+            self.create_publisher(WrenchStamped, f"contact_wrench/{c.name}", STREAM_QOS)
+            for c in self.config.shared.contacts
         ]
         self.command_sub = self.create_subscription(MotorCommand, "motor_command", self._on_command, SUBSCRIBE_QOS)
         self.report = RateLimitedLog(self)
@@ -93,8 +94,9 @@ class SimulatorNode(Node):
         if stamp_ns != now_ns:
             age = "stale" if stamp_ns < now_ns else "from the future"
             self.report(
-                "error", age, f"motor_command rejected: stamp {stamp_ns * 1e-9:.6f} s is {age} "
-                f"(waiting for {now_ns * 1e-9:.6f} s)"
+                "error",
+                age,
+                f"motor_command rejected: stamp {stamp_ns * 1e-9:.6f} s is {age} (waiting for {now_ns * 1e-9:.6f} s)",
             )
             return
         self._pending[stamp_ns] = u
@@ -237,7 +239,8 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
         if command is None:
             policy = cfg.watchdog_policy
             node.report(
-                "warning", "watchdog",
+                "warning",
+                "watchdog",
                 f"no valid motor_command for t = {expected * 1e-9:.6f} s within {cfg.command_timeout} s: "
                 f"{'holding the last command' if policy == 'hold' else 'applying zero'}",
             )

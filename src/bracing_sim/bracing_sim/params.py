@@ -58,7 +58,9 @@ def load_params_file(path: str | Path, node_name: str) -> dict[str, Any]:
     return params
 
 
-def check_known(params: Params, known: Iterable[str], dynamic_prefixes: Mapping[str, Iterable[str]] | None = None) -> None:
+def check_known(
+    params: Params, known: Iterable[str], dynamic_prefixes: Mapping[str, Iterable[str]] | None = None
+) -> None:
     """Reject parameters that are not in the schema.
 
     ``dynamic_prefixes`` maps a prefix such as ``"contacts."`` to the fields allowed in
@@ -71,7 +73,7 @@ def check_known(params: Params, known: Iterable[str], dynamic_prefixes: Mapping[
         if name in known_set:
             continue
         for prefix, fields in dynamic.items():
-            rest = name[len(prefix):].split(".") if name.startswith(prefix) else []
+            rest = name[len(prefix) :].split(".") if name.startswith(prefix) else []
             if len(rest) == 2 and rest[1] in fields:
                 break
         else:
@@ -81,8 +83,9 @@ def check_known(params: Params, known: Iterable[str], dynamic_prefixes: Mapping[
 
 
 # -- typed reads ------------------------------------------------------------------------
-def get_float(params: Params, name: str, default: float | None = None, *, minimum: float | None = None,
-              positive: bool = False) -> float:
+def get_float(
+    params: Params, name: str, default: float | None = None, *, minimum: float | None = None, positive: bool = False
+) -> float:
     value = params.get(name, default)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise ConfigError(f"{name}: expected a finite number, got {value!r}")
@@ -118,8 +121,14 @@ def get_str(params: Params, name: str, default: str | None = None, *, choices: S
     return value
 
 
-def get_floats(params: Params, name: str, default: Sequence[float] | None = None, *, length: int | None = None,
-               length_hint: str = "") -> tuple[float, ...]:
+def get_floats(
+    params: Params,
+    name: str,
+    default: Sequence[float] | None = None,
+    *,
+    length: int | None = None,
+    length_hint: str = "",
+) -> tuple[float, ...]:
     """A list of finite numbers; an empty or unset list reads as ``()``."""
     value = params.get(name, default)
     if value is None:

@@ -15,10 +15,10 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerGuardCondition
-from rclpy.subscription import Subscription
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerGuardCondition
+from rclpy.subscription import Subscription
 
 from bracing_sim.params import ConfigError
 
@@ -124,7 +124,9 @@ def nanoseconds(time: Time) -> int:
     return int(time.sec) * 1_000_000_000 + int(time.nanosec)
 
 
-def run(node_factory: Callable[[], Node], spin: Callable[[Node], int] | None = None, args: list[str] | None = None) -> int:
+def run(
+    node_factory: Callable[[], Node], spin: Callable[[Node], int] | None = None, args: list[str] | None = None
+) -> int:
     """Create the node, spin it, and turn start-up errors into one clear line and exit 2."""
     code = 0
     node: Node | None = None

@@ -46,7 +46,8 @@ def chain_urdf(
             f'    <child link="{link}"/>',
             f'    <origin xyz="0 0 {offset!r}" rpy="0 0 0"/>',
             '    <axis xyz="1 0 0"/>',
-            f'    <limit lower="-6.283185307179586" upper="6.283185307179586" effort="{effort_limit!r}" velocity="100.0"/>',
+            f'    <limit lower="-6.283185307179586" upper="6.283185307179586" effort="{effort_limit!r}"'
+            ' velocity="100.0"/>',
             f'    <dynamics damping="{d!r}" friction="0.0"/>',
             "  </joint>",
             f'  <link name="{link}">',

@@ -39,7 +39,8 @@ class PlaneContact:
         norm = float(np.linalg.norm(normal)) if normal.shape == (3,) else 0.0
         if normal.shape != (3,) or not np.isfinite(norm) or norm < 1e-9:
             raise ValueError(
-                f"contacts.{self.name}.normal: expected a non-zero 3-vector, got {np.ravel(self.normal).tolist()}")
+                f"contacts.{self.name}.normal: expected a non-zero 3-vector, got {np.ravel(self.normal).tolist()}"
+            )
         object.__setattr__(self, "normal", normal / norm)
         if not np.isfinite(self.offset):
             raise ValueError(f"contacts.{self.name}.offset: must be finite")

@@ -128,8 +128,9 @@ class ConstrainedDynamics:
         self._linear = g
         self._input_column = g[2 * n :, m] if voltage else g[n : 2 * n, m]
         self._command: Vector = np.zeros(n)
-        self._effort_map = np.hstack((np.zeros((n, n)), -np.diag(self._reflected_damping), np.diag(self._km),
-                                      np.zeros((n, 1))))
+        self._effort_map = np.hstack(
+            (np.zeros((n, n)), -np.diag(self._reflected_damping), np.diag(self._km), np.zeros((n, 1)))
+        )
         self._inverse_inductance = 1.0 / motors.inductance
         self._frames = list(contacts.frame_ids)
         self._eps2 = float(contacts.slip_epsilon) ** 2
@@ -148,13 +149,28 @@ class ConstrainedDynamics:
             self._work_split, self._work_jc, self._work_rhs = self._work[:4], self._work[3], self._work[4]
             self._combination = np.array([0.0, 0.0, 0.0, 0.0, 1.0])  # [0, 0, 0, f_n, 1] without friction
             self._contact_constants = (
-                self._work, self._work_rhs, self._work_split, self._work_jc, self._split, self._frame0,
-                tuple(normal.tolist()), self._eps2, self._mu0, self._offset0, self._combination,
+                self._work,
+                self._work_rhs,
+                self._work_split,
+                self._work_jc,
+                self._split,
+                self._frame0,
+                tuple(normal.tolist()),
+                self._eps2,
+                self._mu0,
+                self._offset0,
+                self._combination,
             )
         self._no_contacts = ContactTerms(
-            positions=np.zeros((0, 3)), jacobians=np.zeros((0, 3, n)), normal_jacobian=np.zeros((0, n)),
-            tangent_jacobian=np.zeros((0, n)), drift=np.zeros(0), residual=np.zeros(0),
-            slip_velocity=np.zeros((0, 3)), slip_direction=np.zeros((0, 3)), friction=contacts._friction,
+            positions=np.zeros((0, 3)),
+            jacobians=np.zeros((0, 3, n)),
+            normal_jacobian=np.zeros((0, n)),
+            tangent_jacobian=np.zeros((0, n)),
+            drift=np.zeros(0),
+            residual=np.zeros(0),
+            slip_velocity=np.zeros((0, 3)),
+            slip_direction=np.zeros((0, 3)),
+            friction=contacts._friction,
             normals=contacts._normals,
         )
 
@@ -213,8 +229,9 @@ class ConstrainedDynamics:
         p = self._p
         friction_power = constraint_power = 0.0
         if p == 1:
-            (work, work_rhs, work_split, work_jc, split, frame, normal, eps2, mu, offset,
-             combination) = self._contact_constants
+            (work, work_rhs, work_split, work_jc, split, frame, normal, eps2, mu, offset, combination) = (
+                self._contact_constants
+            )
             _subtract(rates_ddq, self._nle, out=work_rhs)  # r = drive - (h + g) - Dc dq
             jac = _frame_jacobian(model, data, frame, _WORLD)[:3]
             _dot(split, jac, out=work_split)  # [tangential part of J; J_c]

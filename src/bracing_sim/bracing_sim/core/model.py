@@ -39,7 +39,8 @@ class RobotModel:
     def __init__(self, model: pin.Model, source: str = "<model>") -> None:
         if model.nq != model.nv:
             raise ModelError(
-                f"{source}: only 1-dof revolute/prismatic joints are supported (nq={model.nq}, nv={model.nv})")
+                f"{source}: only 1-dof revolute/prismatic joints are supported (nq={model.nq}, nv={model.nv})"
+            )
         if model.nv == 0:
             raise ModelError(f"{source}: the model has no moving joints")
         for joint in range(1, model.njoints):

@@ -67,7 +67,12 @@ class MotorParams:
     def permuted(self, order: np.ndarray) -> MotorParams:
         """The same motors listed in another joint order."""
         return MotorParams(
-            self.torque_constant[order], self.resistance[order], self.inductance[order],
-            self.rotor_inertia[order], self.gear_ratio[order], self.gear_damping[order],
-            self.voltage_limit, self.torque_limit,
+            self.torque_constant[order],
+            self.resistance[order],
+            self.inductance[order],
+            self.rotor_inertia[order],
+            self.gear_ratio[order],
+            self.gear_damping[order],
+            self.voltage_limit,
+            self.torque_limit,
         )

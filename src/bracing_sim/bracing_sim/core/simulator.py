@@ -19,7 +19,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
 import pinocchio as pin
 
 from bracing_sim.core.contacts import ContactTerms
@@ -115,8 +114,9 @@ class Simulator:
         self._stage_rates = np.zeros((4, m + 2))
         self._state_heads = [row[:m] for row in self._stage_states]
         self._rate_heads = [row[:m] for row in self._stage_rates]
-        self._stages = [dynamics._stage(state, rates)
-                        for state, rates in zip(self._stage_states, self._rate_heads, strict=True)]
+        self._stages = [
+            dynamics._stage(state, rates) for state, rates in zip(self._stage_states, self._rate_heads, strict=True)
+        ]
         self._rate_rows = list(self._stage_rates)
         self._rk4_weights = np.array([1.0, 2.0, 2.0, 1.0])
         self._scaled_weights = (0.0, self._rk4_weights)
@@ -187,8 +187,15 @@ class Simulator:
         dq, i = y[n : 2 * n], y[2 * n : m]
         power = u * i if self._voltage else u * dq
         copper = float(self._resistance @ (i * i)) if self._voltage else 0.0
-        energy_rates = [float(np.abs(power).sum()), float(power.sum()), copper,
-                        float(dq @ (self.dynamics.total_damping * dq)), friction_power, constraint_power, 0.0]
+        energy_rates = [
+            float(np.abs(power).sum()),
+            float(power.sum()),
+            copper,
+            float(dq @ (self.dynamics.total_damping * dq)),
+            friction_power,
+            constraint_power,
+            0.0,
+        ]
         return np.concatenate([rates, energy_rates]), d
 
     def _reuse(self, u: Vector) -> tuple[Vector, float, float, Derivative] | None:
@@ -309,8 +316,9 @@ class Simulator:
             return d
         force = np.zeros(self.active.size)
         force[self.active] = d.normal_force
-        return Derivative(d.acceleration, d.current_rate, force, d.effort, self._all_contact_terms(),
-                          self.active.copy())
+        return Derivative(
+            d.acceleration, d.current_rate, force, d.effort, self._all_contact_terms(), self.active.copy()
+        )
 
     def _release(self, u: Vector) -> None:
         """At the start of a step: unilateral contacts whose force would pull let go, the
@@ -321,14 +329,17 @@ class Simulator:
             _, _, d = self.dynamics._solve(self.dynamics._stage(state, np.empty(self._m)), True)
             assert d is not None
             indices = np.flatnonzero(self.active)
-            pulling = [(force, j) for force, j in zip(d.normal_force, indices, strict=True)
-                       if self._unilateral[j] and force < 0.0]
+            pulling = [
+                (force, j)
+                for force, j in zip(d.normal_force, indices, strict=True)
+                if self._unilateral[j] and force < 0.0
+            ]
             if not pulling:
                 return
             j = min(pulling)[1]
             active = self.active.copy()
             active[j] = False
-            self.events.append(ContactEvent(self.time, self.full_dynamics.contacts.contacts[j].name, "release"))
+            self.events.append(ContactEvent(self.time, self.full_dynamics.contacts.contacts[int(j)].name, "release"))
             self._set_active(active)
 
     def _touchdown(self) -> None:
@@ -340,8 +351,9 @@ class Simulator:
         if landing.any():
             loss = self._impact(self.active | landing)
             for j in np.flatnonzero(landing):
-                self.events.append(ContactEvent(self.time, self.full_dynamics.contacts.contacts[j].name,
-                                                "touchdown", loss))
+                self.events.append(
+                    ContactEvent(self.time, self.full_dynamics.contacts.contacts[int(j)].name, "touchdown", loss)
+                )
             self._set_active(self.active | landing)
 
     def _impact(self, active: np.ndarray) -> float:
