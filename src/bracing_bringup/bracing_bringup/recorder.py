@@ -21,19 +21,19 @@ import signal
 import struct
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from types import FrameType
 from typing import Any, Literal
 
 import rclpy
 from geometry_msgs.msg import WrenchStamped
-from rclpy.exceptions import InvalidHandle
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
+from rclpy.subscription import Subscription
 from rclpy.utilities import remove_ros_args
+from rosbags.interfaces import Connection
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
@@ -41,13 +41,13 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState
+from bracing_sim.ros_common import SubscriptionWaiter
 
 BAG_VERSION: Literal[8] = 8
 """rosbag2 metadata version written (8 is read by every Jazzy rosbag2)."""
 
 BRACING_MSGS = ("ContactState", "Contacts", "ControllerState", "MotorCommand", "MotorState")
 
-TAKE_BATCH = 1000
 """Messages taken from one subscription per executor callback."""
 
 RECORD_QOS = QoSProfile(
@@ -132,41 +132,32 @@ class Recorder(Node):
         self.counts: dict[str, int] = {}
         self.received = 0
         self.last_receive = time.monotonic()
-        self._subs = []
+        self._connections: dict[Subscription, Connection] = {}
         for topic, msg_type, type_name in topic_table(contacts):
-            callback, holder = self._make_callback()
-            sub = self.create_subscription(msg_type, topic, callback, RECORD_QOS, raw=True)
+            # Messages are taken directly in ``record`` (no executor: per message it costs more
+            # than the write), so the callback is never called.
+            sub = self.create_subscription(msg_type, topic, _never_called, RECORD_QOS, raw=True)
             resolved = sub.topic_name
-            holder.append(writer.add_connection(resolved, type_name, typestore=typestore))
-            holder.append(sub)
+            self._connections[sub] = writer.add_connection(resolved, type_name, typestore=typestore)
             self.counts[resolved] = 0
-            self._subs.append(sub)
+        self._waiter = SubscriptionWaiter(self, list(self._connections))
 
-    def _make_callback(self) -> tuple[Callable[[bytes], None], list[Any]]:
-        holder: list[Any] = []  # [connection, subscription], filled after creation
-
-        def callback(data: bytes) -> None:
-            connection, sub = holder
-            write = self.writer.write
+    def record(self, timeout_sec: float) -> int:
+        """Write every message available now, waiting up to ``timeout_sec``; the count written."""
+        taken = self._waiter.take_all(timeout_sec)
+        write, connections, counts = self.writer.write, self._connections, self.counts
+        for sub, data in taken:
+            connection = connections[sub]
             write(connection, cdr_stamp_ns(data), data)
-            count = 1
-            # The executor costs far more per message than the write: take what else is
-            # already queued on this subscription directly (bounded, for fairness).
-            try:
-                with sub.handle:
-                    while count < TAKE_BATCH:
-                        taken = sub.handle.take_message(sub.msg_type, True)
-                        if taken is None:
-                            break
-                        write(connection, cdr_stamp_ns(taken[0]), taken[0])
-                        count += 1
-            except InvalidHandle:
-                pass
-            self.counts[connection.topic] += count
-            self.received += count
+            counts[connection.topic] += 1
+        if taken:
+            self.received += len(taken)
             self.last_receive = time.monotonic()
+        return len(taken)
 
-        return callback, holder
+
+def _never_called(_: object) -> None:
+    raise AssertionError("the recorder takes its messages itself")
 
 
 def _parse(argv: Sequence[str]) -> argparse.Namespace:
@@ -217,29 +208,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     writer = Writer(output, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
     writer.open()
     node: Recorder | None = None
-    executor = SingleThreadedExecutor()
     try:
         node = Recorder(writer, typestore, namespace=args.namespace, contacts=contacts)
-        executor.add_node(node)
         print("recorder ready", flush=True)
         while not stop["requested"]:
-            executor.spin_once(timeout_sec=0.1)
-        # Drain what is still in flight: spin until idle for drain_idle (bounded).
+            node.record(0.1)
+        # Drain what is still in flight: receive until idle for drain_idle (bounded).
         start = time.monotonic()
         node.last_receive = start
         while not stop["urgent"]:
             now = time.monotonic()
             if now - node.last_receive >= args.drain_idle or now - start >= args.drain_timeout:
                 break
-            executor.spin_once(timeout_sec=0.05)
+            node.record(0.05)
     finally:
         writer.close()
         total = node.received if node is not None else 0
         print(f"recorder wrote {total} messages to {output}", flush=True)
         if node is not None:
-            executor.remove_node(node)
             node.destroy_node()
-        executor.shutdown()
         if rclpy.ok():
             rclpy.shutdown()
     return 0

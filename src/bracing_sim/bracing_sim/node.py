@@ -105,7 +105,6 @@ class SimulatorNode(Node):
     def publish_state(self, effort: Vector) -> None:
         t_ns = self.sim.steps_taken * self.step_ns
         header_stamp = stamp(t_ns)
-        self.clock_pub.publish(Clock(clock=header_stamp))
         msg = JointState()
         msg.header.stamp = header_stamp
         msg.name = self.joint_names
@@ -113,6 +112,7 @@ class SimulatorNode(Node):
         msg.velocity = self.sim.velocity.tolist()
         msg.effort = np.asarray(effort, dtype=float).tolist()
         self.joint_pub.publish(msg)
+        self.clock_pub.publish(Clock(clock=header_stamp))
 
     def publish_step(self, t_ns: int, command: Vector, d: Derivative, current: Vector) -> None:
         """Reports of one step: forces at its start under the held command, energies up to its start."""
@@ -166,25 +166,31 @@ class SimulatorNode(Node):
 
     # -- one step -------------------------------------------------------------------
     def advance(self, command: Vector) -> None:
-        """Step with ``command`` held, publish the step's reports and the new state."""
+        """Step with ``command`` held, publish the new state, then the step's reports.
+
+        The new state goes out first: the controller computes its answer while this
+        process builds and sends the reports of the step just taken.
+        """
         t_ns = self.sim.steps_taken * self.step_ns
         current = self.sim.current
         self.energy_at_start = self.sim.energy
         d = self.sim.step(command)
         self.command = command
+        held = d.contacts.residual if d.active is None else d.contacts.residual[d.active]
+        residual = float(np.max(np.abs(held))) if held.size else 0.0
+        self.max_residual = max(self.max_residual, residual)
+        if residual > self.config.divergence_residual:
+            self.publish_step(t_ns, command, d, current)  # the bag shows the step that failed
+            raise DivergenceError(
+                f"constraint residual {residual:.3g} m exceeds divergence_residual {self.config.divergence_residual} m"
+            )
+        if not self.done():
+            self.publish_state(self.state_effort())
         self.publish_step(t_ns, command, d, current)
         for event in self.sim.events[self._events_logged :]:
             extra = f", {event.impact_loss:.4g} J lost in the impact" if event.kind == "touchdown" else ""
             self.get_logger().info(f"contact {event.contact!r}: {event.kind} at t = {event.time:.6f} s{extra}")
         self._events_logged = len(self.sim.events)
-        held = d.contacts.residual if d.active is None else d.contacts.residual[d.active]
-        residual = float(np.max(np.abs(held))) if held.size else 0.0
-        self.max_residual = max(self.max_residual, residual)
-        if residual > self.config.divergence_residual:
-            raise DivergenceError(
-                f"constraint residual {residual:.3g} m exceeds divergence_residual {self.config.divergence_residual} m"
-            )
-        self.publish_state(self.state_effort())
         now = time.monotonic()
         if now >= self._next_progress:  # bracing-pair follows these lines
             self._next_progress = now + 0.5
@@ -204,6 +210,7 @@ class SimulatorNode(Node):
         t_ns = self.sim.steps_taken * self.step_ns
         self.energy_at_start = self.sim.energy
         d = self.sim.evaluate(self.command)
+        self.publish_state(d.effort if self.mode is InputMode.VOLTAGE else self.command)
         self.publish_step(t_ns, self.command, d, self.sim.current)
         for pub in (self.joint_pub, self.contacts_pub, self.motor_pub, self.clock_pub, *self.wrench_pubs):
             pub.wait_for_all_acked(Duration(seconds=2.0))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, cast
 
 import rclpy
@@ -69,34 +69,41 @@ class RateLimitedLog:
 
 
 class SubscriptionWaiter:
-    """Waits on one subscription with a wait set of its own and takes its messages.
+    """Waits on a few subscriptions with a wait set of their own and takes their messages.
 
     The hot loop of a lockstep node: an executor rebuilds its wait set (parameter services,
     timers, ...) on every spin, which costs more than a whole simulation step; this waits
-    on the one subscription that matters (and on Ctrl-C). Call the executor now and then
-    so that the node's services still answer.
+    on the subscriptions that matter (and on Ctrl-C). Call the executor now and then so
+    that the node's services still answer.
     """
 
-    def __init__(self, node: Node, subscription: Subscription) -> None:
-        self._subscription = subscription
+    def __init__(self, node: Node, subscriptions: Subscription | Sequence[Subscription]) -> None:
+        self._subscriptions = [subscriptions] if isinstance(subscriptions, Subscription) else list(subscriptions)
         self._context = node.context
-        self._wait_set = _rclpy.WaitSet(1, 1, 0, 0, 0, 0, node.context.handle)
+        self._wait_set = _rclpy.WaitSet(len(self._subscriptions), 1, 0, 0, 0, 0, node.context.handle)
         self._interrupt = SignalHandlerGuardCondition(context=node.context)
 
     def take(self, timeout_sec: float) -> list[Any]:
-        """Every message available now, waiting up to ``timeout_sec`` for the first one."""
-        handle = self._subscription.handle
+        """Every message available now (of the first subscription), waiting up to ``timeout_sec``."""
+        return [message for _, message in self.take_all(timeout_sec)]
+
+    def take_all(self, timeout_sec: float) -> list[tuple[Subscription, Any]]:
+        """(subscription, message) for every message available now, waiting up to ``timeout_sec``."""
         wait_set = self._wait_set
         wait_set.clear_entities()
-        wait_set.add_subscription(handle)
+        for subscription in self._subscriptions:
+            wait_set.add_subscription(subscription.handle)
         wait_set.add_guard_condition(self._interrupt.handle)
         wait_set.wait(int(timeout_sec * 1e9))
         if not self._context.ok():
             raise ExternalShutdownException()
+        ready = wait_set.get_ready_entities("subscription")
         messages = []
-        if handle.pointer in wait_set.get_ready_entities("subscription"):
-            while (taken := handle.take_message(self._subscription.msg_type, self._subscription.raw)) is not None:
-                messages.append(taken[0])
+        for subscription in self._subscriptions:
+            handle = subscription.handle
+            if handle.pointer in ready:
+                while (taken := handle.take_message(subscription.msg_type, subscription.raw)) is not None:
+                    messages.append((subscription, taken[0]))
         return messages
 
 
