@@ -4,11 +4,12 @@ SHELL := /bin/bash
 IN_ENV := source env.sh &&
 PY_SRC := src/bracing_sim/bracing_sim src/bracing_controller/bracing_controller src/bracing_bringup/bracing_bringup
 
-.PHONY: help setup test lint typecheck pytest run bench lock clean
+.PHONY: help setup test test-slow lint typecheck pytest run bench lock clean
 
 help:
 	@echo "make run    - set up if needed, run the paper scenario braced and unbraced, print the table"
 	@echo "make test   - set up if needed, then ruff, mypy and the pytest suite"
+	@echo "make test-slow - the long runs (10 min of sim time: memory growth, residual drift)"
 	@echo "make bench  - benchmarks (engine vs MuJoCo, pair vs DDS bound, controller latency, scaling)"
 	@echo "make setup  - only the set-up (.venv, CMake fix, colcon build); idempotent"
 
@@ -25,6 +26,10 @@ pytest: setup
 	@$(IN_ENV) python -m pytest test $(PYTEST_ARGS)
 
 test: lint typecheck pytest
+
+# The long runs (10 minutes of sim time in lockstep: memory and constraint drift).
+test-slow: setup
+	@$(IN_ENV) python -m pytest test -m slow -s $(PYTEST_ARGS)
 
 run: setup
 	@$(IN_ENV) python -m bracing_bringup.paper_run --output out

@@ -171,3 +171,28 @@ def test_killed_controller_fails_the_run_with_a_clear_message(tmp_path: Path) ->
     assert "controller exited" in out
     assert "controller|" in out  # the tail of its log is shown
     read_bag(output / "bag")  # still readable
+
+
+@pytest.mark.parametrize("extra", [["--no-bracing"], ["--mode", "torque"]], ids=["no-bracing", "torque"])
+def test_pair_variants_run_and_record(tmp_path: Path, extra: list[str]) -> None:
+    output = tmp_path / "run"
+    done = subprocess.run(
+        pair_command(output, "--duration", "0.3", *extra),
+        env=isolated_env(),
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=REPO_ROOT,
+    )
+    assert done.returncode == 0, done.stdout + done.stderr
+    messages = read_bag(output / "bag")
+    assert len(messages["joint_states"]) == 301 and len(messages["motor_command"]) == 301
+    summary = json.loads((output / "summary.json").read_text())
+    if "--no-bracing" in extra:
+        assert "contact_wrench/elbow" not in messages
+        assert all(len(m.contacts) == 0 for _, m in messages["contacts"])
+        assert summary["normal_force_rms_error_n"] == 0.0
+    else:  # torque input: the force equals its set-point at every step (eq. 40)
+        assert all(m.mode == 1 for _, m in messages["motor_command"])
+        forces = [m.contacts[0].normal_force for _, m in messages["contacts"]]
+        assert max(abs(f - 10.0) for f in forces) < 1e-9

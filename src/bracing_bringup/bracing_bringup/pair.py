@@ -11,6 +11,7 @@ the nodes and still leaves a readable bag.
 from __future__ import annotations
 
 import argparse
+import copy
 import os
 import random
 import re
@@ -90,7 +91,7 @@ def write_overrides(path: Path, node_overrides: dict[str, dict[str, Any]]) -> No
     document = {}
     for node, params in node_overrides.items():
         # rcl reads `[]` as NOT_SET, which the configuration reads as an empty list.
-        document[node] = {"ros__parameters": dict(params)}
+        document[node] = {"ros__parameters": copy.deepcopy(params)}  # no shared objects: rcl refuses YAML aliases
     path.write_text(yaml.safe_dump(document, sort_keys=False))
 
 

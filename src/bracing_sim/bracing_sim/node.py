@@ -184,8 +184,7 @@ class SimulatorNode(Node):
             raise DivergenceError(
                 f"constraint residual {residual:.3g} m exceeds divergence_residual {self.config.divergence_residual} m"
             )
-        if not self.done():
-            self.publish_state(self.state_effort())
+        self.publish_state(self.state_effort())
         self.publish_step(t_ns, command, d, current)
         for event in self.sim.events[self._events_logged :]:
             extra = f", {event.impact_loss:.4g} J lost in the impact" if event.kind == "touchdown" else ""
@@ -205,12 +204,14 @@ class SimulatorNode(Node):
     def done(self) -> bool:
         return self.total_steps is not None and self.sim.steps_taken >= self.total_steps
 
-    def finish(self) -> None:
-        """Report the final state and let reliable subscribers receive everything."""
+    def finish(self, command: Vector | None = None) -> None:
+        """Report the final state (under ``command``, the answer to it if there is one, else
+        the held command) and let reliable subscribers receive everything."""
         t_ns = self.sim.steps_taken * self.step_ns
         self.energy_at_start = self.sim.energy
+        if command is not None:
+            self.command = command
         d = self.sim.evaluate(self.command)
-        self.publish_state(d.effort if self.mode is InputMode.VOLTAGE else self.command)
         self.publish_step(t_ns, self.command, d, self.sim.current)
         for pub in (self.joint_pub, self.contacts_pub, self.motor_pub, self.clock_pub, *self.wrench_pubs):
             pub.wait_for_all_acked(Duration(seconds=2.0))
@@ -231,29 +232,36 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
     waiter = SubscriptionWaiter(node, node.command_sub)
     node.publish_state(node.state_effort())
     while not node.done():
-        expected = node.sim.steps_taken * node.step_ns
-        deadline = time.monotonic() + cfg.command_timeout
-        if node.sim.steps_taken % 100 == 0:
-            executor.spin_once(timeout_sec=0.0)  # parameter services and the like
-        while expected not in node._pending:
-            remaining = deadline - time.monotonic()
-            if remaining <= 0.0:
-                break
-            for msg in waiter.take(min(remaining, 0.1)):
-                node._on_command(msg)
-        command = node._pending.pop(expected, None)
-        node._pending.clear()
-        if command is None:
-            policy = cfg.watchdog_policy
-            node.report(
-                "warning",
-                "watchdog",
-                f"no valid motor_command for t = {expected * 1e-9:.6f} s within {cfg.command_timeout} s: "
-                f"{'holding the last command' if policy == 'hold' else 'applying zero'}",
-            )
-            command = node.command if policy == "hold" else np.zeros(node.sim.n)
-        node.advance(command)
-    node.finish()
+        node.advance(wait_for_command(node, waiter, executor))
+    node.finish(wait_for_command(node, waiter, executor))  # the answer to the final state, for its reports
+
+
+def wait_for_command(node: SimulatorNode, waiter: SubscriptionWaiter, executor: SingleThreadedExecutor) -> Vector:
+    """The valid command stamped with the current state's stamp; the watchdog's choice if
+    none comes within command_timeout."""
+    cfg = node.config
+    expected = node.sim.steps_taken * node.step_ns
+    deadline = time.monotonic() + cfg.command_timeout
+    if node.sim.steps_taken % 100 == 0:
+        executor.spin_once(timeout_sec=0.0)  # parameter services and the like
+    while expected not in node._pending:
+        remaining = deadline - time.monotonic()
+        if remaining <= 0.0:
+            break
+        for msg in waiter.take(min(remaining, 0.1)):
+            node._on_command(msg)
+    command = node._pending.pop(expected, None)
+    node._pending.clear()
+    if command is not None:
+        return command
+    policy = cfg.watchdog_policy
+    node.report(
+        "warning",
+        "watchdog",
+        f"no valid motor_command for t = {expected * 1e-9:.6f} s within {cfg.command_timeout} s: "
+        f"{'holding the last command' if policy == 'hold' else 'applying zero'}",
+    )
+    return node.command if policy == "hold" else np.zeros(node.sim.n)
 
 
 def spin_real_time(node: SimulatorNode, executor: SingleThreadedExecutor) -> None:
