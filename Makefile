@@ -41,8 +41,8 @@ bench: setup
 # Re-pin after editing requirements.in (needs the registries).
 lock:
 	rm -rf /tmp/bracing-lock-venv && python3 -m venv /tmp/bracing-lock-venv
-	/tmp/bracing-lock-venv/bin/pip install -r requirements.in
-	/tmp/bracing-lock-venv/bin/pip freeze --exclude-editable > requirements.lock
+	/tmp/bracing-lock-venv/bin/pip install --report /tmp/bracing-lock-report.json -r requirements.in
+	python3 tools/lock.py /tmp/bracing-lock-report.json > requirements.lock
 
 clean:
 	rm -rf build install log build.log out
