@@ -1,4 +1,4 @@
-"""Helpers for tests that run real ROS 2 processes: DDS isolation and process handling."""
+"""Helpers for tests that run real ROS 2 processes: DDS isolation, node command lines, processes."""
 
 from __future__ import annotations
 
@@ -7,11 +7,16 @@ import random
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
+
+import yaml
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
+PAPER_YAML = REPO_ROOT / "config" / "paper_4link.yaml"
+DRIVER = str(REPO_ROOT / "test" / "lockstep_driver.py")
 
 
-def isolated_env(domain_id: int | None = None) -> dict[str, str]:
+def isolated_env(domain_id: int | None = None, **extra: str) -> dict[str, str]:
     """Environment for a child ROS process: localhost-only discovery, a domain of its own.
 
     Domain ids are drawn per call from 102-232 (the range that bracing-pair does not use
@@ -21,15 +26,73 @@ def isolated_env(domain_id: int | None = None) -> dict[str, str]:
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env["ROS_DOMAIN_ID"] = str(domain_id if domain_id is not None else random.randint(102, 232))
     env["PYTHONUNBUFFERED"] = "1"
+    env.update(extra)
     return env
 
 
-def python(*args: str, env: dict[str, str], **kwargs: object) -> subprocess.Popen[str]:
-    return subprocess.Popen(
-        [sys.executable, *args],
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        **kwargs,  # type: ignore[call-overload]
+def params_file(tmp_path: Path, node: str, params: dict[str, Any]) -> Path:
+    """A params file with one node's section, to pass after the scenario file (it wins)."""
+    path = tmp_path / f"{node}.yaml"
+    path.write_text(yaml.safe_dump({node: {"ros__parameters": params}}))
+    return path
+
+
+def node_argv(module: str, *params_files: Path) -> list[str]:
+    """``python -m module --ros-args --params-file ...`` (the paper scenario first)."""
+    argv = [sys.executable, "-m", module, "--ros-args", "--params-file", str(PAPER_YAML)]
+    for path in params_files:
+        argv += ["--params-file", str(path)]
+    return argv
+
+
+def start(argv: list[str], env: dict[str, str]) -> subprocess.Popen[str]:
+    """A child process with its output (stdout and stderr) in one pipe."""
+    return subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPO_ROOT)
+
+
+def run(argv: list[str], env: dict[str, str] | None = None, timeout: float = 60) -> subprocess.CompletedProcess[str]:
+    """Run to completion in an isolated domain, capturing stdout and stderr apart."""
+    return subprocess.run(
+        argv, env=env or isolated_env(), capture_output=True, text=True, timeout=timeout, cwd=REPO_ROOT
     )
+
+
+def drive(
+    node: list[str], driver_args: list[str], wait_for_node: bool = False, driver_timeout: str | None = None
+) -> tuple[subprocess.CompletedProcess[str], subprocess.Popen[str], str]:
+    """Start a node and run the lockstep driver against it in the same domain.
+
+    Returns the driver's result, the node process and its log. With ``wait_for_node`` the
+    node must finish by itself (else it is stopped once the driver is done).
+    """
+    env = isolated_env()
+    process = start(node, env)
+    try:
+        driver_env = dict(env, DRIVER_TIMEOUT=driver_timeout) if driver_timeout else env
+        driver = subprocess.run(
+            [sys.executable, DRIVER, *driver_args], env=driver_env, capture_output=True, text=True, timeout=180
+        )
+        if wait_for_node:
+            process.wait(60)
+    finally:
+        if process.poll() is None:
+            process.terminate()
+        log = process.communicate(timeout=20)[0]
+    return driver, process, log
+
+
+def pair_argv(output: Path, *extra: str, config: Path = PAPER_YAML) -> list[str]:
+    """bracing-pair, quiet, in a domain of its own from the tests' range."""
+    return [
+        sys.executable,
+        "-m",
+        "bracing_bringup.pair",
+        "--config",
+        str(config),
+        "--output",
+        str(output),
+        "--quiet",
+        "--domain-id",
+        str(random.randint(102, 232)),
+        *extra,
+    ]

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import subprocess
 import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
 from conftest import CONFIG_DIR, PAPER_YAML, node_params
-from ros_helpers import REPO_ROOT, isolated_env
+from ros_helpers import node_argv, pair_argv, run
 
 from bracing_controller.config import ControllerConfig
 from bracing_controller.law import DecoupledController
@@ -96,14 +95,7 @@ def test_missing_params_file_is_refused(tmp_path: Path) -> None:
 def test_nodes_exit_with_one_line_naming_the_problem(tmp_path: Path, module: str) -> None:
     extra = tmp_path / "bad.yaml"
     extra.write_text("/**:\n  ros__parameters:\n    robot:\n      urdf: /nonexistent/robot.urdf\n")
-    done = subprocess.run(
-        [sys.executable, "-m", module, "--ros-args", "--params-file", str(PAPER_YAML), "--params-file", str(extra)],
-        env=isolated_env(),
-        capture_output=True,
-        text=True,
-        timeout=60,
-        cwd=REPO_ROOT,
-    )
+    done = run(node_argv(module, extra))
     assert done.returncode == 2
     assert done.stderr.strip() == "error: robot.urdf: file not found: /nonexistent/robot.urdf"
 
@@ -111,14 +103,7 @@ def test_nodes_exit_with_one_line_naming_the_problem(tmp_path: Path, module: str
 def test_unparsable_params_file_is_one_clear_line(tmp_path: Path) -> None:
     bad = tmp_path / "bad.yaml"
     bad.write_text("bracing_simulator:\n  ros__parameters:\n    step: [1.0, 'a']\n")
-    done = subprocess.run(
-        [sys.executable, "-m", "bracing_sim.node", "--ros-args", "--params-file", str(bad)],
-        env=isolated_env(),
-        capture_output=True,
-        text=True,
-        timeout=60,
-        cwd=REPO_ROOT,
-    )
+    done = run([sys.executable, "-m", "bracing_sim.node", "--ros-args", "--params-file", str(bad)])
     assert done.returncode == 2
     assert "Traceback" not in done.stderr
     last = done.stderr.strip().splitlines()[-1]  # rcl logs a line of its own first
@@ -132,13 +117,7 @@ def test_pair_refuses_a_bad_configuration_before_starting_anything(tmp_path: Pat
         .replace("resistance: [0.6, 0.6, 0.6, 0.6]", "resistance: [0.6, 0.6]")
         .replace("urdf: paper_4link.urdf", f"urdf: {CONFIG_DIR / 'paper_4link.urdf'}")
     )
-    done = subprocess.run(
-        [sys.executable, "-m", "bracing_bringup.pair", "--config", str(config), "--output", str(tmp_path / "run")],
-        env=isolated_env(),
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    done = run(pair_argv(tmp_path / "run", config=config))
     assert done.returncode == 2
     assert "motors.resistance: expected 4 values" in done.stderr
     assert not (tmp_path / "run" / "bag").exists()

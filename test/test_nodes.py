@@ -3,48 +3,20 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 from conftest import PAPER_YAML, build_scenario, node_params
 from lockstep_driver import JOINTS, known_command
-from ros_helpers import REPO_ROOT, isolated_env
+from ros_helpers import REPO_ROOT, drive, node_argv, params_file, run
 
 from bracing_controller.config import ControllerConfig
 from bracing_controller.law import DecoupledController
 from bracing_sim.params import load_params_file
 
-DRIVER = str(REPO_ROOT / "test" / "lockstep_driver.py")
-
-
-def _params_file(tmp_path: Path, node: str, params: dict[str, object]) -> Path:
-    import yaml
-
-    path = tmp_path / f"{node}.yaml"
-    path.write_text(yaml.safe_dump({node: {"ros__parameters": params}}))
-    return path
-
 
 def _run_node(module: str, node: str, overrides: dict[str, object], driver_args: list[str], tmp_path: Path) -> dict:
-    env = isolated_env()
-    extra = _params_file(tmp_path, node, overrides)
-    node_proc = subprocess.Popen(
-        [sys.executable, "-m", module, "--ros-args", "--params-file", str(PAPER_YAML), "--params-file", str(extra)],
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        cwd=REPO_ROOT,
-    )
-    try:
-        driver = subprocess.run(
-            [sys.executable, DRIVER, *driver_args], env=env, capture_output=True, text=True, timeout=180
-        )
-    finally:
-        node_proc.terminate()
-        log = node_proc.communicate(timeout=20)[0]
+    driver, _, log = drive(node_argv(module, params_file(tmp_path, node, overrides)), driver_args)
     assert driver.returncode == 0, driver.stdout + driver.stderr + log
     return json.loads(driver.stdout.strip().splitlines()[-1])
 
@@ -99,24 +71,8 @@ def test_controller_node_publishes_the_core_command(tmp_path: Path) -> None:
 
 
 def test_node_refuses_bad_configuration_with_one_clear_line(tmp_path: Path) -> None:
-    extra = _params_file(tmp_path, "bracing_simulator", {"motors.resistance": [0.6, 0.6, 0.6]})
-    done = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "bracing_sim.node",
-            "--ros-args",
-            "--params-file",
-            str(PAPER_YAML),
-            "--params-file",
-            str(extra),
-        ],
-        env=isolated_env(),
-        capture_output=True,
-        text=True,
-        timeout=60,
-        cwd=REPO_ROOT,
-    )
+    extra = params_file(tmp_path, "bracing_simulator", {"motors.resistance": [0.6, 0.6, 0.6]})
+    done = run(node_argv("bracing_sim.node", extra))
     assert done.returncode == 2
     assert "motors.resistance: expected 4 values" in done.stderr
     assert "Traceback" not in done.stderr + done.stdout
@@ -126,23 +82,6 @@ def test_infeasible_start_is_refused_naming_the_contact(tmp_path: Path) -> None:
     params = load_params_file(PAPER_YAML, "bracing_simulator")
     q = list(params["initial_position"])
     q[1] += 0.1  # lifts the elbow off the floor
-    extra = _params_file(tmp_path, "bracing_simulator", {"initial_position": q})
-    done = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "bracing_sim.node",
-            "--ros-args",
-            "--params-file",
-            str(PAPER_YAML),
-            "--params-file",
-            str(extra),
-        ],
-        env=isolated_env(),
-        capture_output=True,
-        text=True,
-        timeout=60,
-        cwd=REPO_ROOT,
-    )
+    done = run(node_argv("bracing_sim.node", params_file(tmp_path, "bracing_simulator", {"initial_position": q})))
     assert done.returncode == 2
     assert "contact 'elbow'" in done.stderr and "off its plane" in done.stderr

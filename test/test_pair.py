@@ -3,17 +3,15 @@
 from __future__ import annotations
 
 import json
-import random
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import PAPER_YAML, build_scenario, run_closed_loop
-from ros_helpers import REPO_ROOT, isolated_env
+from conftest import build_scenario, run_closed_loop
+from ros_helpers import isolated_env, pair_argv, run, start
 from rosbags.highlevel import AnyReader
 
 from bracing_bringup.summary import compute_summary, read_series
@@ -29,22 +27,6 @@ STEP_TOPICS = [
 ]
 
 
-def pair_command(output: Path, *extra: str) -> list[str]:
-    return [
-        sys.executable,
-        "-m",
-        "bracing_bringup.pair",
-        "--config",
-        str(PAPER_YAML),
-        "--output",
-        str(output),
-        "--quiet",
-        "--domain-id",
-        str(random.randint(102, 232)),
-        *extra,
-    ]
-
-
 def read_bag(bag: Path) -> dict[str, list[tuple[int, object]]]:
     messages: dict[str, list[tuple[int, object]]] = {}
     with AnyReader([bag]) as reader:  # definitions come from the bag itself
@@ -58,14 +40,7 @@ def read_bag(bag: Path) -> dict[str, list[tuple[int, object]]]:
 @pytest.fixture(scope="module")
 def paper_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     output = tmp_path_factory.mktemp("pair") / "run"
-    done = subprocess.run(
-        pair_command(output, "--duration", "1.0"),
-        env=isolated_env(),
-        capture_output=True,
-        text=True,
-        timeout=300,
-        cwd=REPO_ROOT,
-    )
+    done = run(pair_argv(output, "--duration", "1.0"), timeout=300)
     assert done.returncode == 0, done.stdout + done.stderr
     return output
 
@@ -127,14 +102,7 @@ def _wait_for_progress(output: Path, timeout: float = 60.0) -> None:
 
 def test_sigint_mid_run_leaves_a_readable_bag(tmp_path: Path) -> None:
     output = tmp_path / "run"
-    proc = subprocess.Popen(
-        pair_command(output, "--duration", "30"),
-        env=isolated_env(),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        cwd=REPO_ROOT,
-    )
+    proc = start(pair_argv(output, "--duration", "30"), isolated_env())
     try:
         _wait_for_progress(output)
         time.sleep(0.5)
@@ -152,14 +120,7 @@ def test_sigint_mid_run_leaves_a_readable_bag(tmp_path: Path) -> None:
 
 def test_killed_controller_fails_the_run_with_a_clear_message(tmp_path: Path) -> None:
     output = tmp_path / "run"
-    proc = subprocess.Popen(
-        pair_command(output, "--duration", "30"),
-        env=isolated_env(),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        cwd=REPO_ROOT,
-    )
+    proc = start(pair_argv(output, "--duration", "30"), isolated_env())
     try:
         _wait_for_progress(output)
         subprocess.run(["pkill", "-KILL", "-f", f"bracing_controller.node.*{output}"], check=True)
@@ -176,14 +137,7 @@ def test_killed_controller_fails_the_run_with_a_clear_message(tmp_path: Path) ->
 @pytest.mark.parametrize("extra", [["--no-bracing"], ["--mode", "torque"]], ids=["no-bracing", "torque"])
 def test_pair_variants_run_and_record(tmp_path: Path, extra: list[str]) -> None:
     output = tmp_path / "run"
-    done = subprocess.run(
-        pair_command(output, "--duration", "0.3", *extra),
-        env=isolated_env(),
-        capture_output=True,
-        text=True,
-        timeout=300,
-        cwd=REPO_ROOT,
-    )
+    done = run(pair_argv(output, "--duration", "0.3", *extra), timeout=300)
     assert done.returncode == 0, done.stdout + done.stderr
     messages = read_bag(output / "bag")
     assert len(messages["joint_states"]) == 301 and len(messages["motor_command"]) == 301

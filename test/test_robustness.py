@@ -3,53 +3,23 @@
 from __future__ import annotations
 
 import json
-import random
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from conftest import PAPER_YAML, build_scenario
 from lockstep_driver import JOINTS, known_command
-from ros_helpers import REPO_ROOT, isolated_env
-from test_nodes import DRIVER, _params_file
+from ros_helpers import REPO_ROOT, drive, node_argv, pair_argv, params_file, run
 
 from bracing_sim.commands import CommandError, command_vector
 from bracing_sim.core.dynamics import InputMode
 
 
 def _drive(tmp_path: Path, overrides: dict[str, object], driver_args: list[str]) -> tuple[list[dict], str]:
-    env = isolated_env()
-    extra = _params_file(tmp_path, "bracing_simulator", overrides)
-    node = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "bracing_sim.node",
-            "--ros-args",
-            "--params-file",
-            str(PAPER_YAML),
-            "--params-file",
-            str(extra),
-        ],
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        cwd=REPO_ROOT,
-    )
-    try:
-        driver = subprocess.run(
-            [sys.executable, DRIVER, *driver_args], env=env, capture_output=True, text=True, timeout=180
-        )
-        node.wait(30)  # it must finish by itself
-    finally:
-        if node.poll() is None:
-            node.kill()
-        log = node.communicate(timeout=20)[0]
+    extra = params_file(tmp_path, "bracing_simulator", overrides)
+    driver, node, log = drive(node_argv("bracing_sim.node", extra), driver_args, wait_for_node=True)
     assert driver.returncode == 0, driver.stdout + driver.stderr + log
-    assert node.returncode == 0, log
+    assert node.returncode == 0, log  # it finished by itself
     return json.loads(driver.stdout.strip().splitlines()[-1])["states"], log
 
 
@@ -137,27 +107,9 @@ def test_controller_ignores_malformed_joint_states(tmp_path: Path) -> None:
     ]
     states_file = tmp_path / "states.json"
     states_file.write_text(json.dumps(inputs))
-    env = isolated_env()
-    node = subprocess.Popen(
-        [sys.executable, "-m", "bracing_controller.node", "--ros-args", "--params-file", str(PAPER_YAML)],
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        cwd=REPO_ROOT,
-    )
-    try:
-        driver = subprocess.run(
-            [sys.executable, DRIVER, "controller", str(states_file)],
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=120,
-        )
-        assert node.poll() is None, "the controller died"
-    finally:
-        node.terminate()
-        log = node.communicate(timeout=20)[0]
+    driver, node, log = drive(node_argv("bracing_controller.node"), ["controller", str(states_file)])
+    assert node.returncode in (0, -15), "the controller died"  # stopped by the test, not by the input
+    assert driver.returncode == 0, driver.stdout + driver.stderr + log
     answers = json.loads(driver.stdout.strip().splitlines()[-1])["answers"]
     assert answers[0] is not None and answers[4] is not None
     assert answers[1] is None and answers[2] is None and answers[3] is None
@@ -167,39 +119,11 @@ def test_controller_ignores_malformed_joint_states(tmp_path: Path) -> None:
 def test_divergence_stops_the_simulator_with_a_clear_error(tmp_path: Path) -> None:
     """Finite but absurd voltages (1e300 V) make the state non-finite: the simulator keeps the
     last good state, says so, exits 3; no published state holds a NaN."""
-    env = isolated_env()
-    extra = _params_file(tmp_path, "bracing_simulator", {"duration": 1.0})
-    node = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "bracing_sim.node",
-            "--ros-args",
-            "--params-file",
-            str(PAPER_YAML),
-            "--params-file",
-            str(extra),
-        ],
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        cwd=REPO_ROOT,
+    extra = params_file(tmp_path, "bracing_simulator", {"duration": 1.0})
+    driver, node, log = drive(
+        node_argv("bracing_sim.node", extra), ["sim-scale", "3", "1e300"], wait_for_node=True, driver_timeout="10"
     )
-    driver = subprocess.Popen(
-        [sys.executable, DRIVER, "sim-scale", "3", "1e300"],
-        env={**env, "DRIVER_TIMEOUT": "10"},
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
-    try:
-        log = node.communicate(timeout=60)[0]
-        out = driver.communicate(timeout=60)[0]
-    finally:
-        for proc in (node, driver):
-            if proc.poll() is None:
-                proc.kill()
+    out = driver.stdout
     assert node.returncode == 3, log
     assert "simulation diverged" in log and "non-finite state" in log
     states = json.loads(out.strip().splitlines()[-1])["states"]
@@ -212,24 +136,7 @@ def test_pair_reports_divergence_and_keeps_the_bag(tmp_path: Path) -> None:
         "urdf: paper_4link.urdf", f"urdf: {REPO_ROOT / 'config' / 'paper_4link.urdf'}"
     )
     config.write_text(text.replace("divergence_residual: 0.01", "divergence_residual: 1.0e-30"))
-    done = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "bracing_bringup.pair",
-            "--config",
-            str(config),
-            "--output",
-            str(tmp_path / "run"),
-            "--quiet",
-            "--domain-id",
-            str(random.randint(102, 232)),
-        ],
-        env=isolated_env(),
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    done = run(pair_argv(tmp_path / "run", config=config), timeout=120)
     assert done.returncode == 1
     assert "simulator exited with code 3" in done.stderr and "divergence_residual" in done.stderr
     from rosbags.highlevel import AnyReader
