@@ -59,32 +59,37 @@ class RunResult:
     logs: dict[str, Path] = field(default_factory=dict)
 
 
-def overrides(options: RunOptions, sim_params: dict[str, Any]) -> dict[str, dict[str, Any]]:
-    """Per-node parameters that win over the scenario file (passed as a second params file)."""
+def shared_overrides(options: RunOptions) -> dict[str, Any]:
+    """What the command line changes for both nodes (the /** part of the scenario)."""
     common: dict[str, Any] = {}
     if options.mode is not None:
         common["input_mode"] = options.mode
     if not options.bracing:
         common["contacts.names"] = []
-    sim: dict[str, Any] = dict(common, min_subscribers=2)  # the controller and the recorder
+    return common
+
+
+def effective_params(options: RunOptions, node: str) -> dict[str, Any]:
+    """The flat parameters ``node`` will run with: the scenario file and the command line."""
+    params = load_params_file(options.config, node)
+    params.update(shared_overrides(options))
+    return params
+
+
+def overrides(options: RunOptions, urdf: Path) -> dict[str, dict[str, Any]]:
+    """Per-node parameters that win over the scenario file (passed as a second params file).
+
+    The nodes resolve a relative URDF from their working directory, so it is pinned to the
+    file found now (``urdf``).
+    """
+    sim: dict[str, Any] = dict(shared_overrides(options), min_subscribers=2)  # the controller and the recorder
     if options.duration is not None:
         sim["duration"] = options.duration
     if options.real_time:
         sim["stepping"] = "real_time"
-    controller = dict(common)
-    # The nodes resolve a relative URDF from their working directory; pin it to the file found now.
-    urdf = SimulatorConfig.from_params(sim_params, [options.config.parent]).shared.urdf
+    controller = dict(shared_overrides(options))
     sim["robot.urdf"] = controller["robot.urdf"] = str(urdf)
     return {"bracing_simulator": sim, "bracing_controller": controller}
-
-
-def effective_params(options: RunOptions, node: str) -> dict[str, Any]:
-    params = load_params_file(options.config, node)
-    if options.mode is not None:
-        params["input_mode"] = options.mode
-    if not options.bracing:
-        params["contacts.names"] = []
-    return params
 
 
 def write_overrides(path: Path, node_overrides: dict[str, dict[str, Any]]) -> None:
@@ -163,8 +168,7 @@ def run_pair(options: RunOptions) -> RunResult:
     """Run one experiment; never raises for a failing node, returns the exit code and message."""
     start_wall = time.monotonic()
     out = options.output
-    sim_params = effective_params(options, "bracing_simulator")
-    sim_config = SimulatorConfig.from_params(sim_params, [options.config.parent])
+    sim_config = SimulatorConfig.from_params(effective_params(options, "bracing_simulator"), [options.config.parent])
     ControllerConfig.from_params(effective_params(options, "bracing_controller"), [options.config.parent])
     duration = options.duration if options.duration is not None else sim_config.duration
     bag = out / "bag"
@@ -172,7 +176,7 @@ def run_pair(options: RunOptions) -> RunResult:
         raise ConfigError(f"--output: {bag} exists already; choose a new output directory")
     (out / "logs").mkdir(parents=True, exist_ok=True)
     override_file = out / "overrides.yaml"
-    write_overrides(override_file, overrides(options, sim_params))
+    write_overrides(override_file, overrides(options, sim_config.shared.urdf))
 
     env = dict(os.environ)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = env.get("BRACING_DISCOVERY_RANGE", "LOCALHOST")

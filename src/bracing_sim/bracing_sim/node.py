@@ -11,7 +11,6 @@ import sys
 import time
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import Point, Vector3, WrenchStamped
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -25,9 +24,7 @@ from bracing_sim.config import SimulatorConfig, build_simulator
 from bracing_sim.core.dynamics import Derivative, InputMode
 from bracing_sim.core.simulator import DivergenceError
 from bracing_sim.core.types import Vector
-from bracing_sim.params import ConfigError
 from bracing_sim.ros_common import (
-    EXIT_CONFIG,
     EXIT_DIVERGED,
     STREAM_QOS,
     SUBSCRIBE_QOS,
@@ -307,9 +304,6 @@ def spin(node: SimulatorNode) -> int:
 def main(args: list[str] | None = None) -> int:
     code = run(SimulatorNode, spin, args)  # type: ignore[arg-type]
     sys.exit(code)
-
-
-__all__ = ["EXIT_CONFIG", "ConfigError", "SimulatorNode", "main", "rclpy"]
 
 
 if __name__ == "__main__":
