@@ -22,7 +22,7 @@ from bracing_msgs.msg import Contacts, ContactState, MotorCommand, MotorState
 from bracing_sim.commands import CommandError, command_vector
 from bracing_sim.config import SimulatorConfig, build_simulator
 from bracing_sim.core.dynamics import Derivative, InputMode
-from bracing_sim.core.simulator import DivergenceError
+from bracing_sim.core.simulator import DivergenceError, Energy
 from bracing_sim.core.types import Vector
 from bracing_sim.ros_common import (
     EXIT_DIVERGED,
@@ -64,11 +64,9 @@ class SimulatorNode(Node):
         self.command = np.zeros(self.sim.n)  # last applied (held) command
         self._pending: dict[int, Vector] = {}  # lockstep: valid commands by stamp [ns]
         self._latest: tuple[float, Vector] | None = None  # real-time: (wall time, command)
-        self.finished = False
         self._next_progress = 0.0  # wall time of the next progress line
         self.max_residual = 0.0  # [m], over the run so far (contacts holding a force)
         self._events_logged = 0
-        self.exit_code = 0
         self.get_logger().info(
             f"{self.mode.value} input, {len(self.plant.contact_set)} contact(s), step {self.config.step} s, "
             f"{self.config.stepping}, duration {duration or 'unbounded'} s"
@@ -111,7 +109,7 @@ class SimulatorNode(Node):
         self.joint_pub.publish(msg)
         self.clock_pub.publish(Clock(clock=header_stamp))
 
-    def publish_step(self, t_ns: int, command: Vector, d: Derivative, current: Vector) -> None:
+    def publish_step(self, t_ns: int, command: Vector, d: Derivative, current: Vector, energy: Energy) -> None:
         """Reports of one step: forces at its start under the held command, energies up to its start."""
         header_stamp = stamp(t_ns)
         contacts = Contacts()
@@ -141,10 +139,9 @@ class SimulatorNode(Node):
             wrench.wrench.force = _vector(force)  # at the contact point, so no moment
             self.wrench_pubs[j].publish(wrench)
         self.contacts_pub.publish(contacts)
-        self.motor_pub.publish(self._motor_state(header_stamp, command, current, d))
+        self.motor_pub.publish(self._motor_state(header_stamp, command, current, energy))
 
-    def _motor_state(self, header_stamp: object, command: Vector, current: Vector, d: Derivative) -> MotorState:
-        energy = self.energy_at_start
+    def _motor_state(self, header_stamp: object, command: Vector, current: Vector, energy: Energy) -> MotorState:
         msg = MotorState()
         msg.header.stamp = header_stamp
         msg.name = self.joint_names
@@ -169,20 +166,19 @@ class SimulatorNode(Node):
         process builds and sends the reports of the step just taken.
         """
         t_ns = self.sim.steps_taken * self.step_ns
-        current = self.sim.current
-        self.energy_at_start = self.sim.energy
+        current, energy = self.sim.current, self.sim.energy  # at the step's start
         d = self.sim.step(command)
         self.command = command
         held = d.contacts.residual if d.active is None else d.contacts.residual[d.active]
         residual = float(np.max(np.abs(held))) if held.size else 0.0
         self.max_residual = max(self.max_residual, residual)
         if residual > self.config.divergence_residual:
-            self.publish_step(t_ns, command, d, current)  # the bag shows the step that failed
+            self.publish_step(t_ns, command, d, current, energy)  # the bag shows the step that failed
             raise DivergenceError(
                 f"constraint residual {residual:.3g} m exceeds divergence_residual {self.config.divergence_residual} m"
             )
         self.publish_state(self.state_effort())
-        self.publish_step(t_ns, command, d, current)
+        self.publish_step(t_ns, command, d, current, energy)
         for event in self.sim.events[self._events_logged :]:
             extra = f", {event.impact_loss:.4g} J lost in the impact" if event.kind == "touchdown" else ""
             self.get_logger().info(f"contact {event.contact!r}: {event.kind} at t = {event.time:.6f} s{extra}")
@@ -205,14 +201,12 @@ class SimulatorNode(Node):
         """Report the final state (under ``command``, the answer to it if there is one, else
         the held command) and let reliable subscribers receive everything."""
         t_ns = self.sim.steps_taken * self.step_ns
-        self.energy_at_start = self.sim.energy
         if command is not None:
             self.command = command
         d = self.sim.evaluate(self.command)
-        self.publish_step(t_ns, self.command, d, self.sim.current)
+        self.publish_step(t_ns, self.command, d, self.sim.current, self.sim.energy)
         for pub in (self.joint_pub, self.contacts_pub, self.motor_pub, self.clock_pub, *self.wrench_pubs):
             pub.wait_for_all_acked(Duration(seconds=2.0))
-        self.finished = True
         self.get_logger().info(f"progress t={self.sim.time:.3f} max_residual={self.max_residual:.3e}")
         self.get_logger().info(f"finished at t = {self.sim.time:.6f} s")
 
@@ -224,8 +218,14 @@ def _vector(v: Vector) -> Vector3:
 def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None:
     cfg = node.config
     # Wait for the controller (and a recorder, if asked) before the first state.
+    since, told = time.monotonic(), False
     while node.joint_pub.get_subscription_count() < cfg.min_subscribers:
         executor.spin_once(timeout_sec=0.05)
+        if not told and time.monotonic() - since > 2.0:
+            told = True
+            node.get_logger().info(
+                f"lockstep: waiting for {cfg.min_subscribers} subscriber(s) of joint_states (start the controller)"
+            )
     waiter = SubscriptionWaiter(node, node.command_sub)
     node.publish_state(node.state_effort())
     while not node.done():
