@@ -25,7 +25,7 @@ import pinocchio as pin
 from bracing_controller.config import ControllerConfig
 from bracing_controller.trajectory import Circle, Hold, Trajectory
 from bracing_sim.config import Plant
-from bracing_sim.core.dynamics import InputMode
+from bracing_sim.core.dynamics import InputMode, reflected_terms
 from bracing_sim.core.types import Vector
 
 # Smallest singular value of B (relative to its largest) below which B^+ is damped.
@@ -71,10 +71,7 @@ class DecoupledController:
         self.robot = robot
         self.contact_set = self.plant.contact_set
         self.mode = config.shared.input_mode
-        motors = self.plant.motors
-        voltage = self.mode is InputMode.VOLTAGE
-        self._added_inertia = motors.reflected_inertia if voltage else np.zeros(robot.nv)
-        self._damping = robot.damping + (motors.reflected_damping if voltage else 0.0)
+        self._added_inertia, self._damping = reflected_terms(robot, self.plant.motors, self.mode)
         self._voltage_gain = self.plant.to_model_order(config.voltage_gain)
         contacts = config.shared.contacts
         self.desired_normal_force = np.array([c.desired_normal_force for c in contacts], dtype=float)

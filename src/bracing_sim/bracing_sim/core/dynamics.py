@@ -60,6 +60,17 @@ class InputMode(str, Enum):  # noqa: UP042 (str() / format() of a StrEnum differ
             raise ValueError(f"input_mode: expected 'voltage' or 'torque', got {value!r}") from None
 
 
+def reflected_terms(robot: RobotModel, motors: MotorParams, mode: InputMode) -> tuple[Vector, Vector]:
+    """(Mc - M, Dc): the diagonal inertia and the viscous damping of the joints under ``mode``.
+
+    With the motors in the loop (voltage) the reflected rotor inertia J_m and gear damping
+    D_m join the link damping D; with direct drive (torque) only D remains.
+    """
+    if mode is InputMode.VOLTAGE:
+        return motors.reflected_inertia, robot.damping + motors.reflected_damping
+    return np.zeros(robot.nv), robot.damping.copy()
+
+
 @dataclass
 class Derivative:
     """Everything the model says at one (state, input)."""
@@ -102,9 +113,7 @@ class ConstrainedDynamics:
         self.mode = mode
         self.baumgarte = float(baumgarte)
         voltage = mode is InputMode.VOLTAGE
-        # Reflected rotor inertia and gear damping only exist with the motors in the loop.
-        self.added_inertia: Vector = motors.reflected_inertia if voltage else np.zeros(robot.nv)
-        self.total_damping: Vector = robot.damping + (motors.reflected_damping if voltage else 0.0)
+        self.added_inertia, self.total_damping = reflected_terms(robot, motors, mode)
         self._km = motors.reflected_constant
         n, p = robot.nv, len(contacts)
         self._nv, self._p, self._voltage = n, p, voltage
