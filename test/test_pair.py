@@ -100,19 +100,20 @@ def _wait_for_progress(output: Path, timeout: float = 60.0) -> None:
     raise AssertionError("the simulator never made progress")
 
 
-def test_sigint_mid_run_leaves_a_readable_bag(tmp_path: Path) -> None:
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_signal_mid_run_leaves_a_readable_bag(tmp_path: Path, sig: signal.Signals) -> None:
     output = tmp_path / "run"
     proc = start(pair_argv(output, "--duration", "30"), isolated_env())
     try:
         _wait_for_progress(output)
         time.sleep(0.5)
-        proc.send_signal(signal.SIGINT)
+        proc.send_signal(sig)
         out = proc.communicate(timeout=60)[0]
     finally:
         if proc.poll() is None:
             proc.kill()
-    assert proc.returncode == 130, out
-    assert "interrupted" in out
+    assert proc.returncode == 128 + sig, out
+    assert f"interrupted ({sig.name})" in out
     messages = read_bag(output / "bag")
     assert len(messages["joint_states"]) > 10
     assert subprocess.run(["pgrep", "-f", str(output)], capture_output=True).stdout == b""  # nothing left running

@@ -32,7 +32,6 @@ from bracing_sim.params import ConfigError, load_params_file
 
 EXIT_FAILED = 1
 EXIT_CONFIG = 2
-EXIT_INTERRUPTED = 130
 PROGRESS = re.compile(r"progress t=([0-9.eE+-]+)")
 
 
@@ -107,7 +106,7 @@ class Pair:
         self.options = options
         self.procs: dict[str, subprocess.Popen[bytes]] = {}
         self.logs: dict[str, Path] = {}
-        self.interrupted = False
+        self.interrupted = 0  # the signal number that asked to stop, if any
 
     def say(self, text: str, end: str = "\n") -> None:
         if not self.options.quiet:
@@ -186,12 +185,15 @@ def run_pair(options: RunOptions) -> RunResult:
     ros_args = ["--ros-args", "--params-file", str(options.config.resolve()), "--params-file", str(override_file)]
     contacts = [c.name for c in sim_config.shared.contacts]
     pair = Pair(options)
-    previous = signal.getsignal(signal.SIGINT)
+    # Ctrl-C or a SIGTERM (a CI timeout, `kill`): stop the nodes in order, keep the bag. The
+    # children run in sessions of their own, so nothing else would stop them.
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
 
-    def on_sigint(signum: int, frame: object) -> None:
-        pair.interrupted = True
+    def on_signal(signum: int, frame: object) -> None:
+        pair.interrupted = signum
 
-    signal.signal(signal.SIGINT, on_sigint)
+    for sig in previous:
+        signal.signal(sig, on_signal)
     message, code = "", 0
     try:
         pair.say(f"bracing-pair: ROS_DOMAIN_ID={domain}, output {out}")
@@ -232,14 +234,16 @@ def run_pair(options: RunOptions) -> RunResult:
         if tty:
             pair.say("")
     except _Interrupted:
-        code, message = EXIT_INTERRUPTED, "interrupted: nodes stopped, bag finalised"
+        code = 128 + int(pair.interrupted)
+        message = f"interrupted ({signal.Signals(pair.interrupted).name}): nodes stopped, bag finalised"
     except _Failure as failure:
         code = EXIT_FAILED
         message = f"error: {failure.message}\n{pair.tail(failure.process)}"
     finally:
         for name in ("simulator", "controller", "recorder"):
             pair.stop(name)
-        signal.signal(signal.SIGINT, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     wall = time.monotonic() - start_wall
     summary = None
     if code == 0:
