@@ -19,7 +19,8 @@ command -v cmake >/dev/null || missing+=("cmake (>= 3.22: apt-get install cmake)
 command -v cc >/dev/null || command -v gcc >/dev/null || missing+=("a C compiler (apt-get install build-essential)")
 command -v c++ >/dev/null || command -v g++ >/dev/null || missing+=("a C++ compiler (apt-get install build-essential)")
 if ((${#missing[@]})); then
-  die "missing prerequisites, please install: $(IFS=';'; echo "${missing[*]}")"
+  list=$(printf '%s; ' "${missing[@]}")
+  die "missing prerequisites, please install: ${list%; }"
 fi
 pyver=$(python3 -c 'import sys; print("%d.%d" % sys.version_info[:2])')
 [[ "$pyver" == "3.11" ]] || die "python3 is $pyver; the ROS 2 Jazzy wheels need Python 3.11 (put a python3.11 first on PATH)"
