@@ -131,9 +131,7 @@ def nanoseconds(time: Time) -> int:
     return int(time.sec) * 1_000_000_000 + int(time.nanosec)
 
 
-def run(
-    node_factory: Callable[[], Node], spin: Callable[[Node], int] | None = None, args: list[str] | None = None
-) -> int:
+def run(node_factory: Callable[[], Node], spin: Callable[[Node], int], args: list[str] | None = None) -> int:
     """Create the node, spin it, and turn start-up errors into one clear line and exit 2."""
     code = 0
     node: Node | None = None
@@ -143,7 +141,7 @@ def run(
         except RCLError as exc:  # e.g. a params file rcl cannot parse
             raise ConfigError(str(exc).split(", at /")[0]) from None
         node = node_factory()
-        code = spin(node) if spin is not None else _spin(node)
+        code = spin(node)
     except (ConfigError, ParameterException) as exc:
         print(f"error: {exc}", file=sys.stderr, flush=True)
         code = EXIT_CONFIG
@@ -155,8 +153,3 @@ def run(
         if rclpy.ok():
             rclpy.try_shutdown()
     return code
-
-
-def _spin(node: Node) -> int:
-    rclpy.spin(node)
-    return 0

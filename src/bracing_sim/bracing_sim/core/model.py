@@ -1,9 +1,8 @@
 """The robot model: a pinocchio model loaded from URDF, shared by simulator and controller.
 
-``RobotModel.compute(q, dq)`` runs one pinocchio pass (``computeAllTerms``) that fills
-the joint-space inertia M, the non-linear effects h + g, the joint Jacobians and the
-velocity-product ("drift") accelerations at ddq = 0; the accessors then read frame
-quantities from that pass without recomputing kinematics.
+``RobotModel.compute(q, dq)`` runs one pinocchio pass (``computeAllTerms``) and places
+the frames; ``frame_position`` / ``frame_jacobian`` and ``ContactSet.evaluate`` then read
+that pass without recomputing kinematics.
 
 ``RobotModel.with_armature(J_m)`` gives an independent copy (own pinocchio Model and Data)
 whose ``model.armature`` holds a diagonal rotor inertia, so that pinocchio's ``crba`` /
@@ -56,9 +55,6 @@ class RobotModel:
         self.source = source
         self.joint_names: tuple[str, ...] = tuple(model.names[j] for j in range(1, model.njoints))
         self.damping: Vector = np.array(model.damping, dtype=float)
-        self._symmetric_mass = np.zeros((model.nv, model.nv))
-        self._lower = np.tril_indices(model.nv, -1)
-        self._upper_of_lower = (self._lower[1], self._lower[0])  # (j, i) for each (i, j) below the diagonal
 
     @classmethod
     def from_urdf(cls, path: str | Path, gravity: Sequence[float] = (0.0, 0.0, -9.81)) -> RobotModel:
@@ -112,31 +108,12 @@ class RobotModel:
         pin.updateFramePlacements(self.model, self.data)
 
     # -- reads of the last pass -------------------------------------------------------
-    def mass_matrix(self) -> Vector:
-        """M(q) (n x n, symmetric). pinocchio fills only the upper triangle."""
-        upper = self.data.M
-        out = self._symmetric_mass
-        np.copyto(out, upper)
-        out[self._lower] = upper[self._upper_of_lower]
-        return out
-
-    def nonlinear_effects(self) -> Vector:
-        """h(q, dq) + g(q): Coriolis, centrifugal and gravity torques."""
-        return np.asarray(self.data.nle)
-
-    def gravity_torque(self, q: Vector) -> Vector:
-        return np.asarray(pin.computeGeneralizedGravity(self.model, self.data, q))
-
     def frame_position(self, frame: int) -> Vector:
         return np.asarray(self.data.oMf[frame].translation)
 
     def frame_jacobian(self, frame: int) -> Vector:
         """3 x n translational Jacobian of the frame origin, world axes."""
         return np.asarray(pin.getFrameJacobian(self.model, self.data, frame, _WORLD)[:3])
-
-    def frame_drift(self, frame: int) -> Vector:
-        """dJ dq: the frame origin's acceleration at ddq = 0, world axes."""
-        return np.asarray(pin.getFrameClassicalAcceleration(self.model, self.data, frame, _WORLD).linear)
 
     # -- energies (for diagnostics and tests) ---------------------------------------
     def kinetic_energy(self, q: Vector, dq: Vector) -> float:

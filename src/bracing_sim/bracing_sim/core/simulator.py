@@ -174,30 +174,6 @@ class Simulator:
             self._cached = (state, dynamics.baumgarte, u, rates, friction_power, constraint_power, d)
         return self._report(d)
 
-    def _rate(self, y: Vector, command: Vector) -> tuple[Vector, Derivative]:
-        """d/dt of the full state vector y = [q, dq, i, energies] and the model's answer there."""
-        n, m = self.n, self._m
-        u = np.array(command, dtype=float)
-        dynamics = self.dynamics
-        state = np.append(np.asarray(y[:m], dtype=float), 1.0)
-        rates = np.empty(m)
-        dynamics._set_input(u)
-        friction_power, constraint_power, d = dynamics._solve(dynamics._stage(state, rates), True)
-        assert d is not None
-        dq, i = y[n : 2 * n], y[2 * n : m]
-        power = u * i if self._voltage else u * dq
-        copper = float(self._resistance @ (i * i)) if self._voltage else 0.0
-        energy_rates = [
-            float(np.abs(power).sum()),
-            float(power.sum()),
-            copper,
-            float(dq @ (self.dynamics.total_damping * dq)),
-            friction_power,
-            constraint_power,
-            0.0,
-        ]
-        return np.concatenate([rates, energy_rates]), d
-
     def _reuse(self, u: Vector) -> tuple[Vector, float, float, Derivative] | None:
         """The cached answer of ``evaluate`` at the current state, if it holds for ``u``.
 
@@ -324,16 +300,9 @@ class Simulator:
         """At the start of a step: unilateral contacts whose force would pull let go, the
         most negative first, until every held force pushes."""
         while self.active.any():
-            self.dynamics._set_input(u)
-            state = np.append(self._y[: self._m], 1.0)
-            _, _, d = self.dynamics._solve(self.dynamics._stage(state, np.empty(self._m)), True)
-            assert d is not None
-            indices = np.flatnonzero(self.active)
-            pulling = [
-                (force, j)
-                for force, j in zip(d.normal_force, indices, strict=True)
-                if self._unilateral[j] and force < 0.0
-            ]
+            # ``evaluate`` keeps its answer: when nothing releases, it is the step's first stage.
+            force = self.evaluate(u).normal_force  # over all contacts, zero where released
+            pulling = [(force[j], j) for j in np.flatnonzero(self.active) if self._unilateral[j] and force[j] < 0.0]
             if not pulling:
                 return
             j = min(pulling)[1]
