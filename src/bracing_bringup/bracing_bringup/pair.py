@@ -86,7 +86,7 @@ def overrides(options: RunOptions, urdf: Path) -> dict[str, dict[str, Any]]:
         sim["duration"] = options.duration
     if options.real_time:
         sim["stepping"] = "real_time"
-    controller = dict(shared_overrides(options))
+    controller = dict(shared_overrides(options), wait_for_recorder=True)
     sim["robot.urdf"] = controller["robot.urdf"] = str(urdf)
     return {"bracing_simulator": sim, "bracing_controller": controller}
 

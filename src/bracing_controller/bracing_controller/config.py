@@ -30,6 +30,7 @@ CONTROLLER_PARAMETERS: dict[str, object] = {
     "voltage_gain": [],
     "gravity_compensation": False,
     "damping_lambda": 1e-6,
+    "wait_for_recorder": False,
 }
 
 
@@ -61,6 +62,7 @@ class ControllerConfig:
     voltage_gain: tuple[float, ...]  # K_V diagonal, robot.joint_names order
     gravity_compensation: bool  # add g(q) to l (not in the paper)
     damping_lambda: float  # damped-inverse regularisation for a near-singular B
+    wait_for_recorder: bool = False  # answer the first state only once a recorder subscribes to both outputs
 
     @property
     def task_dimension(self) -> int:
@@ -118,6 +120,7 @@ class ControllerConfig:
             voltage_gain=voltage_gain,
             gravity_compensation=get_bool(params, "gravity_compensation", False),
             damping_lambda=get_float(params, "damping_lambda", 1e-6, positive=True),
+            wait_for_recorder=get_bool(params, "wait_for_recorder", False),
         )
         if config.task_dimension > n - p:
             raise ConfigError(

@@ -117,6 +117,16 @@ def spin(node: ControllerNode) -> int:
     waiter = SubscriptionWaiter(node, node.state_sub)
     answered = 0
     try:
+        if node.config.wait_for_recorder:
+            # A recorder that discovers these publishers late may miss the first answers if this
+            # process is stopped soon after (a short run): be matched before answering. States
+            # that arrive meanwhile wait in the subscription's queue.
+            since, told = time.monotonic(), False
+            while node.command_pub.get_subscription_count() < 2 or node.state_pub.get_subscription_count() < 1:
+                executor.spin_once(timeout_sec=0.05)
+                if not told and time.monotonic() - since > 2.0:
+                    told = True
+                    node.get_logger().info("waiting for the recorder to subscribe to the command and state topics")
         while True:
             messages = waiter.take(0.1)
             for msg in messages:

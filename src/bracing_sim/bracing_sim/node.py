@@ -205,8 +205,9 @@ class SimulatorNode(Node):
             self.command = command
         d = self.sim.evaluate(self.command)
         self.publish_step(t_ns, self.command, d, self.sim.current, self.sim.energy)
+        deadline = time.monotonic() + 10.0  # one budget for all: a loaded machine may need it
         for pub in (self.joint_pub, self.contacts_pub, self.motor_pub, self.clock_pub, *self.wrench_pubs):
-            pub.wait_for_all_acked(Duration(seconds=2.0))
+            pub.wait_for_all_acked(Duration(seconds=max(deadline - time.monotonic(), 0.1)))
         self.get_logger().info(f"progress t={self.sim.time:.3f} max_residual={self.max_residual:.3e}")
         self.get_logger().info(f"finished at t = {self.sim.time:.6f} s")
 
