@@ -17,6 +17,7 @@ use the general matrix code (with the SVD test of ``_pseudo_inverse``).
 from __future__ import annotations
 
 import math
+import operator
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +33,15 @@ from bracing_sim.core.types import Vector
 SINGULAR_RATIO = 1e-8
 
 _WORLD = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+# Module-level aliases: update runs once per control step, and every lookup counts.
+_compute_all_terms = pin.computeAllTerms
+_cholesky_decompose = pin.cholesky.decompose
+_cholesky_solve = pin.cholesky.solve
+_frame_jacobian = pin.getFrameJacobian
+_frame_classical_acceleration = pin.getFrameClassicalAcceleration
+_update_frame_placement = pin.updateFramePlacement
+_array = np.array
+_dot = np.dot
 
 
 @dataclass
@@ -94,23 +104,30 @@ class DecoupledController:
         self._pin = robot.with_armature(self._added_inertia)
         self._model, self._data = self._pin.model, self._pin.data
         self._nle: Vector = self._data.nle  # persistent view of h + g (fixed-size Eigen storage)
+        self._voltage = self.mode is InputMode.VOLTAGE
+        # Tasks (hand, then each brace) and their stacked 3 x n translational Jacobians, followed by
+        # a row for h + g + Dc dq: one product with B^T = Mc^-1 J_c^T gives all of _braced_torque's.
+        self._tasks = (self._hand, *self._braces)
+        self._work = np.zeros((3 * len(self._tasks) + 1, robot.nv))
+        self._task_jacobians = self._work[:-1]
+        self._task_rows = tuple((task, self._work[3 * k : 3 * k + 3]) for k, task in enumerate(self._tasks))
+        self._work_bias = self._work[-1]
+        self._zero_velocities = [[0.0, 0.0, 0.0]] * len(self._braces)
+        self._brace_target_lists: list[list[float]] = []
         if len(self._braces) == 1:
             plane = self.contact_set.contacts[0]
-            normal = np.asarray(plane.normal, dtype=float)
+            self._normal = np.asarray(plane.normal, dtype=float)
+            self._normal_tuple = tuple(self._normal.tolist())
             self._friction = float(plane.friction)
             self._eps2 = float(self.contact_set.slip_epsilon) ** 2
-            self._normal_tuple = tuple(normal.tolist())
-            # [I - n n^T; n^T] @ J = [tangential part of J; J_c]
-            self._split = np.vstack((np.eye(3) - np.outer(normal, normal), normal))
-            # Work rows of _braced_torque: [P J (3); J_c; h + g + Dc dq; l], one product with B^T gives all.
-            self._work = np.zeros((6, robot.nv))
-            self._work_split, self._work_jc = self._work[:4], self._work[3]
-            self._work_bias, self._work_null = self._work[4], self._work[5]
+            self._brace_jacobian = self._work[3:6]
+            self._work_jc = np.zeros(robot.nv)
 
     def reset(self) -> None:
         """Forget the targets taken from the first state (a new run starts)."""
         self._hand_trajectory = None
         self._brace_targets = None
+        self._brace_target_lists = []
 
     def _init_targets(self) -> None:
         """Targets not given in the configuration: the current positions (after ``computeAllTerms``)."""
@@ -129,60 +146,54 @@ class DecoupledController:
             ],
             dtype=float,
         ).reshape(len(self._braces), 3)
+        self._brace_target_lists = self._brace_targets.tolist()
 
     def update(self, t: float, q: Vector, dq: Vector) -> ControlOutput:
         """The command for the measured state (q, dq) at time t [s] (model joint order)."""
         model, data = self._model, self._data
         q = np.asarray(q, dtype=float)
         dq = np.asarray(dq, dtype=float)
-        pin.computeAllTerms(model, data, q, dq)
+        _compute_all_terms(model, data, q, dq)
         if self._hand_trajectory is None:
             self._init_targets()
         assert self._hand_trajectory is not None and self._brace_targets is not None
 
-        # l: PD tasks along the configured axes (eq. 39), per axis in floats (3-vectors).
+        # l: PD tasks along the configured axes (eq. 39): every task's translational Jacobian
+        # in one matrix, so one product gives the frame velocities and one gives J^T F.
         hand_desired, hand_velocity_desired = self._hand_trajectory.sample(t)
-        hand = self._hand
-        jacobian = pin.getFrameJacobian(model, data, hand.frame, _WORLD)[:3]
-        hand_actual = np.array(pin.updateFramePlacement(model, data, hand.frame).translation)
-        (p0, p1, p2), (d0, d1, d2) = hand.kp_list, hand.kd_list
-        r0, r1, r2 = hand_desired.tolist()
-        a0, a1, a2 = hand_actual.tolist()
-        v0, v1, v2 = hand_velocity_desired.tolist()
-        w0, w1, w2 = jacobian.dot(dq).tolist()
-        force = np.array(
-            (p0 * (r0 - a0) + d0 * (v0 - w0), p1 * (r1 - a1) + d1 * (v1 - w1), p2 * (r2 - a2) + d2 * (v2 - w2))
-        )
-        null_input = force.dot(jacobian)  # J^T force
-        brace_targets = self._brace_targets
-        brace_actual = np.empty((len(self._braces), 3))
-        brace_jacobians = []
-        for j, task in enumerate(self._braces):
-            jacobian = pin.getFrameJacobian(model, data, task.frame, _WORLD)[:3]
-            brace_jacobians.append(jacobian)
-            actual = brace_actual[j]
-            actual[:] = pin.updateFramePlacement(model, data, task.frame).translation
+        jacobians = self._task_jacobians
+        positions: list[float] = []  # flat: 3 per task
+        for task, rows in self._task_rows:
+            rows[:] = _frame_jacobian(model, data, task.frame, _WORLD)[:3]
+            positions += _update_frame_placement(model, data, task.frame).translation.tolist()
+        velocities = jacobians.dot(dq).tolist()
+        targets = [hand_desired.tolist(), *self._brace_target_lists]
+        target_velocities = [hand_velocity_desired.tolist(), *self._zero_velocities]  # braces: hold still
+        forces: list[float] = []
+        for k, task in enumerate(self._tasks):
             (p0, p1, p2), (d0, d1, d2) = task.kp_list, task.kd_list
-            r0, r1, r2 = brace_targets[j].tolist()
-            a0, a1, a2 = actual.tolist()
-            w0, w1, w2 = jacobian.dot(dq).tolist()
-            # desired brace velocity: 0
-            force = np.array(
-                (p0 * (r0 - a0) + d0 * (0.0 - w0), p1 * (r1 - a1) + d1 * (0.0 - w1), p2 * (r2 - a2) + d2 * (0.0 - w2))
+            r0, r1, r2 = targets[k]
+            a0, a1, a2 = positions[3 * k : 3 * k + 3]
+            v0, v1, v2 = target_velocities[k]
+            w0, w1, w2 = velocities[3 * k : 3 * k + 3]
+            forces += (
+                p0 * (r0 - a0) + d0 * (v0 - w0),
+                p1 * (r1 - a1) + d1 * (v1 - w1),
+                p2 * (r2 - a2) + d2 * (v2 - w2),
             )
-            null_input += force.dot(jacobian)
+        null_input = _array(forces).dot(jacobians)  # sum of J^T F over the tasks
         if self.config.gravity_compensation:
             null_input += pin.computeGeneralizedGravity(model, data, q)
 
         damped = False
         p = len(self._braces)
         if p == 1:
-            torque, damped = self._braced_torque(brace_jacobians[0], dq, null_input)
+            torque, damped = self._braced_torque(dq, null_input, forces, velocities[3:6])
         elif p:
             terms = self.contact_set.evaluate_data(model, data, dq)
-            pin.cholesky.decompose(model, data)
+            _cholesky_decompose(model, data)
             jc = terms.normal_jacobian
-            b = np.array([pin.cholesky.solve(model, data, row) for row in jc])  # B = J_c Mc^-1 (Mc symmetric)
+            b = np.array([_cholesky_solve(model, data, row) for row in jc])  # B = J_c Mc^-1 (Mc symmetric)
             a_matrix = b @ (jc - terms.friction[:, None] * terms.tangent_jacobian).T
             a_vector = b @ (self._nle + self._damping * dq) - terms.drift
             b_pinv, damped = self._pseudo_inverse(b)
@@ -191,51 +202,59 @@ class DecoupledController:
             )
         else:
             torque = null_input
-        command = self._voltage_gain * torque if self.mode is InputMode.VOLTAGE else torque
+        command = self._voltage_gain * torque if self._voltage else torque
+        actual = _array(positions).reshape(-1, 3)  # hand, then the braces (a flat list converts faster)
         return ControlOutput(
-            command=command,
-            torque=torque,
-            hand_desired=hand_desired,
-            hand_actual=hand_actual,
-            brace_desired=brace_targets.copy(),
-            brace_actual=brace_actual,
-            desired_normal_force=self.desired_normal_force.copy(),
-            damped=damped,
+            command,
+            torque,
+            hand_desired,
+            actual[0],
+            self._brace_targets.copy(),
+            actual[1:],
+            self.desired_normal_force.copy(),
+            damped,
         )
 
-    def _braced_torque(self, jacobian: Vector, dq: Vector, null_input: Vector) -> tuple[Vector, bool]:
-        """Eq. 38 for one contact (B is a row), from the pass of ``update``; ``jacobian``: its 3 x n J."""
+    def _braced_torque(
+        self, dq: Vector, null_input: Vector, forces: list[float], velocity: list[float]
+    ) -> tuple[Vector, bool]:
+        """Eq. 38 for one contact (B is a row), from the pass of ``update``: ``forces`` are the
+        task forces F of l = J^T F (rows of ``_task_jacobians``), ``velocity`` the brace frame's."""
         model, data = self._model, self._data
-        pin.cholesky.decompose(model, data)
-        work = self._work  # rows [P J (3); J_c; h + g + Dc dq; l]
-        np.dot(self._split, jacobian, out=self._work_split)
-        bias = self._work_bias
-        np.multiply(self._damping, dq, out=bias)
-        bias += self._nle
-        self._work_null[:] = null_input
-        s0, s1, s2, _ = self._work_split.dot(dq).tolist()  # slip velocity s, J_c dq
+        _cholesky_decompose(model, data)
+        brace_jacobian, jc, bias = self._brace_jacobian, self._work_jc, self._work_bias
         n0, n1, n2 = self._normal_tuple
-        a0, a1, a2 = pin.getFrameClassicalAcceleration(model, data, self._braces[0].frame, _WORLD).linear.tolist()
+        _dot(self._normal, brace_jacobian, out=jc)  # J_c = n^T J
+        np.multiply(self._damping, dq, out=bias)
+        bias += self._nle  # h + g + Dc dq
+        w0, w1, w2 = velocity
+        normal_velocity = n0 * w0 + n1 * w1 + n2 * w2
+        s0, s1, s2 = w0 - n0 * normal_velocity, w1 - n1 * normal_velocity, w2 - n2 * normal_velocity  # slip
+        a0, a1, a2 = _frame_classical_acceleration(model, data, self._braces[0].frame, _WORLD).linear.tolist()
         gamma = n0 * a0 + n1 * a1 + n2 * a2
-        y = pin.cholesky.solve(model, data, self._work_jc)  # B^T = Mc^-1 J_c^T
-        t0, t1, t2, jc_y, bias_y, null_y = work.dot(y).tolist()
+        y = _cholesky_solve(model, data, jc)  # B^T = Mc^-1 J_c^T
+        # [task Jacobians; h + g + Dc dq] Mc^-1 J_c^T: the brace rows give B J^T, the tasks' give B l.
+        products = self._work.dot(y).tolist()
+        bias_y = products.pop()
+        null_y = sum(map(operator.mul, forces, products))  # B l = F . (J Mc^-1 J_c^T)
+        b0, b1, b2 = products[3:6]  # J Mc^-1 J_c^T of the brace
+        jc_y = n0 * b0 + n1 * b1 + n2 * b2
         mu = self._friction
         if mu:  # A = B (J_c - mu J_t)^T, J_t = s^T J / sqrt(|s|^2 + eps^2)
-            a_matrix = jc_y - mu / math.sqrt(s0 * s0 + s1 * s1 + s2 * s2 + self._eps2) * (s0 * t0 + s1 * t1 + s2 * t2)
+            a_matrix = jc_y - mu / math.sqrt(s0 * s0 + s1 * s1 + s2 * s2 + self._eps2) * (s0 * b0 + s1 * b1 + s2 * b2)
         else:
             a_matrix = jc_y
         a_vector = bias_y - gamma  # B (h + g + Dc dq) - gamma
         bb = float(y.dot(y))  # B B^T = |B|^2, the square of B's only singular value
-        if bb > 1e-280:  # |B| > 1e-140: the SVD test of _pseudo_inverse passes (its ratio is 1 for one row)
-            damped = False
-            b_pinv = y / bb
-        else:  # B = 0 (or tiny): the general test, and its damped inverse
-            pinv, damped = self._pseudo_inverse(y[None, :])
-            b_pinv = pinv[:, 0]
         # tau = B^+ (a - A f_nd) + (I - B^+ B) l = l + B^+ ((a - A f_nd) - B l)
         excess = a_vector - a_matrix * float(self.desired_normal_force[0]) - null_y
-        torque = null_input + b_pinv * excess
-        return torque, damped
+        if bb > 1e-280:  # |B| > 1e-140: the SVD test of _pseudo_inverse passes (its ratio is 1 for one row)
+            torque = y * (excess / bb)  # B^+ = B^T / |B|^2
+            torque += null_input
+            return torque, False
+        # B = 0 (or tiny): the general test, and its damped inverse
+        pinv, damped = self._pseudo_inverse(y[None, :])
+        return null_input + pinv[:, 0] * excess, damped
 
     def _pseudo_inverse(self, b: Vector) -> tuple[Vector, bool]:
         """B^+ = B^T (B B^T)^-1, damped (B^T (B B^T + lambda I)^-1) when B is near-singular."""

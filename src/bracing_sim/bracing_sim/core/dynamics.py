@@ -17,7 +17,10 @@ forces then come from the p x p Schur complement of the (n + p) system:
     Y = Mc^-1 J_c^T,  (Y^T W^T) f_n = b - Y^T r,  Mc ddq = r + W^T f_n
 
 with W = J_c - mu J_t, r = drive - (h + g) - Dc dq and b the right-hand side of the
-constraint row. p = 0 and p = 1 (scalars) have their own short paths.
+constraint row. Each contact's rows of W are n_j^T J_j + scale_j s_j^T P_j J_j (P_j the
+tangential projector, s_j the slip velocity), so one product of [P_j J_j; n_j^T J_j; r] with
+Y gives every coupling as floats; p = 0 and p = 1 (scalars) have their own short paths, and
+for p >= 2 the small p x p system is solved in floats (numpy's per-call overhead dominates).
 """
 
 from __future__ import annotations
@@ -35,6 +38,8 @@ from bracing_sim.core.motors import MotorParams
 from bracing_sim.core.types import Vector
 
 _WORLD = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+# The views _solve works on (see ConstrainedDynamics._stage).
+Stage = tuple[Vector, Vector, Vector, Vector, Vector, Vector]
 # Module-level aliases: _solve runs 4x per step, so every lookup counts.
 _compute_all_terms = pin.computeAllTerms
 _cholesky_decompose = pin.cholesky.decompose
@@ -114,7 +119,7 @@ class ConstrainedDynamics:
         self.baumgarte = float(baumgarte)
         voltage = mode is InputMode.VOLTAGE
         self.added_inertia, self.total_damping = reflected_terms(robot, motors, mode)
-        self._km = motors.reflected_constant
+        km = motors.reflected_constant
         n, p = robot.nv, len(contacts)
         self._nv, self._p, self._voltage = n, p, voltage
         # Own pinocchio model/data whose armature is J_m: computeAllTerms gives Mc = M + J_m.
@@ -122,7 +127,6 @@ class ConstrainedDynamics:
         self._model, self._data = self._pin.model, self._pin.data
         # A persistent view of pinocchio's h + g (fixed-size Eigen storage, never reallocated).
         self._nle: Vector = self._data.nle
-        self._reflected_damping = motors.reflected_damping
         # rates [dq, drive - Dc dq, di] = G [q, dq, i, 1]; the last column of G is the held
         # input ([0, 0, v / L] or [0, tau, 0], set by ``_set_input``). The middle block of the
         # rates becomes ddq once solved. Torque mode: the columns of i are zero.
@@ -131,45 +135,54 @@ class ConstrainedDynamics:
         g[:n, n : 2 * n] = np.eye(n)
         g[n : 2 * n, n : 2 * n] = -np.diag(self.total_damping)
         if voltage:
-            g[n : 2 * n, 2 * n : m] = np.diag(self._km)
-            g[2 * n :, n : 2 * n] = -np.diag(self._km / motors.inductance)
+            g[n : 2 * n, 2 * n : m] = np.diag(km)
+            g[2 * n :, n : 2 * n] = -np.diag(km / motors.inductance)
             g[2 * n :, 2 * n : m] = -np.diag(motors.resistance / motors.inductance)
         self._linear = g
+        self._current_rows = g[2 * n :]  # di = G[2n:] x: all that depends on the held voltage
         self._input_column = g[2 * n :, m] if voltage else g[n : 2 * n, m]
         self._command: Vector = np.zeros(n)
-        self._effort_map = np.hstack(
-            (np.zeros((n, n)), -np.diag(self._reflected_damping), np.diag(self._km), np.zeros((n, 1)))
-        )
+        # effort = K_m i - D_m dq - J_m ddq as one product with a stage row [q, dq, i, 1, dq, ddq, di].
+        effort_map = np.zeros((n, 2 * m + 1))
+        if voltage:
+            effort_map[:, n : 2 * n] = -np.diag(motors.reflected_damping)
+            effort_map[:, 2 * n : m] = np.diag(km)
+            effort_map[:, m + 1 + n : m + 1 + 2 * n] = -np.diag(self.added_inertia)
+        self._effort_map = effort_map
         self._inverse_inductance = 1.0 / motors.inductance
-        self._frames = list(contacts.frame_ids)
         self._eps2 = float(contacts.slip_epsilon) ** 2
-        if p == 1:
-            contact = contacts.contacts[0]
-            normal = np.array(contacts._normals[0])
-            self._frame0 = self._frames[0]
-            self._normal0: Vector = normal
-            self._offset0 = float(contact.offset)
-            self._mu0 = float(contact.friction)
-            # [I - n n^T; n^T] @ J = [tangential part of J; J_c]
-            self._split = np.vstack((np.eye(3) - np.outer(normal, normal), normal))
-            # Work rows of _solve: [P J (3 rows); J_c; r] with r = drive - (h + g) - Dc dq, and the
-            # coefficients [f_n (-mu / |s|) s, f_n, 1] that combine them into r + W^T f_n.
-            self._work = np.zeros((5, n))
-            self._work_split, self._work_jc, self._work_rhs = self._work[:4], self._work[3], self._work[4]
-            self._combination = np.array([0.0, 0.0, 0.0, 0.0, 1.0])  # [0, 0, 0, f_n, 1] without friction
-            self._contact_constants = (
-                self._work,
-                self._work_rhs,
-                self._work_split,
-                self._work_jc,
-                self._split,
-                self._frame0,
-                tuple(normal.tolist()),
-                self._eps2,
-                self._mu0,
-                self._offset0,
-                self._combination,
+        # Work rows of _solve: per contact j [P_j J_j (3 rows); J_c,j], then r = drive - (h + g) - Dc dq;
+        # one product with Mc^-1 J_c^T gives every coupling the contact forces need.
+        self._work = np.zeros((4 * p + 1, n))
+        self._work_rhs = self._work[4 * p]
+        self._work_contacts = self._work[: 4 * p]
+        self._normal_rows = self._work[3 : 4 * p : 4]  # J_c (p x n)
+        self._ys = np.zeros((p, n))  # rows of (Mc^-1 J_c^T)^T
+        rows = []
+        for j, (frame, contact) in enumerate(zip(contacts.frame_ids, contacts.contacts, strict=True)):
+            normal = contacts._normals[j]
+            # [I - n n^T, 0; n^T, 0] @ the 6 x n frame Jacobian = [tangential part of J; J_c]
+            split = np.zeros((4, 6))
+            split[:3, :3] = np.eye(3) - np.outer(normal, normal)
+            split[3, :3] = normal
+            n0, n1, n2 = normal.tolist()
+            rows.append(
+                (
+                    frame,
+                    split,
+                    self._work[4 * j : 4 * j + 4],
+                    n0,
+                    n1,
+                    n2,
+                    float(contact.offset),
+                    float(contact.friction),
+                )
             )
+        self._contact_rows = tuple(rows)
+        if p == 1:
+            frame, split, work_split, n0, n1, n2, offset, mu = rows[0]
+            work_jc = self._work[3]
+            self._single = (self._work, work_split, work_jc, split, frame, n0, n1, n2, self._eps2, mu, offset)
         self._no_contacts = ContactTerms(
             positions=np.zeros((0, 3)),
             jacobians=np.zeros((0, 3, n)),
@@ -194,24 +207,31 @@ class ConstrainedDynamics:
     def evaluate(self, q: Vector, dq: Vector, current: Vector, command: Vector) -> Derivative:
         """ddq, di, f_n at state (q, dq, i) under the held input (v or tau)."""
         n = self._nv
-        state = np.empty(3 * n + 1)
-        state[:n] = q
-        state[n : 2 * n] = dq
-        state[2 * n : 3 * n] = current if self._voltage else 0.0
-        state[3 * n] = 1.0
+        row = np.empty(6 * n + 1)
+        row[:n] = q
+        row[n : 2 * n] = dq
+        row[2 * n : 3 * n] = current if self._voltage else 0.0
+        row[3 * n] = 1.0
         self._set_input(np.asarray(command, dtype=float))
-        derivative = self._solve(self._stage(state, np.empty(3 * n)), True)[2]
+        derivative = self._solve(self._stage(row), True)[2]
         assert derivative is not None
         return derivative
 
     # -- fast interface for the integrator (Simulator.step) -----------------------------
-    def _stage(self, state: Vector, rates: Vector) -> tuple[Vector, Vector, Vector, Vector, Vector]:
-        """The views ``_solve`` works on: (state, q, dq, rates, ddq part of rates).
-
-        ``state`` = [q, dq, i, 1] (3n + 1) and ``rates`` (3n) must be contiguous.
-        """
+    def _stage(self, row: Vector) -> Stage:
+        """The views ``_solve`` works on in a contiguous ``row`` of at least 6n + 1 values laid
+        out [q, dq, i, 1, dq, ddq, di]: (state [q, dq, i, 1], q, dq, rates [dq, ddq, di], ddq,
+        state and rates together)."""
         n = self._nv
-        return state, state[:n], state[n : 2 * n], rates, rates[n : 2 * n]
+        m = 3 * n
+        return (
+            row[: m + 1],
+            row[:n],
+            row[n : 2 * n],
+            row[m + 1 : 2 * m + 1],
+            row[m + 1 + n : m + 1 + 2 * n],
+            row[: 2 * m + 1],
+        )
 
     def _set_input(self, command: Vector) -> None:
         """Hold ``command`` (v or tau, n values) for the following ``_solve`` calls."""
@@ -221,78 +241,74 @@ class ConstrainedDynamics:
         else:
             self._input_column[:] = command
 
-    def _solve(
-        self, stage: tuple[Vector, Vector, Vector, Vector, Vector], full: bool
-    ) -> tuple[float, float, Derivative | None]:
+    def _solve(self, stage: Stage, full: bool) -> tuple[float, float, Derivative | None]:
         """The model at a stage state [q, dq, i, 1] (see ``_stage``) under the held input.
 
         Writes [dq, ddq, di] into the stage's rates (di = 0 in torque mode) and returns
         (friction power sum mu f_n (dir . slip), constraint power f_n . (J_c dq), the full
         Derivative if ``full`` else None).
         """
-        state, q, dq, rates, rates_ddq = stage
+        state, q, dq, rates, rates_ddq, head = stage
         model, data = self._model, self._data
         _compute_all_terms(model, data, q, dq)
         _cholesky_decompose(model, data)
         _dot(self._linear, state, out=rates)  # [dq, drive - Dc dq, di]
         p = self._p
-        friction_power = constraint_power = 0.0
         if p == 1:
-            (work, work_rhs, work_split, work_jc, split, frame, normal, eps2, mu, offset, combination) = (
-                self._contact_constants
-            )
-            _subtract(rates_ddq, self._nle, out=work_rhs)  # r = drive - (h + g) - Dc dq
-            jac = _frame_jacobian(model, data, frame, _WORLD)[:3]
+            work, work_split, work_jc, split, frame, n0, n1, n2, eps2, mu, offset = self._single
+            _subtract(rates_ddq, self._nle, out=self._work_rhs)  # r = drive - (h + g) - Dc dq
+            jac = _frame_jacobian(model, data, frame, _WORLD)
             _dot(split, jac, out=work_split)  # [tangential part of J; J_c]
-            split_velocity = work_split.dot(dq)  # [slip velocity s; J_c dq]
-            s0, s1, s2, normal_velocity = split_velocity.tolist()
+            s0, s1, s2, normal_velocity = work_split.dot(dq).tolist()  # slip velocity s, J_c dq
             slip2 = s0 * s0 + s1 * s1 + s2 * s2
             slip_norm = _sqrt(slip2 + eps2)
-            n0, n1, n2 = normal
             a0, a1, a2 = _frame_classical_acceleration(model, data, frame, _WORLD).linear.tolist()
             gamma = n0 * a0 + n1 * a1 + n2 * a2
             a = self.baumgarte
             if a or full:
-                position = _update_frame_placement(model, data, frame).translation
-                r0, r1, r2 = position.tolist()
+                r0, r1, r2 = _update_frame_placement(model, data, frame).translation.tolist()
                 residual = n0 * r0 + n1 * r1 + n2 * r2 - offset
                 bias = -gamma - 2.0 * a * normal_velocity - a * a * residual
             else:
                 bias = -gamma
             y = _cholesky_solve(model, data, work_jc)  # Mc^-1 J_c^T
             t0, t1, t2, jc_y, rhs_y = work.dot(y).tolist()
-            # W = J_c - mu J_t = J_c + scale s^T J with scale = -mu / sqrt(|s|^2 + eps^2).
+            # W = J_c - mu J_t = J_c + scale s^T J with scale = -mu / sqrt(|s|^2 + eps^2) (-0.0 for mu = 0).
             scale = -mu / slip_norm
-            schur = jc_y + scale * (s0 * t0 + s1 * t1 + s2 * t2) if mu else jc_y  # W Mc^-1 J_c^T
+            schur = jc_y + scale * (s0 * t0 + s1 * t1 + s2 * t2)  # W Mc^-1 J_c^T
             if schur == 0.0:  # as np.linalg.solve on the (n + p) system: exactly singular
                 raise np.linalg.LinAlgError("Singular matrix: the contact constraint has no effect on the motion")
             force = (bias - rhs_y) / schur
-            if mu:
-                c = force * scale
-                combination = _array((c * s0, c * s1, c * s2, force, 1.0))
-            else:
-                combination[3] = force
-            ddq = _cholesky_solve(model, data, combination.dot(work))  # Mc^-1 (r + W^T f_n)
+            c = force * scale
+            ddq = _cholesky_solve(
+                model, data, _array((c * s0, c * s1, c * s2, force, 1.0)).dot(work)
+            )  # Mc^-1 (r + W^T f_n)
             rates_ddq[:] = ddq
             friction_power = mu * force * slip2 / slip_norm
             constraint_power = force * normal_velocity
             if not full:
                 return friction_power, constraint_power, None
-            slip = split_velocity[:3]
-            direction = slip / slip_norm
-            terms = ContactTerms(  # positional, in field order (cheaper than keywords)
-                np.array(position, ndmin=2),  # positions
-                jac[None],  # jacobians
-                np.array(work_jc, ndmin=2),  # normal_jacobian
-                direction.dot(jac)[None],  # tangent_jacobian
-                np.array([gamma]),  # drift
-                np.array([residual]),  # residual
-                slip[None],  # slip_velocity
-                direction[None],  # slip_direction
-                self.contacts._friction,  # friction
-                self.contacts._normals,  # normals
+            # Fresh arrays (the caller may keep the Derivative while the work rows change), as
+            # views of one: numpy builds a flat array from floats far faster than nested ones.
+            values = _array(
+                (r0, r1, r2, s0, s1, s2, s0 / slip_norm, s1 / slip_norm, s2 / slip_norm, gamma, residual, force)
             )
-            normal_force = np.array([force])
+            vectors = values.reshape(4, 1, 3)
+            positions, slip, direction = vectors[0], vectors[1], vectors[2]
+            drift, residuals, normal_force = values[9:10], values[10:11], values[11:12]
+            jacobian = jac[:3]
+            terms = ContactTerms(  # positional, in field order (cheaper than keywords)
+                positions,
+                jacobian[None],  # jacobians
+                _array(work_jc, ndmin=2),  # normal_jacobian
+                direction.dot(jacobian),  # tangent_jacobian
+                drift,
+                residuals,
+                slip,  # slip_velocity
+                direction,  # slip_direction
+                self.contacts._friction,
+                self.contacts._normals,
+            )
         elif p == 0:
             ddq = _cholesky_solve(model, data, rates_ddq - self._nle)
             rates_ddq[:] = ddq
@@ -300,32 +316,127 @@ class ConstrainedDynamics:
                 return 0.0, 0.0, None
             terms = self._no_contacts
             normal_force = np.zeros(0)
+            friction_power = constraint_power = 0.0
         else:
-            rhs = rates_ddq - self._nle
-            terms = self.contacts.evaluate_data(model, data, dq)
-            jcs = terms.normal_jacobian
-            ws = jcs - terms.friction[:, None] * terms.tangent_jacobian
-            jc_dq = jcs.dot(dq)
-            a = self.baumgarte
-            bias = -terms.drift - 2.0 * a * jc_dq - a * a * terms.residual
-            ys = np.empty((self._nv, p))
-            for j in range(p):
-                ys[:, j] = pin.cholesky.solve(model, data, jcs[j])  # Mc^-1 J_c^T
-            normal_force = np.linalg.solve(ys.T.dot(ws.T), bias - ys.T.dot(rhs))
-            ddq = pin.cholesky.solve(model, data, rhs + ws.T.dot(normal_force))
+            friction_power, constraint_power, ddq, found = self._solve_contacts(dq, rates_ddq, full)
             rates_ddq[:] = ddq
-            slip_rate = (terms.slip_direction * terms.slip_velocity).sum(axis=1)
-            friction_power = float(np.sum(terms.friction * normal_force * slip_rate))
-            constraint_power = float(normal_force.dot(jc_dq))
-            if not full:
+            if found is None:
                 return friction_power, constraint_power, None
+            terms, normal_force = found
         n = self._nv
         if self._voltage:
             current_rate = rates[2 * n :].copy()
-            effort = self._effort_map.dot(state)  # K_m i - D_m dq
-            effort -= self.added_inertia * ddq
+            effort = self._effort_map.dot(head)  # K_m i - D_m dq - J_m ddq
         else:
             current_rate = np.zeros(n)
             effort = np.array(self._command, dtype=float)
         derivative = Derivative(ddq, current_rate, normal_force, effort, terms)
         return friction_power, constraint_power, derivative
+
+    def _solve_contacts(
+        self, dq: Vector, rates_ddq: Vector, full: bool
+    ) -> tuple[float, float, Vector, tuple[ContactTerms, Vector] | None]:
+        """``_solve`` for p >= 2 contacts (after the pass and the rates): (friction power,
+        constraint power, ddq, (terms, f_n) if ``full``). The p x p couplings are Python
+        floats: for a few contacts that is cheaper than numpy's per-call overhead."""
+        model, data = self._model, self._data
+        work, rows, a, eps2 = self._work, self._contact_rows, self.baumgarte, self._eps2
+        _subtract(rates_ddq, self._nle, out=self._work_rhs)  # r = drive - (h + g) - Dc dq
+        gammas: list[float] = []
+        residuals: list[float] = []
+        positions: list[float] = []  # flat, 3 per contact (numpy converts flat lists faster)
+        jacobians = []
+        for frame, split, block, n0, n1, n2, offset, _ in rows:
+            jac = _frame_jacobian(model, data, frame, _WORLD)
+            _dot(split, jac, out=block)  # [tangential part of J_j; J_c,j]
+            a0, a1, a2 = _frame_classical_acceleration(model, data, frame, _WORLD).linear.tolist()
+            gammas.append(n0 * a0 + n1 * a1 + n2 * a2)
+            if a or full:
+                r0, r1, r2 = _update_frame_placement(model, data, frame).translation.tolist()
+                residuals.append(n0 * r0 + n1 * r1 + n2 * r2 - offset)
+                positions += (r0, r1, r2)
+                jacobians.append(jac[:3])
+            else:
+                residuals.append(0.0)
+        velocities = self._work_contacts.dot(dq).tolist()  # per contact [slip velocity s_j; J_c,j dq]
+        ys = self._ys
+        for j, jc in enumerate(self._normal_rows):
+            ys[j] = _cholesky_solve(model, data, jc)  # Mc^-1 J_c,j^T
+        slips, norms, scales, biases = [], [], [], []
+        for j, row in enumerate(rows):
+            s0, s1, s2, normal_velocity = velocities[4 * j : 4 * j + 4]
+            slip_norm = _sqrt(s0 * s0 + s1 * s1 + s2 * s2 + eps2)
+            slips.append((s0, s1, s2))
+            norms.append(slip_norm)
+            scales.append(-row[7] / slip_norm)  # W_j = J_c,j + scale_j s_j^T J_j
+            biases.append(-gammas[j] - 2.0 * a * normal_velocity - a * a * residuals[j])
+        # Row k is constraint k: sum_j (J_c,k Mc^-1 W_j^T) f_j = b_k - J_c,k Mc^-1 r, from the
+        # products of J_c,k Mc^-1 with every work row.
+        system, rhs = [], []
+        for coupling, bias in zip(ys.dot(work.T).tolist(), biases, strict=True):
+            system.append(
+                [
+                    coupling[4 * j + 3]
+                    + scale * (s0 * coupling[4 * j] + s1 * coupling[4 * j + 1] + s2 * coupling[4 * j + 2])
+                    for j, ((s0, s1, s2), scale) in enumerate(zip(slips, scales, strict=True))
+                ]
+            )
+            rhs.append(bias - coupling[-1])
+        forces = _small_solve(system, rhs)
+        combination: list[float] = []
+        friction_power = constraint_power = 0.0
+        for j, (force, scale, (s0, s1, s2)) in enumerate(zip(forces, scales, slips, strict=True)):
+            c = force * scale
+            combination += (c * s0, c * s1, c * s2, force)
+            friction_power += rows[j][7] * force * (s0 * s0 + s1 * s1 + s2 * s2) / norms[j]
+            constraint_power += force * velocities[4 * j + 3]
+        combination.append(1.0)
+        ddq = _cholesky_solve(model, data, _array(combination).dot(work))  # Mc^-1 (r + W^T f_n)
+        if not full:
+            return friction_power, constraint_power, ddq, None
+        # Fresh arrays, as views of one built from a flat list of floats (see _solve).
+        p = len(rows)
+        directions = [x / norm for (s0, s1, s2), norm in zip(slips, norms, strict=True) for x in (s0, s1, s2)]
+        values = _array([*positions, *(x for slip in slips for x in slip), *directions, *gammas, *residuals, *forces])
+        vectors = values[: 9 * p].reshape(3, p, 3)
+        jacobian = _array(jacobians)
+        terms = ContactTerms(
+            vectors[0],  # positions
+            jacobian,
+            self._normal_rows.copy(),
+            np.matmul(vectors[2][:, None, :], jacobian)[:, 0, :],  # J_t rows s_j^T J_j / |s_j|
+            values[9 * p : 10 * p],  # drift
+            values[10 * p : 11 * p],  # residual
+            vectors[1],  # slip velocity
+            vectors[2],  # slip direction
+            self.contacts._friction,
+            self.contacts._normals,
+        )
+        return friction_power, constraint_power, ddq, (terms, values[11 * p :])
+
+
+def _small_solve(a: list[list[float]], b: list[float]) -> list[float]:
+    """x with a x = b for a small dense system (``a`` and ``b`` are overwritten): Gaussian
+    elimination with partial pivoting, as LAPACK does, in floats: np.linalg.solve costs ~5 us
+    of call overhead for a 2 x 2 system."""
+    p = len(b)
+    for k in range(p):
+        pivot, largest = k, abs(a[k][k])
+        for i in range(k + 1, p):
+            if abs(a[i][k]) > largest:
+                pivot, largest = i, abs(a[i][k])
+        if largest == 0.0:
+            raise np.linalg.LinAlgError("Singular matrix: the contact constraints do not determine the forces")
+        a[k], a[pivot], b[k], b[pivot] = a[pivot], a[k], b[pivot], b[k]
+        top, diagonal = a[k], a[k][k]
+        for i in range(k + 1, p):
+            row = a[i]
+            factor = row[k] / diagonal
+            for c in range(k + 1, p):
+                row[c] -= factor * top[c]
+            b[i] -= factor * b[k]
+    x = [0.0] * p
+    for k in range(p - 1, -1, -1):
+        top = a[k]
+        x[k] = (b[k] - sum(top[c] * x[c] for c in range(k + 1, p))) / top[k]
+    return x

@@ -6,9 +6,10 @@ configured step (optionally in sub-steps) and returns the model's answer at the 
 of the step, which is what the simulator reports for that step (forces, effort).
 
 Speed (the step is ~4 model evaluations of a few microseconds each, so Python/numpy call
-overhead dominates): the four stages work in preallocated arrays, only the first stage
-builds a full ``Derivative``, and the energy rates of the four stages are formed at once
-after the last one. ``evaluate`` keeps its answer so that the next ``step`` from the same
+overhead dominates): the four stages work in rows of one preallocated array (a stage's state
+and rates side by side), only the first stage builds a full ``Derivative``, and the step's
+increment of the state and of the energy integrals is formed at once after the last stage,
+in a few whole-array operations. ``evaluate`` keeps its answer so that the next ``step`` from the same
 state reuses it as its first stage (in voltage mode ddq and f_n do not depend on the held
 voltage, only di does); the result is bit-for-bit the same as without it.
 """
@@ -22,7 +23,7 @@ import numpy as np
 import pinocchio as pin
 
 from bracing_sim.core.contacts import ContactTerms
-from bracing_sim.core.dynamics import ConstrainedDynamics, Derivative, InputMode
+from bracing_sim.core.dynamics import ConstrainedDynamics, Derivative, InputMode, Stage
 from bracing_sim.core.types import Vector
 
 _compute_all_terms = pin.computeAllTerms
@@ -92,7 +93,9 @@ class Simulator:
         self.full_dynamics = dynamics
         contacts = dynamics.contacts
         self._unilateral = np.array([c.unilateral for c in contacts.contacts], dtype=bool)
+        self._any_unilateral = bool(self._unilateral.any())
         self.active = np.ones(len(contacts), dtype=bool)
+        self._all_active = True
         self._by_active: dict[tuple[bool, ...], ConstrainedDynamics] = {tuple(self.active.tolist()): dynamics}
         self.events: list[ContactEvent] = []
         self.step_size = float(step)
@@ -100,41 +103,57 @@ class Simulator:
         self.n = n
         self.steps_taken = 0
         self.t0 = 0.0
-        # y = [q, dq, i, energies]
+        # y = [q, dq, i, energies]; a step writes the next y into the spare buffer and swaps.
         self._y = np.concatenate([q0, dq0, np.zeros(n), np.zeros(len(ENERGY_KEYS))])
+        self._y_next = np.empty_like(self._y)
+        self._revision = 0  # counts the changes of the state (keys the cached answer of ``evaluate``)
         self._voltage = dynamics.mode is InputMode.VOLTAGE
         self._resistance = dynamics.motors.resistance
-        # RK4 work arrays: stage states x = [q, dq, i, 1] and stage rates [dq, ddq, di, friction
-        # power, constraint power]. The step's increment of y is (h/6) (k1 + 2 k2 + 2 k3 + k4) =
-        # (w_h . [rates | |P| | P | x * x]) @ increment_map, with P the power command * (i or dq).
+        # RK4 work, a row per stage k: [x_k | rates_k | friction power, constraint power] with
+        # x = [q, dq, i, 1] and rates = [dq, ddq, di], followed by the same rows' absolute values
+        # and squares (three contiguous bands, each written by one numpy call). The step's
+        # increment of y is (h/6) (k1 + 2 k2 + 2 k3 + k4) and the energy rates' weighted sums:
+        # (weights @ bands) @ increment_map, with the power P = command * (i or dq) summed
+        # through the map's command columns (set per step).
         m = 3 * n
         self._m = m
-        self._stage_states = np.zeros((4, m + 1))
-        self._stage_states[:, m] = 1.0
-        self._stage_rates = np.zeros((4, m + 2))
-        self._state_heads = [row[:m] for row in self._stage_states]
-        self._rate_heads = [row[:m] for row in self._stage_rates]
-        self._stages = [
-            dynamics._stage(state, rates) for state, rates in zip(self._stage_states, self._rate_heads, strict=True)
-        ]
-        self._rate_rows = list(self._stage_rates)
-        self._rk4_weights = np.array([1.0, 2.0, 2.0, 1.0])
-        self._scaled_weights = (0.0, self._rk4_weights)
-        self._power_slice = slice(2 * n, m) if self._voltage else slice(n, 2 * n)
+        rate0 = m + 1
+        # Padded to whole SIMD blocks: OpenBLAS may sum a matrix-vector product's remainder
+        # columns in another order than the rest, and y must not depend on where a rate sits.
+        width = -(-(2 * m + 3) // 16) * 16
+        work = np.zeros((12, width))
+        rows = work[:4]
+        rows[:, m] = 1.0
+        self._rows = rows
+        self._abs_rows = work[4:8]
+        self._squared_rows = work[8:]
+        self._stages = [dynamics._stage(row) for row in rows]
+        self._state_heads = [row[:m] for row in rows]
+        self._rate_heads = [row[rate0 : rate0 + m] for row in rows]
+        self._powers = (rate0 + m, rate0 + m + 1)  # columns of the friction and constraint powers
+        self._first_stage = (self._state_heads[0], self._stages[0], rows[0])
+        self._plan = self._plan_for(self.step_size / self.substeps)
+        self._energy_rows = work[4:]
+        self._weighted = np.zeros((3, width))
+        self._weighted_rates, self._weighted_energy = self._weighted[0], self._weighted[1:]
+        self._weighted_flat = self._weighted.reshape(-1)
         keys = {key: m + j for j, key in enumerate(ENERGY_KEYS)}
-        squares = m + 2 + 2 * n  # where x * x starts in the work row
-        increment_map = np.zeros((squares + m + 1, m + len(ENERGY_KEYS)))
-        increment_map[:m, :m] = np.eye(m)
-        increment_map[m, keys["friction_loss"]] = 1.0
-        increment_map[m + 1, keys["constraint_work"]] = 1.0
-        increment_map[m + 2 : m + 2 + n, keys["consumed"]] = 1.0  # sum |P|
-        increment_map[m + 2 + n : squares, keys["net"]] = 1.0  # sum P
+        increment_map = np.zeros((3 * width, m + len(ENERGY_KEYS)))
+        increment_map[rate0 : rate0 + m, :m] = np.eye(m)
+        increment_map[rate0 + m, keys["friction_loss"]] = 1.0
+        increment_map[rate0 + m + 1, keys["constraint_work"]] = 1.0
+        power = slice(2 * n, m) if self._voltage else slice(n, 2 * n)
+        self._net_column = increment_map[power, keys["net"]]  # sum P = command . (i or dq)
+        self._consumed_column = increment_map[width:][power, keys["consumed"]]  # sum |P|
+        squares = increment_map[2 * width :]
         if self._voltage:
-            increment_map[squares + 2 * n : squares + m, keys["copper_loss"]] = self._resistance  # R i^2
-        increment_map[squares + n : squares + 2 * n, keys["viscous_loss"]] = dynamics.total_damping  # Dc dq^2
+            squares[2 * n : m, keys["copper_loss"]] = self._resistance  # R i^2
+        squares[n : 2 * n, keys["viscous_loss"]] = dynamics.total_damping  # Dc dq^2
         self._increment_map = increment_map
-        # The model's answer at the current state, kept by ``evaluate`` for the next step.
-        self._cached: tuple[Vector, float, Vector, Vector, float, float, Derivative] | None = None
+        self._increment = np.zeros(m + len(ENERGY_KEYS))
+        # The answer of ``evaluate`` at the current state, left in the first stage's row for the
+        # next step: (state revision, Baumgarte gain, command as a list, Derivative).
+        self._cached: tuple[int, float, list[float], Derivative] | None = None
 
     # -- state ------------------------------------------------------------------------
     @property
@@ -160,44 +179,38 @@ class Simulator:
     # -- model answers ----------------------------------------------------------------
     def evaluate(self, command: Vector) -> Derivative:
         """The model at the current state under ``command`` (no time passes)."""
-        dynamics, n, m = self.dynamics, self.n, self._m
+        dynamics, m = self.dynamics, self._m
         u = np.array(command, dtype=float)
-        state = np.empty(m + 1)
-        state[:m] = self._y[:m]
-        state[m] = 1.0
-        rates = np.empty(m)
+        self._cached = None  # the first stage's row is overwritten here
+        self._state_heads[0][:] = self._y[:m]
         dynamics._set_input(u)
-        friction_power, constraint_power, d = dynamics._solve(dynamics._stage(state, rates), True)
+        row, (friction, constraint) = self._rows[0], self._powers
+        row[friction], row[constraint], d = dynamics._solve(self._stages[0], True)
         assert d is not None
-        if u.shape == (n,):
-            # The next step starts from this state: keep what it can reuse (see ``step``).
-            self._cached = (state, dynamics.baumgarte, u, rates, friction_power, constraint_power, d)
+        if u.shape == (self.n,):
+            # The next step starts from this state: it reuses this answer (see ``_reuse``).
+            self._cached = (self._revision, dynamics.baumgarte, u.tolist(), d)
         return self._report(d)
 
-    def _reuse(self, u: Vector) -> tuple[Vector, float, float, Derivative] | None:
-        """The cached answer of ``evaluate`` at the current state, if it holds for ``u``.
+    def _reuse(self, cached: tuple[int, float, list[float], Derivative], u: Vector) -> Derivative | None:
+        """The cached answer of ``evaluate`` as the step's first stage, if it holds for ``u``
+        (its rates are still in the first stage's row).
 
         Call after ``dynamics._set_input(u)``. In voltage mode ddq, f_n and the effort do
         not depend on the held voltage (only di does, and di is recomputed); in torque mode
         the command must be the same.
         """
-        cached, self._cached = self._cached, None
-        if cached is None:
+        revision, baumgarte, command, d = cached
+        dynamics = self.dynamics
+        if revision != self._revision or baumgarte != dynamics.baumgarte:
             return None
-        state, baumgarte, command, rates, friction_power, constraint_power, d = cached
-        dynamics, m = self.dynamics, self._m
-        if baumgarte != dynamics.baumgarte or not np.array_equal(state[:m], self._y[:m]):
-            return None
-        if np.array_equal(command, u):
-            return rates, friction_power, constraint_power, d
+        if command == u.tolist():
+            return d
         if not self._voltage:
             return None
-        n2 = 2 * self.n
-        current_rate = dynamics._linear.dot(state)[n2:]  # as _solve computes it (same product)
-        rates = rates.copy()
-        rates[n2:] = current_rate
-        d = Derivative(d.acceleration, current_rate, d.normal_force, d.effort, d.contacts)
-        return rates, friction_power, constraint_power, d
+        current_rate = self._rate_heads[0][2 * self.n :]
+        np.dot(dynamics._current_rows, self._stages[0][0], out=current_rate)  # as _solve computes it
+        return Derivative(d.acceleration, current_rate.copy(), d.normal_force, d.effort, d.contacts)
 
     # -- integration ------------------------------------------------------------------
     def step(self, command: Vector) -> Derivative:
@@ -211,51 +224,64 @@ class Simulator:
         # A finite u . u means every entry is finite; otherwise check exactly (u . u may overflow).
         if u.shape != (self.n,) or (not math.isfinite(u.dot(u)) and not np.isfinite(u).all()):
             raise ValueError(f"command: expected {self.n} finite values, got {np.ravel(u).tolist()}")
-        unilateral = self._unilateral.any()
-        if unilateral:
+        if self._any_unilateral:
             self._release(u)
         dynamics = self.dynamics
         solve = dynamics._solve
         dynamics._set_input(u)
-        reused = self._reuse(u) if self._cached is not None else None
-        m = self._m
+        cached, self._cached = self._cached, None
+        first = self._reuse(cached, u) if cached is not None else None
         h = self.step_size / self.substeps
-        if self._scaled_weights[0] != h:
-            self._scaled_weights = (h, (h / 6.0) * self._rk4_weights)
-        weights = self._scaled_weights[1]
-        increments = (0.5 * h, 0.5 * h, h)
-        states, rates, rate_rows = self._stage_states, self._stage_rates, self._rate_rows
-        state_heads, rate_heads, stages = self._state_heads, self._rate_heads, self._stages
-        start = state_heads[0]
-        y = self._y
-        first: Derivative | None = None
-        for _ in range(self.substeps):
-            start[:] = y[:m]
-            for k in range(4):
-                row, rate = rate_rows[k], rate_heads[k]
-                if reused is not None:
-                    rate[:], row[m], row[m + 1], first = reused
-                    reused = None
-                else:
-                    row[m], row[m + 1], d = solve(stages[k], first is None)
-                    if d is not None:
-                        first = d
-                if k < 3:
-                    following = state_heads[k + 1]
-                    np.multiply(rate, increments[k], out=following)
-                    following += start
-            power = states[:, self._power_slice] * u
-            work = np.concatenate((rates, np.abs(power), power, states * states), axis=1)
-            y = y + weights.dot(work).dot(self._increment_map)
+        if self._plan[0] != h:
+            self._plan = self._plan_for(h)
+        _, weights, band_weights, following_stages = self._plan
+        start, first_stage, first_row = self._first_stage
+        friction, constraint = self._powers
+        np.copyto(self._net_column, u)
+        np.abs(u, out=self._consumed_column)
+        rows, m, multiply = self._rows, self._m, np.multiply
+        y, y_next, increment = self._y, self._y_next, self._increment
+        for substep in range(self.substeps):
+            if substep or first is None:  # else the first stage is the cached answer, from y
+                start[:] = y[:m]
+                first_row[friction], first_row[constraint], d = solve(first_stage, first is None)
+                if first is None:
+                    first = d
+            for previous_rates, c, following, stage, row in following_stages:
+                multiply(previous_rates, c, out=following)  # x_k = x_1 + c_k k_(k-1)
+                following += start
+                row[friction], row[constraint], _ = solve(stage, False)
+            np.abs(rows, out=self._abs_rows)
+            np.multiply(rows, rows, out=self._squared_rows)
+            # The rates' sum alone, as one matrix-vector product: so y is the same to the last bit
+            # as with the rows in any other layout (a matrix-matrix product may sum differently).
+            np.dot(weights, rows, out=self._weighted_rates)
+            np.dot(band_weights, self._energy_rows, out=self._weighted_energy)
+            np.dot(self._weighted_flat, self._increment_map, out=increment)
+            np.add(y, increment, out=y_next)  # never into self._y: a diverged step keeps the state
+            y = y_next
         if not math.isfinite(y.dot(y)) and not np.isfinite(y).all():
             raise DivergenceError(f"non-finite state after the step at t = {self.time:.6f} s; state kept")
-        report = self._report(first) if first is not None else None  # contact terms at the step's start
-        self._y = y
+        assert first is not None
+        report = self._report(first)  # contact terms at the step's start
+        self._y, self._y_next = y, self._y
+        self._revision += 1
         self.steps_taken += 1
-        if unilateral and not self.active.all():
+        if self._any_unilateral and not self._all_active:
             self._touchdown()
-        assert report is not None
         return report
+
+    def _plan_for(
+        self, h: float
+    ) -> tuple[float, Vector, Vector, tuple[tuple[Vector, float, Vector, Stage, Vector], ...]]:
+        """What a sub-step of size ``h`` needs: (h, the RK4 weights h/6 [1, 2, 2, 1], the same per
+        energy band, and per later stage (previous rates, c_k, state, stage views, row))."""
+        weights = (h / 6.0) * np.array([1.0, 2.0, 2.0, 1.0])
+        following = tuple(
+            (self._rate_heads[k - 1], c, self._state_heads[k], self._stages[k], self._rows[k])
+            for k, c in ((1, 0.5 * h), (2, 0.5 * h), (3, h))
+        )
+        return h, weights, np.asarray(np.kron(np.eye(2), weights), dtype=np.float64), following
 
     # -- unilateral contacts ----------------------------------------------------------
     def _dynamics_for(self, active: np.ndarray) -> ConstrainedDynamics:
@@ -275,6 +301,7 @@ class Simulator:
 
     def _set_active(self, active: np.ndarray) -> None:
         self.active = active
+        self._all_active = bool(active.all())
         self.dynamics = self._dynamics_for(active)
         self._cached = None
 
@@ -288,7 +315,7 @@ class Simulator:
 
     def _report(self, d: Derivative) -> Derivative:
         """A Derivative over all contacts (released ones: zero force, ``active`` False)."""
-        if self.active.all():
+        if self._all_active:
             return d
         force = np.zeros(self.active.size)
         force[self.active] = d.normal_force
@@ -349,5 +376,6 @@ class Simulator:
         loss = 0.5 * float(normal_velocity.dot(-impulse))  # (J_c dq)^T (J_c Mc^-1 J_c^T)^-1 (J_c dq) / 2
         self._y[:n], self._y[n : 2 * n] = q, dq
         self._y[self._m + ENERGY_KEYS.index("impact_loss")] += loss
+        self._revision += 1
         self._cached = None
         return loss
