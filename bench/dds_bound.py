@@ -1,20 +1,21 @@
-"""DDS round-trip bound: two rclpy processes in lockstep over Fast DDS.
+"""DDS round-trip bound: two rclpy processes in lockstep, doing what the pair does minus the work.
 
 The upper bound on the lockstep simulator/controller pair's step rate: one process
 ("ping", playing the simulator) publishes a sensor_msgs/JointState with 4 joints
 (names, positions, velocities, efforts) on ``ping`` and waits for the answer; the
-other ("pong", playing the controller) answers each message immediately with a
+other ("pong", playing the controller) answers each message at once with a
 bracing_msgs/MotorCommand with 4 values on ``pong``, stamped with the request's stamp.
-Both sides use RELIABLE QoS, depth 10, and a SingleThreadedExecutor driven with
-spin_once, like the real lockstep nodes; no computation besides building messages.
+The transport is the nodes' own: their QoS (bracing_sim.ros_common STREAM_QOS /
+SUBSCRIBE_QOS), their wait (SubscriptionWaiter, with the same ``busy_wait``) and,
+with ``--wire cdr``, their CDR bytes (bracing_sim.wire); ``--wire objects`` sends rclpy
+message objects instead, for comparison. No computation besides the messages.
 
 Process layout (the parent never imports rclpy):
-    parent --spawns--> ``python bench/dds_bound.py pong``
-           --runs----> ``python bench/dds_bound.py ping --n N --repeats R --warmup W``
+    parent --spawns--> ``python bench/dds_bound.py pong --wire W --busy-wait B``
+           --runs----> ``python bench/dds_bound.py ping --wire W --busy-wait B --n N ...``
                        (prints one JSON line with the per-repeat round trips/s)
 Both children get ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a random
-ROS_DOMAIN_ID in [150, 230]. Needs the workspace environment (``source env.sh``)
-for bracing_msgs.
+ROS_DOMAIN_ID in [150, 230]. Needs the workspace environment (``source env.sh``).
 """
 
 from __future__ import annotations
@@ -29,136 +30,141 @@ import sys
 import tempfile
 import time
 
-JOINTS = ("joint1", "joint2", "joint3", "joint4")
+JOINTS = ["joint1", "joint2", "joint3", "joint4"]
 PING_TOPIC = "ping"
 PONG_TOPIC = "pong"
+WIRES = ("cdr", "objects")
 
 
-def _qos():
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+class _Side:
+    """One end of the ping-pong: a node, its publisher and a SubscriptionWaiter on its input."""
 
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
-        depth=10,
-        reliability=ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.VOLATILE,
-    )
+    def __init__(
+        self, name: str, out_type: type, out_topic: str, in_type: type, in_topic: str, wire: str, busy_wait: float
+    ) -> None:
+        import rclpy
+
+        from bracing_sim.ros_common import STREAM_QOS, SUBSCRIBE_QOS, SubscriptionWaiter
+
+        rclpy.init()
+        self.node = rclpy.create_node(name)
+        self.pub = self.node.create_publisher(out_type, out_topic, STREAM_QOS)
+        self.sub = self.node.create_subscription(in_type, in_topic, _unused, SUBSCRIBE_QOS, raw=wire == "cdr")
+        self.waiter = SubscriptionWaiter(self.node, self.sub, busy_wait)
+
+    def close(self) -> None:
+        import rclpy
+
+        self.node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def _unused(_: object) -> None:
+    raise AssertionError("messages are taken by the SubscriptionWaiter")
 
 
 # --------------------------------------------------------------------------- pong
 
 
-def _pong_main() -> int:
-    import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+def _pong_main(wire_kind: str, busy_wait: float) -> int:
+    import numpy as np
+    from rclpy.executors import ExternalShutdownException
     from sensor_msgs.msg import JointState
 
     from bracing_msgs.msg import MotorCommand
+    from bracing_sim import wire
 
     parent = os.getppid()
-    rclpy.init()
-    node = rclpy.create_node("bench_dds_pong")
-    pub = node.create_publisher(MotorCommand, PONG_TOPIC, _qos())
+    side = _Side("bench_dds_pong", MotorCommand, PONG_TOPIC, JointState, PING_TOPIC, wire_kind, busy_wait)
+    encoder = wire.MotorCommandEncoder(JOINTS, MotorCommand.VOLTAGE)
+    value = np.array([0.1, 0.2, 0.3, 0.4])
 
-    def on_ping(msg: JointState) -> None:
-        out = MotorCommand()
-        out.header.stamp = msg.header.stamp
-        out.header.frame_id = msg.header.frame_id
-        out.mode = MotorCommand.VOLTAGE
-        out.name = list(msg.name)
-        out.value = [0.1, 0.2, 0.3, 0.4]
-        pub.publish(out)
+    def answer(msg: object) -> None:
+        if wire_kind == "cdr":
+            state = wire.decode_joint_state(msg)  # type: ignore[arg-type]
+            side.pub.publish(encoder.encode(state.stamp_ns, value))
+        else:
+            out = MotorCommand(mode=MotorCommand.VOLTAGE, name=list(msg.name), value=value.tolist())  # type: ignore[attr-defined]
+            out.header.stamp = msg.header.stamp  # type: ignore[attr-defined]
+            side.pub.publish(out)
 
-    node.create_subscription(JointState, PING_TOPIC, on_ping, _qos())
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
     try:
         # Exit on its own if the parent goes away (no orphaned pong).
-        while rclpy.ok() and os.getppid() == parent:
-            executor.spin_once(timeout_sec=0.2)
+        while os.getppid() == parent:
+            for msg in side.waiter.take(0.2):
+                answer(msg)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
+        side.close()
     return 0
 
 
 # --------------------------------------------------------------------------- ping
 
 
-def _ping_main(n: int, repeats: int, warmup: int, discovery_timeout: float) -> int:
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
+def _ping_main(wire_kind: str, busy_wait: float, n: int, repeats: int, warmup: int, discovery_timeout: float) -> int:
+    import numpy as np
     from sensor_msgs.msg import JointState
 
     from bracing_msgs.msg import MotorCommand
+    from bracing_sim import wire
 
-    rclpy.init()
-    node = rclpy.create_node("bench_dds_ping")
-    pub = node.create_publisher(JointState, PING_TOPIC, _qos())
-    last = {"sec": -1, "nanosec": -1}
+    side = _Side("bench_dds_ping", JointState, PING_TOPIC, MotorCommand, PONG_TOPIC, wire_kind, busy_wait)
+    encoder = wire.JointStateEncoder(JOINTS)
+    position, velocity, effort = np.array([0.1, 0.2, 0.3, 0.4]), np.zeros(4), np.array([1.0, 2.0, 3.0, 4.0])
 
-    def on_pong(msg: MotorCommand) -> None:
-        last["sec"] = msg.header.stamp.sec
-        last["nanosec"] = msg.header.stamp.nanosec
+    def send(stamp_ns: int) -> None:
+        # A fresh message per step, as the simulator sends one per step.
+        if wire_kind == "cdr":
+            side.pub.publish(encoder.encode(stamp_ns, position, velocity, effort))
+            return
+        msg = JointState(name=JOINTS, position=position.tolist(), velocity=velocity.tolist(), effort=effort.tolist())
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+        side.pub.publish(msg)
 
-    sub = node.create_subscription(MotorCommand, PONG_TOPIC, on_pong, _qos())
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
+    def stamp_of(msg: object) -> int:
+        if wire_kind == "cdr":
+            return wire.decode_motor_command(msg).stamp_ns  # type: ignore[arg-type]
+        return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec  # type: ignore[attr-defined]
 
-    def send(sec: int, nanosec: int) -> None:
-        # A fresh message per step, as the simulator builds one per step.
-        msg = JointState()
-        msg.header.stamp.sec = sec
-        msg.header.stamp.nanosec = nanosec
-        msg.name = list(JOINTS)
-        msg.position = [0.1, 0.2, 0.3, 0.4]
-        msg.velocity = [0.0, 0.0, 0.0, 0.0]
-        msg.effort = [1.0, 2.0, 3.0, 4.0]
-        pub.publish(msg)
-
-    def wait_for(sec: int, nanosec: int, timeout: float) -> bool:
+    def wait_for(stamp_ns: int, timeout: float) -> bool:
         deadline = time.monotonic() + timeout
-        while last["sec"] != sec or last["nanosec"] != nanosec:
+        while True:
             remaining = deadline - time.monotonic()
             if remaining <= 0.0:
                 return False
-            executor.spin_once(timeout_sec=remaining)
-        return True
+            if any(stamp_of(msg) == stamp_ns for msg in side.waiter.take(remaining)):
+                return True
 
     try:
         # Discovery: both directions matched.
         deadline = time.monotonic() + discovery_timeout
-        while pub.get_subscription_count() < 1 or sub.get_publisher_count() < 1:
+        while side.pub.get_subscription_count() < 1 or side.sub.get_publisher_count() < 1:
             if time.monotonic() > deadline:
                 raise RuntimeError(f"pong not discovered within {discovery_timeout:.0f} s")
-            executor.spin_once(timeout_sec=0.05)
-
+            time.sleep(0.05)
         # Warm-up; the first messages after matching may still be in flight, so resend.
         for i in range(warmup):
             for _attempt in range(20):
-                send(0, i)
-                if wait_for(0, i, 0.25):
+                send(i)
+                if wait_for(i, 0.25):
                     break
             else:
                 raise RuntimeError("no echo during warm-up")
-
         samples = []
         for r in range(1, repeats + 1):
             t0 = time.perf_counter()
             for i in range(n):
-                send(r, i)
-                if not wait_for(r, i, 5.0):
+                stamp = (r * 1_000_000 + i) * 1_000_000
+                send(stamp)
+                if not wait_for(stamp, 5.0):
                     raise RuntimeError(f"lost echo (repeat {r}, message {i})")
             samples.append(n / (time.perf_counter() - t0))
         print(json.dumps({"samples": samples}), flush=True)
         return 0
     finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
+        side.close()
 
 
 # --------------------------------------------------------------------------- parent
@@ -183,7 +189,14 @@ def _stop(proc: subprocess.Popen) -> None:
         proc.wait(timeout=3.0)
 
 
-def dds_round_trips_per_s(n: int = 3000, repeats: int = 3, warmup: int = 200, timeout_s: float = 60.0) -> dict:
+def dds_round_trips_per_s(
+    n: int = 3000,
+    repeats: int = 3,
+    warmup: int = 200,
+    timeout_s: float = 120.0,
+    wire: str = "cdr",
+    busy_wait: float = 0.0,
+) -> dict:
     """Median (and samples) of lockstep round trips/s between two rclpy processes.
 
     One round trip = publish a 4-joint JointState, receive the 4-value MotorCommand
@@ -194,7 +207,7 @@ def dds_round_trips_per_s(n: int = 3000, repeats: int = 3, warmup: int = 200, ti
     script = os.path.abspath(__file__)
     with tempfile.TemporaryFile() as pong_err:
         pong = subprocess.Popen(
-            [sys.executable, script, "pong"],
+            [sys.executable, script, "pong", f"--wire={wire}", f"--busy-wait={busy_wait}"],
             env=env,
             stdin=subprocess.DEVNULL,
             stdout=subprocess.DEVNULL,
@@ -207,6 +220,8 @@ def dds_round_trips_per_s(n: int = 3000, repeats: int = 3, warmup: int = 200, ti
                     sys.executable,
                     script,
                     "ping",
+                    f"--wire={wire}",
+                    f"--busy-wait={busy_wait}",
                     f"--n={n}",
                     f"--repeats={repeats}",
                     f"--warmup={warmup}",
@@ -240,8 +255,10 @@ def dds_round_trips_per_s(n: int = 3000, repeats: int = 3, warmup: int = 200, ti
         "n": n,
         "repeats": repeats,
         "warmup": warmup,
-        "qos": "RELIABLE, KEEP_LAST 10, VOLATILE",
-        "executor": "SingleThreadedExecutor.spin_once",
+        "wire": wire,
+        "busy_wait_s": busy_wait,
+        "qos": "the nodes' (ros_common STREAM_QOS publishers, SUBSCRIBE_QOS subscriptions)",
+        "wait": "ros_common.SubscriptionWaiter",
         "domain_id": int(env["ROS_DOMAIN_ID"]),
     }
 
@@ -253,12 +270,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--warmup", type=int, default=200)
     parser.add_argument("--discovery-timeout", type=float, default=15.0)
+    parser.add_argument("--wire", choices=WIRES, default="cdr")
+    parser.add_argument("--busy-wait", type=float, default=0.0)
     args = parser.parse_args(argv)
     if args.role == "pong":
-        return _pong_main()
+        return _pong_main(args.wire, args.busy_wait)
     if args.role == "ping":
-        return _ping_main(args.n, args.repeats, args.warmup, args.discovery_timeout)
-    print(json.dumps(dds_round_trips_per_s(args.n, args.repeats, args.warmup), indent=2))
+        return _ping_main(args.wire, args.busy_wait, args.n, args.repeats, args.warmup, args.discovery_timeout)
+    result = dds_round_trips_per_s(args.n, args.repeats, args.warmup, wire=args.wire, busy_wait=args.busy_wait)
+    print(json.dumps(result, indent=2))
     return 0
 
 

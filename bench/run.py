@@ -152,7 +152,7 @@ def pair_real_time_factor(duration: float = 10.0) -> dict[str, float]:
             "-m",
             "bracing_bringup.pair",
             "--config",
-            str(PAPER),
+            os.environ.get("PAIR_CONFIG", str(PAPER)),
             "--duration",
             str(duration),
             "--output",
@@ -179,6 +179,14 @@ def pair_real_time_factor(duration: float = 10.0) -> dict[str, float]:
             stamps.append((wall, float(found.group(1))))
     (w0, t0), (w1, t1) = stamps[0], stamps[-1]
     return {"stepping": (t1 - t0) / (w1 - w0), "whole_run": duration / total}
+
+
+def paper_busy_wait() -> float:
+    """The simulator's ``busy_wait`` in the paper scenario: the bound waits the way the pair does."""
+    import yaml
+
+    params = yaml.safe_load(PAPER.read_text())["bracing_simulator"]["ros__parameters"]
+    return float(params.get("busy_wait", 0.0))
 
 
 def machine() -> dict[str, Any]:
@@ -215,13 +223,16 @@ def main(argv: list[str] | None = None) -> int:
     print("controller ...", flush=True)
     latency = controller_latency_us()
     print("dds bound ...", flush=True)
-    dds = dds_round_trips_per_s(n=2000, repeats=3)
+    busy_wait = paper_busy_wait()
+    dds = dds_round_trips_per_s(n=2000, repeats=3, wire="cdr", busy_wait=busy_wait)
+    dds_objects = dds_round_trips_per_s(n=2000, repeats=3, wire="objects", busy_wait=busy_wait)
     step = 0.001
     print("pair (10 s of sim time) ...", flush=True)
     pair = pair_real_time_factor(2.0 if args.quick else 10.0)
     print("scaling ...", flush=True)
     scale = scaling(repeats=2 if args.quick else 3)
     bound = dds["round_trips_per_s"] * step
+    bound_objects = dds_objects["round_trips_per_s"] * step
     result = {
         "engine_steps_per_s": engine,
         "engine_samples": engine_samples,
@@ -232,7 +243,11 @@ def main(argv: list[str] | None = None) -> int:
         "pair_real_time_factor_whole_run": pair["whole_run"],
         "dds_bound_real_time_factor": bound,
         "dds_round_trip_us": dds["round_trip_us"],
+        "dds_bound_samples": dds["samples"],
         "pair_vs_bound": pair["stepping"] / bound,
+        "dds_bound_objects_real_time_factor": bound_objects,
+        "pair_vs_objects_bound": pair["stepping"] / bound_objects,
+        "busy_wait_s": busy_wait,
         "controller_update_us_p50": latency["p50"],
         "controller_update_us_p99": latency["p99"],
         "scaling": scale,
@@ -245,8 +260,9 @@ def main(argv: list[str] | None = None) -> int:
         ("engine / MuJoCo", f"{result['engine_vs_mujoco']:.3f}"),
         ("pair real-time factor (lockstep stepping)", f"{pair['stepping']:.2f}"),
         ("pair real-time factor (whole run, with start-up)", f"{pair['whole_run']:.2f}"),
-        ("DDS bound real-time factor (round trips/s x 1 ms)", f"{bound:.2f}"),
+        ("DDS bound real-time factor (round trips/s x 1 ms, CDR bytes)", f"{bound:.2f}"),
         ("pair / bound", f"{result['pair_vs_bound']:.3f}"),
+        ("DDS bound with rclpy message objects (for comparison)", f"{bound_objects:.2f}"),
         ("controller update p50 / p99 [us]", f"{latency['p50']:.1f} / {latency['p99']:.1f}"),
     ]
     for p in (1, 2):

@@ -19,6 +19,7 @@ import sys
 import time
 
 import rclpy
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
 from bracing_msgs.msg import MotorCommand
@@ -33,8 +34,8 @@ def known_command(k: int) -> list[float]:
     return [2.0 * ((k * (j + 3)) % 7 - 3) / 3.0 + 0.5 * j for j in range(4)]
 
 
-def bad_commands(msg: JointState, values: list[float]) -> list[MotorCommand]:
-    """One command for each way a command can be wrong."""
+def bad_commands(msg: JointState, values: list[float]) -> list[MotorCommand | bytes]:
+    """One command for each way a command can be wrong, including bytes that are no command."""
 
     def make(names: list[str], vals: list[float], mode: int = MotorCommand.VOLTAGE, dt_ns: int = 0) -> MotorCommand:
         command = MotorCommand(mode=mode, name=names, value=vals)
@@ -55,6 +56,8 @@ def bad_commands(msg: JointState, values: list[float]) -> list[MotorCommand]:
         make(JOINTS, values, mode=7),
         *([make(JOINTS, [v + 100.0 for v in values], dt_ns=-1_000_000)] if msg.header.stamp.nanosec else []),  # stale
         make(JOINTS, [v + 100.0 for v in values], dt_ns=+1_000_000),  # from the future
+        serialize_message(make(JOINTS, [v + 100.0 for v in values]))[:30],  # cut short
+        b"\x00\x01\x00\x00" + b"\xff" * 40,  # a string longer than the message
     ]
 
 
@@ -108,6 +111,10 @@ def drive_controller(node: rclpy.node.Node, path: str) -> dict[str, object]:
     while pub.get_subscription_count() < 1:
         rclpy.spin_once(node, timeout_sec=0.05)
     for k, state in enumerate(inputs):
+        if "raw_hex" in state:  # bytes that are no JointState
+            pub.publish(bytes.fromhex(state["raw_hex"]))
+            time.sleep(0.5)
+            continue
         msg = JointState(name=state["name"], position=state["position"], velocity=state["velocity"])
         msg.header.stamp.sec, msg.header.stamp.nanosec = k // 1000, (k % 1000) * 1_000_000  # t = k ms
         pub.publish(msg)

@@ -49,6 +49,7 @@ def test_malformed_commands_are_rejected_and_never_integrated(tmp_path: Path) ->
         "mode unknown (7)",
         "is stale",
         "from the future",
+        "sequence of 4 elements does not fit",  # the first bytes that are no command (the rest: same kind)
     ):
         assert reason in log or reason.replace("1 names", "4 names") in log, reason
 
@@ -103,6 +104,7 @@ def test_controller_ignores_malformed_joint_states(tmp_path: Path) -> None:
         {**good, "name": JOINTS[:3], "position": good["position"][:3], "velocity": [0.0] * 3},
         {**good, "position": [float("nan"), *good["position"][1:]]},
         {**good, "velocity": [0.0] * 3},
+        {"raw_hex": "00010000" + "ff" * 40},  # no JointState at all
         good,
     ]
     states_file = tmp_path / "states.json"
@@ -111,9 +113,10 @@ def test_controller_ignores_malformed_joint_states(tmp_path: Path) -> None:
     assert node.returncode in (0, -15), "the controller died"  # stopped by the test, not by the input
     assert driver.returncode == 0, driver.stdout + driver.stderr + log
     answers = json.loads(driver.stdout.strip().splitlines()[-1])["answers"]
-    assert answers[0] is not None and answers[4] is not None
-    assert answers[1] is None and answers[2] is None and answers[3] is None
+    assert answers[0] is not None and answers[5] is not None
+    assert answers[1] is None and answers[2] is None and answers[3] is None and answers[4] is None
     assert "missing joints ['joint4']" in log and "non-finite" in log and "3 velocities" in log
+    assert "joint_states ignored: bad string of" in log
 
 
 def test_divergence_stops_the_simulator_with_a_clear_error(tmp_path: Path) -> None:

@@ -199,7 +199,17 @@ def run_pair(options: RunOptions) -> RunResult:
         pair.say(f"bracing-pair: ROS_DOMAIN_ID={domain}, output {out}")
         pair.start(
             "recorder",
-            [sys.executable, "-m", "bracing_bringup.recorder", "--output", str(bag), "--contacts", ",".join(contacts)],
+            [
+                sys.executable,
+                "-m",
+                "bracing_bringup.recorder",
+                "--output",
+                str(bag),
+                "--contacts",
+                ",".join(contacts),
+                "--niceness",
+                "10",  # the lockstep loop's two nodes come first; the recorder catches up in their gaps
+            ],
             env,
         )
         if not pair.wait_for_line("recorder", "recorder ready", 30.0):

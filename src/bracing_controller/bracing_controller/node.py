@@ -10,14 +10,14 @@ import sys
 import time
 
 import numpy as np
-from geometry_msgs.msg import Point
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from bracing_controller.config import ControllerConfig
-from bracing_controller.law import ControlOutput, DecoupledController
+from bracing_controller.law import DecoupledController
 from bracing_msgs.msg import ControllerState, MotorCommand
+from bracing_sim import wire
 from bracing_sim.commands import MODE_CODES
 from bracing_sim.core.types import Vector
 from bracing_sim.ros_common import (
@@ -25,7 +25,7 @@ from bracing_sim.ros_common import (
     SUBSCRIBE_QOS,
     RateLimitedLog,
     SubscriptionWaiter,
-    nanoseconds,
+    read_joint_state,
     read_parameters,
     run,
 )
@@ -35,27 +35,25 @@ class StateError(ValueError):
     """A joint_states message the controller cannot use."""
 
 
-def joint_vectors(msg: JointState, joint_names: list[str]) -> tuple[Vector, Vector]:
+def joint_vectors(msg: wire.JointStateData, joint_names: list[str]) -> tuple[Vector, Vector]:
     """(q, dq) in ``joint_names`` order from a JointState matched by name."""
-    names = list(msg.name)
+    names = msg.name
     if len(msg.position) != len(names) or len(msg.velocity) != len(names):
         raise StateError(f"{len(names)} names, {len(msg.position)} positions, {len(msg.velocity)} velocities")
-    if len(set(names)) != len(names):
-        raise StateError("duplicate joint names")
-    index = {name: k for k, name in enumerate(names)}
-    missing = [j for j in joint_names if j not in index]
-    if missing:
-        raise StateError(f"missing joints {missing}")
-    order = [index[j] for j in joint_names]
-    q = np.asarray(msg.position, dtype=float)[order]
-    dq = np.asarray(msg.velocity, dtype=float)[order]
-    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(dq))):
+    if names == joint_names:  # the simulator's order: nothing to match
+        q, dq = msg.position, msg.velocity
+    else:
+        if len(set(names)) != len(names):
+            raise StateError("duplicate joint names")
+        index = {name: k for k, name in enumerate(names)}
+        missing = [j for j in joint_names if j not in index]
+        if missing:
+            raise StateError(f"missing joints {missing}")
+        order = [index[j] for j in joint_names]
+        q, dq = msg.position[order], msg.velocity[order]
+    if not (np.isfinite(q).all() and np.isfinite(dq).all()):
         raise StateError("non-finite position or velocity")
     return q, dq
-
-
-def _point(v: Vector) -> Point:
-    return Point(x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
 
 class ControllerNode(Node):
@@ -68,20 +66,27 @@ class ControllerNode(Node):
         self.contact_names = [c.name for c in self.config.shared.contacts]
         self.command_pub = self.create_publisher(MotorCommand, "motor_command", STREAM_QOS)
         self.state_pub = self.create_publisher(ControllerState, "controller_state", STREAM_QOS)
-        self.state_sub = self.create_subscription(JointState, "joint_states", self._on_state, SUBSCRIBE_QOS)
+        # Messages travel as CDR bytes built by ``wire`` (rclpy's message classes cost more than the DDS write).
+        self.command_wire = wire.MotorCommandEncoder(self.joint_names, self.mode_code)
+        self.state_wire = wire.ControllerStateEncoder(self.contact_names, len(self.joint_names))
+        self.state_sub = self.create_subscription(JointState, "joint_states", self._on_state, SUBSCRIBE_QOS, raw=True)
         self.report = RateLimitedLog(self)
         self.get_logger().info(
             f"{self.config.shared.input_mode.value} output, contacts {self.contact_names or 'none'}, "
             f"task dimension {self.config.task_dimension}"
         )
 
-    def _on_state(self, msg: JointState) -> None:
+    def _on_state(self, data: bytes) -> None:
         try:
+            msg = read_joint_state(data)
             q, dq = joint_vectors(msg, self.joint_names)
+        except wire.DecodeError as exc:
+            self.report("error", "malformed", f"joint_states ignored: {exc}")
+            return
         except StateError as exc:
             self.report("error", str(exc).split(" ")[0], f"joint_states ignored: {exc}")
             return
-        t = nanoseconds(msg.header.stamp) * 1e-9
+        t = msg.stamp_ns * 1e-9
         start = time.perf_counter()
         out = self.law.update(t, q, dq)
         compute_time = time.perf_counter() - start
@@ -90,31 +95,26 @@ class ControllerNode(Node):
             return
         if out.damped:
             self.report("warning", "damped", "B is near-singular: using a damped inverse")
-        command = MotorCommand(mode=self.mode_code, name=self.joint_names, value=out.command.tolist())
-        command.header.stamp = msg.header.stamp
-        self.command_pub.publish(command)
-        self.state_pub.publish(self._state_message(msg, out, compute_time))
-
-    def _state_message(self, msg: JointState, out: ControlOutput, compute_time: float) -> ControllerState:
-        state = ControllerState()
-        state.header.stamp = msg.header.stamp
-        state.header.frame_id = "world"
-        state.hand_desired = _point(out.hand_desired)
-        state.hand_actual = _point(out.hand_actual)
-        state.contact_name = self.contact_names
-        state.desired_normal_force = out.desired_normal_force.tolist()
-        state.brace_desired = [_point(p) for p in out.brace_desired]
-        state.brace_actual = [_point(p) for p in out.brace_actual]
-        state.command = out.command.tolist()
-        state.compute_time = compute_time
-        return state
+        self.command_pub.publish(self.command_wire.encode(msg.stamp_ns, out.command))
+        self.state_pub.publish(
+            self.state_wire.encode(
+                msg.stamp_ns,
+                out.hand_desired,
+                out.hand_actual,
+                out.desired_normal_force,
+                out.brace_desired,
+                out.brace_actual,
+                out.command,
+                compute_time,
+            )
+        )
 
 
 def spin(node: ControllerNode) -> int:
     """Answer states as they come (a wait set on joint_states), serving the executor in between."""
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    waiter = SubscriptionWaiter(node, node.state_sub)
+    waiter = SubscriptionWaiter(node, node.state_sub, node.config.busy_wait)
     answered = 0
     try:
         if node.config.wait_for_recorder:

@@ -27,7 +27,7 @@ class CommandError(ValueError):
 
 def command_vector(
     names: Sequence[str],
-    values: Sequence[float],
+    values: Sequence[float] | Vector,
     mode_code: int,
     joint_names: Sequence[str],
     mode: InputMode,
@@ -40,6 +40,21 @@ def command_vector(
         raise CommandError(f"mode-{mode_code}", f"mode {got} but the simulator is configured for {mode.value} input")
     if len(names) != len(values):
         raise CommandError("length", f"{len(names)} names but {len(values)} values")
+    if list(names) == list(joint_names):  # the controller's order: nothing to match
+        u = np.array(values, dtype=float)
+    else:
+        u = _by_name(names, values, joint_names)
+    if not np.isfinite(u).all():
+        bad = [j for j, v in zip(joint_names, u, strict=True) if not np.isfinite(v)]
+        raise CommandError("non-finite", f"non-finite values for {bad}")
+    saturated = False
+    if limit > 0.0 and np.any(np.abs(u) > limit):
+        u = np.clip(u, -limit, limit)
+        saturated = True
+    return u, saturated
+
+
+def _by_name(names: Sequence[str], values: Sequence[float] | Vector, joint_names: Sequence[str]) -> Vector:
     if len(set(names)) != len(names):
         duplicates = sorted({n for n in names if list(names).count(n) > 1})
         raise CommandError("duplicate", f"duplicate joint names {duplicates}")
@@ -51,12 +66,4 @@ def command_vector(
             f"joint names do not match: unknown {unknown}, missing {missing}",
         )
     by_name = dict(zip(names, values, strict=True))
-    u = np.array([by_name[j] for j in joint_names], dtype=float)
-    if not np.all(np.isfinite(u)):
-        bad = [j for j, v in zip(joint_names, u, strict=True) if not np.isfinite(v)]
-        raise CommandError("non-finite", f"non-finite values for {bad}")
-    saturated = False
-    if limit > 0.0 and np.any(np.abs(u) > limit):
-        u = np.clip(u, -limit, limit)
-        saturated = True
-    return u, saturated
+    return np.array([by_name[j] for j in joint_names], dtype=float)

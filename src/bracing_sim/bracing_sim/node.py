@@ -11,14 +11,15 @@ import sys
 import time
 
 import numpy as np
-from geometry_msgs.msg import Point, Vector3, WrenchStamped
+from geometry_msgs.msg import WrenchStamped
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from bracing_msgs.msg import Contacts, ContactState, MotorCommand, MotorState
+from bracing_msgs.msg import Contacts, MotorCommand, MotorState
+from bracing_sim import wire
 from bracing_sim.commands import CommandError, command_vector
 from bracing_sim.config import SimulatorConfig, build_simulator
 from bracing_sim.core.dynamics import Derivative, InputMode
@@ -30,10 +31,9 @@ from bracing_sim.ros_common import (
     SUBSCRIBE_QOS,
     RateLimitedLog,
     SubscriptionWaiter,
-    nanoseconds,
+    read_motor_command,
     read_parameters,
     run,
-    stamp,
 )
 
 
@@ -58,7 +58,16 @@ class SimulatorNode(Node):
             self.create_publisher(WrenchStamped, f"contact_wrench/{c.name}", STREAM_QOS)
             for c in self.config.shared.contacts
         ]
-        self.command_sub = self.create_subscription(MotorCommand, "motor_command", self._on_command, SUBSCRIBE_QOS)
+        # Messages travel as CDR bytes built by ``wire`` (rclpy's message classes cost more than the DDS write).
+        contacts = self.config.shared.contacts
+        self.joint_wire = wire.JointStateEncoder(self.joint_names)
+        self.clock_wire = wire.ClockEncoder()
+        self.wrench_wire = wire.WrenchStampedEncoder("world")
+        self.contacts_wire = wire.ContactsEncoder([c.name for c in contacts], [c.frame for c in contacts])
+        self.motor_wire = wire.MotorStateEncoder(self.joint_names)
+        self.command_sub = self.create_subscription(
+            MotorCommand, "motor_command", self._on_command, SUBSCRIBE_QOS, raw=True
+        )
         self.report = RateLimitedLog(self)
 
         self.command = np.zeros(self.sim.n)  # last applied (held) command
@@ -73,15 +82,19 @@ class SimulatorNode(Node):
         )
 
     # -- commands -------------------------------------------------------------------
-    def _on_command(self, msg: MotorCommand) -> None:
+    def _on_command(self, data: bytes) -> None:
         try:
+            msg = read_motor_command(data)
             u, saturated = command_vector(msg.name, msg.value, msg.mode, self.joint_names, self.mode, self.limit)
+        except wire.DecodeError as exc:
+            self.report("error", "malformed", f"motor_command rejected: {exc}")
+            return
         except CommandError as exc:
             self.report("error", exc.kind, f"motor_command rejected: {exc}")
             return
         if saturated:
             self.report("warning", "saturated", f"motor_command saturated to +/-{self.limit}")
-        stamp_ns = nanoseconds(msg.header.stamp)
+        stamp_ns = msg.stamp_ns
         if self.config.stepping == "real_time":
             self._latest = (time.monotonic(), u)
             return
@@ -99,64 +112,37 @@ class SimulatorNode(Node):
     # -- publishing -----------------------------------------------------------------
     def publish_state(self, effort: Vector) -> None:
         t_ns = self.sim.steps_taken * self.step_ns
-        header_stamp = stamp(t_ns)
-        msg = JointState()
-        msg.header.stamp = header_stamp
-        msg.name = self.joint_names
-        msg.position = self.sim.position.tolist()
-        msg.velocity = self.sim.velocity.tolist()
-        msg.effort = np.asarray(effort, dtype=float).tolist()
-        self.joint_pub.publish(msg)
-        self.clock_pub.publish(Clock(clock=header_stamp))
+        self.joint_pub.publish(self.joint_wire.encode(t_ns, self.sim.position, self.sim.velocity, effort))
+        self.clock_pub.publish(self.clock_wire.encode(t_ns))
 
     def publish_step(self, t_ns: int, command: Vector, d: Derivative, current: Vector, energy: Energy) -> None:
         """Reports of one step: forces at its start under the held command, energies up to its start."""
-        header_stamp = stamp(t_ns)
-        contacts = Contacts()
-        contacts.header.stamp = header_stamp
-        contacts.header.frame_id = "world"
         terms = d.contacts
         active = d.active if d.active is not None else np.ones(terms.count, dtype=bool)
-        for j, cfg in enumerate(self.config.shared.contacts):
-            normal = terms.normals[j]
-            friction = d.friction_force[j]
-            force = d.normal_force[j] * normal - friction * terms.slip_direction[j]
-            contacts.contacts.append(
-                ContactState(
-                    name=cfg.name,
-                    frame=cfg.frame,
+        reports = []
+        for j in range(len(self.wrench_pubs)):
+            normal, friction = terms.normals[j], float(d.friction_force[j])
+            normal_force = float(d.normal_force[j])
+            force = normal_force * normal - friction * terms.slip_direction[j]
+            self.wrench_pubs[j].publish(self.wrench_wire.encode(t_ns, force))  # at the contact point: no moment
+            reports.append(
+                wire.ContactReport(
                     active=bool(active[j]),
-                    position=Point(x=terms.positions[j, 0], y=terms.positions[j, 1], z=terms.positions[j, 2]),
-                    normal=_vector(normal),
-                    normal_force=float(d.normal_force[j]),
-                    friction_force=float(friction),
-                    slip_velocity=_vector(terms.slip_velocity[j]),
+                    position=terms.positions[j],
+                    normal=normal,
+                    normal_force=normal_force,
+                    friction_force=friction,
+                    slip_velocity=terms.slip_velocity[j],
                     residual=float(terms.residual[j]),
                 )
             )
-            wrench = WrenchStamped()
-            wrench.header = contacts.header
-            wrench.wrench.force = _vector(force)  # at the contact point, so no moment
-            self.wrench_pubs[j].publish(wrench)
-        self.contacts_pub.publish(contacts)
-        self.motor_pub.publish(self._motor_state(header_stamp, command, current, energy))
-
-    def _motor_state(self, header_stamp: object, command: Vector, current: Vector, energy: Energy) -> MotorState:
-        msg = MotorState()
-        msg.header.stamp = header_stamp
-        msg.name = self.joint_names
+        self.contacts_pub.publish(self.contacts_wire.encode(t_ns, reports))
         if self.mode is InputMode.VOLTAGE:
-            msg.voltage = command.tolist()
-            msg.current = current.tolist()
-            msg.power = (command * current).tolist()
-        else:  # direct drive: mechanical power tau dq
-            msg.voltage = [0.0] * self.sim.n
-            msg.current = [0.0] * self.sim.n
-            msg.power = (command * self.sim.velocity).tolist()
-        msg.energy_consumed = energy.consumed
-        msg.energy_net = energy.net
-        msg.copper_loss = energy.copper_loss
-        return msg
+            voltage, power = command, command * current
+        else:  # direct drive: no circuit; mechanical power tau dq
+            voltage, current, power = np.zeros(self.sim.n), np.zeros(self.sim.n), command * self.sim.velocity
+        energies = (energy.consumed, energy.net, energy.copper_loss)
+        self.motor_pub.publish(self.motor_wire.encode(t_ns, voltage, current, power, energies))
 
     # -- one step -------------------------------------------------------------------
     def advance(self, command: Vector) -> None:
@@ -212,10 +198,6 @@ class SimulatorNode(Node):
         self.get_logger().info(f"finished at t = {self.sim.time:.6f} s")
 
 
-def _vector(v: Vector) -> Vector3:
-    return Vector3(x=float(v[0]), y=float(v[1]), z=float(v[2]))
-
-
 def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None:
     cfg = node.config
     # Wait for the controller (and a recorder, if asked) before the first state.
@@ -227,7 +209,7 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
             node.get_logger().info(
                 f"lockstep: waiting for {cfg.min_subscribers} subscriber(s) of joint_states (start the controller)"
             )
-    waiter = SubscriptionWaiter(node, node.command_sub)
+    waiter = SubscriptionWaiter(node, node.command_sub, cfg.busy_wait)
     node.publish_state(node.state_effort())
     while not node.done():
         node.advance(wait_for_command(node, waiter, executor))
