@@ -152,7 +152,7 @@ def pair_real_time_factor(duration: float = 10.0) -> dict[str, float]:
             "-m",
             "bracing_bringup.pair",
             "--config",
-            os.environ.get("PAIR_CONFIG", str(PAPER)),
+            str(PAPER),
             "--duration",
             str(duration),
             "--output",

@@ -176,3 +176,28 @@ def test_bad_bytes_raise_decode_errors() -> None:
     huge[12:16] = (2**31).to_bytes(4, "little")  # frame_id length far past the end
     with pytest.raises(wire.DecodeError):
         wire.decode_joint_state(bytes(huge))
+
+
+def test_layout_decoders_agree_with_the_general_ones() -> None:
+    """The decoders' quick path (the expected layout) and their general path read the same values."""
+    names = ["joint1", "joint2", "joint3", "joint4"]
+    states = wire.JointStateDecoder(names)
+    commands = wire.MotorCommandDecoder(names, MotorCommand.VOLTAGE)
+    q, dq, tau = RNG.normal(size=4), RNG.normal(size=4), RNG.normal(size=4)
+    same_layout = JointState(name=names, position=q.tolist(), velocity=dq.tolist(), effort=tau.tolist())
+    other_layout = JointState(name=names[::-1], position=q.tolist(), velocity=dq.tolist(), effort=[])
+    other_layout.header.frame_id = "base"
+    for msg in (same_layout, other_layout):
+        msg.header.stamp = Time(sec=3, nanosec=4)
+        data = serialize_message(msg)  # with rclpy's extra bytes at the end
+        quick, general = states.decode(data), wire.decode_joint_state(data)
+        assert (quick.stamp_ns, quick.name) == (general.stamp_ns, general.name) == (3_000_000_004, list(msg.name))
+        for a, b in ((quick.position, general.position), (quick.velocity, general.velocity)):
+            assert a.tolist() == b.tolist()
+        assert quick.effort.tolist() == general.effort.tolist() == list(msg.effort)
+    for mode, order in ((MotorCommand.VOLTAGE, names), (MotorCommand.TORQUE, names), (MotorCommand.VOLTAGE, names[:3])):
+        command = MotorCommand(mode=mode, name=order, value=RNG.normal(size=len(order)).tolist())
+        data = serialize_message(command)
+        quick, general = commands.decode(data), wire.decode_motor_command(data)
+        assert (quick.mode, quick.name, quick.value.tolist()) == (general.mode, general.name, general.value.tolist())
+        assert (quick.mode, quick.name, quick.value.tolist()) == (mode, order, list(command.value))

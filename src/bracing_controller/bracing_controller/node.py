@@ -69,6 +69,7 @@ class ControllerNode(Node):
         # Messages travel as CDR bytes built by ``wire`` (rclpy's message classes cost more than the DDS write).
         self.command_wire = wire.MotorCommandEncoder(self.joint_names, self.mode_code)
         self.state_wire = wire.ControllerStateEncoder(self.contact_names, len(self.joint_names))
+        self.state_reader = wire.JointStateDecoder(self.joint_names)
         self.state_sub = self.create_subscription(JointState, "joint_states", self._on_state, SUBSCRIBE_QOS, raw=True)
         self.report = RateLimitedLog(self)
         self.get_logger().info(
@@ -78,7 +79,7 @@ class ControllerNode(Node):
 
     def _on_state(self, data: bytes) -> None:
         try:
-            msg = read_joint_state(data)
+            msg = read_joint_state(data, self.state_reader)
             q, dq = joint_vectors(msg, self.joint_names)
         except wire.DecodeError as exc:
             self.report("error", "malformed", f"joint_states ignored: {exc}")

@@ -20,7 +20,7 @@ from sensor_msgs.msg import JointState
 
 from bracing_msgs.msg import Contacts, MotorCommand, MotorState
 from bracing_sim import wire
-from bracing_sim.commands import CommandError, command_vector
+from bracing_sim.commands import MODE_CODES, CommandError, command_vector
 from bracing_sim.config import SimulatorConfig, build_simulator
 from bracing_sim.core.dynamics import Derivative, InputMode
 from bracing_sim.core.simulator import DivergenceError, Energy
@@ -65,6 +65,7 @@ class SimulatorNode(Node):
         self.wrench_wire = wire.WrenchStampedEncoder("world")
         self.contacts_wire = wire.ContactsEncoder([c.name for c in contacts], [c.frame for c in contacts])
         self.motor_wire = wire.MotorStateEncoder(self.joint_names)
+        self.command_reader = wire.MotorCommandDecoder(self.joint_names, MODE_CODES[self.mode])
         self.command_sub = self.create_subscription(
             MotorCommand, "motor_command", self._on_command, SUBSCRIBE_QOS, raw=True
         )
@@ -84,7 +85,7 @@ class SimulatorNode(Node):
     # -- commands -------------------------------------------------------------------
     def _on_command(self, data: bytes) -> None:
         try:
-            msg = read_motor_command(data)
+            msg = read_motor_command(data, self.command_reader)
             u, saturated = command_vector(msg.name, msg.value, msg.mode, self.joint_names, self.mode, self.limit)
         except wire.DecodeError as exc:
             self.report("error", "malformed", f"motor_command rejected: {exc}")

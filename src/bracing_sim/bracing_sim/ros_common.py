@@ -134,13 +134,13 @@ class SubscriptionWaiter:
         return messages
 
 
-def read_joint_state(data: bytes) -> wire.JointStateData:
+def read_joint_state(data: bytes, decoder: wire.JointStateDecoder | None = None) -> wire.JointStateData:
     """A JointState taken raw (CDR bytes); rclpy decodes encapsulations ``wire`` does not read.
 
     Raises ``wire.DecodeError`` for bytes that are not a JointState.
     """
     try:
-        return wire.decode_joint_state(data)
+        return decoder.decode(data) if decoder is not None else wire.decode_joint_state(data)
     except wire.UnsupportedEncoding:
         msg = _deserialize(data, JointState)
         return wire.JointStateData(
@@ -152,10 +152,10 @@ def read_joint_state(data: bytes) -> wire.JointStateData:
         )
 
 
-def read_motor_command(data: bytes) -> wire.MotorCommandData:
+def read_motor_command(data: bytes, decoder: wire.MotorCommandDecoder | None = None) -> wire.MotorCommandData:
     """A MotorCommand taken raw (CDR bytes); see :func:`read_joint_state`."""
     try:
-        return wire.decode_motor_command(data)
+        return decoder.decode(data) if decoder is not None else wire.decode_motor_command(data)
     except wire.UnsupportedEncoding:
         msg = _deserialize(data, MotorCommand)
         return wire.MotorCommandData(

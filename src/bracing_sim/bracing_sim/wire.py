@@ -91,6 +91,26 @@ class _Template:
     def __init__(self, data: bytes, slots: list[tuple[int, struct.Struct]]) -> None:
         self.data = data
         self._pack_into = [(packer.pack_into, offset) for offset, packer in slots]
+        self._unpack_from = [(packer.unpack_from, offset) for offset, packer in slots]
+        # The constant parts, as (start, end) byte ranges: what a message of this layout must repeat.
+        bounds = [0]
+        for offset, packer in slots:
+            bounds += [offset, offset + packer.size]
+        bounds.append(len(data))
+        self._constant = [(a, b) for a, b in zip(bounds[::2], bounds[1::2], strict=True) if b > a]
+
+    def read(self, data: bytes) -> list[tuple[float | int, ...]] | None:
+        """The slots' values if ``data`` has this layout (same constants), else None.
+
+        Bytes past the layout's end are ignored: rclpy's own messages carry a few.
+        """
+        if len(data) < len(self.data):
+            return None
+        template = self.data
+        for start, end in self._constant:
+            if data[start:end] != template[start:end]:
+                return None
+        return [unpack_from(data, offset) for unpack_from, offset in self._unpack_from]
 
     def fill(self, *values: Sequence[float | int] | None) -> bytes:
         """The message with slot k set to ``values[k]`` (a sequence of numbers; None for no slot)."""
@@ -343,6 +363,28 @@ class JointStateData:
     effort: Vector
 
 
+class JointStateDecoder:
+    """Reads JointStates, quickly when they have the layout of ``JointStateEncoder(names)``."""
+
+    def __init__(self, names: Sequence[str]) -> None:
+        self._names = list(names)
+        self._template = JointStateEncoder(names)._template
+        self._full = len(self._names) > 0
+
+    def decode(self, data: bytes) -> JointStateData:
+        values = self._template.read(data)
+        if values is None or not self._full:
+            return decode_joint_state(data)
+        (sec, nanosec), position, velocity, effort = values
+        return JointStateData(
+            int(sec) * 1_000_000_000 + int(nanosec),
+            self._names.copy(),
+            np.array(position),
+            np.array(velocity),
+            np.array(effort),
+        )
+
+
 def decode_joint_state(data: bytes) -> JointStateData:
     """A sensor_msgs/JointState from its CDR bytes."""
     reader = _Reader(data)
@@ -357,6 +399,24 @@ class MotorCommandData:
     mode: int
     name: list[str]
     value: Vector
+
+
+class MotorCommandDecoder:
+    """Reads MotorCommands, quickly when they have the layout of ``MotorCommandEncoder(names, mode)``."""
+
+    def __init__(self, names: Sequence[str], mode: int) -> None:
+        self._names, self._mode = list(names), mode
+        self._template = MotorCommandEncoder(names, mode)._template
+        self._full = len(self._names) > 0
+
+    def decode(self, data: bytes) -> MotorCommandData:
+        values = self._template.read(data)
+        if values is None or not self._full:
+            return decode_motor_command(data)
+        (sec, nanosec), value = values
+        return MotorCommandData(
+            int(sec) * 1_000_000_000 + int(nanosec), self._mode, self._names.copy(), np.array(value)
+        )
 
 
 def decode_motor_command(data: bytes) -> MotorCommandData:
