@@ -6,13 +6,13 @@ The upper bound on the lockstep simulator/controller pair's step rate: one proce
 other ("pong", playing the controller) answers each message at once with a
 bracing_msgs/MotorCommand with 4 values on ``pong``, stamped with the request's stamp.
 The transport is the nodes' own: their QoS (bracing_sim.ros_common STREAM_QOS /
-SUBSCRIBE_QOS), their wait (SubscriptionWaiter, with the same ``busy_wait``) and,
+SUBSCRIBE_QOS), their wait (SubscriptionWaiter) and,
 with ``--wire cdr``, their CDR bytes (bracing_sim.wire); ``--wire objects`` sends rclpy
 message objects instead, for comparison. No computation besides the messages.
 
 Process layout (the parent never imports rclpy):
-    parent --spawns--> ``python bench/dds_bound.py pong --wire W --busy-wait B``
-           --runs----> ``python bench/dds_bound.py ping --wire W --busy-wait B --n N ...``
+    parent --spawns--> ``python bench/dds_bound.py pong --wire W``
+           --runs----> ``python bench/dds_bound.py ping --wire W --n N ...``
                        (prints one JSON line with the per-repeat round trips/s)
 Both children get ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a random
 ROS_DOMAIN_ID in [150, 230]. Needs the workspace environment (``source env.sh``).
@@ -39,9 +39,7 @@ WIRES = ("cdr", "objects")
 class _Side:
     """One end of the ping-pong: a node, its publisher and a SubscriptionWaiter on its input."""
 
-    def __init__(
-        self, name: str, out_type: type, out_topic: str, in_type: type, in_topic: str, wire: str, busy_wait: float
-    ) -> None:
+    def __init__(self, name: str, out_type: type, out_topic: str, in_type: type, in_topic: str, wire: str) -> None:
         import rclpy
 
         from bracing_sim.ros_common import STREAM_QOS, SUBSCRIBE_QOS, SubscriptionWaiter
@@ -50,7 +48,7 @@ class _Side:
         self.node = rclpy.create_node(name)
         self.pub = self.node.create_publisher(out_type, out_topic, STREAM_QOS)
         self.sub = self.node.create_subscription(in_type, in_topic, _unused, SUBSCRIBE_QOS, raw=wire == "cdr")
-        self.waiter = SubscriptionWaiter(self.node, self.sub, busy_wait)
+        self.waiter = SubscriptionWaiter(self.node, self.sub)
 
     def close(self) -> None:
         import rclpy
@@ -66,7 +64,7 @@ def _unused(_: object) -> None:
 # --------------------------------------------------------------------------- pong
 
 
-def _pong_main(wire_kind: str, busy_wait: float) -> int:
+def _pong_main(wire_kind: str) -> int:
     import numpy as np
     from rclpy.executors import ExternalShutdownException
     from sensor_msgs.msg import JointState
@@ -75,7 +73,7 @@ def _pong_main(wire_kind: str, busy_wait: float) -> int:
     from bracing_sim import wire
 
     parent = os.getppid()
-    side = _Side("bench_dds_pong", MotorCommand, PONG_TOPIC, JointState, PING_TOPIC, wire_kind, busy_wait)
+    side = _Side("bench_dds_pong", MotorCommand, PONG_TOPIC, JointState, PING_TOPIC, wire_kind)
     encoder = wire.MotorCommandEncoder(JOINTS, MotorCommand.VOLTAGE)
     value = np.array([0.1, 0.2, 0.3, 0.4])
 
@@ -103,14 +101,14 @@ def _pong_main(wire_kind: str, busy_wait: float) -> int:
 # --------------------------------------------------------------------------- ping
 
 
-def _ping_main(wire_kind: str, busy_wait: float, n: int, repeats: int, warmup: int, discovery_timeout: float) -> int:
+def _ping_main(wire_kind: str, n: int, repeats: int, warmup: int, discovery_timeout: float) -> int:
     import numpy as np
     from sensor_msgs.msg import JointState
 
     from bracing_msgs.msg import MotorCommand
     from bracing_sim import wire
 
-    side = _Side("bench_dds_ping", JointState, PING_TOPIC, MotorCommand, PONG_TOPIC, wire_kind, busy_wait)
+    side = _Side("bench_dds_ping", JointState, PING_TOPIC, MotorCommand, PONG_TOPIC, wire_kind)
     encoder = wire.JointStateEncoder(JOINTS)
     position, velocity, effort = np.array([0.1, 0.2, 0.3, 0.4]), np.zeros(4), np.array([1.0, 2.0, 3.0, 4.0])
 
@@ -195,7 +193,6 @@ def dds_round_trips_per_s(
     warmup: int = 200,
     timeout_s: float = 120.0,
     wire: str = "cdr",
-    busy_wait: float = 0.0,
 ) -> dict:
     """Median (and samples) of lockstep round trips/s between two rclpy processes.
 
@@ -207,7 +204,7 @@ def dds_round_trips_per_s(
     script = os.path.abspath(__file__)
     with tempfile.TemporaryFile() as pong_err:
         pong = subprocess.Popen(
-            [sys.executable, script, "pong", f"--wire={wire}", f"--busy-wait={busy_wait}"],
+            [sys.executable, script, "pong", f"--wire={wire}"],
             env=env,
             stdin=subprocess.DEVNULL,
             stdout=subprocess.DEVNULL,
@@ -221,7 +218,6 @@ def dds_round_trips_per_s(
                     script,
                     "ping",
                     f"--wire={wire}",
-                    f"--busy-wait={busy_wait}",
                     f"--n={n}",
                     f"--repeats={repeats}",
                     f"--warmup={warmup}",
@@ -256,7 +252,6 @@ def dds_round_trips_per_s(
         "repeats": repeats,
         "warmup": warmup,
         "wire": wire,
-        "busy_wait_s": busy_wait,
         "qos": "the nodes' (ros_common STREAM_QOS publishers, SUBSCRIBE_QOS subscriptions)",
         "wait": "ros_common.SubscriptionWaiter",
         "domain_id": int(env["ROS_DOMAIN_ID"]),
@@ -271,13 +266,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--warmup", type=int, default=200)
     parser.add_argument("--discovery-timeout", type=float, default=15.0)
     parser.add_argument("--wire", choices=WIRES, default="cdr")
-    parser.add_argument("--busy-wait", type=float, default=0.0)
     args = parser.parse_args(argv)
     if args.role == "pong":
-        return _pong_main(args.wire, args.busy_wait)
+        return _pong_main(args.wire)
     if args.role == "ping":
-        return _ping_main(args.wire, args.busy_wait, args.n, args.repeats, args.warmup, args.discovery_timeout)
-    result = dds_round_trips_per_s(args.n, args.repeats, args.warmup, wire=args.wire, busy_wait=args.busy_wait)
+        return _ping_main(args.wire, args.n, args.repeats, args.warmup, args.discovery_timeout)
+    result = dds_round_trips_per_s(args.n, args.repeats, args.warmup, wire=args.wire)
     print(json.dumps(result, indent=2))
     return 0
 

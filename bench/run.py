@@ -181,14 +181,6 @@ def pair_real_time_factor(duration: float = 10.0) -> dict[str, float]:
     return {"stepping": (t1 - t0) / (w1 - w0), "whole_run": duration / total}
 
 
-def paper_busy_wait() -> float:
-    """The simulator's ``busy_wait`` in the paper scenario: the bound waits the way the pair does."""
-    import yaml
-
-    params = yaml.safe_load(PAPER.read_text())["bracing_simulator"]["ros__parameters"]
-    return float(params.get("busy_wait", 0.0))
-
-
 def machine() -> dict[str, Any]:
     versions = {}
     for dist in ("numpy", "pin", "mujoco", "ros-jazzy-rclpy", "rosbags"):
@@ -216,23 +208,31 @@ def main(argv: list[str] | None = None) -> int:
     from dds_bound import dds_round_trips_per_s
     from mujoco_paper import mujoco_steps_per_s
 
-    print("engine ...", flush=True)
-    engine, engine_samples = engine_steps_per_s(repeats=repeats)
-    print("mujoco ...", flush=True)
-    mj = mujoco_steps_per_s(n_steps=10000, repeats=repeats)
+    print("engine and mujoco, alternately ...", flush=True)
+    engine_samples, mujoco_samples = [], []
+    for _ in range(repeats):  # alternating: a drift of the machine's speed hits both alike
+        engine_samples += engine_steps_per_s(repeats=1)[1]
+        mujoco_samples += mujoco_steps_per_s(n_steps=10000, repeats=1)["samples"]
+    engine = statistics.median(engine_samples)
+    mj = {"steps_per_s": statistics.median(mujoco_samples), "samples": mujoco_samples}
     print("controller ...", flush=True)
     latency = controller_latency_us()
-    print("dds bound ...", flush=True)
-    busy_wait = paper_busy_wait()
-    dds = dds_round_trips_per_s(n=2000, repeats=3, wire="cdr", busy_wait=busy_wait)
-    dds_objects = dds_round_trips_per_s(n=2000, repeats=3, wire="objects", busy_wait=busy_wait)
+    # The bound is measured right before and right after the pair and averaged: this machine's
+    # speed drifts over minutes, and the ratio must compare like with like.
     step = 0.001
+    bound_runs, objects_runs = [], []
+    print("dds bound ...", flush=True)
+    bound_runs.append(dds_round_trips_per_s(n=2000, repeats=3, wire="cdr"))
+    objects_runs.append(dds_round_trips_per_s(n=2000, repeats=3, wire="objects"))
     print("pair (10 s of sim time) ...", flush=True)
     pair = pair_real_time_factor(2.0 if args.quick else 10.0)
+    print("dds bound again ...", flush=True)
+    bound_runs.append(dds_round_trips_per_s(n=2000, repeats=3, wire="cdr"))
+    objects_runs.append(dds_round_trips_per_s(n=2000, repeats=3, wire="objects"))
     print("scaling ...", flush=True)
     scale = scaling(repeats=2 if args.quick else 3)
-    bound = dds["round_trips_per_s"] * step
-    bound_objects = dds_objects["round_trips_per_s"] * step
+    bound = statistics.mean(run["round_trips_per_s"] for run in bound_runs) * step
+    bound_objects = statistics.mean(run["round_trips_per_s"] for run in objects_runs) * step
     result = {
         "engine_steps_per_s": engine,
         "engine_samples": engine_samples,
@@ -242,12 +242,12 @@ def main(argv: list[str] | None = None) -> int:
         "pair_real_time_factor": pair["stepping"],
         "pair_real_time_factor_whole_run": pair["whole_run"],
         "dds_bound_real_time_factor": bound,
-        "dds_round_trip_us": dds["round_trip_us"],
-        "dds_bound_samples": dds["samples"],
+        "dds_round_trip_us": 1e3 / bound,
+        "dds_bound_before_after": [run["round_trips_per_s"] * step for run in bound_runs],
         "pair_vs_bound": pair["stepping"] / bound,
         "dds_bound_objects_real_time_factor": bound_objects,
         "pair_vs_objects_bound": pair["stepping"] / bound_objects,
-        "busy_wait_s": busy_wait,
+        "dds_bound_objects_before_after": [run["round_trips_per_s"] * step for run in objects_runs],
         "controller_update_us_p50": latency["p50"],
         "controller_update_us_p99": latency["p99"],
         "scaling": scale,

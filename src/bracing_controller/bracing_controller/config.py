@@ -31,7 +31,6 @@ CONTROLLER_PARAMETERS: dict[str, object] = {
     "gravity_compensation": False,
     "damping_lambda": 1e-6,
     "wait_for_recorder": False,
-    "busy_wait": 0.0,
 }
 
 
@@ -64,7 +63,6 @@ class ControllerConfig:
     gravity_compensation: bool  # add g(q) to l (not in the paper)
     damping_lambda: float  # damped-inverse regularisation for a near-singular B
     wait_for_recorder: bool = False  # answer the first state only once a recorder subscribes to both outputs
-    busy_wait: float = 0.0  # [s] wall time: poll this long for the next state before blocking
 
     @property
     def task_dimension(self) -> int:
@@ -123,7 +121,6 @@ class ControllerConfig:
             gravity_compensation=get_bool(params, "gravity_compensation", False),
             damping_lambda=get_float(params, "damping_lambda", 1e-6, positive=True),
             wait_for_recorder=get_bool(params, "wait_for_recorder", False),
-            busy_wait=get_float(params, "busy_wait", 0.0, minimum=0.0),
         )
         if config.task_dimension > n - p:
             raise ConfigError(

@@ -115,7 +115,7 @@ def spin(node: ControllerNode) -> int:
     """Answer states as they come (a wait set on joint_states), serving the executor in between."""
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    waiter = SubscriptionWaiter(node, node.state_sub, node.config.busy_wait)
+    waiter = SubscriptionWaiter(node, node.state_sub)
     answered = 0
     try:
         if node.config.wait_for_recorder:

@@ -73,7 +73,6 @@ SIMULATOR_PARAMETERS: dict[str, object] = {
     "watchdog_policy": "hold",
     "min_subscribers": 1,
     "divergence_residual": 0.01,
-    "busy_wait": 0.0,
 }
 
 
@@ -227,7 +226,6 @@ class SimulatorConfig:
     watchdog_policy: str  # hold | zero
     min_subscribers: int
     divergence_residual: float  # [m]; a larger |C| stops the simulation
-    busy_wait: float  # [s] wall time: lockstep polls this long for the command before blocking
 
     @classmethod
     def from_params(cls, params: Params, search_dirs: Sequence[Path] = ()) -> SimulatorConfig:
@@ -253,7 +251,6 @@ class SimulatorConfig:
             watchdog_policy=get_str(params, "watchdog_policy", "hold", choices=("hold", "zero")),
             min_subscribers=get_int(params, "min_subscribers", 1, minimum=0),
             divergence_residual=get_float(params, "divergence_residual", 0.01, positive=True),
-            busy_wait=get_float(params, "busy_wait", 0.0, minimum=0.0),
         )
 
 

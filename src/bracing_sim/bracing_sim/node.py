@@ -210,7 +210,7 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
             node.get_logger().info(
                 f"lockstep: waiting for {cfg.min_subscribers} subscriber(s) of joint_states (start the controller)"
             )
-    waiter = SubscriptionWaiter(node, node.command_sub, cfg.busy_wait)
+    waiter = SubscriptionWaiter(node, node.command_sub)
     node.publish_state(node.state_effort())
     while not node.done():
         node.advance(wait_for_command(node, waiter, executor))

@@ -82,12 +82,8 @@ class SubscriptionWaiter:
     that the node's services still answer.
     """
 
-    def __init__(
-        self, node: Node, subscriptions: Subscription | Sequence[Subscription], busy_wait: float = 0.0
-    ) -> None:
-        """``busy_wait`` [s]: poll this long before blocking (see ``take_all``)."""
+    def __init__(self, node: Node, subscriptions: Subscription | Sequence[Subscription]) -> None:
         self._subscriptions = [subscriptions] if isinstance(subscriptions, Subscription) else list(subscriptions)
-        self._busy_wait = busy_wait
         self._context = node.context
         self._wait_set = _rclpy.WaitSet(len(self._subscriptions), 1, 0, 0, 0, 0, node.context.handle)
         self._interrupt = SignalHandlerGuardCondition(context=node.context)
@@ -97,22 +93,7 @@ class SubscriptionWaiter:
         return [message for _, message in self.take_all(timeout_sec)]
 
     def take_all(self, timeout_sec: float) -> list[tuple[Subscription, Any]]:
-        """(subscription, message) for every message available now, waiting up to ``timeout_sec``.
-
-        With ``busy_wait``, first polls the subscriptions for up to that long: a lockstep
-        loop's answer usually comes within a fraction of a millisecond, and a process that
-        blocks for that long pays for it twice, in the wake-up and in cold caches (on virtual
-        machines, several times the cost of a simulation step). Costs a core while polling.
-        """
-        if self._busy_wait > 0.0:
-            end = time.perf_counter() + min(self._busy_wait, timeout_sec)
-            while True:
-                messages = self._take_ready(self._subscriptions)
-                if messages or time.perf_counter() >= end or not self._context.ok():
-                    break
-            if messages:
-                return messages
-            timeout_sec = max(0.0, timeout_sec - self._busy_wait)
+        """(subscription, message) for every message available now, waiting up to ``timeout_sec``."""
         wait_set = self._wait_set
         wait_set.clear_entities()
         for subscription in self._subscriptions:
