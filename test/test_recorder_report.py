@@ -607,3 +607,25 @@ def test_report_missing_or_broken_bag_exits_2(tmp_path: Path, capsys: pytest.Cap
     err = capsys.readouterr().err
     assert err.startswith("bracing-report: error: cannot read bag") and err.count("\n") == 1
     assert not list(tmp_path.glob("*.png"))
+
+
+def test_missing_messages_names_every_short_topic(tmp_path: Path) -> None:
+    """bracing-pair's completeness check: a lockstep bag of N steps holds N + 1 of every topic."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    from bracing_bringup.recorder import BAG_VERSION, bracing_typestore, missing_messages, topic_table
+
+    store, expected = bracing_typestore(), 5
+    bag = tmp_path / "bag"
+    with Writer(bag, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP) as writer:
+        for topic, _, type_name in topic_table(["elbow"]):
+            name = topic if topic.startswith("/") else "/" + topic
+            connection = writer.add_connection(name, type_name, typestore=store)
+            short = {"/joint_states": 2, "/contact_wrench/elbow": 0}.get(name, expected)
+            for k in range(short):
+                writer.write(connection, k, b"\x00\x01\x00\x00" + bytes(8))
+    assert missing_messages(bag, ["elbow"], expected) == [
+        "/joint_states: 2 of 5 messages",
+        "/contact_wrench/elbow: 0 of 5 messages",
+    ]
+    assert missing_messages(bag, ["elbow"], 2) == ["/contact_wrench/elbow: 0 of 2 messages"]

@@ -255,6 +255,14 @@ def run_pair(options: RunOptions) -> RunResult:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     wall = time.monotonic() - start_wall
+    if code == 0 and sim_config.stepping == "lockstep" and not options.real_time and duration > 0:
+        # Lockstep promises every step in the bag: check it rather than report on a partial record.
+        from bracing_bringup.recorder import missing_messages
+
+        problems = missing_messages(bag, contacts, round(duration / sim_config.step) + 1)
+        if problems:
+            code = EXIT_FAILED
+            message = "error: the bag is incomplete (lost messages): " + "; ".join(problems)
     summary = None
     if code == 0:
         from bracing_bringup.report import write_report  # matplotlib: only when there is a report to draw

@@ -107,6 +107,27 @@ def topic_table(contacts: Sequence[str]) -> list[tuple[str, type, str]]:
     return table
 
 
+def missing_messages(bag: Path, contacts: Sequence[str], expected: int, namespace: str = "") -> list[str]:
+    """What a lockstep bag lacks: one line per topic recorded fewer than ``expected`` times.
+
+    Every topic is sent once per state in lockstep (the command and controller state once
+    per state answered), so a bag of N steps holds N + 1 of each.
+    """
+    from rosbags.rosbag2 import Reader
+
+    prefix = "/" + namespace.strip("/") + "/" if namespace.strip("/") else "/"
+    with Reader(bag) as reader:
+        counts: dict[str, int] = {}
+        for connection in reader.connections:
+            counts[connection.topic] = counts.get(connection.topic, 0) + connection.msgcount
+    problems = []
+    for topic, _, _ in topic_table(contacts):
+        name = topic if topic.startswith("/") else prefix + topic
+        if counts.get(name, 0) < expected:
+            problems.append(f"{name}: {counts.get(name, 0)} of {expected} messages")
+    return problems
+
+
 def cdr_stamp_ns(data: bytes) -> int:
     """Stamp [ns] of a CDR message whose first field is a builtin_interfaces/Time.
 
