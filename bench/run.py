@@ -129,10 +129,13 @@ def chain_scenario(n: int, p: int) -> Any:
 
 def scaling(repeats: int = 3) -> dict[str, Any]:
     results: dict[str, Any] = {}
+    sizes = (4, 8, 16, 32)
+    samples: dict[tuple[int, int], list[float]] = {(p, n): [] for p in (1, 2) for n in sizes}
+    for _ in range(repeats):  # every size once per round: a drift of the machine's speed hits all alike
+        for p, n in samples:
+            samples[p, n] += engine_steps_per_s(steps=1000, repeats=1, scenario=chain_scenario(n, p))[1]
     for p in (1, 2):
-        rates = {}
-        for n in (4, 8, 16, 32):
-            rates[n], _ = engine_steps_per_s(steps=1000, repeats=repeats, scenario=chain_scenario(n, p))
+        rates = {n: statistics.median(samples[p, n]) for n in sizes}
         ns = np.array(list(rates))
         cost = 1.0 / np.array(list(rates.values()))
         exponent = float(np.polyfit(np.log(ns), np.log(cost), 1)[0])

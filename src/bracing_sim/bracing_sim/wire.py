@@ -112,8 +112,8 @@ class _Template:
                 return None
         return [unpack_from(data, offset) for unpack_from, offset in self._unpack_from]
 
-    def fill(self, *values: Sequence[float | int] | None) -> bytes:
-        """The message with slot k set to ``values[k]`` (a sequence of numbers; None for no slot)."""
+    def fill(self, *values: Sequence[float | int]) -> bytes:
+        """The message with slot k set to ``values[k]`` (a sequence of numbers)."""
         buffer = bytearray(self.data)
         for (pack_into, offset), value in zip(self._pack_into, values, strict=True):
             pack_into(buffer, offset, *value)  # type: ignore[misc]
