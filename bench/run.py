@@ -4,8 +4,8 @@ in one run on this machine, with medians of repeats. Prints a table, writes benc
 - engine vs MuJoCo: the simulator core stepping the paper model in-process (voltage input,
   RK4, 1 ms, elbow braced) against MuJoCo stepping an equivalent MJCF (bench/mujoco_paper.py);
 - the ROS pair vs the DDS bound: bracing-pair in lockstep for 10 s of sim time, against the
-  round trips/s of two bare rclpy processes ping-ponging messages of the same size, times
-  the step (bench/dds_bound.py);
+  round trips/s of two rclpy processes ping-ponging messages of the same size over the
+  nodes' own transport, times the step, measured before and after the pair (bench/dds_bound.py);
 - controller update latency (p50, p99);
 - engine steps/s for generated chains of n links with p = 1 and 2 contacts, and the
   fitted growth exponent of cost with n.
@@ -223,15 +223,18 @@ def main(argv: list[str] | None = None) -> int:
     # The bound is measured right before and right after the pair and averaged: this machine's
     # speed drifts over minutes, and the ratio must compare like with like.
     step = 0.001
-    bound_runs, objects_runs = [], []
-    print("dds bound ...", flush=True)
-    bound_runs.append(dds_round_trips_per_s(n=2000, repeats=3, wire="cdr"))
-    objects_runs.append(dds_round_trips_per_s(n=2000, repeats=3, wire="objects"))
+    bound_runs: list[dict[str, Any]] = []
+    objects_runs: list[dict[str, Any]] = []
+
+    def measure_bounds(label: str) -> None:
+        print(label, flush=True)
+        bound_runs.append(dds_round_trips_per_s(n=2000, repeats=3, wire="cdr"))
+        objects_runs.append(dds_round_trips_per_s(n=2000, repeats=3, wire="objects"))
+
+    measure_bounds("dds bound ...")
     print("pair (10 s of sim time) ...", flush=True)
     pair = pair_real_time_factor(2.0 if args.quick else 10.0)
-    print("dds bound again ...", flush=True)
-    bound_runs.append(dds_round_trips_per_s(n=2000, repeats=3, wire="cdr"))
-    objects_runs.append(dds_round_trips_per_s(n=2000, repeats=3, wire="objects"))
+    measure_bounds("dds bound again ...")
     print("scaling ...", flush=True)
     scale = scaling(repeats=2 if args.quick else 3)
     bound = statistics.mean(run["round_trips_per_s"] for run in bound_runs) * step

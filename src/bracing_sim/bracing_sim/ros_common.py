@@ -115,13 +115,13 @@ class SubscriptionWaiter:
         return messages
 
 
-def read_joint_state(data: bytes, decoder: wire.JointStateDecoder | None = None) -> wire.JointStateData:
+def read_joint_state(data: bytes, decoder: wire.JointStateDecoder) -> wire.JointStateData:
     """A JointState taken raw (CDR bytes); rclpy decodes encapsulations ``wire`` does not read.
 
     Raises ``wire.DecodeError`` for bytes that are not a JointState.
     """
     try:
-        return decoder.decode(data) if decoder is not None else wire.decode_joint_state(data)
+        return decoder.decode(data)
     except wire.UnsupportedEncoding:
         msg = _deserialize(data, JointState)
         return wire.JointStateData(
@@ -133,10 +133,10 @@ def read_joint_state(data: bytes, decoder: wire.JointStateDecoder | None = None)
         )
 
 
-def read_motor_command(data: bytes, decoder: wire.MotorCommandDecoder | None = None) -> wire.MotorCommandData:
+def read_motor_command(data: bytes, decoder: wire.MotorCommandDecoder) -> wire.MotorCommandData:
     """A MotorCommand taken raw (CDR bytes); see :func:`read_joint_state`."""
     try:
-        return decoder.decode(data) if decoder is not None else wire.decode_motor_command(data)
+        return decoder.decode(data)
     except wire.UnsupportedEncoding:
         msg = _deserialize(data, MotorCommand)
         return wire.MotorCommandData(
@@ -165,10 +165,6 @@ def read_parameters(node: Node) -> dict[str, Any]:
     # get_parameters_by_prefix returns Parameter objects (its annotation says values).
     parameters = cast(dict[str, Parameter], node.get_parameters_by_prefix(""))
     return {name: parameter.value for name, parameter in parameters.items()}
-
-
-def stamp(nanoseconds: int) -> Time:
-    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
 
 
 def nanoseconds(time: Time) -> int:

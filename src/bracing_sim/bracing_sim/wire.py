@@ -48,13 +48,12 @@ class _Layout:
     def _align(self, size: int) -> None:
         self.buffer += bytes(-(len(self.buffer) - _HEADER_SIZE) % size)
 
-    def slot(self, fmt: str, align: int) -> int:
-        """A numeric field (``struct`` format, little-endian); returns its slot index."""
+    def slot(self, fmt: str, align: int) -> None:
+        """A numeric field (``struct`` format, little-endian), filled per message."""
         self._align(align)
         packer = struct.Struct("<" + fmt)
         self.slots.append((len(self.buffer), packer))
         self.buffer += bytes(packer.size)
-        return len(self.slots) - 1
 
     def uint32(self, value: int) -> None:
         self._align(4)
@@ -70,18 +69,20 @@ class _Layout:
         for text in texts:
             self.string(text)
 
-    def stamp(self) -> int:
-        return self.slot("iI", 4)
+    def stamp(self) -> None:
+        self.slot("iI", 4)
 
-    def header(self, frame_id: str) -> int:
-        slot = self.stamp()
+    def header(self, frame_id: str) -> None:
+        self.stamp()
         self.string(frame_id)
-        return slot
 
-    def doubles(self, count: int) -> int | None:
-        """A float64[] of fixed length; None (no slot) when empty."""
+    def doubles(self, count: int, per_element: int = 1) -> None:
+        """A sequence of ``count`` elements of ``per_element`` float64 each (float64[], Point[]).
+
+        Its slot is empty when the sequence is: CDR aligns no empty array.
+        """
         self.uint32(count)
-        return self.slot(f"{count}d", 8) if count else None
+        self.slot(f"{count * per_element}d", 8 if count else 1)
 
     def build(self) -> _Template:
         return _Template(bytes(self.buffer), self.slots)
@@ -134,11 +135,8 @@ class JointStateEncoder:
         for _ in range(3):
             layout.doubles(len(names))
         self._template = layout.build()
-        self._slots = 4 if names else 1
 
     def encode(self, stamp_ns: int, position: Vector, velocity: Vector, effort: Vector) -> bytes:
-        if self._slots == 1:
-            return self._template.fill(_split(stamp_ns))
         return self._template.fill(_split(stamp_ns), position.tolist(), velocity.tolist(), effort.tolist())
 
 
@@ -223,14 +221,11 @@ class MotorStateEncoder:
             layout.doubles(len(names))
         layout.slot("3d", 8)
         self._template = layout.build()
-        self._empty = not names
 
     def encode(
         self, stamp_ns: int, voltage: Vector, current: Vector, power: Vector, energies: tuple[float, float, float]
     ) -> bytes:
         """``energies``: (energy_consumed, energy_net, copper_loss) [J]."""
-        if self._empty:
-            return self._template.fill(_split(stamp_ns), energies)
         return self._template.fill(_split(stamp_ns), voltage.tolist(), current.tolist(), power.tolist(), energies)
 
 
@@ -244,11 +239,8 @@ class MotorCommandEncoder:
         layout.strings(names)
         layout.doubles(len(names))
         self._template = layout.build()
-        self._empty = not names
 
     def encode(self, stamp_ns: int, value: Vector) -> bytes:
-        if self._empty:
-            return self._template.fill(_split(stamp_ns))
         return self._template.fill(_split(stamp_ns), value.tolist())
 
 
@@ -262,15 +254,11 @@ class ControllerStateEncoder:
         layout.slot("3d3d", 8)  # hand desired, hand actual
         layout.strings(contact_names)
         layout.doubles(p)
-        for _ in range(2):  # brace desired, brace actual: Point[]
-            layout.uint32(p)
-            if p:
-                layout.slot(f"{3 * p}d", 8)
+        layout.doubles(p, per_element=3)  # brace desired: Point[]
+        layout.doubles(p, per_element=3)  # brace actual
         layout.doubles(command_length)
         layout.slot("d", 8)
         self._template = layout.build()
-        self._p = p
-        self._has_command = command_length > 0
 
     def encode(
         self,
@@ -284,13 +272,15 @@ class ControllerStateEncoder:
         compute_time: float,
     ) -> bytes:
         """``brace_desired``/``brace_actual``: (p, 3) arrays."""
-        values: list[Sequence[float | int]] = [_split(stamp_ns), (*hand_desired.tolist(), *hand_actual.tolist())]
-        if self._p:
-            values += [desired_normal_force.tolist(), brace_desired.ravel().tolist(), brace_actual.ravel().tolist()]
-        if self._has_command:
-            values.append(command.tolist())
-        values.append((compute_time,))
-        return self._template.fill(*values)
+        return self._template.fill(
+            _split(stamp_ns),
+            (*hand_desired.tolist(), *hand_actual.tolist()),
+            desired_normal_force.tolist(),
+            brace_desired.ravel().tolist(),
+            brace_actual.ravel().tolist(),
+            command.tolist(),
+            (compute_time,),
+        )
 
 
 # ----------------------------------------------------------------------------- decoding
@@ -369,11 +359,10 @@ class JointStateDecoder:
     def __init__(self, names: Sequence[str]) -> None:
         self._names = list(names)
         self._template = JointStateEncoder(names)._template
-        self._full = len(self._names) > 0
 
     def decode(self, data: bytes) -> JointStateData:
         values = self._template.read(data)
-        if values is None or not self._full:
+        if values is None:
             return decode_joint_state(data)
         (sec, nanosec), position, velocity, effort = values
         return JointStateData(
@@ -407,11 +396,10 @@ class MotorCommandDecoder:
     def __init__(self, names: Sequence[str], mode: int) -> None:
         self._names, self._mode = list(names), mode
         self._template = MotorCommandEncoder(names, mode)._template
-        self._full = len(self._names) > 0
 
     def decode(self, data: bytes) -> MotorCommandData:
         values = self._template.read(data)
-        if values is None or not self._full:
+        if values is None:
             return decode_motor_command(data)
         (sec, nanosec), value = values
         return MotorCommandData(
