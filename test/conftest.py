@@ -8,11 +8,12 @@ both the simulator's and the controller's parameters (the /** section), ``sim`` 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 import pytest
+import ros_helpers
 
 from bracing_bringup import inprocess
 from bracing_bringup.inprocess import Run, Scenario, run_closed_loop
@@ -43,6 +44,13 @@ def _freeze(value: Any) -> Any:
     if isinstance(value, (list, tuple)):
         return tuple(_freeze(v) for v in value)
     return value
+
+
+@pytest.fixture(autouse=True)
+def _release_ros_domains() -> Iterator[None]:
+    """Domain ids a test held for its ROS processes are free again once it ends."""
+    yield
+    ros_helpers.release_domains()
 
 
 @pytest.fixture(scope="session")

@@ -9,6 +9,11 @@ python lockstep_driver.py sim-bad N      -> as sim, but every valid command is p
     future stamps)
 python lockstep_driver.py sim-skip N K   -> as sim, but never answers state K (watchdog)
 python lockstep_driver.py sim-scale N S  -> as sim, with every command multiplied by S
+python lockstep_driver.py sim-absurd N K -> as sim, but answers state K with 1e300 on every joint
+    (finite, valid, but its step is not) and nothing else
+python lockstep_driver.py sim-kinds F    -> as sim, answering state k with a bad command of kind F[k]
+    (a JSON list of BAD_COMMAND_KINDS) and then the valid one (saturated / absurd / watchdog: the
+    over-limit command, the 1e300 one, or nothing, instead)
 """
 
 from __future__ import annotations
@@ -34,8 +39,9 @@ def known_command(k: int) -> list[float]:
     return [2.0 * ((k * (j + 3)) % 7 - 3) / 3.0 + 0.5 * j for j in range(4)]
 
 
-def bad_commands(msg: JointState, values: list[float]) -> list[MotorCommand | bytes]:
-    """One command for each way a command can be wrong, including bytes that are no command."""
+def bad_command_kinds(msg: JointState, values: list[float]) -> dict[str, MotorCommand | bytes]:
+    """One command for each way a command can be wrong, including bytes that are no command,
+    by the kind the simulator reports it under."""
 
     def make(names: list[str], vals: list[float], mode: int = MotorCommand.VOLTAGE, dt_ns: int = 0) -> MotorCommand:
         command = MotorCommand(mode=mode, name=names, value=vals)
@@ -43,26 +49,38 @@ def bad_commands(msg: JointState, values: list[float]) -> list[MotorCommand | by
         command.header.stamp.sec, command.header.stamp.nanosec = divmod(total, 10**9)
         return command
 
-    nan = [float("nan"), *values[1:]]
-    inf = [*values[:3], float("inf")]
-    return [
-        make(JOINTS, nan),
-        make(JOINTS, inf),
-        make(JOINTS, values[:3]),
-        make(JOINTS[:3], values[:3]),
-        make([*JOINTS[:3], "joint9"], values),
-        make([*JOINTS[:3], "joint1"], values),
-        make(JOINTS, [v * 1e6 for v in values], mode=MotorCommand.TORQUE),
-        make(JOINTS, values, mode=7),
-        *([make(JOINTS, [v + 100.0 for v in values], dt_ns=-1_000_000)] if msg.header.stamp.nanosec else []),  # stale
-        make(JOINTS, [v + 100.0 for v in values], dt_ns=+1_000_000),  # from the future
-        serialize_message(make(JOINTS, [v + 100.0 for v in values]))[:30],  # cut short
-        b"\x00\x01\x00\x00" + b"\xff" * 40,  # a string longer than the message
-    ]
+    kinds: dict[str, MotorCommand | bytes] = {
+        "nan": make(JOINTS, [float("nan"), *values[1:]]),
+        "inf": make(JOINTS, [*values[:3], float("inf")]),
+        "length": make(JOINTS, values[:3]),
+        "missing-names": make(JOINTS[:3], values[:3]),
+        "unknown-names": make([*JOINTS[:3], "joint9"], values),
+        "duplicate": make([*JOINTS[:3], "joint1"], values),
+        "mode-1": make(JOINTS, [v * 1e6 for v in values], mode=MotorCommand.TORQUE),
+        "mode-7": make(JOINTS, values, mode=7),
+        "from the future": make(JOINTS, [v + 100.0 for v in values], dt_ns=+1_000_000),
+        "cut-short": serialize_message(make(JOINTS, [v + 100.0 for v in values]))[:30],
+        "malformed": b"\x00\x01\x00\x00" + b"\xff" * 40,  # a string longer than the message
+    }
+    if msg.header.stamp.nanosec or msg.header.stamp.sec:  # no stale one at k = 0
+        kinds["stale"] = make(JOINTS, [v + 100.0 for v in values], dt_ns=-1_000_000)
+    return kinds
 
 
-def drive_simulator(node: rclpy.node.Node, steps: int, mode: str = "sim", arg: float = 0.0) -> dict[str, object]:
+# Kinds the sim-kinds driver sends instead of the valid command.
+INSTEAD_KINDS = {"saturated", "absurd", "watchdog"}
+
+
+def bad_commands(msg: JointState, values: list[float]) -> list[MotorCommand | bytes]:
+    """One command for each way a command can be wrong, including bytes that are no command."""
+    return list(bad_command_kinds(msg, values).values())
+
+
+def drive_simulator(
+    node: rclpy.node.Node, steps: int, mode: str = "sim", arg: float = 0.0, kinds: list[str] | None = None
+) -> dict[str, object]:
     states: list[dict[str, object]] = []
+    kinds = kinds or []
     pub = node.create_publisher(MotorCommand, "motor_command", STREAM_QOS)
 
     def on_state(msg: JointState) -> None:
@@ -79,6 +97,16 @@ def drive_simulator(node: rclpy.node.Node, steps: int, mode: str = "sim", arg: f
         values = known_command(k)
         if mode == "sim-skip" and k == int(arg):
             return
+        if mode == "sim-absurd" and k == int(arg):
+            values = [1e300] * len(values)
+        if mode == "sim-kinds":
+            kind = kinds[k] if k < len(kinds) else "none"
+            if kind in INSTEAD_KINDS:
+                if kind == "watchdog":
+                    return
+                values = [1e300 if kind == "absurd" else 1e6] * len(values)
+            elif kind != "none":
+                pub.publish(bad_command_kinds(msg, values)[kind])
         if mode == "sim-scale":
             values = [v * arg for v in values]
         if mode == "sim-bad":
@@ -113,11 +141,16 @@ def drive_controller(node: rclpy.node.Node, path: str) -> dict[str, object]:
     for k, state in enumerate(inputs):
         if "raw_hex" in state:  # bytes that are no JointState
             pub.publish(bytes.fromhex(state["raw_hex"]))
-            time.sleep(0.5)
+            if not state.get("no_wait"):
+                time.sleep(0.5)
             continue
         msg = JointState(name=state["name"], position=state["position"], velocity=state["velocity"])
         msg.header.stamp.sec, msg.header.stamp.nanosec = k // 1000, (k % 1000) * 1_000_000  # t = k ms
+        if "stamp" in state:
+            msg.header.stamp.sec, msg.header.stamp.nanosec = state["stamp"]
         pub.publish(msg)
+        if state.get("no_wait"):  # an answer is not expected: the next state's answer shows it was handled
+            continue
         deadline = time.monotonic() + 3.0
         while k not in answers and time.monotonic() < deadline:
             rclpy.spin_once(node, timeout_sec=0.05)
@@ -128,7 +161,11 @@ def main() -> None:
     rclpy.init()
     node = rclpy.create_node("lockstep_driver")
     role = sys.argv[1]
-    if role.startswith("sim"):
+    if role == "sim-kinds":
+        with open(sys.argv[2]) as handle:
+            kinds = json.load(handle)
+        result = drive_simulator(node, len(kinds) + 1, role, kinds=kinds)
+    elif role.startswith("sim"):
         result = drive_simulator(node, int(sys.argv[2]), role, float(sys.argv[3]) if len(sys.argv) > 3 else 0.0)
     else:
         result = drive_controller(node, sys.argv[2])

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
-import random
 import subprocess
 import sys
 from pathlib import Path
@@ -11,20 +11,35 @@ from typing import Any
 
 import yaml
 
+from bracing_bringup.domains import hold_domain
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PAPER_YAML = REPO_ROOT / "config" / "paper_4link.yaml"
 DRIVER = str(REPO_ROOT / "test" / "lockstep_driver.py")
 
 
-def isolated_env(domain_id: int | None = None, **extra: str) -> dict[str, str]:
-    """Environment for a child ROS process: localhost-only discovery, a domain of its own.
+_held = contextlib.ExitStack()
 
-    Domain ids are drawn per call from 102-232 (the range that bracing-pair does not use
-    by default), so two test runs on one machine do not see each other.
+
+def hold_test_domain() -> int:
+    """A ROS domain id held by this test process until the current test ends (``release_domains``).
+
+    The same coordination as bracing-pair's (``bracing_bringup.domains``): two test runs, or a
+    test and a user's run, on one machine never share a domain.
     """
+    return _held.enter_context(hold_domain()).domain_id
+
+
+def release_domains() -> None:
+    _held.close()
+
+
+def isolated_env(domain_id: int | None = None, **extra: str) -> dict[str, str]:
+    """Environment for a child ROS process: localhost-only discovery, a domain of its own
+    (held by this process until the test ends)."""
     env = dict(os.environ)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    env["ROS_DOMAIN_ID"] = str(domain_id if domain_id is not None else random.randint(102, 232))
+    env["ROS_DOMAIN_ID"] = str(domain_id if domain_id is not None else hold_test_domain())
     env["PYTHONUNBUFFERED"] = "1"
     env.update(extra)
     return env
@@ -82,7 +97,7 @@ def drive(
 
 
 def pair_argv(output: Path, *extra: str, config: Path = PAPER_YAML) -> list[str]:
-    """bracing-pair, quiet, in a domain of its own from the tests' range."""
+    """bracing-pair, quiet (it holds a domain of its own while it runs)."""
     return [
         sys.executable,
         "-m",
@@ -92,7 +107,5 @@ def pair_argv(output: Path, *extra: str, config: Path = PAPER_YAML) -> list[str]
         "--output",
         str(output),
         "--quiet",
-        "--domain-id",
-        str(random.randint(102, 232)),
         *extra,
     ]

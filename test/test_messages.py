@@ -46,10 +46,10 @@ def test_motor_command_constants() -> None:
 def test_two_domains_do_not_see_each_other() -> None:
     """The isolation the tests rely on: a sender in another domain is not received."""
     sender = subprocess.Popen(
-        [sys.executable, ECHO, "send"], env=isolated_env(120), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        [sys.executable, ECHO, "send"], env=isolated_env(), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
     )
     try:
-        env = isolated_env(121)
+        env = isolated_env()
         receiver = subprocess.run(
             [sys.executable, ECHO, "receive", "4"], env=env, capture_output=True, text=True, timeout=60
         )

@@ -119,18 +119,25 @@ def test_controller_ignores_malformed_joint_states(tmp_path: Path) -> None:
     assert "joint_states ignored: bad string of" in log
 
 
-def test_divergence_stops_the_simulator_with_a_clear_error(tmp_path: Path) -> None:
-    """Finite but absurd voltages (1e300 V) make the state non-finite: the simulator keeps the
-    last good state, says so, exits 3; no published state holds a NaN."""
-    extra = params_file(tmp_path, "bracing_simulator", {"duration": 1.0})
-    driver, node, log = drive(
-        node_argv("bracing_sim.node", extra), ["sim-scale", "3", "1e300"], wait_for_node=True, driver_timeout="10"
+@pytest.mark.parametrize("policy", ["hold", "zero"])
+def test_a_command_whose_step_is_not_finite_is_rejected_and_the_run_goes_on(tmp_path: Path, policy: str) -> None:
+    """1e300 V on every joint is finite and well-formed, but its step overflows: it is rejected
+    like a malformed command (naming the joint and value), the state is not advanced on it,
+    the watchdog's policy applies, and the run goes on to its end."""
+    steps, absurd = 20, 6
+    states, log = _drive(
+        tmp_path,
+        {"duration": (steps - 1) * 1e-3, "command_timeout": 0.3, "watchdog_policy": policy},
+        ["sim-absurd", str(steps), str(absurd)],
     )
-    out = driver.stdout
-    assert node.returncode == 3, log
-    assert "simulation diverged" in log and "non-finite state" in log
-    states = json.loads(out.strip().splitlines()[-1])["states"]
-    assert states and all(np.isfinite(s["position"]).all() and np.isfinite(s["velocity"]).all() for s in states)
+    commands = [np.asarray(known_command(k)) for k in range(steps - 1)]
+    commands[absurd] = commands[absurd - 1] if policy == "hold" else np.zeros(4)
+    assert len(states) == steps
+    for state, expected in zip(states, _reference(commands), strict=True):
+        assert np.isfinite(state["effort"]).all()
+        np.testing.assert_allclose(state["position"], expected, rtol=0, atol=1e-12)
+    assert "would not be finite (joint1 = 1e+300 V" in log, log
+    assert "no valid motor_command for t = 0.006000 s" in log
 
 
 def test_pair_reports_divergence_and_keeps_the_bag(tmp_path: Path) -> None:

@@ -31,6 +31,7 @@ CONTROLLER_PARAMETERS: dict[str, object] = {
     "gravity_compensation": False,
     "damping_lambda": 1e-6,
     "wait_for_recorder": False,
+    "log_throttle_period": 1.0,
 }
 
 
@@ -63,6 +64,7 @@ class ControllerConfig:
     gravity_compensation: bool  # add g(q) to l (not in the paper)
     damping_lambda: float  # damped-inverse regularisation for a near-singular B
     wait_for_recorder: bool = False  # answer the first state only once a recorder subscribes to both outputs
+    log_throttle_period: float = 1.0  # [s] wall; at most one report per kind of bad input per period
 
     @property
     def task_dimension(self) -> int:
@@ -121,6 +123,7 @@ class ControllerConfig:
             gravity_compensation=get_bool(params, "gravity_compensation", False),
             damping_lambda=get_float(params, "damping_lambda", 1e-6, positive=True),
             wait_for_recorder=get_bool(params, "wait_for_recorder", False),
+            log_throttle_period=get_float(params, "log_throttle_period", 1.0, minimum=0.0),
         )
         if config.task_dimension > n - p:
             raise ConfigError(

@@ -23,12 +23,15 @@ from bracing_sim.core.types import Vector
 from bracing_sim.ros_common import (
     STREAM_QOS,
     SUBSCRIBE_QOS,
+    AckWindow,
     RateLimitedLog,
     SubscriptionWaiter,
     read_joint_state,
     read_parameters,
     run,
 )
+
+STAMP_RANGE_NS = (-(2**31) * 1_000_000_000, 2**31 * 1_000_000_000)
 
 
 class StateError(ValueError):
@@ -53,6 +56,8 @@ def joint_vectors(msg: wire.JointStateData, joint_names: list[str]) -> tuple[Vec
         q, dq = msg.position[order], msg.velocity[order]
     if not (np.isfinite(q).all() and np.isfinite(dq).all()):
         raise StateError("non-finite position or velocity")
+    if not STAMP_RANGE_NS[0] <= msg.stamp_ns < STAMP_RANGE_NS[1]:  # a nanosec field >= 1e9 can push it out
+        raise StateError(f"stamp {msg.stamp_ns} ns cannot be answered (builtin_interfaces/Time: int32 seconds)")
     return q, dq
 
 
@@ -71,13 +76,21 @@ class ControllerNode(Node):
         self.state_wire = wire.ControllerStateEncoder(self.contact_names, len(self.joint_names))
         self.state_reader = wire.JointStateDecoder(self.joint_names)
         self.state_sub = self.create_subscription(JointState, "joint_states", self._on_state, SUBSCRIBE_QOS, raw=True)
-        self.report = RateLimitedLog(self)
+        self.report = RateLimitedLog(self, self.config.log_throttle_period)
+        self.flow = AckWindow(self, [self.command_pub, self.state_pub], STREAM_QOS.depth)
         self.get_logger().info(
             f"{self.config.shared.input_mode.value} output, contacts {self.contact_names or 'none'}, "
             f"task dimension {self.config.task_dimension}"
         )
 
     def _on_state(self, data: bytes) -> None:
+        try:
+            self.answer(data)
+        except Exception as exc:  # the last line of defence: no message may stop the controller
+            self.report("error", "internal", f"joint_states ignored: {type(exc).__name__}: {exc}")
+
+    def answer(self, data: bytes) -> None:
+        """Answer one joint_states (CDR bytes) with a motor_command and a controller_state."""
         try:
             msg = read_joint_state(data, self.state_reader)
             q, dq = joint_vectors(msg, self.joint_names)
@@ -89,10 +102,15 @@ class ControllerNode(Node):
             return
         t = msg.stamp_ns * 1e-9
         start = time.perf_counter()
-        out = self.law.update(t, q, dq)
+        try:
+            out = self.law.update(t, q, dq)
+        except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:  # absurd but finite q, dq
+            self.report("error", "law", f"joint_states at t = {t:.6f} s ignored: the law failed on it ({exc})")
+            return
         compute_time = time.perf_counter() - start
-        if not np.all(np.isfinite(out.command)):
-            self.report("error", "command", f"non-finite command at t = {t:.6f} s: not sent")
+        outputs = (out.command, out.hand_desired, out.hand_actual, out.desired_normal_force)
+        if not all(np.isfinite(v).all() for v in (*outputs, out.brace_desired, out.brace_actual)):
+            self.report("error", "command", f"joint_states at t = {t:.6f} s ignored: the law's output is not finite")
             return
         if out.damped:
             self.report("warning", "damped", "B is near-singular: using a damped inverse")
@@ -109,6 +127,7 @@ class ControllerNode(Node):
                 compute_time,
             )
         )
+        self.flow.sent()
 
 
 def spin(node: ControllerNode) -> int:
@@ -136,7 +155,12 @@ def spin(node: ControllerNode) -> int:
             if not messages or answered >= 100:
                 answered = 0
                 executor.spin_once(timeout_sec=0.0)  # parameter services and the like
-    except (KeyboardInterrupt, ExternalShutdownException):
+    except KeyboardInterrupt:
+        # Stopped (bracing-pair stops the controller once the simulator is done): the last
+        # answers must reach the recorder before this process and its publishers are gone.
+        node.flow.wait(timeout_sec=10.0)
+        return 0
+    except ExternalShutdownException:
         return 0
 
 

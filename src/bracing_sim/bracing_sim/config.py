@@ -72,7 +72,9 @@ SIMULATOR_PARAMETERS: dict[str, object] = {
     "command_timeout": 5.0,
     "watchdog_policy": "hold",
     "min_subscribers": 1,
+    "wait_for_recorder": False,
     "divergence_residual": 0.01,
+    "log_throttle_period": 1.0,
 }
 
 
@@ -226,6 +228,8 @@ class SimulatorConfig:
     watchdog_policy: str  # hold | zero
     min_subscribers: int
     divergence_residual: float  # [m]; a larger |C| stops the simulation
+    wait_for_recorder: bool = False  # publish the first state only once every topic has a subscriber
+    log_throttle_period: float = 1.0  # [s] wall; at most one report per kind of bad input per period
 
     @classmethod
     def from_params(cls, params: Params, search_dirs: Sequence[Path] = ()) -> SimulatorConfig:
@@ -251,6 +255,8 @@ class SimulatorConfig:
             watchdog_policy=get_str(params, "watchdog_policy", "hold", choices=("hold", "zero")),
             min_subscribers=get_int(params, "min_subscribers", 1, minimum=0),
             divergence_residual=get_float(params, "divergence_residual", 0.01, positive=True),
+            wait_for_recorder=get_bool(params, "wait_for_recorder", False),
+            log_throttle_period=get_float(params, "log_throttle_period", 1.0, minimum=0.0),
         )
 
 

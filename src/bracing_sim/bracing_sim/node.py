@@ -12,11 +12,12 @@ import time
 
 import numpy as np
 from geometry_msgs.msg import WrenchStamped
-from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
+from std_msgs.msg import String
 
 from bracing_msgs.msg import Contacts, MotorCommand, MotorState
 from bracing_sim import wire
@@ -29,12 +30,22 @@ from bracing_sim.ros_common import (
     EXIT_DIVERGED,
     STREAM_QOS,
     SUBSCRIBE_QOS,
+    AckWindow,
     RateLimitedLog,
     SubscriptionWaiter,
     read_motor_command,
     read_parameters,
     run,
 )
+
+
+DESCRIPTION_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+"""robot_description as robot_state_publisher offers it: one message, kept for late subscribers."""
 
 
 class SimulatorNode(Node):
@@ -58,6 +69,9 @@ class SimulatorNode(Node):
             self.create_publisher(WrenchStamped, f"contact_wrench/{c.name}", STREAM_QOS)
             for c in self.config.shared.contacts
         ]
+        # The URDF loaded, latched: robot_state_publisher, RViz and the recorder get it whenever they join.
+        self.description_pub = self.create_publisher(String, "robot_description", DESCRIPTION_QOS)
+        self.description_pub.publish(String(data=self.config.shared.urdf.read_text(encoding="utf-8")))
         # Messages travel as CDR bytes built by ``wire`` (rclpy's message classes cost more than the DDS write).
         contacts = self.config.shared.contacts
         self.joint_wire = wire.JointStateEncoder(self.joint_names)
@@ -69,7 +83,9 @@ class SimulatorNode(Node):
         self.command_sub = self.create_subscription(
             MotorCommand, "motor_command", self._on_command, SUBSCRIBE_QOS, raw=True
         )
-        self.report = RateLimitedLog(self)
+        self.report = RateLimitedLog(self, self.config.log_throttle_period)
+        self.publishers_ = [self.joint_pub, self.contacts_pub, self.motor_pub, self.clock_pub, *self.wrench_pubs]
+        self.flow = AckWindow(self, self.publishers_, STREAM_QOS.depth)
 
         self.command = np.zeros(self.sim.n)  # last applied (held) command
         self._pending: dict[int, Vector] = {}  # lockstep: valid commands by stamp [ns]
@@ -77,6 +93,7 @@ class SimulatorNode(Node):
         self._next_progress = 0.0  # wall time of the next progress line
         self.max_residual = 0.0  # [m], over the run so far (contacts holding a force)
         self._events_logged = 0
+        self.refusal = ""  # why the last refused step was refused
         self.get_logger().info(
             f"{self.mode.value} input, {len(self.plant.contact_set)} contact(s), step {self.config.step} s, "
             f"{self.config.stepping}, duration {duration or 'unbounded'} s"
@@ -84,6 +101,13 @@ class SimulatorNode(Node):
 
     # -- commands -------------------------------------------------------------------
     def _on_command(self, data: bytes) -> None:
+        try:
+            self.take_command(data)
+        except Exception as exc:  # the last line of defence: no message may stop the simulator
+            self.report("error", "internal", f"motor_command rejected: {type(exc).__name__}: {exc}")
+
+    def take_command(self, data: bytes) -> None:
+        """Validate one motor_command (CDR bytes) and keep it for the step it answers."""
         try:
             msg = read_motor_command(data, self.command_reader)
             u, saturated = command_vector(msg.name, msg.value, msg.mode, self.joint_names, self.mode, self.limit)
@@ -93,14 +117,9 @@ class SimulatorNode(Node):
         except CommandError as exc:
             self.report("error", exc.kind, f"motor_command rejected: {exc}")
             return
-        if saturated:
-            self.report("warning", "saturated", f"motor_command saturated to +/-{self.limit}")
         stamp_ns = msg.stamp_ns
-        if self.config.stepping == "real_time":
-            self._latest = (time.monotonic(), u)
-            return
         now_ns = self.sim.steps_taken * self.step_ns
-        if stamp_ns != now_ns:
+        if self.config.stepping == "lockstep" and stamp_ns != now_ns:
             age = "stale" if stamp_ns < now_ns else "from the future"
             self.report(
                 "error",
@@ -108,7 +127,12 @@ class SimulatorNode(Node):
                 f"motor_command rejected: stamp {stamp_ns * 1e-9:.6f} s is {age} (waiting for {now_ns * 1e-9:.6f} s)",
             )
             return
-        self._pending[stamp_ns] = u
+        if saturated:  # said only of a command that is applied
+            self.report("warning", "saturated", f"motor_command saturated to +/-{self.limit}")
+        if self.config.stepping == "real_time":
+            self._latest = (time.monotonic(), u)
+        else:
+            self._pending[stamp_ns] = u
 
     # -- publishing -----------------------------------------------------------------
     def publish_state(self, effort: Vector) -> None:
@@ -146,26 +170,44 @@ class SimulatorNode(Node):
         self.motor_pub.publish(self.motor_wire.encode(t_ns, voltage, current, power, energies))
 
     # -- one step -------------------------------------------------------------------
-    def advance(self, command: Vector) -> None:
+    def advance(self, command: Vector) -> bool:
         """Step with ``command`` held, publish the new state, then the step's reports.
 
         The new state goes out first: the controller computes its answer while this
-        process builds and sends the reports of the step just taken.
+        process builds and sends the reports of the step just taken. A command whose step
+        is not finite (the state, the energies, or the model at the new state: a finite but
+        absurd value such as 1e300 V), or that takes a held contact further than
+        divergence_residual off its surface, is refused: the step is taken back, nothing is
+        published, ``refusal`` says why, and False is returned.
         """
         t_ns = self.sim.steps_taken * self.step_ns
         current, energy = self.sim.current, self.sim.energy  # at the step's start
-        d = self.sim.step(command)
-        self.command = command
+        checkpoint = self.sim.checkpoint()
+        try:
+            with np.errstate(over="ignore", invalid="ignore"):  # an overflow is reported as a refusal
+                d = self.sim.step(command)
+                effort = self.state_effort(command)
+        except DivergenceError as exc:
+            self.sim.restore(checkpoint)
+            self.refusal = str(exc)
+            return False
+        if not _finite(effort, d.normal_force, d.friction_force, d.contacts.slip_velocity):
+            self.sim.restore(checkpoint)
+            self.refusal = f"non-finite forces or effort after the step at t = {self.sim.time:.6f} s"
+            return False
         held = d.contacts.residual if d.active is None else d.contacts.residual[d.active]
         residual = float(np.max(np.abs(held))) if held.size else 0.0
-        self.max_residual = max(self.max_residual, residual)
         if residual > self.config.divergence_residual:
-            self.publish_step(t_ns, command, d, current, energy)  # the bag shows the step that failed
-            raise DivergenceError(
+            self.sim.restore(checkpoint)
+            self.refusal = (
                 f"constraint residual {residual:.3g} m exceeds divergence_residual {self.config.divergence_residual} m"
             )
-        self.publish_state(self.state_effort())
+            return False
+        self.command = command
+        self.max_residual = max(self.max_residual, residual)
+        self.publish_state(effort)
         self.publish_step(t_ns, command, d, current, energy)
+        self.flow.sent()
         for event in self.sim.events[self._events_logged :]:
             extra = f", {event.impact_loss:.4g} J lost in the impact" if event.kind == "touchdown" else ""
             self.get_logger().info(f"contact {event.contact!r}: {event.kind} at t = {event.time:.6f} s{extra}")
@@ -174,12 +216,26 @@ class SimulatorNode(Node):
         if now >= self._next_progress:  # bracing-pair follows these lines
             self._next_progress = now + 0.5
             self.get_logger().info(f"progress t={self.sim.time:.3f} max_residual={self.max_residual:.3e}")
+        return True
 
-    def state_effort(self) -> Vector:
-        """JointState.effort: link-side motor torque (the held command in torque mode)."""
+    def refuse(self, command: Vector) -> None:
+        """Say that ``command`` was refused because its step is not finite, naming its largest value."""
+        j = int(np.argmax(np.abs(command)))
+        unit = "V" if self.mode is InputMode.VOLTAGE else "N m"
+        self.report(
+            "error",
+            "absurd",
+            f"motor_command rejected: its step at t = {self.sim.time:.6f} s would not be finite "
+            f"({self.joint_names[j]} = {command[j]:.6g} {unit}; {self.refusal}); the state is kept",
+        )
+
+    def state_effort(self, command: Vector | None = None) -> Vector:
+        """JointState.effort under ``command`` (default: the held one): the link-side motor
+        torque (the command itself in torque mode)."""
+        command = self.command if command is None else command
         if self.mode is InputMode.TORQUE:
-            return self.command
-        return self.sim.evaluate(self.command).effort
+            return command
+        return self.sim.evaluate(command).effort
 
     def done(self) -> bool:
         return self.total_steps is not None and self.sim.steps_taken >= self.total_steps
@@ -188,13 +244,16 @@ class SimulatorNode(Node):
         """Report the final state (under ``command``, the answer to it if there is one, else
         the held command) and let reliable subscribers receive everything."""
         t_ns = self.sim.steps_taken * self.step_ns
-        if command is not None:
-            self.command = command
-        d = self.sim.evaluate(self.command)
+        d = self.sim.evaluate(command) if command is not None else None
+        if d is None or not _finite(d.normal_force, d.friction_force, d.effort):
+            if command is not None:
+                self.refusal = "non-finite forces or effort at the final state"
+                self.refuse(command)
+            d = self.sim.evaluate(self.command)
+        else:
+            self.command = command  # type: ignore[assignment]  # not None here
         self.publish_step(t_ns, self.command, d, self.sim.current, self.sim.energy)
-        deadline = time.monotonic() + 10.0  # one budget for all: a loaded machine may need it
-        for pub in (self.joint_pub, self.contacts_pub, self.motor_pub, self.clock_pub, *self.wrench_pubs):
-            pub.wait_for_all_acked(Duration(seconds=max(deadline - time.monotonic(), 0.1)))
+        self.flow.wait()  # every subscriber has every message before this process ends
         self.get_logger().info(f"progress t={self.sim.time:.3f} max_residual={self.max_residual:.3e}")
         self.get_logger().info(f"finished at t = {self.sim.time:.6f} s")
 
@@ -210,31 +269,60 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
             node.get_logger().info(
                 f"lockstep: waiting for {cfg.min_subscribers} subscriber(s) of joint_states (start the controller)"
             )
+    if cfg.wait_for_recorder:
+        # Every report must reach the recorder: be matched on every topic before the first state
+        # (joint_states has the controller besides). AckWindow keeps it lossless from then on.
+        since, told = time.monotonic(), False
+        while any(pub.get_subscription_count() < 1 for pub in node.publishers_):
+            executor.spin_once(timeout_sec=0.05)
+            if not told and time.monotonic() - since > 2.0:
+                told = True
+                node.get_logger().info("waiting for the recorder to subscribe to every topic")
     waiter = SubscriptionWaiter(node, node.command_sub)
     node.publish_state(node.state_effort())
+    node.flow.sent()
     while not node.done():
-        node.advance(wait_for_command(node, waiter, executor))
-    node.finish(wait_for_command(node, waiter, executor))  # the answer to the final state, for its reports
-
-
-def wait_for_command(node: SimulatorNode, waiter: SubscriptionWaiter, executor: SingleThreadedExecutor) -> Vector:
-    """The valid command stamped with the current state's stamp; the watchdog's choice if
-    none comes within command_timeout."""
-    cfg = node.config
-    expected = node.sim.steps_taken * node.step_ns
+        step_lockstep(node, waiter, executor)
+    # The answer to the final state, for its reports.
     deadline = time.monotonic() + cfg.command_timeout
-    if node.sim.steps_taken % 100 == 0:
-        executor.spin_once(timeout_sec=0.0)  # parameter services and the like
+    node.finish(next_command(node, waiter, deadline))
+
+
+def next_command(node: SimulatorNode, waiter: SubscriptionWaiter, deadline: float) -> Vector | None:
+    """The next valid command stamped with the current state's stamp, or None at ``deadline``."""
+    expected = node.sim.steps_taken * node.step_ns
     while expected not in node._pending:
         remaining = deadline - time.monotonic()
         if remaining <= 0.0:
-            break
+            return None
         for msg in waiter.take(min(remaining, 0.1)):
             node._on_command(msg)
-    command = node._pending.pop(expected, None)
+    command = node._pending.pop(expected)
     node._pending.clear()
-    if command is not None:
-        return command
+    return command
+
+
+def step_lockstep(node: SimulatorNode, waiter: SubscriptionWaiter, executor: SingleThreadedExecutor) -> None:
+    """One step with the answer to the current state: the first valid command stamped with its
+    stamp whose step is finite; the watchdog's choice if none comes within command_timeout.
+    Raises DivergenceError if even that step is not finite (the model, not the input)."""
+    cfg = node.config
+    if node.sim.steps_taken % 100 == 0:
+        executor.spin_once(timeout_sec=0.0)  # parameter services and the like
+    deadline = time.monotonic() + cfg.command_timeout
+    while (command := next_command(node, waiter, deadline)) is not None:
+        if node.advance(command):
+            return
+        node.refuse(command)
+    fallback = watchdog_command(node)
+    if not node.advance(fallback):
+        raise DivergenceError(f"{node.refusal} (under the watchdog's command: {cfg.watchdog_policy})")
+
+
+def watchdog_command(node: SimulatorNode) -> Vector:
+    """What the watchdog applies when no valid command came in time, after saying so."""
+    cfg = node.config
+    expected = node.sim.steps_taken * node.step_ns
     policy = cfg.watchdog_policy
     node.report(
         "warning",
@@ -259,13 +347,22 @@ def spin_real_time(node: SimulatorNode, executor: SingleThreadedExecutor) -> Non
             command = np.zeros(node.sim.n)
         else:
             command = latest[1]
-        node.advance(command)
+        if node.advance(command):
+            return
+        node.refuse(command)
+        node._latest = None  # never again: a stale command becomes zero
+        if not node.advance(np.zeros(node.sim.n)):
+            raise DivergenceError(f"{node.refusal} (under a zero command)")
 
     node.publish_state(node.state_effort())
     node.create_timer(period, tick)
     while not node.done():
         executor.spin_once(timeout_sec=0.1)
     node.finish()
+
+
+def _finite(*arrays: Vector) -> bool:
+    return all(bool(np.isfinite(a).all()) for a in arrays)
 
 
 def spin(node: SimulatorNode) -> int:

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import os
+import signal
 import sys
 import time
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any, cast
 
 import numpy as np
@@ -12,14 +15,16 @@ import rclpy
 from builtin_interfaces.msg import Time
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy._rclpy_pybind11 import RCLError
+from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
-from rclpy.signals import SignalHandlerGuardCondition
+from rclpy.signals import SignalHandlerGuardCondition, SignalHandlerOptions
 from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 
@@ -27,12 +32,13 @@ from bracing_msgs.msg import MotorCommand
 from bracing_sim import wire
 from bracing_sim.params import ConfigError
 
-# Reliable and deep: a lockstep run must not lose a message to a slower recorder. Transient-local:
-# a subscriber that discovers a publisher late (the recorder and the controller's first
-# commands) still receives what was sent before the match.
+# Reliable, transient-local and deep: a subscriber that discovers a publisher late (the recorder
+# on a busy machine) still receives what was sent before the match. A KEEP_LAST writer drops its
+# oldest sample when the history is full, acknowledged or not; AckWindow (every depth / 4
+# messages) makes sure no unacknowledged sample is ever that old.
 STREAM_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
-    depth=2000,
+    depth=10000,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
@@ -45,6 +51,10 @@ SUBSCRIBE_QOS = QoSProfile(
     durability=DurabilityPolicy.VOLATILE,
 )
 
+FASTDDS_PROFILE = Path(__file__).with_name("fastdds_profile.xml")
+"""Fast DDS defaults of the nodes (a 50 ms heartbeat: see the file); a user's own
+FASTRTPS_DEFAULT_PROFILES_FILE wins."""
+
 EXIT_CONFIG = 2
 EXIT_DIVERGED = 3
 
@@ -53,7 +63,9 @@ class RateLimitedLog:
     """At most one message per ``kind`` per ``period`` seconds, with a count of those held back.
 
     rclpy's throttle is per call site; one site reporting several kinds of bad input
-    would hide all but the first kind.
+    would hide all but the first kind. rclpy also fixes a call site's severity at its
+    first call (a second severity raises ValueError), so each severity is logged from a
+    line of its own below.
     """
 
     def __init__(self, node: Node, period: float = 1.0) -> None:
@@ -69,8 +81,55 @@ class RateLimitedLog:
             return
         held = self._held.pop(kind, 0)
         self._last[kind] = now
-        suffix = f" ({held} more like this since the last report)" if held else ""
-        getattr(self._logger, level)(message + suffix)
+        text = message + (f" ({held} more like this since the last report)" if held else "")
+        if level == "error":
+            self._logger.error(text)
+        elif level == "warning":
+            self._logger.warning(text)
+        else:
+            self._logger.info(text)
+
+
+class AckWindow:
+    """Flow control for reliable publishers whose subscribers must not lose a message.
+
+    A KEEP_LAST writer drops its oldest sample when its history is full, acknowledged or
+    not: a subscriber that matches late (discovery on a busy machine) or falls behind (a
+    niced recorder) would lose the first or oldest messages. Every ``window`` messages
+    (a fraction of the history depth), wait until every matched subscriber has
+    acknowledged everything sent, so the history never overflows.
+    """
+
+    def __init__(self, node: Node, publishers: Sequence[Publisher], depth: int) -> None:
+        self._node = node
+        self._publishers = list(publishers)
+        self.window = max(depth // 4, 1)
+        self._sent = 0
+
+    def sent(self) -> None:
+        """One more message sent on each publisher; waits for acknowledgements every ``window``."""
+        self._sent += 1
+        if self._sent >= self.window:
+            self._sent = 0
+            self.wait()
+
+    def wait(self, timeout_sec: float | None = None) -> bool:
+        """Until everything sent is acknowledged (or ``timeout_sec``); says what it waits for."""
+        deadline = None if timeout_sec is None else time.monotonic() + timeout_sec
+        told = time.monotonic() + 5.0
+        for publisher in self._publishers:
+            while not publisher.wait_for_all_acked(Duration(seconds=0.5)):
+                if not self._node.context.ok():
+                    raise ExternalShutdownException()
+                now = time.monotonic()
+                if deadline is not None and now >= deadline:
+                    return False
+                if now >= told:
+                    told = now + 5.0
+                    self._node.get_logger().info(
+                        f"waiting for the subscribers of {publisher.topic_name} to acknowledge (a slow recorder?)"
+                    )
+        return True
 
 
 class SubscriptionWaiter:
@@ -171,13 +230,22 @@ def nanoseconds(time: Time) -> int:
     return int(time.sec) * 1_000_000_000 + int(time.nanosec)
 
 
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt()
+
+
 def run(node_factory: Callable[[], Node], spin: Callable[[Node], int], args: list[str] | None = None) -> int:
     """Create the node, spin it, and turn start-up errors into one clear line and exit 2."""
     code = 0
     node: Node | None = None
     try:
         try:
-            rclpy.init(args=args if args is not None else sys.argv)
+            # Python's own SIGINT handling (KeyboardInterrupt) instead of rclpy's, which shuts the
+            # context down at once: a node stopping must still flush what its subscribers have
+            # not acknowledged (see AckWindow), and that needs a live context. SIGTERM alike.
+            signal.signal(signal.SIGTERM, _interrupt)
+            os.environ.setdefault("FASTRTPS_DEFAULT_PROFILES_FILE", str(FASTDDS_PROFILE))
+            rclpy.init(args=args if args is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
         except RCLError as exc:  # e.g. a params file rcl cannot parse
             raise ConfigError(str(exc).split(", at /")[0]) from None
         node = node_factory()

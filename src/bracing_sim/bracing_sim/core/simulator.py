@@ -68,6 +68,16 @@ class ContactEvent:
     impact_loss: float = 0.0  # [J], touchdown only
 
 
+@dataclass(frozen=True)
+class Checkpoint:
+    """A copy of the simulator's state (see :meth:`Simulator.checkpoint`)."""
+
+    state: np.ndarray  # q, dq, i and the energy integrals
+    steps_taken: int
+    active: np.ndarray  # which contacts hold a force
+    events: int  # length of the event log
+
+
 class Simulator:
     """Integrates one ConstrainedDynamics from an initial state with a fixed step."""
 
@@ -211,6 +221,22 @@ class Simulator:
         current_rate = self._rate_heads[0][2 * self.n :]
         np.dot(dynamics._current_rows, self._stages[0][0], out=current_rate)  # as _solve computes it
         return Derivative(d.acceleration, current_rate.copy(), d.normal_force, d.effort, d.contacts)
+
+    # -- checkpoints --------------------------------------------------------------------
+    def checkpoint(self) -> Checkpoint:
+        """The state as it is now, for :meth:`restore` (e.g. to take back a step whose result
+        the caller refuses)."""
+        return Checkpoint(self._y.copy(), self.steps_taken, self.active.copy(), len(self.events))
+
+    def restore(self, checkpoint: Checkpoint) -> None:
+        """Back to ``checkpoint``: state, step count, released contacts and event log."""
+        self._y[:] = checkpoint.state
+        self.steps_taken = checkpoint.steps_taken
+        del self.events[checkpoint.events :]
+        if not np.array_equal(self.active, checkpoint.active):
+            self._set_active(checkpoint.active.copy())
+        self._revision += 1  # a cached answer of ``evaluate`` belongs to another state
+        self._cached = None
 
     # -- integration ------------------------------------------------------------------
     def step(self, command: Vector) -> Derivative:
