@@ -74,6 +74,7 @@ SIMULATOR_PARAMETERS: dict[str, object] = {
     "min_subscribers": 1,
     "wait_for_recorder": False,
     "divergence_residual": 0.01,
+    "divergence_speed": 1000.0,
     "log_throttle_period": 1.0,
 }
 
@@ -228,6 +229,7 @@ class SimulatorConfig:
     watchdog_policy: str  # hold | zero
     min_subscribers: int
     divergence_residual: float  # [m]; a larger |C| stops the simulation
+    divergence_speed: float = 1000.0  # [rad/s or m/s]; a step leaving a joint faster is not taken
     wait_for_recorder: bool = False  # publish the first state only once every topic has a subscriber
     log_throttle_period: float = 1.0  # [s] wall; at most one report per kind of bad input per period
 
@@ -255,6 +257,7 @@ class SimulatorConfig:
             watchdog_policy=get_str(params, "watchdog_policy", "hold", choices=("hold", "zero")),
             min_subscribers=get_int(params, "min_subscribers", 1, minimum=0),
             divergence_residual=get_float(params, "divergence_residual", 0.01, positive=True),
+            divergence_speed=get_float(params, "divergence_speed", 1000.0, positive=True),
             wait_for_recorder=get_bool(params, "wait_for_recorder", False),
             log_throttle_period=get_float(params, "log_throttle_period", 1.0, minimum=0.0),
         )

@@ -195,6 +195,13 @@ class SimulatorNode(Node):
             self.sim.restore(checkpoint)
             self.refusal = f"non-finite forces or effort after the step at t = {self.sim.time:.6f} s"
             return False
+        speed = float(np.max(np.abs(self.sim.velocity)))
+        if speed > self.config.divergence_speed:
+            # Finite, but a state no arm reaches: from here RK4 would overflow a few steps later
+            # under any input (a single 1e150 V step does that), so the command is refused now.
+            self.sim.restore(checkpoint)
+            self.refusal = f"joint speed {speed:.3g} exceeds divergence_speed {self.config.divergence_speed}"
+            return False
         held = d.contacts.residual if d.active is None else d.contacts.residual[d.active]
         residual = float(np.max(np.abs(held))) if held.size else 0.0
         if residual > self.config.divergence_residual:
