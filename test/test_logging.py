@@ -9,6 +9,7 @@ tests set ``log_throttle_period: 0`` so that every report is logged and counted.
 
 from __future__ import annotations
 
+import itertools
 import json
 from collections import Counter
 from pathlib import Path
@@ -67,7 +68,7 @@ def every_ordered_pair(kinds: list[str]) -> list[str]:
 def test_every_ordered_pair_appears() -> None:
     kinds = ["a", "b", "c"]
     sequence = every_ordered_pair(kinds)
-    pairs = set(zip(sequence, sequence[1:], strict=False))
+    pairs = set(itertools.pairwise(sequence))
     assert pairs == {(a, b) for a in kinds for b in kinds} and len(sequence) == 10
 
 

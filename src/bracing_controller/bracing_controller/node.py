@@ -12,6 +12,7 @@ import time
 import numpy as np
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 
 from bracing_controller.config import ControllerConfig
@@ -75,13 +76,23 @@ class ControllerNode(Node):
         self.command_wire = wire.MotorCommandEncoder(self.joint_names, self.mode_code)
         self.state_wire = wire.ControllerStateEncoder(self.contact_names, len(self.joint_names))
         self.state_reader = wire.JointStateDecoder(self.joint_names)
-        self.state_sub = self.create_subscription(JointState, "joint_states", self._on_state, SUBSCRIBE_QOS, raw=True)
+        self.state_sub: Subscription | None = None  # see ``listen``
         self.report = RateLimitedLog(self, self.config.log_throttle_period)
         self.flow = AckWindow(self, [self.command_pub, self.state_pub], STREAM_QOS.depth)
         self.get_logger().info(
             f"{self.config.shared.input_mode.value} output, contacts {self.contact_names or 'none'}, "
             f"task dimension {self.config.task_dimension}"
         )
+
+    def listen(self) -> Subscription:
+        """Subscribe to joint_states: from now on states are answered.
+
+        With ``wait_for_recorder`` this comes only once the recorder subscribes to both outputs:
+        the simulator starts stepping when this subscription appears (it waits for it), so no
+        state is answered before the answers have somewhere to be recorded.
+        """
+        self.state_sub = self.create_subscription(JointState, "joint_states", self._on_state, SUBSCRIBE_QOS, raw=True)
+        return self.state_sub
 
     def _on_state(self, data: bytes) -> None:
         try:
@@ -134,19 +145,20 @@ def spin(node: ControllerNode) -> int:
     """Answer states as they come (a wait set on joint_states), serving the executor in between."""
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    waiter = SubscriptionWaiter(node, node.state_sub)
     answered = 0
     try:
         if node.config.wait_for_recorder:
-            # A recorder that discovers these publishers late may miss the first answers if this
-            # process is stopped soon after (a short run): be matched before answering. States
-            # that arrive meanwhile wait in the subscription's queue.
+            # Answers sent before the recorder has matched these publishers can be lost to it (a
+            # recorder discovers late on a busy machine, and a short run ends before it does), so
+            # no state is taken until then: joint_states is subscribed to only afterwards (the
+            # executor would otherwise answer states from its callbacks while waiting here).
             since, told = time.monotonic(), False
             while node.command_pub.get_subscription_count() < 2 or node.state_pub.get_subscription_count() < 1:
                 executor.spin_once(timeout_sec=0.05)
                 if not told and time.monotonic() - since > 2.0:
                     told = True
                     node.get_logger().info("waiting for the recorder to subscribe to the command and state topics")
+        waiter = SubscriptionWaiter(node, node.listen())
         while True:
             messages = waiter.take(0.1)
             for msg in messages:
@@ -158,7 +170,8 @@ def spin(node: ControllerNode) -> int:
     except KeyboardInterrupt:
         # Stopped (bracing-pair stops the controller once the simulator is done): the last
         # answers must reach the recorder before this process and its publishers are gone.
-        node.flow.wait(timeout_sec=10.0)
+        if not node.flow.wait(timeout_sec=10.0):
+            node.get_logger().error("stopping with answers that a subscriber has not acknowledged (lost to it)")
         return 0
     except ExternalShutdownException:
         return 0

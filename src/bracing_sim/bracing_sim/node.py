@@ -38,7 +38,6 @@ from bracing_sim.ros_common import (
     run,
 )
 
-
 DESCRIPTION_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=1,
