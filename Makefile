@@ -9,7 +9,7 @@ PY_SRC := src/bracing_sim/bracing_sim src/bracing_controller/bracing_controller 
 help:
 	@echo "make run    - set up if needed, run the paper scenario braced and unbraced, print the table"
 	@echo "make test   - set up if needed, then ruff, mypy and the pytest suite"
-	@echo "make test-slow - the long runs (10 min of sim time: memory growth, residual drift)"
+	@echo "make test-slow - the long runs: 10 min of sim time; 3 pairs at once x 10 rounds; make run x 10 and in two clones at once"
 	@echo "make bench  - benchmarks (engine vs MuJoCo, pair vs DDS bound, controller latency, scaling)"
 	@echo "make setup  - only the set-up (.venv, CMake fix, colcon build); idempotent"
 

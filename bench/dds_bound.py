@@ -14,8 +14,9 @@ Process layout (the parent never imports rclpy):
     parent --spawns--> ``python bench/dds_bound.py pong --wire W``
            --runs----> ``python bench/dds_bound.py ping --wire W --n N ...``
                        (prints one JSON line with the per-repeat round trips/s)
-Both children get ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a random
-ROS_DOMAIN_ID in [150, 230]. Needs the workspace environment (``source env.sh``).
+Both children get ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a ROS_DOMAIN_ID that the
+parent holds while they live (bracing_bringup.domains). Needs the workspace environment
+(``source env.sh``).
 """
 
 from __future__ import annotations
@@ -23,12 +24,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import random
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
+
+from bracing_bringup.domains import hold_domain
 
 JOINTS = ["joint1", "joint2", "joint3", "joint4"]
 PING_TOPIC = "ping"
@@ -168,10 +170,10 @@ def _ping_main(wire_kind: str, n: int, repeats: int, warmup: int, discovery_time
 # --------------------------------------------------------------------------- parent
 
 
-def _child_env() -> dict[str, str]:
+def _child_env(domain_id: int) -> dict[str, str]:
     env = dict(os.environ)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    env["ROS_DOMAIN_ID"] = str(random.randint(150, 230))
+    env["ROS_DOMAIN_ID"] = str(domain_id)
     env.pop("ROS_STATIC_PEERS", None)
     return env
 
@@ -200,7 +202,11 @@ def dds_round_trips_per_s(
     answering it (matched by stamp). Runs the pong and the ping side as subprocesses
     on a private localhost-only DDS domain; both are always cleaned up.
     """
-    env = _child_env()
+    with hold_domain() as domain:  # held while the two processes live (bracing_bringup.domains)
+        return _round_trips(_child_env(domain.domain_id), n, repeats, warmup, timeout_s, wire)
+
+
+def _round_trips(env: dict[str, str], n: int, repeats: int, warmup: int, timeout_s: float, wire: str) -> dict:
     script = os.path.abspath(__file__)
     with tempfile.TemporaryFile() as pong_err:
         pong = subprocess.Popen(

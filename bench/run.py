@@ -9,6 +9,8 @@ in one run on this machine, with medians of repeats. Prints a table, writes benc
 - controller update latency (p50, p99);
 - engine steps/s for generated chains of n links with p = 1 and 2 contacts, and the
   fitted growth exponent of cost with n.
+- sweep throughput: in-process runs per minute with 1 and 2 local worker processes and a
+  Dask LocalCluster, and the parallel efficiency (bench/sweep_bench.py).
 """
 
 from __future__ import annotations
@@ -17,7 +19,6 @@ import argparse
 import json
 import os
 import platform
-import random
 import statistics
 import subprocess
 import sys
@@ -160,9 +161,7 @@ def pair_real_time_factor(duration: float = 10.0) -> dict[str, float]:
             str(duration),
             "--output",
             str(out),
-            "--quiet",
-            "--domain-id",
-            str(random.randint(150, 230)),
+            "--quiet",  # the pair holds a free domain id of its own (bracing_bringup.domains)
         ],
         env=env,
         capture_output=True,
@@ -210,6 +209,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from dds_bound import dds_round_trips_per_s
     from mujoco_paper import mujoco_steps_per_s
+    from sweep_bench import sweep_throughput
 
     print("engine and mujoco, alternately ...", flush=True)
     engine_samples, mujoco_samples = [], []
@@ -237,6 +237,8 @@ def main(argv: list[str] | None = None) -> int:
     measure_bounds("dds bound again ...")
     print("scaling ...", flush=True)
     scale = scaling(repeats=2 if args.quick else 3)
+    print("sweep throughput (1 and 2 local workers, Dask LocalCluster) ...", flush=True)
+    sweep = sweep_throughput(4, 2.0, 1) if args.quick else sweep_throughput()
     bound = statistics.mean(run["round_trips_per_s"] for run in bound_runs) * step
     bound_objects = statistics.mean(run["round_trips_per_s"] for run in objects_runs) * step
     result = {
@@ -257,6 +259,9 @@ def main(argv: list[str] | None = None) -> int:
         "controller_update_us_p50": latency["p50"],
         "controller_update_us_p99": latency["p99"],
         "scaling": scale,
+        "sweep_runs_per_min": sweep["runs_per_min"],
+        "sweep_parallel_efficiency": sweep["parallel_efficiency"],
+        "sweep": sweep,
         "machine": machine(),
     }
     args.output.write_text(json.dumps(result, indent=2) + "\n")
@@ -275,6 +280,9 @@ def main(argv: list[str] | None = None) -> int:
         s = scale[f"p{p}"]
         rates = ", ".join(f"n={n}: {v:,.0f}" for n, v in s["steps_per_s"].items())
         rows.append((f"scaling p={p} steps/s", f"{rates}; cost ~ n^{s['cost_exponent']:.2f}"))
+    sweep_rates = ", ".join(f"{name}: {rate:.0f}" for name, rate in sweep["runs_per_min"].items())
+    rows.append((f"sweep runs/min ({sweep['run_sim_time_s']:g} s runs)", sweep_rates))
+    rows.append(("sweep parallel efficiency, 2 workers (target >= 0.9)", f"{sweep['parallel_efficiency']:.3f}"))
     width = max(len(r[0]) for r in rows)
     for label, value in rows:
         print(f"{label:<{width}}  {value}")

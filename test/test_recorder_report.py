@@ -12,7 +12,6 @@ import json
 import math
 import os
 import queue
-import random
 import signal
 import subprocess
 import sys
@@ -24,6 +23,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from ros_helpers import hold_test_domain
 
 ROOT = Path(__file__).resolve().parents[1]
 BRINGUP_SRC = ROOT / "src" / "bracing_bringup"
@@ -54,6 +54,7 @@ BRACE_OFFSET = 0.002  # brace actual - desired [m], constant
 FORCE_DESIRED = 10.0
 FORCE_SWING = 0.5  # f_n = f_nd +- 0.5 alternating -> rms error 0.5 N
 RESIDUAL_AMPLITUDE = 3e-6
+PAPER_URDF = ROOT / "config" / "paper_4link.urdf"
 
 
 # --------------------------------------------------------------------------- synthetic data
@@ -204,6 +205,11 @@ def publisher_main(namespace: str, contacts: str, n: int, period: float, wait_go
         durability=DurabilityPolicy.TRANSIENT_LOCAL,
     )
     pubs = {topic: node.create_publisher(type(msg), topic, qos) for topic, msg in make_step(0, names).items()}
+    # As the simulator: the URDF, latched, before the first state (the recorder derives /tf from it).
+    from std_msgs.msg import String
+
+    description = node.create_publisher(String, "robot_description", qos)
+    description.publish(String(data=PAPER_URDF.read_text(encoding="utf-8")))
     deadline = time.monotonic() + 15.0
     while any(p.get_subscription_count() == 0 for p in pubs.values()):
         if time.monotonic() > deadline:
@@ -231,7 +237,7 @@ def publisher_main(namespace: str, contacts: str, n: int, period: float, wait_go
 
 def ros_env() -> dict[str, str]:
     env = dict(os.environ)
-    env["ROS_DOMAIN_ID"] = str(random.randint(100, 200))
+    env["ROS_DOMAIN_ID"] = str(hold_test_domain())  # held until the test ends
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env["PYTHONPATH"] = os.pathsep.join(
         [str(BRINGUP_SRC), str(Path(__file__).resolve().parent), env.get("PYTHONPATH", "")]
@@ -299,9 +305,10 @@ def procs() -> Iterator[list[Proc]]:
 
 
 def start_recorder(
-    procs: list[Proc], env: dict[str, str], bag: Path, namespace: str, contacts: tuple[str, ...]
+    procs: list[Proc], env: dict[str, str], bag: Path, namespace: str, contacts: tuple[str, ...], *extra: str
 ) -> Proc:
     args = [sys.executable, "-m", "bracing_bringup.recorder", "--output", str(bag), "--contacts", ",".join(contacts)]
+    args += extra
     if namespace:
         args += ["--namespace", namespace]
     rec = Proc(args, env)
@@ -357,10 +364,15 @@ def read_bag(bag: Path) -> dict[str, list[tuple[int, Any]]]:
 
 
 def expected_topics(namespace: str, contacts: tuple[str, ...]) -> set[str]:
+    """Every recorded topic, and what the recorder derives: /tf, /tf_static, contact_markers."""
     prefix = "/" + namespace.strip("/") if namespace.strip("/") else ""
-    rel = ["joint_states", "contacts", "motor_state", "motor_command", "controller_state"]
+    rel = ["joint_states", "contacts", "motor_state", "motor_command", "controller_state", "robot_description"]
     rel += [f"contact_wrench/{c}" for c in contacts]
-    return {f"{prefix}/{t}" for t in rel} | {"/clock"}
+    rel += ["contact_markers"] if contacts else []
+    return {f"{prefix}/{t}" for t in rel} | {"/clock", "/tf", "/tf_static"}
+
+
+ONCE = ("robot_description", "/tf_static")  # one message per run, not per state
 
 
 # --------------------------------------------------------------------------- recorder tests
@@ -386,7 +398,8 @@ def test_recorder_records_every_topic_exactly(tmp_path: Path, procs: list[Proc])
         rec.popen.send_signal(signal.SIGCONT)
     rc, err = rec.finish(timeout=15.0)
     assert rc == 0, err
-    assert f"recorder wrote {N_STEPS * 8} messages" in "".join(rec.stdout)
+    assert f"recorder wrote {N_STEPS * 8 + 1} messages" in "".join(rec.stdout)  # + robot_description
+    assert f"recorder derived {2 * N_STEPS + 1} messages" in "".join(rec.stdout)  # /tf and markers per state
     pub.wait_line("published", timeout=10.0)  # the publisher saw every message acked
     assert pub.finish(timeout=10.0)[0] == 0
 
@@ -397,7 +410,8 @@ def test_recorder_records_every_topic_exactly(tmp_path: Path, procs: list[Proc])
     data = read_bag(bag)
     assert set(data) == expected_topics("", CONTACTS)
     for topic, msgs in data.items():
-        assert len(msgs) == N_STEPS, topic
+        assert len(msgs) == (1 if topic.endswith(ONCE) else N_STEPS), topic
+    assert sorted(s for s, _ in data["/tf"]) == sorted(s for s, _ in data["/joint_states"])
 
     for k, (stamp, js) in enumerate(sorted(data["/joint_states"], key=lambda x: x[0])):
         v = step_values(k)
@@ -444,7 +458,7 @@ def test_recorder_stopped_mid_stream_leaves_readable_bag(
     env = ros_env()
     bag = tmp_path / "bag"
     contacts = ("elbow",)
-    rec = start_recorder(procs, env, bag, "robot1", contacts)
+    rec = start_recorder(procs, env, bag, "robot1", contacts, "--drain-timeout", "3")
     total = 100000  # far more than gets sent before the stop
     pub = start_publisher(procs, env, tmp_path, "robot1", contacts, total, period=0.001)
     pub.wait_line("matched", timeout=15.0)
@@ -610,22 +624,31 @@ def test_report_missing_or_broken_bag_exits_2(tmp_path: Path, capsys: pytest.Cap
 
 
 def test_missing_messages_names_every_short_topic(tmp_path: Path) -> None:
-    """bracing-pair's completeness check: a lockstep bag of N steps holds N + 1 of every topic."""
+    """bracing-pair's completeness check: a lockstep bag of N steps holds N + 1 of every topic
+    (and of /tf and contact_markers), robot_description and /tf_static once."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
-    from bracing_bringup.recorder import BAG_VERSION, bracing_typestore, missing_messages, topic_table
+    from bracing_bringup.recorder import BAG_VERSION, bracing_typestore, expected_counts, missing_messages
 
     store, expected = bracing_typestore(), 5
+    counts = expected_counts(["elbow"], expected)
+    assert counts["/robot_description"] == counts["/tf_static"] == 1
+    assert counts["/tf"] == counts["/contact_markers"] == counts["/joint_states"] == expected
+    assert "/contact_markers" not in expected_counts([], expected)
     bag = tmp_path / "bag"
+    written = {"/joint_states": 2, "/contact_wrench/elbow": 0, "/tf": 4, "/tf_static": 0}
     with Writer(bag, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP) as writer:
-        for topic, _, type_name in topic_table(["elbow"]):
-            name = topic if topic.startswith("/") else "/" + topic
-            connection = writer.add_connection(name, type_name, typestore=store)
-            short = {"/joint_states": 2, "/contact_wrench/elbow": 0}.get(name, expected)
-            for k in range(short):
+        for name, wanted in counts.items():
+            connection = writer.add_connection(name, "std_msgs/msg/Empty", typestore=store)
+            for k in range(written.get(name, wanted)):
                 writer.write(connection, k, b"\x00\x01\x00\x00" + bytes(8))
     assert missing_messages(bag, ["elbow"], expected) == [
         "/joint_states: 2 of 5 messages",
         "/contact_wrench/elbow: 0 of 5 messages",
+        "/tf_static: 0 of 1 messages",
+        "/tf: 4 of 5 messages",
     ]
-    assert missing_messages(bag, ["elbow"], 2) == ["/contact_wrench/elbow: 0 of 2 messages"]
+    assert missing_messages(bag, ["elbow"], 2) == [
+        "/contact_wrench/elbow: 0 of 2 messages",
+        "/tf_static: 0 of 1 messages",
+    ]

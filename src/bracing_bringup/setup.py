@@ -25,6 +25,10 @@ setup(
             "bracing-pair=bracing_bringup.pair:main",
             "report=bracing_bringup.report:main",
             "bracing-report=bracing_bringup.report:main",
+            "sweep=bracing_bringup.sweep:main",
+            "bracing-sweep=bracing_bringup.sweep:main",
+            "study=bracing_bringup.study:main",
+            "bracing-study=bracing_bringup.study:main",
         ],
     },
 )

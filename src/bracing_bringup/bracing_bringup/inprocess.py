@@ -3,6 +3,7 @@ stepped in one process (tests, benchmarks, parameter sweeps).
 
     scenario = build_scenario("config/paper_4link.yaml", shared={"input_mode": "torque"})
     run = run_closed_loop(scenario, duration=10.0)
+    recording = run_recorded(build_scenario(...), duration=10.0)  # + everything a bag would hold
 
 ``shared`` overrides go to both nodes' parameters (the /** section of the file), ``sim``
 and ``ctl`` to one of them; the step loop is the lockstep protocol of the nodes: the
@@ -21,7 +22,7 @@ import numpy as np
 from bracing_controller.config import ControllerConfig
 from bracing_controller.law import DecoupledController
 from bracing_sim.config import Plant, SimulatorConfig, build_simulator
-from bracing_sim.core.simulator import Energy, Simulator
+from bracing_sim.core.simulator import DivergenceError, Energy, Simulator
 from bracing_sim.params import load_params_file
 
 Overrides = Mapping[str, Any] | None
@@ -40,6 +41,7 @@ class Scenario:
     plant: Plant  # the simulator's plant
     sim: Simulator
     controller: DecoupledController | None  # built on its own plant, as in the node
+    sim_config: SimulatorConfig | None = None  # what the simulator was built from (its divergence limit, ...)
 
 
 def build_scenario(
@@ -50,15 +52,23 @@ def build_scenario(
     with_controller: bool = True,
 ) -> Scenario:
     search = [Path(config).resolve().parent]
-    plant, simulator = build_simulator(
-        SimulatorConfig.from_params(node_params(config, "bracing_simulator", shared, sim), search)
+    return build_scenario_from_params(
+        node_params(config, "bracing_simulator", shared, sim),
+        node_params(config, "bracing_controller", shared, ctl) if with_controller else None,
+        search,
     )
+
+
+def build_scenario_from_params(
+    sim_params: Mapping[str, Any], ctl_params: Mapping[str, Any] | None, search: list[Path] | None = None
+) -> Scenario:
+    """The scenario from each node's complete flat parameters (what a sweep worker receives)."""
+    sim_config = SimulatorConfig.from_params(sim_params, search or [])
+    plant, simulator = build_simulator(sim_config)
     controller = None
-    if with_controller:
-        controller = DecoupledController(
-            ControllerConfig.from_params(node_params(config, "bracing_controller", shared, ctl), search)
-        )
-    return Scenario(plant, simulator, controller)
+    if ctl_params is not None:
+        controller = DecoupledController(ControllerConfig.from_params(ctl_params, search or []))
+    return Scenario(plant, simulator, controller, sim_config)
 
 
 @dataclass
@@ -112,4 +122,106 @@ def run_closed_loop(scenario: Scenario, duration: float) -> Run:
         hand_error,
         sim.position,
         sim.energy,
+    )
+
+
+@dataclass
+class Recording:
+    """Everything the nodes would publish in lockstep, per state k = 0..N (N steps and the final
+    state, as in a bag): the controller's answer to state k and the simulator's reports of step k
+    (forces at its start under that answer, energies up to its start)."""
+
+    time: np.ndarray  # (N+1,) [s]
+    position: np.ndarray  # (N+1, n) [rad], model joint order
+    velocity: np.ndarray  # (N+1, n) [rad/s]
+    current: np.ndarray  # (N+1, n) [A]
+    command: np.ndarray  # (N+1, n) [V] or [N m]
+    hand_desired: np.ndarray  # (N+1, 3) [m]
+    hand_actual: np.ndarray  # (N+1, 3) [m]
+    brace_desired: np.ndarray  # (N+1, p, 3) [m]
+    brace_actual: np.ndarray  # (N+1, p, 3) [m]
+    contact_position: np.ndarray  # (N+1, p, 3) [m], the simulator's contact points
+    normal_force: np.ndarray  # (N+1, p) [N]
+    friction_force: np.ndarray  # (N+1, p) [N]
+    residual: np.ndarray  # (N+1, p) [m]
+    active: np.ndarray  # (N+1, p) bool
+    desired_normal_force: np.ndarray  # (p,) [N]
+    energy_consumed: np.ndarray  # (N+1,) [J]
+    energy_net: np.ndarray  # (N+1,) [J]
+    copper_loss: np.ndarray  # (N+1,) [J]
+    contact_names: tuple[str, ...]
+    joint_names: tuple[str, ...]  # model order (the columns of position, ...)
+    input_mode: str
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Every field as an array (for an .npz; the names as string arrays, no pickles)."""
+        out = {name: value for name, value in vars(self).items() if isinstance(value, np.ndarray)}
+        out["contact_names"] = np.array(self.contact_names, dtype=str)
+        out["joint_names"] = np.array(self.joint_names, dtype=str)
+        out["input_mode"] = np.array(self.input_mode)
+        return out
+
+
+def run_recorded(scenario: Scenario, duration: float) -> Recording:
+    """The lockstep loop of the nodes, recording what they publish.
+
+    Stops where the simulator node refuses to go on: DivergenceError for a non-finite state or
+    force, a joint faster than ``divergence_speed`` or a held contact further than
+    ``divergence_residual`` off its plane.
+    """
+    sim, controller = scenario.sim, scenario.controller
+    if controller is None:
+        raise ValueError("run_recorded needs a scenario built with a controller")
+    limit = scenario.sim_config.divergence_residual if scenario.sim_config is not None else np.inf
+    speed_limit = float(getattr(scenario.sim_config, "divergence_speed", np.inf))
+    steps = round(duration / sim.step_size)
+    rows, n, p = steps + 1, sim.n, len(scenario.plant.contact_set)
+    joint = {key: np.zeros((rows, n)) for key in ("position", "velocity", "current", "command")}
+    task = {key: np.zeros((rows, 3)) for key in ("hand_desired", "hand_actual")}
+    brace = {key: np.zeros((rows, p, 3)) for key in ("brace_desired", "brace_actual", "contact_position")}
+    contact = {key: np.zeros((rows, p)) for key in ("normal_force", "friction_force", "residual")}
+    active = np.ones((rows, p), dtype=bool)
+    energy = np.zeros((rows, 3))
+    time = np.zeros(rows)
+    for k in range(rows):
+        time[k] = sim.time
+        q, dq = sim.position, sim.velocity
+        out = controller.update(sim.time, q, dq)
+        joint["position"][k], joint["velocity"][k], joint["current"][k] = q, dq, sim.current
+        joint["command"][k] = out.command
+        task["hand_desired"][k], task["hand_actual"][k] = out.hand_desired, out.hand_actual
+        brace["brace_desired"][k], brace["brace_actual"][k] = out.brace_desired, out.brace_actual
+        e = sim.energy
+        energy[k] = (e.consumed, e.net, e.copper_loss)
+        # The final state gets its reports without a step, as the node's finish() does.
+        d = sim.step(out.command) if k < steps else sim.evaluate(out.command)
+        terms = d.contacts
+        contact["normal_force"][k], contact["friction_force"][k] = d.normal_force, d.friction_force
+        contact["residual"][k], brace["contact_position"][k] = terms.residual, terms.positions
+        if d.active is not None:
+            active[k] = d.active
+        if k < steps and float(np.max(np.abs(sim.velocity))) > speed_limit:
+            raise DivergenceError(f"joint speed exceeds divergence_speed {speed_limit} after t = {time[k]:.3f} s")
+        if not np.isfinite(d.normal_force).all():
+            raise DivergenceError(f"non-finite contact force at t = {time[k]:.3f} s")
+        held = terms.residual[active[k]]
+        if held.size and float(np.max(np.abs(held))) > limit:
+            raise DivergenceError(
+                f"constraint residual {float(np.max(np.abs(held))):.3g} m exceeds divergence_residual {limit} m "
+                f"at t = {time[k]:.3f} s"
+            )
+    return Recording(
+        time=time,
+        **joint,
+        **task,
+        **brace,
+        **contact,
+        active=active,
+        desired_normal_force=controller.desired_normal_force.copy(),
+        energy_consumed=energy[:, 0],
+        energy_net=energy[:, 1],
+        copper_loss=energy[:, 2],
+        contact_names=tuple(c.name for c in scenario.plant.config.contacts),
+        joint_names=tuple(scenario.plant.joint_names),
+        input_mode=scenario.plant.mode.value,
     )

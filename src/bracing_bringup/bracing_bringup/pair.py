@@ -1,7 +1,7 @@
 """bracing-pair: simulator + controller as separate processes over DDS, recorded to rosbag2.
 
     bracing-pair --config F [--duration S] [--output DIR] [--mode voltage|torque]
-                 [--no-bracing] [--real-time] [--domain-id N]
+                 [--no-bracing] [--real-time] [--domain-id N] [--set KEY=VALUE ...]
 
 Writes DIR/bag/ (mcap), DIR/logs/*.log, DIR/summary.json and the report's PNGs.
 Exit 0 on success; non-zero with the failing process's log tail otherwise. Ctrl-C stops
@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import copy
 import os
-import random
 import re
 import signal
 import subprocess
@@ -26,6 +25,8 @@ from typing import Any
 
 import yaml
 
+from bracing_bringup.domains import hold_domain
+from bracing_bringup.overrides import parse_single, route
 from bracing_controller.config import ControllerConfig
 from bracing_sim.config import SimulatorConfig
 from bracing_sim.params import ConfigError, load_params_file
@@ -46,6 +47,7 @@ class RunOptions:
     domain_id: int | None = None
     quiet: bool = False
     stall_timeout: float = 60.0  # [s] wall without sim progress before the run is declared hung
+    parameters: dict[str, Any] = field(default_factory=dict)  # --set KEY=VALUE (flat names; see overrides)
 
 
 @dataclass
@@ -60,7 +62,7 @@ class RunResult:
 
 def shared_overrides(options: RunOptions) -> dict[str, Any]:
     """What the command line changes for both nodes (the /** part of the scenario)."""
-    common: dict[str, Any] = {}
+    common: dict[str, Any] = dict(route(options.parameters).shared)  # --set first: the flags below win
     if options.mode is not None:
         common["input_mode"] = options.mode
     if not options.bracing:
@@ -71,6 +73,7 @@ def shared_overrides(options: RunOptions) -> dict[str, Any]:
 def effective_params(options: RunOptions, node: str) -> dict[str, Any]:
     """The flat parameters ``node`` will run with: the scenario file and the command line."""
     params = load_params_file(options.config, node)
+    params.update(route(options.parameters).for_node(node))
     params.update(shared_overrides(options))
     return params
 
@@ -81,13 +84,18 @@ def overrides(options: RunOptions, urdf: Path) -> dict[str, dict[str, Any]]:
     The nodes resolve a relative URDF from their working directory, so it is pinned to the
     file found now (``urdf``).
     """
-    sim: dict[str, Any] = dict(shared_overrides(options), min_subscribers=2)  # the controller and the recorder
+    # Both nodes publish their first message only once the recorder (and, for joint_states, the
+    # controller) subscribes to every topic they publish.
+    sim: dict[str, Any] = dict(shared_overrides(options), min_subscribers=2, wait_for_recorder=True)
     if options.duration is not None:
         sim["duration"] = options.duration
     if options.real_time:
         sim["stepping"] = "real_time"
     controller = dict(shared_overrides(options), wait_for_recorder=True)
     sim["robot.urdf"] = controller["robot.urdf"] = str(urdf)
+    node_sets = route(options.parameters)
+    for own, sets in ((sim, node_sets.simulator), (controller, node_sets.controller)):
+        own.update({key: value for key, value in sets.items() if key not in own})  # what the pair needs wins
     return {"bracing_simulator": sim, "bracing_controller": controller}
 
 
@@ -164,7 +172,23 @@ class Pair:
 
 
 def run_pair(options: RunOptions) -> RunResult:
-    """Run one experiment; never raises for a failing node, returns the exit code and message."""
+    """Run one experiment; never raises for a failing node, returns the exit code and message.
+
+    The run holds its ROS domain id (see ``domains``) from before its first process starts
+    until its last file is written, so no other run on this machine can answer its nodes.
+    """
+    with hold_domain(options.domain_id) as domain:
+        if not domain.exclusive:
+            print(
+                f"bracing-pair: warning: ROS_DOMAIN_ID={domain.domain_id} (--domain-id) is held by another run on this "
+                "machine; their nodes can see each other",
+                file=sys.stderr,
+                flush=True,
+            )
+        return _run_pair(options, domain.domain_id)
+
+
+def _run_pair(options: RunOptions, domain: int) -> RunResult:
     start_wall = time.monotonic()
     out = options.output
     sim_config = SimulatorConfig.from_params(effective_params(options, "bracing_simulator"), [options.config.parent])
@@ -179,7 +203,6 @@ def run_pair(options: RunOptions) -> RunResult:
 
     env = dict(os.environ)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = env.get("BRACING_DISCOVERY_RANGE", "LOCALHOST")
-    domain = options.domain_id if options.domain_id is not None else random.randint(1, 101)
     env["ROS_DOMAIN_ID"] = str(domain)
     env["PYTHONUNBUFFERED"] = "1"
     ros_args = ["--ros-args", "--params-file", str(options.config.resolve()), "--params-file", str(override_file)]
@@ -250,8 +273,10 @@ def run_pair(options: RunOptions) -> RunResult:
         code = EXIT_FAILED
         message = f"error: {failure.message}\n{pair.tail(failure.process)}"
     finally:
-        for name in ("simulator", "controller", "recorder"):
-            pair.stop(name)
+        # Generous grace: the controller flushes its last answers to the recorder (<= 10 s), and a
+        # recorder that fell behind on a busy machine drains its queues (<= 60 s) before closing.
+        for name, grace in (("simulator", 10.0), ("controller", 15.0), ("recorder", 75.0)):
+            pair.stop(name, grace)
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     wall = time.monotonic() - start_wall
@@ -291,14 +316,36 @@ def parse_args(argv: Sequence[str] | None) -> RunOptions:
     parser.add_argument("--mode", choices=("voltage", "torque"), default=None, help="input mode override")
     parser.add_argument("--no-bracing", action="store_true", help="the same task with no contacts")
     parser.add_argument("--real-time", action="store_true", help="wall-clock stepping instead of lockstep")
-    parser.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: a random one)")
+    parser.add_argument(
+        "--domain-id",
+        type=int,
+        default=None,
+        help="ROS_DOMAIN_ID (default: a free one of 1-100, held exclusively on this machine while the run lives)",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress line")
+    parser.add_argument(
+        "--set", dest="sets", action="append", default=[], metavar="KEY=VALUE", help="override a scenario parameter"
+    )
     args = parser.parse_args(argv)
     if args.duration is not None and args.duration <= 0:
         parser.error("--duration must be > 0")
+    if args.domain_id is not None and not 0 <= args.domain_id <= 232:
+        parser.error("--domain-id must be in 0-232 (ROS documents 0-101 as safe on Linux)")
+    try:
+        parameters = parse_single(args.sets)
+    except ConfigError as exc:
+        parser.error(str(exc))
     output = args.output or Path("out") / time.strftime("%Y%m%d-%H%M%S")
     return RunOptions(
-        args.config, output, args.duration, args.mode, not args.no_bracing, args.real_time, args.domain_id, args.quiet
+        args.config,
+        output,
+        args.duration,
+        args.mode,
+        not args.no_bracing,
+        args.real_time,
+        args.domain_id,
+        args.quiet,
+        parameters=parameters,
     )
 
 

@@ -1,5 +1,6 @@
 """make run: the paper's claim, reproduced. The paper scenario braced and unbraced, each
-as a bracing-pair run (two node processes over DDS, recorded), then a side-by-side table."""
+as a bracing-pair run (two node processes over DDS, recorded, reported with an animation),
+then a side-by-side table and the comparison figures (compare_*.png, compare.md)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from bracing_bringup.pair import RunOptions, run_pair
+from bracing_bringup.summary import BagReadError
 from bracing_sim.params import ConfigError
 
 ROWS: list[tuple[str, str, str]] = [
@@ -71,6 +73,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     print()
     print(table(summaries["braced"], summaries["unbraced"]))
     print(f"\nbags, plots and summary.json: {args.output / 'braced'} and {args.output / 'unbraced'}")
+    from bracing_bringup.compare import write_comparison  # matplotlib: only once there is something to draw
+    from bracing_bringup.report import ANIMATION_FILES
+
+    for name in summaries:
+        movies = [args.output / name / f for f in ANIMATION_FILES if (args.output / name / f).exists()]
+        print(f"animation of the {name} run: " + (", ".join(map(str, movies)) or "none (see the report's message)"))
+    try:
+        compared = write_comparison([args.output / name / "bag" for name in summaries], args.output)
+    except BagReadError as exc:
+        print(f"error: comparison: {exc}", file=sys.stderr)
+        return 1
+    print("braced vs unbraced: " + ", ".join(str(p) for p in compared))
     return 0
 
 

@@ -7,7 +7,15 @@ Usage::
 
 The bag embeds the message definitions (bracing_msgs included), so any rosbag2 reader
 decodes it. Messages are received already serialised (CDR, ``raw=True``) and written as
-they are; the bag timestamp of a message is its header stamp (``clock`` for ``/clock``).
+they are; the bag timestamp of a message is its header stamp (``clock`` for ``/clock``,
+0 for ``robot_description``).
+
+So that a viewer can draw the run, the recorder also writes what it derives from the
+recorded messages (``bracing_bringup.scene``): ``/tf_static`` once and ``/tf`` per
+``joint_states`` (every link's pose, pinocchio kinematics of the URDF received on
+``robot_description``), and ``contact_markers`` per state (surface, contact point, force
+arrow from ``contact_wrench/<name>``). It derives them when idle and on stop (after the
+drain), so a lockstep run is not slowed; ``--no-scene`` leaves them out.
 
 Prints ``recorder ready`` on stdout once every subscription exists. SIGINT or SIGTERM
 stops it: pending messages are drained (until nothing arrives for ``--drain-idle``
@@ -17,11 +25,13 @@ seconds, at most ``--drain-timeout`` seconds) and the bag is closed cleanly.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import signal
 import struct
 import sys
 import time
+from collections import deque
 from collections.abc import Sequence
 from pathlib import Path
 from types import FrameType
@@ -34,13 +44,16 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
 from rclpy.utilities import remove_ros_args
-from rosbags.interfaces import Connection
+from rosbags.interfaces import Connection, Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
+from std_msgs.msg import String
 
+from bracing_bringup.scene import MARKERS_TYPE, STRING_TYPE, TF_TYPE, Derived, DescriptionError, SceneBuilder
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState
 from bracing_sim.ros_common import SubscriptionWaiter
 
@@ -49,7 +62,31 @@ BAG_VERSION: Literal[8] = 8
 
 BRACING_MSGS = ("ContactState", "Contacts", "ControllerState", "MotorCommand", "MotorState")
 
-"""Messages taken from one subscription per executor callback."""
+DESCRIPTION_TOPIC = "robot_description"
+SCENE_TOPICS = {
+    "tf": ("/tf", TF_TYPE),
+    "tf_static": ("/tf_static", TF_TYPE),
+    "contact_markers": ("contact_markers", MARKERS_TYPE),
+}
+"""Topics the recorder derives (``scene.Derived.key`` -> topic, type)."""
+
+MAX_SCENE_BACKLOG = 100_000
+"""Recorded messages (3 per state, braced) kept for deriving /tf and markers later: ~30 MB, 30 s of a
+lockstep run. Deriving costs ~150 us of CPU per state and, done beside the lockstep loop, slowed it
+by 20-30 %, so it waits for an idle moment or the end of the run unless the queue grows past this."""
+
+LATCHED = Qos(
+    history=QosHistory.KEEP_LAST,
+    depth=1,
+    reliability=QosReliability.RELIABLE,
+    durability=QosDurability.TRANSIENT_LOCAL,
+    deadline=QosTime(sec=0, nsec=0),
+    lifespan=QosTime(sec=0, nsec=0),
+    liveliness=QosLiveliness.AUTOMATIC,
+    liveliness_lease_duration=QosTime(sec=0, nsec=0),
+    avoid_ros_namespace_conventions=False,
+)
+"""Offered QoS stored for /tf_static and robot_description: ``ros2 bag play`` replays them latched."""
 
 RECORD_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
@@ -107,24 +144,39 @@ def topic_table(contacts: Sequence[str]) -> list[tuple[str, type, str]]:
     return table
 
 
+def expected_counts(contacts: Sequence[str], expected: int, namespace: str = "") -> dict[str, int]:
+    """Messages a complete lockstep bag of ``expected`` states holds, per resolved topic name."""
+    prefix = "/" + namespace.strip("/") + "/" if namespace.strip("/") else "/"
+
+    def resolve(topic: str) -> str:
+        return topic if topic.startswith("/") else prefix + topic
+
+    counts = {resolve(topic): expected for topic, _, _ in topic_table(contacts)}
+    counts[resolve(DESCRIPTION_TOPIC)] = 1
+    counts[resolve(SCENE_TOPICS["tf_static"][0])] = 1
+    counts[resolve(SCENE_TOPICS["tf"][0])] = expected
+    if contacts:
+        counts[resolve(SCENE_TOPICS["contact_markers"][0])] = expected
+    return counts
+
+
 def missing_messages(bag: Path, contacts: Sequence[str], expected: int, namespace: str = "") -> list[str]:
-    """What a lockstep bag lacks: one line per topic recorded fewer than ``expected`` times.
+    """What a lockstep bag lacks: one line per topic recorded fewer times than it should be.
 
     Every topic is sent once per state in lockstep (the command and controller state once
-    per state answered), so a bag of N steps holds N + 1 of each.
+    per state answered), so a bag of N steps holds N + 1 of each, and as many ``/tf`` and
+    ``contact_markers``; ``robot_description`` and ``/tf_static`` once.
     """
     from rosbags.rosbag2 import Reader
 
-    prefix = "/" + namespace.strip("/") + "/" if namespace.strip("/") else "/"
     with Reader(bag) as reader:
         counts: dict[str, int] = {}
         for connection in reader.connections:
             counts[connection.topic] = counts.get(connection.topic, 0) + connection.msgcount
     problems = []
-    for topic, _, _ in topic_table(contacts):
-        name = topic if topic.startswith("/") else prefix + topic
-        if counts.get(name, 0) < expected:
-            problems.append(f"{name}: {counts.get(name, 0)} of {expected} messages")
+    for name, wanted in expected_counts(contacts, expected, namespace).items():
+        if counts.get(name, 0) < wanted:
+            problems.append(f"{name}: {counts.get(name, 0)} of {wanted} messages")
     return problems
 
 
@@ -148,21 +200,45 @@ class Recorder(Node):
         *,
         namespace: str = "",
         contacts: Sequence[str] = (),
+        scene: bool = True,
     ) -> None:
         super().__init__("bracing_recorder", namespace=namespace)
         self.writer = writer
         self.counts: dict[str, int] = {}
         self.received = 0
+        self.derived = 0
+        self.scene_time = 0.0  # [s] of CPU spent deriving /tf and markers (what the lockstep loop shares)
         self.last_receive = time.monotonic()
         self._connections: dict[Subscription, Connection] = {}
-        for topic, msg_type, type_name in topic_table(contacts):
+        self._roles: dict[Subscription, str] = {}  # what the scene makes of a subscription's messages
+        table = [(topic, msg_type, type_name, topic) for topic, msg_type, type_name in topic_table(contacts)]
+        table.append((DESCRIPTION_TOPIC, String, STRING_TYPE, "description"))
+        for topic, msg_type, type_name, role in table:
             # Messages are taken directly in ``record`` (no executor: per message it costs more
             # than the write), so the callback is never called.
             sub = self.create_subscription(msg_type, topic, _never_called, RECORD_QOS, raw=True)
             resolved = sub.topic_name
-            self._connections[sub] = writer.add_connection(resolved, type_name, typestore=typestore)
+            qos = [LATCHED] if role == "description" else []
+            self._connections[sub] = writer.add_connection(
+                resolved, type_name, typestore=typestore, offered_qos_profiles=qos
+            )
+            self._roles[sub] = role
             self.counts[resolved] = 0
         self._waiter = SubscriptionWaiter(self, list(self._connections))
+        self.scene = SceneBuilder(typestore, contacts) if scene else None
+        self._scene_inputs: deque[tuple[str, bytes]] = deque()
+        self._scene_roles = {"joint_states", "contacts", "description", *(f"contact_wrench/{c}" for c in contacts)}
+        self._scene_connections: dict[str, Connection] = {}
+        if scene:
+            for key, (topic, type_name) in SCENE_TOPICS.items():
+                if key == "contact_markers" and not contacts:
+                    continue  # nothing to mark
+                resolved = self.resolve_topic_name(topic)
+                qos = [LATCHED] if key == "tf_static" else []
+                self._scene_connections[key] = writer.add_connection(
+                    resolved, type_name, typestore=typestore, offered_qos_profiles=qos
+                )
+                self.counts[resolved] = 0
 
     def record(self, timeout_sec: float) -> int:
         """Write every message available now, waiting up to ``timeout_sec``; the count written."""
@@ -170,12 +246,62 @@ class Recorder(Node):
         write, connections, counts = self.writer.write, self._connections, self.counts
         for sub, data in taken:
             connection = connections[sub]
-            write(connection, cdr_stamp_ns(data), data)
+            stamp = 0 if self._roles[sub] == "description" else cdr_stamp_ns(data)
+            write(connection, stamp, data)
             counts[connection.topic] += 1
         if taken:
             self.received += len(taken)
             self.last_receive = time.monotonic()
+            if self.scene is not None:
+                roles = self._roles
+                self._scene_inputs.extend((roles[sub], data) for sub, data in taken if roles[sub] in self._scene_roles)
         return len(taken)
+
+    @property
+    def scene_backlog(self) -> int:
+        """Recorded messages the scene has yet to derive from."""
+        return len(self._scene_inputs) if self.scene is not None else 0
+
+    def derive(self, budget_sec: float | None) -> int:
+        """Derive /tf, /tf_static and contact_markers from the queued messages for about ``budget_sec``
+        (None: all of them); the backlog left.
+
+        Deriving comes second to recording (see ``MAX_SCENE_BACKLOG``): messages are written as
+        they come and queued for the scene, which takes its slices when the recorder is idle."""
+        deadline = math.inf if budget_sec is None else time.monotonic() + budget_sec
+        while self.scene_backlog and time.monotonic() < deadline:
+            slice_ = [self._scene_inputs.popleft() for _ in range(min(32, len(self._scene_inputs)))]
+            self._write_scene(slice_)
+        return self.scene_backlog
+
+    def _write_scene(self, inputs: list[tuple[str, bytes]]) -> None:
+        """/tf, /tf_static and contact_markers of recorded messages (role, CDR bytes)."""
+        scene = self.scene
+        assert scene is not None
+        start = time.thread_time()
+        derived: list[Derived] = []
+        try:
+            for role, data in inputs:
+                if role == "joint_states":
+                    derived += scene.joint_state(cdr_stamp_ns(data), data)
+                elif role == "contacts":
+                    derived += scene.contacts(cdr_stamp_ns(data), data)
+                elif role.startswith("contact_wrench/"):
+                    derived += scene.wrench(role.removeprefix("contact_wrench/"), cdr_stamp_ns(data), data)
+                elif role == "description":
+                    derived += scene.description(data)
+        except (DescriptionError, SerdeError, ValueError, IndexError, KeyError) as exc:  # bytes it cannot read
+            print(f"recorder: error: no /tf or contact_markers from here on: {exc}", file=sys.stderr, flush=True)
+            self.scene = None
+            self._scene_inputs.clear()
+        write, connections, counts = self.writer.write, self._scene_connections, self.counts
+        for item in derived:
+            connection = connections.get(item.key)
+            if connection is not None:
+                write(connection, item.stamp_ns, item.data)
+                counts[connection.topic] += 1
+        self.derived += len(derived)
+        self.scene_time += time.thread_time() - start
 
 
 def _never_called(_: object) -> None:
@@ -201,10 +327,19 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
         "--niceness", type=int, default=0, help="add this to the process's nice value (bracing-pair uses 10)"
     )
     parser.add_argument(
+        "--no-scene",
+        action="store_true",
+        help="record only what arrives: no /tf, /tf_static or contact_markers (they cost CPU per state)",
+    )
+    parser.add_argument(
         "--drain-idle", type=float, default=0.2, help="on stop, keep receiving until idle this long [s] (default 0.2)"
     )
     parser.add_argument(
-        "--drain-timeout", type=float, default=3.0, help="on stop, drain for at most this long [s] (default 3.0)"
+        "--drain-timeout",
+        type=float,
+        default=60.0,
+        help="on stop, drain for at most this long [s] (default 60: a recorder that fell behind on a busy "
+        "machine may hold many messages in its queues, all acknowledged to their publishers)",
     )
     return parser.parse_args(list(argv))
 
@@ -243,10 +378,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     writer.open()
     node: Recorder | None = None
     try:
-        node = Recorder(writer, typestore, namespace=args.namespace, contacts=contacts)
+        node = Recorder(writer, typestore, namespace=args.namespace, contacts=contacts, scene=not args.no_scene)
         print("recorder ready", flush=True)
+        idle = False
         while not stop["requested"]:
-            if node.record(0.1) and args.batch > 0.0:
+            got = node.record(0.0 if idle and node.scene_backlog else 0.1)
+            idle = not got
+            if node.scene_backlog and (idle or node.scene_backlog > MAX_SCENE_BACKLOG):
+                node.derive(0.05)  # idle (nothing came for 0.1 s), or the queue would grow too large
+            elif got and args.batch > 0.0:
                 time.sleep(args.batch)  # messages wait in the subscriptions' queues (deep, reliable)
         # Drain what is still in flight: receive until idle for drain_idle (bounded).
         start = time.monotonic()
@@ -256,10 +396,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             if now - node.last_receive >= args.drain_idle or now - start >= args.drain_timeout:
                 break
             node.record(0.05)
+            node.derive(0.01)
+        while not stop["urgent"] and node.derive(0.1):
+            pass  # the rest of the scene: the bag has /tf and markers for every state it holds
     finally:
         writer.close()
         total = node.received if node is not None else 0
         print(f"recorder wrote {total} messages to {output}", flush=True)
+        if node is not None and node.derived:
+            states = node.counts.get("/tf", 0)
+            cost = f", {node.scene_time / states * 1e6:.0f} us of CPU per state" if states else ""
+            print(f"recorder derived {node.derived} messages (/tf, /tf_static, contact_markers){cost}", flush=True)
         if node is not None:
             node.destroy_node()
         if rclpy.ok():

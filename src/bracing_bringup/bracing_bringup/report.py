@@ -1,10 +1,16 @@
-"""``bracing-report DIR/bag [--output DIR]``: the paper's figures and summary.json.
+"""``bracing-report DIR/bag [--output DIR]``: the paper's figures, an animation and summary.json.
 
 Writes into the output directory (default: the bag's parent directory):
 ``hand_y.png``, ``hand_z.png`` (Figs. 6/7, 9/10, 13/14), ``brace_y.png`` (Figs. 11/15),
-``normal_force.png`` (Figs. 12/16), ``energy.png`` (Fig. 8) and ``summary.json``.
-Runs without contacts skip the brace and force plots. Exit code 2 on a missing or
-unreadable bag.
+``normal_force.png`` (Figs. 12/16), ``energy.png`` (Fig. 8), ``summary.json`` and
+``animation.gif`` / ``animation.mp4`` (the arm moving, see ``animation``). Runs without
+contacts skip the brace and force plots; a bag without ``robot_description`` (recorded
+by an older version) gets no animation unless ``--urdf`` names the robot.
+
+``bracing-report BAG1 BAG2 ... --compare [--output DIR]`` draws the runs side by side
+instead (``compare_*.png`` and ``compare.md``, see ``compare``; default output: the
+directory that holds the runs). Several bags without ``--compare``: a report for each.
+Exit code 2 on a missing or unreadable bag.
 """
 
 from __future__ import annotations
@@ -24,6 +30,8 @@ matplotlib.use("Agg")
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
+from bracing_bringup.animation import DEFAULT_INTERVAL_S, AnimationError, write_animation
+from bracing_bringup.scene import DescriptionError
 from bracing_bringup.summary import (
     BagReadError,
     BagSeries,
@@ -33,9 +41,11 @@ from bracing_bringup.summary import (
 )
 
 SUMMARY_FILE = "summary.json"
+ANIMATION_FILES = ("animation.gif", "animation.mp4")
 
 
-def _figure(title: str, ylabel: str) -> tuple[Figure, Axes]:
+def figure(title: str, ylabel: str) -> tuple[Figure, Axes]:
+    """A report figure: one axes over time, titled and labelled."""
     fig = Figure(figsize=(7.0, 4.2), layout="constrained")
     ax = fig.add_subplot()
     ax.set_title(title)
@@ -45,7 +55,8 @@ def _figure(title: str, ylabel: str) -> tuple[Figure, Axes]:
     return fig, ax
 
 
-def _save(fig: Figure, ax: Axes, path: Path) -> Path:
+def save_figure(fig: Figure, ax: Axes, path: Path) -> Path:
+    """Write ``fig`` (with a legend if anything is labelled) to ``path``."""
     if ax.get_legend_handles_labels()[0]:
         ax.legend(loc="best")
     fig.savefig(path, dpi=120)
@@ -53,40 +64,40 @@ def _save(fig: Figure, ax: Axes, path: Path) -> Path:
 
 
 def _plot_hand(series: BagSeries, out: Path, axis: int, name: str) -> Path:
-    fig, ax = _figure(
+    fig, ax = figure(
         f"Hand {name} position (paper Figs. {'6, 9, 13' if axis == 1 else '7, 10, 14'})", f"hand {name} [m]"
     )
     ax.plot(series.t, series.hand_desired[:, axis], "--", color="tab:red", label=f"target {name}_dh")
     ax.plot(series.t, series.hand_actual[:, axis], color="tab:blue", label=f"hand {name}_h")
-    return _save(fig, ax, out / f"hand_{name}.png")
+    return save_figure(fig, ax, out / f"hand_{name}.png")
 
 
 def _plot_brace(series: BagSeries, out: Path) -> Path:
-    fig, ax = _figure("Brace point y position (paper Figs. 11, 15)", "brace point y [m]")
+    fig, ax = figure("Brace point y position (paper Figs. 11, 15)", "brace point y [m]")
     for cs in series.contacts.values():
         if cs.t_ctrl.size:
             ax.plot(cs.t_ctrl, cs.brace_desired[:, 1], "--", label=f"{cs.name} target y")
             ax.plot(cs.t_ctrl, cs.brace_actual[:, 1], label=f"{cs.name} y")
         elif cs.t.size:
             ax.plot(cs.t, cs.position[:, 1], label=f"{cs.name} y (simulator)")
-    return _save(fig, ax, out / "brace_y.png")
+    return save_figure(fig, ax, out / "brace_y.png")
 
 
 def _plot_force(series: BagSeries, out: Path) -> Path:
-    fig, ax = _figure("Reaction (normal) force at the brace (paper Figs. 12, 16)", "normal force f_n [N]")
+    fig, ax = figure("Reaction (normal) force at the brace (paper Figs. 12, 16)", "normal force f_n [N]")
     for cs in series.contacts.values():
         if cs.t_ctrl.size:
             ax.plot(cs.t_ctrl, cs.normal_force_desired, "--", label=f"{cs.name} desired f_nd")
         if cs.t.size:
             ax.plot(cs.t, cs.normal_force, label=f"{cs.name} f_n")
-    return _save(fig, ax, out / "normal_force.png")
+    return save_figure(fig, ax, out / "normal_force.png")
 
 
 def _plot_energy(series: BagSeries, out: Path) -> Path:
-    fig, ax = _figure("Electrical energy of the motors (paper Fig. 8)", "energy [J]")
+    fig, ax = figure("Electrical energy of the motors (paper Fig. 8)", "energy [J]")
     ax.plot(series.motor_t, series.energy_consumed, label="consumed  ∫ Σ|v i| dt")
     ax.plot(series.motor_t, series.copper_loss, label="copper loss  ∫ Σ R i² dt")
-    return _save(fig, ax, out / "energy.png")
+    return save_figure(fig, ax, out / "energy.png")
 
 
 def plot_series(series: BagSeries, output_dir: str | Path) -> list[Path]:
@@ -124,11 +135,15 @@ def write_report(
     bag: str | Path,
     output_dir: str | Path | None = None,
     wall_time_s: float | None = None,
+    animation_interval_s: float | None = DEFAULT_INTERVAL_S,
+    urdf: str | None = None,
 ) -> dict[str, Any]:
-    """Read `bag`, write the plots and summary.json, and return the summary.
+    """Read `bag`, write the plots, the animation and summary.json, and return the summary.
 
     The output directory defaults to the bag's parent. Without `wall_time_s`, the one in
-    an existing summary.json there is kept. Raises BagReadError on an unreadable bag.
+    an existing summary.json there is kept. `animation_interval_s` is the sim time between
+    animation frames (None: no animation); `urdf` (the text) animates a bag that lacks
+    robot_description. Raises BagReadError on an unreadable bag.
     """
     series = read_series(bag)
     out = Path(output_dir) if output_dir is not None else default_output_dir(bag)
@@ -137,6 +152,11 @@ def write_report(
     if wall_time_s is None:
         wall_time_s = _previous_wall_time(summary_path)
     plot_series(series, out)
+    if animation_interval_s is not None:
+        try:
+            write_animation(series, out, animation_interval_s, urdf=urdf)
+        except (AnimationError, DescriptionError) as exc:
+            print(f"bracing-report: no animation: {exc}", file=sys.stderr)
     summary = compute_summary(series, wall_time_s=wall_time_s)
     summary_path.write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     return summary
@@ -156,22 +176,56 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Command line entry point; returns the exit code."""
     parser = argparse.ArgumentParser(
         prog="bracing-report",
-        description="Plot a recorded bracing run (paper Figs. 6-16) and write summary.json.",
+        description="Plot a recorded bracing run (paper Figs. 6-16), animate the arm and write summary.json; "
+        "with --compare, draw several runs side by side.",
     )
-    parser.add_argument("bag", help="rosbag2 bag directory (DIR/bag)")
-    parser.add_argument("--output", default=None, help="output directory (default: the bag's parent directory)")
+    parser.add_argument("bags", nargs="+", metavar="bag", help="rosbag2 bag directory (DIR/bag), or several")
+    parser.add_argument("--compare", action="store_true", help="draw the runs side by side (compare_*.png, compare.md)")
+    parser.add_argument(
+        "--output",
+        default=None,
+        help="output directory (default: the bag's parent directory; with --compare, the directory holding the runs)",
+    )
     parser.add_argument(
         "--wall-time", type=float, default=None, help="wall-clock duration of the run [s] (for real_time_factor)"
     )
+    parser.add_argument(
+        "--frame-interval",
+        type=float,
+        default=DEFAULT_INTERVAL_S,
+        help=f"sim time between animation frames [s] (default {DEFAULT_INTERVAL_S})",
+    )
+    parser.add_argument("--no-animation", action="store_true", help="skip the animation")
+    parser.add_argument("--urdf", type=Path, default=None, help="URDF to animate a bag without robot_description")
     args = parser.parse_args(None if argv is None else list(argv))
+    if args.frame_interval <= 0:
+        parser.error("--frame-interval must be > 0")
+    if len(args.bags) > 1 and not args.compare and (args.output is not None or args.wall_time is not None):
+        parser.error("--output and --wall-time name one run: give one bag, or add --compare")
     try:
-        summary = write_report(args.bag, args.output, wall_time_s=args.wall_time)
-    except BagReadError as exc:
+        if args.compare:
+            from bracing_bringup.compare import default_compare_dir, write_comparison
+
+            out = Path(args.output) if args.output is not None else default_compare_dir(args.bags)
+            for path in write_comparison(args.bags, out):
+                print(f"written {path}")
+            print((out / "compare.md").read_text(encoding="utf-8"))
+            return 0
+        urdf = args.urdf.read_text(encoding="utf-8") if args.urdf is not None else None
+        for bag in args.bags:
+            summary = write_report(
+                bag,
+                args.output,
+                wall_time_s=args.wall_time,
+                animation_interval_s=None if args.no_animation else args.frame_interval,
+                urdf=urdf,
+            )
+            out = Path(args.output) if args.output is not None else default_output_dir(bag)
+            print(format_summary(summary))
+            print(f"report written to {out}")
+    except (BagReadError, OSError) as exc:
         print(f"bracing-report: error: {exc}", file=sys.stderr)
         return 2
-    out = Path(args.output) if args.output is not None else default_output_dir(args.bag)
-    print(format_summary(summary))
-    print(f"report written to {out}")
     return 0
 
 

@@ -1,7 +1,8 @@
 """Time series and the summary table of a recorded bracing run (no rclpy needed).
 
 ``read_series(bag)`` reads a rosbag2 bag (any storage) with rosbags' AnyReader, using
-only the message definitions embedded in the bag, and returns numpy time series.
+only the message definitions embedded in the bag, and returns numpy time series (and the
+URDF of ``robot_description``, if the bag has it, for drawing the arm).
 ``compute_summary(series, wall_time_s)`` returns the ``summary.json`` dict (SPEC section 5).
 
 Times are in seconds relative to ``t0``, the first ``joint_states`` stamp (the first
@@ -41,6 +42,10 @@ _JOINT_STATE = "sensor_msgs/msg/JointState"
 _CONTACTS = "bracing_msgs/msg/Contacts"
 _CONTROLLER_STATE = "bracing_msgs/msg/ControllerState"
 _MOTOR_STATE = "bracing_msgs/msg/MotorState"
+_WRENCH = "geometry_msgs/msg/WrenchStamped"
+_STRING = "std_msgs/msg/String"
+_WRENCH_TOPIC = "contact_wrench/"
+_DESCRIPTION_TOPIC = "robot_description"
 
 
 class BagReadError(RuntimeError):
@@ -63,6 +68,10 @@ class ContactSeries:
     residual: FloatArray = field(default_factory=_empty)  # C = n . r - c [m]
     active: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
     position: FloatArray = field(default_factory=lambda: _empty(3))  # [m]
+    normal: FloatArray = field(default_factory=lambda: _empty(3))  # surface normal at the contact
+    # From `contact_wrench/<name>` (the simulator): force on the robot, world axes:
+    t_force: FloatArray = field(default_factory=_empty)  # [s]
+    force: FloatArray = field(default_factory=lambda: _empty(3))  # [N]
     # From `controller_state` (the controller):
     t_ctrl: FloatArray = field(default_factory=_empty)  # [s]
     normal_force_desired: FloatArray = field(default_factory=_empty)  # f_nd [N]
@@ -79,6 +88,9 @@ class BagSeries:
 
     t0_ns: int = 0
     joint_t: FloatArray = field(default_factory=_empty)  # joint_states stamps [s]
+    joint_names: list[str] = field(default_factory=list)
+    joint_position: FloatArray = field(default_factory=lambda: _empty(1))  # (states, joints) [rad or m]
+    robot_description: str | None = None  # the URDF recorded on robot_description (newer bags)
     t: FloatArray = field(default_factory=_empty)  # controller_state stamps [s]
     hand_desired: FloatArray = field(default_factory=lambda: _empty(3))  # [m]
     hand_actual: FloatArray = field(default_factory=lambda: _empty(3))  # [m]
@@ -112,7 +124,9 @@ def resolve_bag(path: Path) -> Path:
 def read_series(bag: str | Path) -> BagSeries:
     """Read a recorded run into time series. Raises BagReadError if unreadable."""
     path = resolve_bag(Path(bag))
-    joint: list[int] = []
+    joint: list[tuple[int, Any]] = []
+    wrenches: dict[str, list[tuple[int, tuple[float, float, float]]]] = {}
+    description: str | None = None
     ctrl: list[tuple[int, Any]] = []
     contacts: list[tuple[int, Any]] = []
     motor: list[tuple[int, float, float, float]] = []
@@ -122,13 +136,23 @@ def read_series(bag: str | Path) -> BagSeries:
             for conn in reader.connections:
                 counts[conn.topic] = counts.get(conn.topic, 0) + conn.msgcount
             wanted = [
-                c for c in reader.connections if c.msgtype in (_JOINT_STATE, _CONTACTS, _CONTROLLER_STATE, _MOTOR_STATE)
+                c
+                for c in reader.connections
+                if c.msgtype in (_JOINT_STATE, _CONTACTS, _CONTROLLER_STATE, _MOTOR_STATE)
+                or (c.msgtype == _WRENCH and _WRENCH_TOPIC in c.topic)
+                or (c.msgtype == _STRING and c.topic.endswith(_DESCRIPTION_TOPIC))
             ]
             for conn, _, raw in reader.messages(connections=wanted):
                 msg: Any = reader.deserialize(raw, conn.msgtype)
+                if conn.msgtype == _STRING:
+                    description = description or str(msg.data)
+                    continue
                 stamp = _stamp_ns(msg)
                 if conn.msgtype == _JOINT_STATE:
-                    joint.append(stamp)
+                    joint.append((stamp, msg))
+                elif conn.msgtype == _WRENCH:
+                    name = conn.topic.rsplit(_WRENCH_TOPIC, 1)[1]
+                    wrenches.setdefault(name, []).append((stamp, _xyz(msg.wrench.force)))
                 elif conn.msgtype == _CONTROLLER_STATE:
                     ctrl.append((stamp, msg))
                 elif conn.msgtype == _CONTACTS:
@@ -141,12 +165,12 @@ def read_series(bag: str | Path) -> BagSeries:
         msg = f"cannot read bag {path}: {exc}"
         raise BagReadError(msg) from exc
 
-    joint.sort()
+    joint.sort(key=lambda x: x[0])
     ctrl.sort(key=lambda x: x[0])
     contacts.sort(key=lambda x: x[0])
     motor.sort(key=lambda x: x[0])
     if joint:
-        t0 = joint[0]
+        t0 = joint[0][0]
     else:
         firsts = [lst[0][0] for lst in (ctrl, contacts, motor) if lst]
         t0 = min(firsts) if firsts else 0
@@ -154,8 +178,11 @@ def read_series(bag: str | Path) -> BagSeries:
     def sec(ns: int) -> float:
         return (ns - t0) * 1e-9
 
-    series = BagSeries(t0_ns=t0, topic_counts=counts)
-    series.joint_t = np.array([sec(s) for s in joint], dtype=float)
+    series = BagSeries(t0_ns=t0, topic_counts=counts, robot_description=description)
+    series.joint_t = np.array([sec(s) for s, _ in joint], dtype=float)
+    if joint:
+        series.joint_names = [str(n) for n in joint[0][1].name]
+        series.joint_position = np.array([_by_name(m, series.joint_names) for _, m in joint], dtype=float)
     series.t = np.array([sec(s) for s, _ in ctrl], dtype=float)
     series.hand_desired = np.array([_xyz(m.hand_desired) for _, m in ctrl], dtype=float)
     series.hand_actual = np.array([_xyz(m.hand_actual) for _, m in ctrl], dtype=float)
@@ -169,7 +196,7 @@ def read_series(bag: str | Path) -> BagSeries:
         series.copper_loss = arr[:, 3]
 
     # Per contact, from the simulator.
-    sim_rows: dict[str, list[tuple[int, float, float, float, bool, tuple[float, ...]]]] = {}
+    sim_rows: dict[str, list[tuple[int, float, float, float, bool, tuple[float, ...], tuple[float, ...]]]] = {}
     for stamp, msg in contacts:
         for c in msg.contacts:
             sim_rows.setdefault(str(c.name), []).append(
@@ -180,6 +207,7 @@ def read_series(bag: str | Path) -> BagSeries:
                     float(c.residual),
                     bool(c.active),
                     _xyz(c.position),
+                    _xyz(c.normal),
                 )
             )
     # Per contact, from the controller.
@@ -202,6 +230,11 @@ def read_series(bag: str | Path) -> BagSeries:
             cs.residual = np.array([r[3] for r in rows], dtype=float)
             cs.active = np.array([r[4] for r in rows], dtype=bool)
             cs.position = np.array([r[5] for r in rows], dtype=float).reshape(-1, 3)
+            cs.normal = np.array([r[6] for r in rows], dtype=float).reshape(-1, 3)
+        forces = sorted(wrenches.get(name, []))
+        if forces:
+            cs.t_force = np.array([sec(s) for s, _ in forces], dtype=float)
+            cs.force = np.array([f for _, f in forces], dtype=float).reshape(-1, 3)
         crow = ctrl_rows.get(name, [])
         if crow:
             cs.t_ctrl = np.array([sec(r[0]) for r in crow], dtype=float)
@@ -215,6 +248,14 @@ def read_series(bag: str | Path) -> BagSeries:
         cs.normal_force_error = np.array([e for _, e in matched], dtype=float)
         series.contacts[name] = cs
     return series
+
+
+def _by_name(msg: Any, names: list[str]) -> list[float]:
+    """A JointState's positions in the order of ``names`` (NaN for a joint it lacks)."""
+    if list(msg.name) == names:
+        return [float(v) for v in msg.position]
+    value = dict(zip(msg.name, msg.position, strict=False))
+    return [float(value.get(n, math.nan)) for n in names]
 
 
 def _rms(values: FloatArray) -> float:

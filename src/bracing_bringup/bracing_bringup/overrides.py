@@ -1,0 +1,185 @@
+"""``--set KEY=VALUE`` overrides of scenario parameters, for bracing-pair, bracing-sweep and bracing-study.
+
+KEY is a flat parameter name as in the scenario YAML (``input_mode``, ``hand.kp``,
+``contacts.elbow.desired_normal_force``, ``duration`` ...). A key of the ``/**`` section
+(robot, motors, contacts, input mode) goes to both nodes, a simulator or controller key to
+that node only. VALUE is YAML: ``torque``, ``300``, ``true``, ``[300, 300]``, ``[]``.
+
+A sweep gives several values separated by commas: ``--set hand.kp=[300,300],[150,150]``.
+Commas inside brackets or quotes belong to the value, so a list is one value.
+"""
+
+from __future__ import annotations
+
+import difflib
+import re
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from bracing_controller.config import CONTROLLER_PARAMETERS, ControllerConfig
+from bracing_sim.config import CONTACT_FIELDS, SHARED_PARAMETERS, SIMULATOR_PARAMETERS, SimulatorConfig
+from bracing_sim.params import ConfigError, load_params_file
+
+SIMULATOR = "bracing_simulator"
+CONTROLLER = "bracing_controller"
+# PyYAML (YAML 1.1) reads 1e-3 as a string; a user typing it on a command line means a number.
+_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
+
+
+@dataclass
+class NodeOverrides:
+    """Overrides split by destination: ``shared`` goes to both nodes (the /** section)."""
+
+    shared: dict[str, Any] = field(default_factory=dict)
+    simulator: dict[str, Any] = field(default_factory=dict)
+    controller: dict[str, Any] = field(default_factory=dict)
+
+    def for_node(self, node: str) -> dict[str, Any]:
+        """What ``node`` (bracing_simulator / bracing_controller) gets, shared first."""
+        own = self.simulator if node == SIMULATOR else self.controller
+        return {**self.shared, **own}
+
+    def flat(self) -> dict[str, Any]:
+        return {**self.shared, **self.simulator, **self.controller}
+
+
+def split_values(text: str) -> list[str]:
+    """``a,[b,c],'d,e'`` -> ``["a", "[b,c]", "'d,e'"]``: commas split only outside brackets and quotes."""
+    parts: list[str] = []
+    current: list[str] = []
+    depth, quote = 0, ""
+    for char in text:
+        if quote:
+            quote = "" if char == quote else quote
+        elif char in "'\"":
+            quote = char
+        elif char in "[{":
+            depth += 1
+        elif char in "]}":
+            depth -= 1
+        elif char == "," and depth == 0:
+            parts.append("".join(current))
+            current = []
+            continue
+        current.append(char)
+    parts.append("".join(current))
+    return parts
+
+
+def _numbers(value: Any) -> Any:
+    if isinstance(value, str) and _NUMBER.match(value):
+        return float(value) if any(c in value for c in ".eE") else int(value)
+    if isinstance(value, list):
+        return [_numbers(v) for v in value]
+    return value
+
+
+def parse_value(key: str, text: str) -> Any:
+    """One YAML value (a scalar or a flow list)."""
+    if not text.strip():
+        raise ConfigError(f"--set {key}: empty value")
+    try:
+        value = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"--set {key}: {text!r} is not a YAML value ({exc.__class__.__name__})") from None
+    if isinstance(value, Mapping):
+        raise ConfigError(f"--set {key}: expected a value or a list, got a mapping {text!r}")
+    return _numbers(value)
+
+
+def parse_assignment(text: str) -> tuple[str, list[Any]]:
+    """``KEY=V1,V2,...`` -> (KEY, [V1, V2, ...])."""
+    key, sep, values = text.partition("=")
+    key = key.strip()
+    if not sep or not key:
+        raise ConfigError(f"--set {text!r}: expected KEY=VALUE")
+    return key, [parse_value(key, part) for part in split_values(values)]
+
+
+def destination(key: str) -> str:
+    """``shared``, ``bracing_simulator`` or ``bracing_controller``; ConfigError for an unknown key."""
+    if key in SHARED_PARAMETERS:
+        return "shared"
+    parts = key.split(".")
+    if len(parts) == 3 and parts[0] == "contacts" and parts[2] in CONTACT_FIELDS:
+        return "shared"
+    if key in SIMULATOR_PARAMETERS and key in CONTROLLER_PARAMETERS:  # both nodes have one (e.g. wait_for_recorder)
+        return "shared"
+    if key in SIMULATOR_PARAMETERS:
+        return SIMULATOR
+    if key in CONTROLLER_PARAMETERS:
+        return CONTROLLER
+    known = [*SHARED_PARAMETERS, *SIMULATOR_PARAMETERS, *CONTROLLER_PARAMETERS, "contacts.<name>.<field>"]
+    close = difflib.get_close_matches(key, known, n=3)
+    hint = f" (did you mean {', '.join(close)}?)" if close else ""
+    raise ConfigError(f"--set {key}: unknown parameter{hint}")
+
+
+def route(values: Mapping[str, Any]) -> NodeOverrides:
+    """Split flat overrides by destination node."""
+    out = NodeOverrides()
+    for key, value in values.items():
+        where = destination(key)
+        target = out.shared if where == "shared" else out.simulator if where == SIMULATOR else out.controller
+        target[key] = value
+    return out
+
+
+def node_params(config: Path, overrides: NodeOverrides) -> dict[str, dict[str, Any]]:
+    """Each node's complete flat parameters: the scenario file, then the overrides."""
+    return {node: {**load_params_file(config, node), **overrides.for_node(node)} for node in (SIMULATOR, CONTROLLER)}
+
+
+def validate(config: Path, overrides: NodeOverrides) -> SimulatorConfig:
+    """Both nodes' typed configurations build (no model is loaded: cheap); the ConfigError names
+    the parameter, prefixed with the overrides that led to it."""
+    params = node_params(config, overrides)
+    search = [config.resolve().parent]
+    try:
+        sim = SimulatorConfig.from_params(params[SIMULATOR], search)
+        ControllerConfig.from_params(params[CONTROLLER], search)
+    except ConfigError as exc:
+        given = ", ".join(f"{k}={format_value(v)}" for k, v in overrides.flat().items())
+        raise ConfigError(f"{exc}" + (f" (with --set {given})" if given else "")) from None
+    return sim
+
+
+def format_value(value: Any) -> str:
+    """The --set spelling of a value (round-trips through parse_value)."""
+    if isinstance(value, list):
+        return "[" + ",".join(format_value(v) for v in value) + "]"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return str(value)
+
+
+def parse_single(assignments: Iterable[str]) -> dict[str, Any]:
+    """bracing-pair's ``--set``: one value per key."""
+    out: dict[str, Any] = {}
+    for text in assignments:
+        key, values = parse_assignment(text)
+        if len(values) != 1:
+            raise ConfigError(
+                f"--set {key}: one value expected, got {len(values)} (a list is written in brackets: [a,b])"
+            )
+        destination(key)
+        if key in out:
+            raise ConfigError(f"--set {key}: given twice")
+        out[key] = values[0]
+    return out
+
+
+def parse_sweep(assignments: Sequence[str]) -> dict[str, list[Any]]:
+    """bracing-sweep's ``--set``: key -> its values, in command-line order."""
+    out: dict[str, list[Any]] = {}
+    for text in assignments:
+        key, values = parse_assignment(text)
+        destination(key)
+        if key in out:
+            raise ConfigError(f"--set {key}: given twice")
+        out[key] = values
+    return out
