@@ -20,6 +20,8 @@ from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from types import TracebackType
 from typing import Any, Self, TypeVar
 
+from bracing_sim.params import ConfigError
+
 Item = TypeVar("Item")
 Result = TypeVar("Result")
 
@@ -167,9 +169,13 @@ class DaskExecutor(Executor):
 
 
 def make_executor(workers: int | None = None, scheduler: str | None = None) -> Executor:
-    """Local processes by default; ``scheduler``: a Dask scheduler address, or ``local`` for a LocalCluster."""
+    """Local processes by default; ``scheduler``: a Dask scheduler address, or ``local`` for a LocalCluster.
+
+    Raises ConfigError naming ``--scheduler`` when there is no scheduler at that address.
+    """
     if scheduler is None:
         return LocalExecutor(workers)
-    if scheduler == "local":
-        return DaskExecutor(None, workers)
-    return DaskExecutor(scheduler)
+    try:
+        return DaskExecutor(None, workers) if scheduler == "local" else DaskExecutor(scheduler)
+    except (OSError, TimeoutError) as exc:
+        raise ConfigError(f"--scheduler {scheduler}: {exc}") from None

@@ -515,18 +515,14 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
     handle_stop_signals()
+    start = time.perf_counter()
     try:
         config = resolve_scenario(args.scenario)
         study = build_study(config, args.duration, parse_single(args.sets), args.positions, args.span)
         ResultsStore(args.output).check_manifest(config)
+        executor = make_executor(args.workers, args.scheduler)
     except ConfigError as exc:
         print(f"bracing-study: error: {exc}", file=sys.stderr)
-        return EXIT_CONFIG
-    start = time.perf_counter()
-    try:
-        executor = make_executor(args.workers, args.scheduler)
-    except (OSError, TimeoutError) as exc:  # no scheduler at that address
-        print(f"bracing-study: error: --scheduler {args.scheduler}: {exc}", file=sys.stderr)
         return EXIT_CONFIG
     try:
         with executor:

@@ -342,13 +342,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         specs = build_specs(args.config, args.sets, args.zip, args.duration)
         ResultsStore(args.output).check_manifest(args.config)
+        executor = make_executor(args.workers, args.scheduler)
     except ConfigError as exc:
         print(f"bracing-sweep: error: {exc}", file=sys.stderr)
-        return EXIT_CONFIG
-    try:
-        executor = make_executor(args.workers, args.scheduler)
-    except (OSError, TimeoutError) as exc:  # no scheduler at that address
-        print(f"bracing-sweep: error: --scheduler {args.scheduler}: {exc}", file=sys.stderr)
         return EXIT_CONFIG
     try:
         with executor:

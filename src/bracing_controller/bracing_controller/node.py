@@ -30,6 +30,7 @@ from bracing_sim.ros_common import (
     read_joint_state,
     read_parameters,
     run,
+    wait_until,
 )
 
 STAMP_RANGE_NS = (-(2**31) * 1_000_000_000, 2**31 * 1_000_000_000)
@@ -152,12 +153,12 @@ def spin(node: ControllerNode) -> int:
             # recorder discovers late on a busy machine, and a short run ends before it does), so
             # no state is taken until then: joint_states is subscribed to only afterwards (the
             # executor would otherwise answer states from its callbacks while waiting here).
-            since, told = time.monotonic(), False
-            while node.command_pub.get_subscription_count() < 2 or node.state_pub.get_subscription_count() < 1:
-                executor.spin_once(timeout_sec=0.05)
-                if not told and time.monotonic() - since > 2.0:
-                    told = True
-                    node.get_logger().info("waiting for the recorder to subscribe to the command and state topics")
+            wait_until(
+                node,
+                executor,
+                lambda: node.command_pub.get_subscription_count() >= 2 and node.state_pub.get_subscription_count() >= 1,
+                "waiting for the recorder to subscribe to the command and state topics",
+            )
         waiter = SubscriptionWaiter(node, node.listen())
         while True:
             messages = waiter.take(0.1)

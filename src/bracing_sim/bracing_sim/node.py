@@ -22,7 +22,7 @@ from std_msgs.msg import String
 from bracing_msgs.msg import Contacts, MotorCommand, MotorState
 from bracing_sim import wire
 from bracing_sim.commands import MODE_CODES, CommandError, command_vector
-from bracing_sim.config import SimulatorConfig, build_simulator
+from bracing_sim.config import SimulatorConfig, build_simulator, check_step
 from bracing_sim.core.dynamics import Derivative, InputMode
 from bracing_sim.core.simulator import DivergenceError, Energy
 from bracing_sim.core.types import Vector
@@ -36,6 +36,7 @@ from bracing_sim.ros_common import (
     read_motor_command,
     read_parameters,
     run,
+    wait_until,
 )
 
 DESCRIPTION_QOS = QoSProfile(
@@ -186,28 +187,10 @@ class SimulatorNode(Node):
             with np.errstate(over="ignore", invalid="ignore"):  # an overflow is reported as a refusal
                 d = self.sim.step(command)
                 effort = self.state_effort(command)
+            residual = check_step(self.config, d, self.sim.velocity, effort)
         except DivergenceError as exc:
             self.sim.restore(checkpoint)
             self.refusal = str(exc)
-            return False
-        if not _finite(effort, d.normal_force, d.friction_force, d.contacts.slip_velocity):
-            self.sim.restore(checkpoint)
-            self.refusal = f"non-finite forces or effort after the step at t = {self.sim.time:.6f} s"
-            return False
-        speed = float(np.max(np.abs(self.sim.velocity)))
-        if speed > self.config.divergence_speed:
-            # Finite, but a state no arm reaches: from here RK4 would overflow a few steps later
-            # under any input (a single 1e150 V step does that), so the command is refused now.
-            self.sim.restore(checkpoint)
-            self.refusal = f"joint speed {speed:.3g} exceeds divergence_speed {self.config.divergence_speed}"
-            return False
-        held = d.contacts.residual if d.active is None else d.contacts.residual[d.active]
-        residual = float(np.max(np.abs(held))) if held.size else 0.0
-        if residual > self.config.divergence_residual:
-            self.sim.restore(checkpoint)
-            self.refusal = (
-                f"constraint residual {residual:.3g} m exceeds divergence_residual {self.config.divergence_residual} m"
-            )
             return False
         self.command = command
         self.max_residual = max(self.max_residual, residual)
@@ -267,23 +250,21 @@ class SimulatorNode(Node):
 def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None:
     cfg = node.config
     # Wait for the controller (and a recorder, if asked) before the first state.
-    since, told = time.monotonic(), False
-    while node.joint_pub.get_subscription_count() < cfg.min_subscribers:
-        executor.spin_once(timeout_sec=0.05)
-        if not told and time.monotonic() - since > 2.0:
-            told = True
-            node.get_logger().info(
-                f"lockstep: waiting for {cfg.min_subscribers} subscriber(s) of joint_states (start the controller)"
-            )
+    wait_until(
+        node,
+        executor,
+        lambda: node.joint_pub.get_subscription_count() >= cfg.min_subscribers,
+        f"lockstep: waiting for {cfg.min_subscribers} subscriber(s) of joint_states (start the controller)",
+    )
     if cfg.wait_for_recorder:
         # Every report must reach the recorder: be matched on every topic before the first state
         # (joint_states has the controller besides). AckWindow keeps it lossless from then on.
-        since, told = time.monotonic(), False
-        while any(pub.get_subscription_count() < 1 for pub in node.publishers_):
-            executor.spin_once(timeout_sec=0.05)
-            if not told and time.monotonic() - since > 2.0:
-                told = True
-                node.get_logger().info("waiting for the recorder to subscribe to every topic")
+        wait_until(
+            node,
+            executor,
+            lambda: all(pub.get_subscription_count() >= 1 for pub in node.publishers_),
+            "waiting for the recorder to subscribe to every topic",
+        )
     waiter = SubscriptionWaiter(node, node.command_sub)
     node.publish_state(node.state_effort())
     node.flow.sent()

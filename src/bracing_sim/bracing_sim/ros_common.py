@@ -17,7 +17,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -34,7 +34,7 @@ from bracing_sim.params import ConfigError
 
 # Reliable, transient-local and deep: a subscriber that discovers a publisher late (the recorder
 # on a busy machine) still receives what was sent before the match. A KEEP_LAST writer drops its
-# oldest sample when the history is full, acknowledged or not; AckWindow (every depth / 4
+# oldest sample when the history is full, acknowledged or not; AckWindow (every depth / 2
 # messages) makes sure no unacknowledged sample is ever that old.
 STREAM_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
@@ -90,20 +90,33 @@ class RateLimitedLog:
             self._logger.info(text)
 
 
+def wait_until(node: Node, executor: Executor, ready: Callable[[], bool], message: str) -> None:
+    """Serve ``executor`` until ``ready()`` (a subscription count, say), logging ``message`` (what
+    it waits for) once it has waited 2 s. Discovery and matching happen in DDS's own threads."""
+    since, told = time.monotonic(), False
+    while not ready():
+        executor.spin_once(timeout_sec=0.05)
+        if not told and time.monotonic() - since > 2.0:
+            told = True
+            node.get_logger().info(message)
+
+
 class AckWindow:
     """Flow control for reliable publishers whose subscribers must not lose a message.
 
     A KEEP_LAST writer drops its oldest sample when its history is full, acknowledged or
     not: a subscriber that matches late (discovery on a busy machine) or falls behind (a
     niced recorder) would lose the first or oldest messages. Every ``window`` messages
-    (a fraction of the history depth), wait until every matched subscriber has
-    acknowledged everything sent, so the history never overflows.
+    (half the history depth), wait until every matched subscriber has acknowledged
+    everything sent, so no more than ``window`` are ever unacknowledged and the history
+    never overflows. (Each wait costs up to a heartbeat period, 50 ms: a wider window
+    waits less often.)
     """
 
     def __init__(self, node: Node, publishers: Sequence[Publisher], depth: int) -> None:
         self._node = node
         self._publishers = list(publishers)
-        self.window = max(depth // 4, 1)
+        self.window = max(depth // 2, 1)
         self._sent = 0
 
     def sent(self) -> None:
