@@ -25,6 +25,7 @@ seconds, at most ``--drain-timeout`` seconds) and the bag is closed cleanly.
 from __future__ import annotations
 
 import argparse
+import faulthandler
 import math
 import os
 import signal
@@ -346,6 +347,7 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the recorder until SIGINT/SIGTERM; returns the exit code."""
+    faulthandler.enable()  # a crash in native code (DDS, pinocchio) leaves its Python stack on stderr
     full = list(sys.argv[1:] if argv is None else argv)
     args = _parse(remove_ros_args(["recorder", *full])[1:])
     contacts = [c.strip() for c in args.contacts.split(",") if c.strip()]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import faulthandler
 import os
 import signal
 import sys
@@ -249,6 +250,7 @@ def _interrupt(signum: int, frame: object) -> None:
 
 def run(node_factory: Callable[[], Node], spin: Callable[[Node], int], args: list[str] | None = None) -> int:
     """Create the node, spin it, and turn start-up errors into one clear line and exit 2."""
+    faulthandler.enable()  # a crash in native code (DDS, pinocchio) leaves its Python stack in the node's log
     code = 0
     node: Node | None = None
     try:
