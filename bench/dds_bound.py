@@ -5,7 +5,7 @@ The upper bound on the lockstep simulator/controller pair's step rate: one proce
 (names, positions, velocities, efforts) on ``ping`` and waits for the answer; the
 other ("pong", playing the controller) answers each message at once with a
 bracing_msgs/MotorCommand with 4 values on ``pong``, stamped with the request's stamp.
-The transport is the nodes' own: their QoS (bracing_sim.ros_common STREAM_QOS /
+The transport is the nodes' own: their QoS (bracing_ros.common STREAM_QOS /
 SUBSCRIBE_QOS), their wait (SubscriptionWaiter) and,
 with ``--wire cdr``, their CDR bytes (bracing_sim.wire); ``--wire objects`` sends rclpy
 message objects instead, for comparison. No computation besides the messages.
@@ -44,7 +44,7 @@ class _Side:
     def __init__(self, name: str, out_type: type, out_topic: str, in_type: type, in_topic: str, wire: str) -> None:
         import rclpy
 
-        from bracing_sim.ros_common import STREAM_QOS, SUBSCRIBE_QOS, SubscriptionWaiter
+        from bracing_ros.common import STREAM_QOS, SUBSCRIBE_QOS, SubscriptionWaiter
 
         rclpy.init()
         self.node = rclpy.create_node(name)
@@ -72,7 +72,7 @@ def _pong_main(wire_kind: str) -> int:
     from sensor_msgs.msg import JointState
 
     from bracing_msgs.msg import MotorCommand
-    from bracing_sim import wire
+    from bracing_ros import wire
 
     parent = os.getppid()
     side = _Side("bench_dds_pong", MotorCommand, PONG_TOPIC, JointState, PING_TOPIC, wire_kind)
@@ -108,7 +108,7 @@ def _ping_main(wire_kind: str, n: int, repeats: int, warmup: int, discovery_time
     from sensor_msgs.msg import JointState
 
     from bracing_msgs.msg import MotorCommand
-    from bracing_sim import wire
+    from bracing_ros import wire
 
     side = _Side("bench_dds_ping", JointState, PING_TOPIC, MotorCommand, PONG_TOPIC, wire_kind)
     encoder = wire.JointStateEncoder(JOINTS)

@@ -1,7 +1,7 @@
 """MuJoCo reference: the paper's 4-link bracing arm, stepped from Python.
 
 Builds, as an MJCF string, a MuJoCo model equivalent to ``config/paper_4link.urdf``
-(SPEC.md section 3): planar chain of four hinges about world x, links of 0.5 m along
+(config/paper_4link.yaml): planar chain of four hinges about world x, links of 0.5 m along
 local +z with the URDF's masses and inertias (solid cylinders, centre of mass
 mid-link), joint damping D + D_m = 2.0 + 0.1 * 3^2 = 2.9, armature J_m = I_m k^2 =
 0.000164 * 9, gravity -z 9.81, RK4, 1 ms. A small sphere at the elbow (tip of link 2)

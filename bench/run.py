@@ -76,8 +76,8 @@ def controller_latency_us(updates: int = 3000) -> dict[str, float]:
 def chain_scenario(n: int, p: int) -> Any:
     """An n-link chain of the paper's links with p contacts on horizontal planes through the
     contact frames' start positions (feasible by construction)."""
-    from bracing_sim.config import SimulatorConfig, build_simulator
-    from bracing_sim.core.chain_urdf import chain_urdf
+    from bracing_core.chain_urdf import chain_urdf
+    from bracing_core.config import SimulatorConfig, build_simulator
 
     links = [max(1, (n * (j + 1)) // (2 * p)) for j in range(p)] if p else []
     tmp = Path(tempfile.mkdtemp(prefix="bench_chain_"))
@@ -112,7 +112,7 @@ def chain_scenario(n: int, p: int) -> Any:
         params[f"contacts.c{j}.friction"] = 0.1
         params[f"contacts.c{j}.offset"] = 0.0
     # Put each plane through its frame's start position.
-    from bracing_sim.core.model import RobotModel
+    from bracing_core.model import RobotModel
 
     robot = RobotModel.from_urdf(urdf)
     robot.compute(np.array(q0), np.zeros(n))

@@ -10,11 +10,11 @@ import pytest
 from conftest import CONFIG_DIR, PAPER_YAML, node_params
 from ros_helpers import node_argv, pair_argv, run
 
-from bracing_controller.config import ControllerConfig
-from bracing_controller.law import DecoupledController
-from bracing_sim.config import SimulatorConfig, build_simulator
-from bracing_sim.core.chain_urdf import chain_urdf
-from bracing_sim.params import ConfigError, load_params_file
+from bracing_core.chain_urdf import chain_urdf
+from bracing_core.config import SimulatorConfig, build_simulator
+from bracing_core.controller_config import ControllerConfig
+from bracing_core.law import DecoupledController
+from bracing_core.params import ConfigError, load_params_file
 
 SIM_CASES: list[tuple[str, dict[str, Any], str]] = [
     ("missing urdf", {"robot.urdf": "no_such_robot.urdf"}, "robot.urdf: file 'no_such_robot.urdf' not found"),
@@ -24,7 +24,7 @@ SIM_CASES: list[tuple[str, dict[str, Any], str]] = [
     ("negative inductance", {"motors.inductance": [0.17, 0.17, -1.0, 0.17]}, "motors.inductance: values must be > 0"),
     ("zero step", {"step": 0.0}, "step: must be > 0"),
     ("wrong type", {"step": "fast"}, "step: expected a finite number"),
-    ("bad mode", {"input_mode": "current"}, "input_mode: expected 'voltage' or 'torque'"),
+    ("bad mode", {"input_mode": "current"}, "input_mode: expected one of voltage, torque, got 'current'"),
     ("unknown parameter", {"stpe": 0.001}, "unknown parameter(s): stpe"),
     ("unknown contact field", {"contacts.elbow.frictoin": 0.1}, "unknown parameter(s): contacts.elbow.frictoin"),
     ("initial position length", {"initial_position": [0.0, 0.0]}, "initial_position: expected 4 values"),

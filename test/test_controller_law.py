@@ -1,4 +1,4 @@
-"""Controller core (SPEC section 2, paper eqs. 36-41): the force law, its null-space
+"""Controller core (docs/model.md, Control law; paper eqs. 36-41): the force law, its null-space
 projection, the reduction to tau = l without bracing, the paper's bracing claims,
 configuration errors and near-singular B.
 
@@ -16,9 +16,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from bracing_controller.config import ControllerConfig
-from bracing_controller.law import DecoupledController
-from bracing_sim.params import ConfigError
+from bracing_core.controller_config import ControllerConfig
+from bracing_core.law import DecoupledController
+from bracing_core.params import ConfigError
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 CONFIG_DIR = REPO_ROOT / "config"
@@ -60,7 +60,7 @@ class Reference:
 
 
 def paper_circle(t: float) -> tuple[np.ndarray, np.ndarray]:
-    """SPEC section 3: y = 1.1 + 0.2 cos(-2 pi t / 10), z = 0.6 + 0.2 sin(-2 pi t / 10)."""
+    """The paper's hand path: y = 1.1 + 0.2 cos(-2 pi t / 10), z = 0.6 + 0.2 sin(-2 pi t / 10)."""
     w = -2.0 * math.pi / 10.0
     return (
         np.array([0.0, 1.1 + 0.2 * math.cos(w * t), 0.6 + 0.2 * math.sin(w * t)]),
@@ -349,3 +349,22 @@ def test_nearly_dependent_contacts_are_damped_and_bounded(paper_params: Callable
         worst = max(worst, float(np.abs(out.command).max()))
     print(f"\nnearly dependent contacts: max |command| = {worst:.3g} V")
     assert worst < 1e4
+
+
+@pytest.mark.parametrize("mode", ["voltage", "torque"])
+@pytest.mark.parametrize("gravity_compensation", [False, True])
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+def test_single_contact_fast_path_is_the_general_law(
+    mode: str, gravity_compensation: bool, friction: float, paper_params: Callable
+) -> None:
+    """The p = 1 special case of the law gives the general path's torque (with gravity
+    compensation too: g must be projected like the task forces)."""
+    shared = {"input_mode": mode, "contacts.elbow.friction": friction}
+    own = {"gravity_compensation": gravity_compensation}
+    config = ControllerConfig.from_params(paper_params("bracing_controller", shared, own), [CONFIG_DIR])
+    fast, general = DecoupledController(config), DecoupledController(config, single_contact_fast_path=False)
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        q, dq = rng.uniform(-math.pi, math.pi, N), rng.uniform(-2.0, 2.0, N)
+        a, b = fast.update(0.3, q, dq), general.update(0.3, q, dq)
+        np.testing.assert_allclose(a.torque, b.torque, rtol=1e-9, atol=1e-9 * max(1.0, float(np.abs(b.torque).max())))

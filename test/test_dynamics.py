@@ -1,4 +1,4 @@
-"""Simulator core (SPEC section 2): energy, constrained dynamics against pinocchio,
+"""Simulator core (docs/model.md): energy, constrained dynamics against pinocchio,
 constraint drift, effort, start-up and input validation.
 
 Reference quantities are recomputed here from pinocchio directly (own Model/Data, loaded
@@ -16,9 +16,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from bracing_sim.config import SimulatorConfig, build_simulator
-from bracing_sim.core.chain_urdf import chain_urdf
-from bracing_sim.params import ConfigError
+from bracing_core.chain_urdf import chain_urdf
+from bracing_core.config import SimulatorConfig, build_simulator
+from bracing_core.params import ConfigError
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 CONFIG_DIR = REPO_ROOT / "config"

@@ -1,4 +1,4 @@
-"""The paper's robot as pinocchio loads it: Table 1 and the start pose of SPEC section 3."""
+"""The paper's robot as pinocchio loads it: Table 1 and the paper's start pose."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pinocchio as pin
 import pytest
 from conftest import CONFIG_DIR, PAPER_URDF
 
-from bracing_sim.core.chain_urdf import paper_4link_urdf
+from bracing_core.chain_urdf import paper_4link_urdf
 
 
 def test_committed_urdf_is_the_generated_one() -> None:

@@ -10,9 +10,9 @@ from conftest import PAPER_YAML, build_scenario, node_params
 from lockstep_driver import JOINTS, known_command
 from ros_helpers import REPO_ROOT, drive, node_argv, params_file, run
 
-from bracing_controller.config import ControllerConfig
-from bracing_controller.law import DecoupledController
-from bracing_sim.params import load_params_file
+from bracing_core.controller_config import ControllerConfig
+from bracing_core.law import DecoupledController
+from bracing_core.params import load_params_file
 
 
 def _run_node(module: str, node: str, overrides: dict[str, object], driver_args: list[str], tmp_path: Path) -> dict:

@@ -11,8 +11,8 @@ from conftest import PAPER_YAML, build_scenario
 from lockstep_driver import JOINTS, known_command
 from ros_helpers import REPO_ROOT, drive, node_argv, pair_argv, params_file, run
 
-from bracing_sim.commands import CommandError, command_vector
-from bracing_sim.core.dynamics import InputMode
+from bracing_core.dynamics import InputMode
+from bracing_ros.commands import CommandError, command_vector
 
 
 def _drive(tmp_path: Path, overrides: dict[str, object], driver_args: list[str]) -> tuple[list[dict], str]:
@@ -49,7 +49,7 @@ def test_malformed_commands_are_rejected_and_never_integrated(tmp_path: Path) ->
         "mode unknown (7)",
         "is stale",
         "from the future",
-        "sequence of 4 elements does not fit",  # the first bytes that are no command (the rest: same kind)
+        "Invalid sequence length 4",  # the first bytes that are no command (the rest: same kind)
     ):
         assert reason in log or reason.replace("1 names", "4 names") in log, reason
 
@@ -116,7 +116,7 @@ def test_controller_ignores_malformed_joint_states(tmp_path: Path) -> None:
     assert answers[0] is not None and answers[5] is not None
     assert answers[1] is None and answers[2] is None and answers[3] is None and answers[4] is None
     assert "missing joints ['joint4']" in log and "non-finite" in log and "3 velocities" in log
-    assert "joint_states ignored: bad string of" in log
+    assert "joint_states ignored: not a sensor_msgs/msg/JointState: Invalid string length" in log
 
 
 @pytest.mark.parametrize("policy", ["hold", "zero"])

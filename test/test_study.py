@@ -13,7 +13,7 @@ from bracing_bringup.executors import LocalExecutor
 from bracing_bringup.experiment import FORCE_MAX_ERROR_KEY, STATUS_OK
 from bracing_bringup.study import build_study, resolve_scenario, write_report
 from bracing_bringup.sweep import RESULTS_PARQUET, run_sweep
-from bracing_sim.params import ConfigError
+from bracing_core.params import ConfigError
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PAPER_YAML = REPO_ROOT / "config" / "paper_4link.yaml"

@@ -39,7 +39,7 @@ from bracing_bringup.sweep import (
     combinations,
     run_sweep,
 )
-from bracing_sim.params import ConfigError
+from bracing_core.params import ConfigError
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PAPER_YAML = REPO_ROOT / "config" / "paper_4link.yaml"

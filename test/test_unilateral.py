@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from conftest import build_scenario
 
-from bracing_sim.core.model import RobotModel
-from bracing_sim.params import ConfigError
+from bracing_core.model import RobotModel
+from bracing_core.params import ConfigError
 
 UNILATERAL = {"contacts.elbow.unilateral": True}
 

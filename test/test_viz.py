@@ -32,8 +32,8 @@ from bracing_bringup.summary import read_series
 DURATION = 0.3
 STATES = 301  # 0.3 s at 1 ms, both ends
 PAPER_URDF = PAPER_YAML.parent / "paper_4link.urdf"
-Q0 = np.array([-0.2, -0.6, 0.8, -0.4]) * np.pi  # SPEC 3: the start pose
-ELBOW0 = np.array([0.0, 0.5878, 0.0])  # SPEC 3: where that pose puts the elbow and the hand
+Q0 = np.array([-0.2, -0.6, 0.8, -0.4]) * np.pi  # the paper's start pose
+ELBOW0 = np.array([0.0, 0.5878, 0.0])  # where that pose puts the elbow and the hand
 HAND0 = np.array([0.0, 1.0633, 0.6545])
 
 
@@ -267,7 +267,7 @@ def test_animation_frames_and_start_pose(runs: dict[str, Path], tmp_path: Path) 
     first = np.asarray(gif.convert("RGB"))
     animation = ArmAnimation(read_series(runs["braced"] / "bag"), 0.1)
     assert animation.axes == (1, 2)  # the paper's arm moves in y-z
-    # The links of the start pose (SPEC 3): shoulder (0, 0) -> knee -> elbow (0.5878, 0) -> ... -> hand.
+    # The links of the paper's start pose: shoulder (0, 0) -> knee -> elbow (0.5878, 0) -> ... -> hand.
     knee = np.array([0.0, 0.5 * math.sin(0.2 * math.pi), 0.5 * math.cos(0.2 * math.pi)])
     wrist = ELBOW0 + np.array([0.0, 0.0, 0.5])
     for a, b in ((np.zeros(3), knee), (knee, ELBOW0), (wrist, HAND0)):

@@ -1,21 +1,32 @@
-"""bracing_sim.wire: the hand-built CDR bytes are exactly what rclpy reads and writes.
+"""bracing_ros.wire: the CDR bytes it builds are exactly what rclpy reads and writes.
 
 Every encoder's bytes are decoded by rclpy (the rosidl typesupport) into the values put in,
 and every decoder reads rclpy's bytes back; random values, several sizes, empty sequences.
+The templates' layouts are derived from the message definitions: types changed or made up
+here (extra fields of every kind) give the bytes rosbags' serialiser gives, with no code edit.
 """
 
 from __future__ import annotations
+
+import copy
+import shutil
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import WrenchStamped
 from rclpy.serialization import deserialize_message, serialize_message
+from rosbags.interfaces import Nodetype
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosbags.typesys.store import Typestore
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState
-from bracing_sim import wire
+from bracing_ros import wire
+from bracing_ros.typestore import bracing_msgs_dir, bracing_typestore
 
 RNG = np.random.default_rng(7)
 NAME_SETS = [[], ["j"], ["joint1", "joint2", "joint3", "joint4"], [f"link_{k}_joint" for k in range(7)], ["ß", "关节"]]
@@ -201,3 +212,270 @@ def test_layout_decoders_agree_with_the_general_ones() -> None:
         quick, general = commands.decode(data), wire.decode_motor_command(data)
         assert (quick.mode, quick.name, quick.value.tolist()) == (general.mode, general.name, general.value.tolist())
         assert (quick.mode, quick.name, quick.value.tolist()) == (mode, order, list(command.value))
+
+
+# ------------------------------------------------------------------ layouts from definitions
+
+
+def test_typestore_is_built_once_and_shared_with_the_recorder() -> None:
+    from bracing_bringup import recorder
+
+    store = bracing_typestore()
+    assert store is bracing_typestore() is recorder.bracing_typestore()
+    assert "bracing_msgs/msg/MotorCommand" in store.fielddefs and "sensor_msgs/msg/JointState" in store.fielddefs
+
+
+# A MotorCommand grown by fields of every kind, one in the middle (after the uint8 mode: alignment).
+GROWN_MOTOR_COMMAND = """uint8 VOLTAGE=0
+uint8 TORQUE=1
+std_msgs/Header header
+uint8 mode
+float64 gain
+string[] name
+float64[] value
+int16[3] limit
+geometry_msgs/Point[] target
+string note
+bool enabled
+"""
+
+
+@pytest.fixture
+def grown_store(tmp_path: Path) -> Typestore:
+    """The bracing typestore with MotorCommand.msg edited (a copy of the msg directory)."""
+    for path in bracing_msgs_dir().glob("*.msg"):
+        shutil.copy(path, tmp_path / path.name)
+    (tmp_path / "MotorCommand.msg").write_text(GROWN_MOTOR_COMMAND, encoding="utf-8")
+    return bracing_typestore(tmp_path)
+
+
+def test_a_field_added_to_the_msg_needs_no_code(grown_store: Typestore, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The MotorCommand encoder and decoders on the grown definition: new fields at their defaults."""
+    monkeypatch.setattr(wire, "bracing_typestore", lambda: grown_store)
+    names, value, stamp = ["a", "bb", "ccc"], RNG.normal(size=3), _stamp_ns()
+    data = wire.MotorCommandEncoder(names, MotorCommand.TORQUE).encode(stamp, value)
+
+    types = grown_store.types
+    expected = types["bracing_msgs/msg/MotorCommand"](
+        header=types["std_msgs/msg/Header"](types["builtin_interfaces/msg/Time"](*divmod(stamp, 10**9)), ""),
+        mode=MotorCommand.TORQUE,
+        gain=0.0,
+        name=names,
+        value=value,
+        limit=np.zeros(3, dtype=np.int16),
+        target=[],
+        note="",
+        enabled=False,
+    )
+    assert data == bytes(grown_store.serialize_cdr(expected, "bracing_msgs/msg/MotorCommand", little_endian=True))
+    decoder = wire.MotorCommandDecoder(names, MotorCommand.TORQUE)
+    assert decoder._template.read(data) is not None  # the quick path
+    for back in (decoder.decode(data), wire.decode_motor_command(data)):
+        assert (back.stamp_ns, back.mode, back.name, back.value.tolist()) == (stamp, 1, names, value.tolist())
+
+
+def test_a_grown_joint_state_needs_no_code(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A JointState-like type with extra fields, in a typestore of its own."""
+    store = Typestore()
+    definitions = {
+        "builtin_interfaces/msg/Time": "int32 sec\nuint32 nanosec",
+        "std_msgs/msg/Header": "builtin_interfaces/Time stamp\nstring frame_id",
+        "sensor_msgs/msg/JointState": (
+            "std_msgs/Header header\nuint8 flags\nstring[] name\nfloat64[] position\nfloat32 scale\n"
+            "float64[] velocity\nfloat64[] effort\nfloat64[] temperature\nint64 counter"
+        ),
+    }
+    for typename, text in definitions.items():
+        store.register(get_types_from_msg(text, typename))
+    monkeypatch.setattr(wire, "bracing_typestore", lambda: store)
+    names, stamp = ["j1", "j2"], _stamp_ns()
+    q, dq, tau = RNG.normal(size=2), RNG.normal(size=2), RNG.normal(size=2)
+    data = wire.JointStateEncoder(names).encode(stamp, q, dq, tau)
+    types = store.types
+    expected = types["sensor_msgs/msg/JointState"](
+        types["std_msgs/msg/Header"](types["builtin_interfaces/msg/Time"](*divmod(stamp, 10**9)), ""),
+        0,
+        names,
+        q,
+        0.0,
+        dq,
+        tau,
+        np.zeros(0),
+        0,
+    )
+    assert data == bytes(store.serialize_cdr(expected, "sensor_msgs/msg/JointState", little_endian=True))
+    decoder = wire.JointStateDecoder(names)
+    assert decoder._template.read(data) is not None  # the quick path
+    for back in (decoder.decode(data), wire.decode_joint_state(data)):
+        assert (back.stamp_ns, back.name) == (stamp, names)
+        assert (back.position.tolist(), back.velocity.tolist(), back.effort.tolist()) == (
+            q.tolist(),
+            dq.tolist(),
+            tau.tolist(),
+        )
+
+
+# Every kind of field the template builder walks: scalars of each size, strings, fixed arrays,
+# sequences of numbers, strings and messages, nested messages, in an order that needs padding.
+SAMPLE = """uint8 FLAG=1
+bool on
+int8 small
+std_msgs/Header header
+uint16 medium
+float64 x
+string<=10 label
+int32[3] triple
+geometry_msgs/Point point
+float32 ratio
+string[] tags
+float64[] values
+geometry_msgs/Point[] points
+int64 big
+uint8[] raw
+test_msgs/Inner[2] pair
+test_msgs/Inner[] inners
+uint32 last
+"""
+INNER = "string name\nbool active\ngeometry_msgs/Vector3 v\nfloat64 w\nuint8 tail"
+
+
+@pytest.fixture(scope="module")
+def sample_store() -> Typestore:
+    store = get_typestore(Stores.ROS2_JAZZY)
+    store.register(get_types_from_msg(INNER, "test_msgs/msg/Inner"))
+    store.register(get_types_from_msg(SAMPLE, "test_msgs/msg/Sample"))
+    return store
+
+
+def _random_message(store: Typestore, typename: str, count: int) -> Any:
+    """A message of ``typename`` with random values and ``count`` elements in each sequence."""
+    values = []
+    for _, desc in store.get_msgdef(typename).fields:
+        values.append(_random_value(store, desc, count))
+    return store.types[typename](*values)
+
+
+def _random_value(store: Typestore, desc: Any, count: int) -> Any:
+    kind, arg = desc
+    if kind == Nodetype.NAME:
+        return _random_message(store, arg, count)
+    if kind == Nodetype.BASE:
+        return _random_scalar(arg[0])
+    sub, length = arg
+    length = length if kind == Nodetype.ARRAY else count
+    if sub[0] == Nodetype.BASE and sub[1][0] != "string":
+        dtype = {"bool": np.bool_}.get(sub[1][0], sub[1][0])
+        return np.array([_random_scalar(sub[1][0]) for _ in range(length)], dtype=dtype)
+    return [_random_value(store, sub, count) for _ in range(length)]
+
+
+def _random_scalar(base: str) -> Any:
+    if base == "string":
+        return "".join(RNG.choice(list("abcßλ")) for _ in range(int(RNG.integers(0, 6))))
+    if base == "bool":
+        return bool(RNG.integers(0, 2))
+    if base.startswith("float"):
+        return float(np.float32(RNG.normal())) if base == "float32" else float(RNG.normal())
+    info = np.iinfo(base)
+    return int(RNG.integers(info.min, info.max, endpoint=True))
+
+
+def _spec(store: Typestore, typename: str, message: Any, live: set[str], path: str = "") -> tuple[dict, list]:
+    """The template spec of ``message`` with the fields named in ``live`` per message, and their values."""
+    spec: dict[str, Any] = {}
+    values: list[list[Any]] = []
+    fields: list[tuple[str, Any]] = store.get_msgdef(typename).fields
+    for name, (kind, arg) in fields:
+        value, where = getattr(message, name), path + name
+        if where in live:
+            spec[name] = wire.PerMessage(len(value)) if kind == Nodetype.SEQUENCE else wire.PER_MESSAGE
+            values.append(_numbers(value))
+        elif kind == Nodetype.NAME:
+            spec[name], inner = _spec(store, arg, value, live, where + ".")
+            values += inner
+        elif kind != Nodetype.BASE and arg[0][0] == Nodetype.NAME:
+            spec[name] = []
+            for k, element in enumerate(value):
+                element_spec, inner = _spec(store, arg[0][1], element, live, f"{where}[{k}].")
+                spec[name].append(element_spec)
+                values += inner
+        else:
+            spec[name] = value.tolist() if isinstance(value, np.ndarray) else value
+    return spec, values
+
+
+def _numbers(value: Any) -> list[Any]:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, list):
+        return [x for element in value for x in _numbers(element)]
+    if hasattr(value, "__dataclass_fields__"):
+        return [
+            x for name in value.__dataclass_fields__ if name != "__msgtype__" for x in _numbers(getattr(value, name))
+        ]
+    return [value]
+
+
+LIVE_SETS = [
+    set(),
+    {"header.stamp", "x", "values"},
+    {"on", "small", "medium", "x", "triple", "point", "ratio", "values", "points", "big", "raw", "last"},
+    {"header.stamp", "pair[0].v", "pair[1].active", "pair[1].w", "inners[0].tail", "inners[2].v", "last"},
+]
+
+
+@pytest.mark.parametrize("count", [0, 1, 3])
+@pytest.mark.parametrize("live", LIVE_SETS, ids=lambda s: ",".join(sorted(s)) or "constant")
+def test_derived_templates_agree_with_rosbags(sample_store: Typestore, count: int, live: set[str]) -> None:
+    """Constants from one random message, per-message numbers from others: rosbags' bytes each time."""
+    typename = "test_msgs/msg/Sample"
+    constant = _random_message(sample_store, typename, count)
+    spec, _ = _spec(sample_store, typename, constant, live)
+    template = wire.derive_template(typename, spec, sample_store)
+    for _ in range(3):
+        expected = _merge(sample_store, typename, constant, _random_message(sample_store, typename, count), live)
+        _, values = _spec(sample_store, typename, expected, live)
+        data = template.fill(*values)
+        assert data == bytes(sample_store.serialize_cdr(expected, typename, little_endian=True))
+        assert template.read(data + b"\x07" * 5) == [tuple(v) for v in values]  # trailing bytes ignored
+        assert template.read(data[:-1]) is None
+        other = copy.deepcopy(expected)  # another frame id: another layout
+        other.header.frame_id = "z" * max(1, len(other.header.frame_id.encode()))
+        assert template.read(bytes(sample_store.serialize_cdr(other, typename, little_endian=True))) is None
+
+
+def _merge(store: Typestore, typename: str, constant: Any, fresh: Any, live: set[str], path: str = "") -> Any:
+    """``constant`` with the fields named in ``live`` taken from ``fresh``."""
+    values = []
+    fields: list[tuple[str, Any]] = store.get_msgdef(typename).fields
+    for name, (kind, arg) in fields:
+        where = path + name
+        if where in live:
+            values.append(getattr(fresh, name))
+        elif kind == Nodetype.NAME:
+            values.append(_merge(store, arg, getattr(constant, name), getattr(fresh, name), live, where + "."))
+        elif kind != Nodetype.BASE and arg[0][0] == Nodetype.NAME:
+            pairs = enumerate(zip(getattr(constant, name), getattr(fresh, name), strict=True))
+            values.append([_merge(store, arg[0][1], c, f, live, f"{where}[{k}].") for k, (c, f) in pairs])
+        else:
+            values.append(getattr(constant, name))
+    return store.types[typename](*values)
+
+
+def test_template_specs_are_checked(sample_store: Typestore) -> None:
+    typename = "test_msgs/msg/Sample"
+    cases: list[tuple[str, dict[str, Any], str]] = [
+        (typename, {"nope": 1}, "no field nope"),
+        (typename, {"header": wire.PER_MESSAGE}, "string"),  # header.frame_id
+        (typename, {"pair": wire.PER_MESSAGE}, "string"),  # Inner.name
+        (typename, {"values": wire.PER_MESSAGE}, "needs its length"),
+        (typename, {"x": wire.PerMessage(2)}, "only a sequence"),
+        (typename, {"triple": [1, 2]}, "array of 3"),
+        (typename, {"label": "x" * 11}, "at most 10 characters"),
+        ("geometry_msgs/msg/PolygonStamped", {"polygon": wire.PER_MESSAGE}, "sequence inside"),
+    ]
+    for name, spec, match in cases:
+        with pytest.raises(ValueError, match=match):
+            wire.derive_template(name, spec, sample_store)
+    with pytest.raises(TypeError):
+        wire.derive_template(typename, {"label": 5}, sample_store)

@@ -20,7 +20,7 @@ from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from types import TracebackType
 from typing import Any, Self, TypeVar
 
-from bracing_sim.params import ConfigError
+from bracing_core.params import ConfigError
 
 Item = TypeVar("Item")
 Result = TypeVar("Result")

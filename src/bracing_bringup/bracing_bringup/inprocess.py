@@ -19,11 +19,11 @@ from typing import Any
 
 import numpy as np
 
-from bracing_controller.config import ControllerConfig
-from bracing_controller.law import DecoupledController
-from bracing_sim.config import Plant, SimulatorConfig, build_simulator, check_step
-from bracing_sim.core.simulator import DivergenceError, Energy, Simulator
-from bracing_sim.params import load_params_file
+from bracing_core.config import Plant, SimulatorConfig, build_simulator, check_step
+from bracing_core.controller_config import ControllerConfig
+from bracing_core.law import DecoupledController
+from bracing_core.params import load_params_file
+from bracing_core.simulator import DivergenceError, Energy, Simulator
 
 Overrides = Mapping[str, Any] | None
 

@@ -20,9 +20,10 @@ from typing import Any
 
 import yaml
 
-from bracing_controller.config import CONTROLLER_PARAMETERS, ControllerConfig
-from bracing_sim.config import CONTACT_FIELDS, SHARED_PARAMETERS, SIMULATOR_PARAMETERS, SimulatorConfig
-from bracing_sim.params import ConfigError, load_params_file
+from bracing_core import schema
+from bracing_core.config import SimulatorConfig
+from bracing_core.controller_config import ControllerConfig
+from bracing_core.params import ConfigError, load_params_file
 
 SIMULATOR = "bracing_simulator"
 CONTROLLER = "bracing_controller"
@@ -102,18 +103,21 @@ def parse_assignment(text: str) -> tuple[str, list[Any]]:
 
 def destination(key: str) -> str:
     """``shared``, ``bracing_simulator`` or ``bracing_controller``; ConfigError for an unknown key."""
-    if key in SHARED_PARAMETERS:
+    shared = {p.name for p in schema.SHARED}
+    simulator = {p.name for p in schema.SIMULATOR}
+    controller = {p.name for p in schema.CONTROLLER}
+    if key in shared:
         return "shared"
     parts = key.split(".")
-    if len(parts) == 3 and parts[0] == "contacts" and parts[2] in CONTACT_FIELDS:
+    if len(parts) == 3 and parts[0] == "contacts" and parts[2] in {f.name for f in schema.CONTACT}:
         return "shared"
-    if key in SIMULATOR_PARAMETERS and key in CONTROLLER_PARAMETERS:  # both nodes have one (e.g. wait_for_recorder)
+    if key in simulator and key in controller:  # both nodes have one (e.g. wait_for_recorder)
         return "shared"
-    if key in SIMULATOR_PARAMETERS:
+    if key in simulator:
         return SIMULATOR
-    if key in CONTROLLER_PARAMETERS:
+    if key in controller:
         return CONTROLLER
-    known = [*SHARED_PARAMETERS, *SIMULATOR_PARAMETERS, *CONTROLLER_PARAMETERS, "contacts.<name>.<field>"]
+    known = [*shared, *simulator, *controller, "contacts.<name>.<field>"]
     close = difflib.get_close_matches(key, known, n=3)
     hint = f" (did you mean {', '.join(close)}?)" if close else ""
     raise ConfigError(f"--set {key}: unknown parameter{hint}")

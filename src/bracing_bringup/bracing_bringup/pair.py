@@ -27,9 +27,9 @@ import yaml
 
 from bracing_bringup.domains import hold_domain
 from bracing_bringup.overrides import parse_single, route
-from bracing_controller.config import ControllerConfig
-from bracing_sim.config import SimulatorConfig
-from bracing_sim.params import ConfigError, load_params_file
+from bracing_core.config import SimulatorConfig
+from bracing_core.controller_config import ControllerConfig
+from bracing_core.params import ConfigError, load_params_file
 
 EXIT_FAILED = 1
 EXIT_CONFIG = 2

@@ -13,7 +13,7 @@ from typing import Any
 
 from bracing_bringup.pair import RunOptions, run_pair
 from bracing_bringup.summary import BagReadError
-from bracing_sim.params import ConfigError
+from bracing_core.params import ConfigError
 
 ROWS: list[tuple[str, str, str]] = [
     ("hand_rms_error_m", "hand RMS error (t >= 2 s)", "m"),

@@ -36,7 +36,7 @@ from collections import deque
 from collections.abc import Sequence
 from pathlib import Path
 from types import FrameType
-from typing import Any, Literal
+from typing import Literal
 
 import rclpy
 from geometry_msgs.msg import WrenchStamped
@@ -48,7 +48,6 @@ from rclpy.utilities import remove_ros_args
 from rosbags.interfaces import Connection, Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.serde import SerdeError
-from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -56,12 +55,13 @@ from std_msgs.msg import String
 
 from bracing_bringup.scene import MARKERS_TYPE, STRING_TYPE, TF_TYPE, Derived, DescriptionError, SceneBuilder
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState
-from bracing_sim.ros_common import SubscriptionWaiter
+from bracing_ros.common import SubscriptionWaiter
+from bracing_ros.typestore import BRACING_MSGS as BRACING_MSGS  # re-exported: the typestore lives in bracing_ros
+from bracing_ros.typestore import bracing_msgs_dir as bracing_msgs_dir
+from bracing_ros.typestore import bracing_typestore
 
 BAG_VERSION: Literal[8] = 8
 """rosbag2 metadata version written (8 is read by every Jazzy rosbag2)."""
-
-BRACING_MSGS = ("ContactState", "Contacts", "ControllerState", "MotorCommand", "MotorState")
 
 DESCRIPTION_TOPIC = "robot_description"
 SCENE_TOPICS = {
@@ -98,35 +98,6 @@ RECORD_QOS = QoSProfile(
 """Reliable, deep and transient-local, so that nothing is lost in lockstep runs: a publisher
 that starts before the recorder has discovered it still delivers its first messages.
 (It matches the nodes' transient-local publishers; a volatile publisher is not recorded.)"""
-
-
-def bracing_msgs_dir() -> Path:
-    """Directory of the bracing_msgs ``.msg`` files (installed share dir, else source)."""
-    try:
-        from ament_index_python.packages import get_package_share_directory
-
-        share = Path(get_package_share_directory("bracing_msgs")) / "msg"
-        if all((share / f"{name}.msg").is_file() for name in BRACING_MSGS):
-            return share
-    except (ImportError, LookupError, ValueError):
-        pass
-    src = Path(__file__).resolve().parents[2] / "bracing_msgs" / "msg"
-    if all((src / f"{name}.msg").is_file() for name in BRACING_MSGS):
-        return src
-    msg = "cannot find the bracing_msgs .msg files (is the workspace sourced?)"
-    raise FileNotFoundError(msg)
-
-
-def bracing_typestore(msg_dir: Path | None = None) -> Typestore:
-    """A Jazzy typestore with the bracing_msgs types registered."""
-    store = get_typestore(Stores.ROS2_JAZZY)
-    folder = msg_dir if msg_dir is not None else bracing_msgs_dir()
-    types: dict[str, Any] = {}
-    for name in BRACING_MSGS:
-        text = (folder / f"{name}.msg").read_text(encoding="utf-8")
-        types.update(get_types_from_msg(text, f"bracing_msgs/msg/{name}"))
-    store.register(types)
-    return store
 
 
 def topic_table(contacts: Sequence[str]) -> list[tuple[str, type, str]]:

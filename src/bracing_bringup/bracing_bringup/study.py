@@ -40,8 +40,9 @@ from bracing_bringup.sweep import (
     make_spec,
     run_sweep,
 )
-from bracing_sim.config import SharedConfig
-from bracing_sim.params import ConfigError, load_params_file, resolve_file
+from bracing_core import schema
+from bracing_core.config import SharedConfig
+from bracing_core.params import ConfigError, load_params_file, resolve_file
 
 SCENARIO_ALIASES = {"paper": "paper_4link.yaml"}
 GAIN_SCALES = (1.0, 0.5, 0.2, 0.1)
@@ -94,7 +95,7 @@ def build_study(
     base = dict(base or {})
     routed = route(base)
     ctl = {**load_params_file(config, CONTROLLER), **routed.for_node(CONTROLLER)}
-    shared = SharedConfig.from_params(ctl, [config.resolve().parent])
+    shared = SharedConfig.from_values(schema.read("controller", ctl), [config.resolve().parent])
     braced = [c for c in shared.contacts if c.brace_axes and c.desired_normal_force]
     if not braced:
         raise ConfigError("contacts.names: the study needs a bracing contact (one with brace_axes and a desired force)")

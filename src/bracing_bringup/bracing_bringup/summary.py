@@ -3,7 +3,7 @@
 ``read_series(bag)`` reads a rosbag2 bag (any storage) with rosbags' AnyReader, using
 only the message definitions embedded in the bag, and returns numpy time series (and the
 URDF of ``robot_description``, if the bag has it, for drawing the arm).
-``compute_summary(series, wall_time_s)`` returns the ``summary.json`` dict (SPEC section 5).
+``compute_summary(series, wall_time_s)`` returns the ``summary.json`` dict (keys: README, Topics and messages).
 
 Times are in seconds relative to ``t0``, the first ``joint_states`` stamp (the first
 stamp of any recorded message if there is no ``joint_states``).

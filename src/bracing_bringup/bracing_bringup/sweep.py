@@ -39,7 +39,7 @@ from bracing_bringup.overrides import (
     route,
     validate,
 )
-from bracing_sim.params import ConfigError
+from bracing_core.params import ConfigError
 
 EXIT_FAILED = 1
 EXIT_CONFIG = 2

@@ -1,1 +1,1 @@
-"""The paper's decoupled force/position controller: pure law (``law``), trajectories, and its ROS 2 node."""
+"""The controller node: the decoupled force/position law of bracing_core, answering over ROS 2."""

@@ -10,25 +10,28 @@ import sys
 import time
 
 import numpy as np
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 
-from bracing_controller.config import ControllerConfig
-from bracing_controller.law import DecoupledController
+from bracing_core import schema
+from bracing_core.controller_config import ControllerConfig
+from bracing_core.law import DecoupledController
+from bracing_core.params import ConfigError
+from bracing_core.types import Vector
 from bracing_msgs.msg import ControllerState, MotorCommand
-from bracing_sim import wire
-from bracing_sim.commands import MODE_CODES
-from bracing_sim.core.types import Vector
-from bracing_sim.ros_common import (
+from bracing_ros import parameters, wire
+from bracing_ros.commands import MODE_CODES
+from bracing_ros.common import (
     STREAM_QOS,
     SUBSCRIBE_QOS,
     AckWindow,
     RateLimitedLog,
     SubscriptionWaiter,
     read_joint_state,
-    read_parameters,
     run,
     wait_until,
 )
@@ -66,8 +69,12 @@ def joint_vectors(msg: wire.JointStateData, joint_names: list[str]) -> tuple[Vec
 class ControllerNode(Node):
     def __init__(self, **kwargs: object) -> None:
         super().__init__("bracing_controller", **kwargs)  # type: ignore[arg-type]
-        self.config = ControllerConfig.from_params(read_parameters(self))
+        given = parameters.given_parameters(self)
+        self.config = ControllerConfig.from_params(given)
         self.law = DecoupledController(self.config)
+        parameters.declare(self, "controller", given)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.retuned: ControllerConfig | None = None  # applied at the next update
         self.joint_names = list(self.law.plant.joint_names)
         self.mode_code = MODE_CODES[self.config.shared.input_mode]
         self.contact_names = [c.name for c in self.config.shared.contacts]
@@ -84,6 +91,25 @@ class ControllerNode(Node):
             f"{self.config.shared.input_mode.value} output, contacts {self.contact_names or 'none'}, "
             f"task dimension {self.config.task_dimension}"
         )
+
+    def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
+        """A set of tunable parameters (rclpy refuses read-only ones before this): validated as a
+        whole configuration, applied from the next update, logged."""
+        values = parameters.current_values(self, "controller")
+        for change in changes:
+            param = schema.find("controller", change.name)
+            if param is None or not param.tunable:
+                return SetParametersResult(successful=False, reason=f"{change.name}: cannot change while running")
+            values[change.name] = parameters.plain(change.value)
+        values["robot.urdf"] = str(self.config.shared.urdf)
+        try:
+            config = ControllerConfig.from_params(values)
+        except ConfigError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        self.retuned = config
+        listed = ", ".join(f"{c.name} = {parameters.plain(c.value)}" for c in changes)
+        self.get_logger().info(f"retuned (from the next update): {listed}")
+        return SetParametersResult(successful=True)
 
     def listen(self) -> Subscription:
         """Subscribe to joint_states: from now on states are answered.
@@ -112,6 +138,9 @@ class ControllerNode(Node):
         except StateError as exc:
             self.report("error", str(exc).split(" ")[0], f"joint_states ignored: {exc}")
             return
+        if self.retuned is not None:
+            self.law.retune(self.retuned)
+            self.config, self.retuned = self.retuned, None
         t = msg.stamp_ns * 1e-9
         start = time.perf_counter()
         try:

@@ -1,1 +1,1 @@
-"""Bracing manipulator simulator: pure numerical core (``bracing_sim.core``) and its ROS 2 node."""
+"""The simulator node: the constrained robot + motor model of bracing_core, stepped over ROS 2."""

@@ -19,14 +19,14 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
+from bracing_core.config import SimulatorConfig, build_simulator, check_step
+from bracing_core.dynamics import Derivative, InputMode
+from bracing_core.simulator import DivergenceError, Energy
+from bracing_core.types import Vector
 from bracing_msgs.msg import Contacts, MotorCommand, MotorState
-from bracing_sim import wire
-from bracing_sim.commands import MODE_CODES, CommandError, command_vector
-from bracing_sim.config import SimulatorConfig, build_simulator, check_step
-from bracing_sim.core.dynamics import Derivative, InputMode
-from bracing_sim.core.simulator import DivergenceError, Energy
-from bracing_sim.core.types import Vector
-from bracing_sim.ros_common import (
+from bracing_ros import parameters, wire
+from bracing_ros.commands import MODE_CODES, CommandError, command_vector
+from bracing_ros.common import (
     EXIT_DIVERGED,
     STREAM_QOS,
     SUBSCRIBE_QOS,
@@ -34,7 +34,6 @@ from bracing_sim.ros_common import (
     RateLimitedLog,
     SubscriptionWaiter,
     read_motor_command,
-    read_parameters,
     run,
     wait_until,
 )
@@ -51,7 +50,9 @@ DESCRIPTION_QOS = QoSProfile(
 class SimulatorNode(Node):
     def __init__(self, **kwargs: object) -> None:
         super().__init__("bracing_simulator", **kwargs)  # type: ignore[arg-type]
-        self.config = SimulatorConfig.from_params(read_parameters(self))
+        given = parameters.given_parameters(self)
+        self.config = SimulatorConfig.from_params(given)
+        parameters.declare(self, "simulator", given)  # read-only: nothing changes during a run
         self.plant, self.sim = build_simulator(self.config)
         self.joint_names = list(self.plant.joint_names)
         self.mode = self.config.shared.input_mode
@@ -88,7 +89,7 @@ class SimulatorNode(Node):
         self.flow = AckWindow(self, self.publishers_, STREAM_QOS.depth)
 
         self.command = np.zeros(self.sim.n)  # last applied (held) command
-        self._pending: dict[int, Vector] = {}  # lockstep: valid commands by stamp [ns]
+        self.pending: dict[int, Vector] = {}  # lockstep: valid commands by stamp [ns]
         self._latest: tuple[float, Vector] | None = None  # real-time: (wall time, command)
         self._next_progress = 0.0  # wall time of the next progress line
         self.max_residual = 0.0  # [m], over the run so far (contacts holding a force)
@@ -132,7 +133,7 @@ class SimulatorNode(Node):
         if self.config.stepping == "real_time":
             self._latest = (time.monotonic(), u)
         else:
-            self._pending[stamp_ns] = u
+            self.pending[stamp_ns] = u
 
     # -- publishing -----------------------------------------------------------------
     def publish_state(self, effort: Vector) -> None:
@@ -278,14 +279,14 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
 def next_command(node: SimulatorNode, waiter: SubscriptionWaiter, deadline: float) -> Vector | None:
     """The next valid command stamped with the current state's stamp, or None at ``deadline``."""
     expected = node.sim.steps_taken * node.step_ns
-    while expected not in node._pending:
+    while expected not in node.pending:
         remaining = deadline - time.monotonic()
         if remaining <= 0.0:
             return None
         for msg in waiter.take(min(remaining, 0.1)):
             node._on_command(msg)
-    command = node._pending.pop(expected)
-    node._pending.clear()
+    command = node.pending.pop(expected)
+    node.pending.clear()
     return command
 
 

@@ -11,8 +11,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bracing_sim.core.dynamics import InputMode
-from bracing_sim.core.types import Vector
+from bracing_core.dynamics import InputMode
+from bracing_core.types import Vector
 
 MODE_CODES = {InputMode.VOLTAGE: 0, InputMode.TORQUE: 1}  # bracing_msgs/MotorCommand constants
 

@@ -8,7 +8,7 @@ from typing import Protocol
 
 import numpy as np
 
-from bracing_sim.core.types import Vector
+from bracing_core.types import Vector
 
 
 class Trajectory(Protocol):

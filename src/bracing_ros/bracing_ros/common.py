@@ -9,19 +9,17 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 import rclpy
 from builtin_interfaces.msg import Time
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
 from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
@@ -29,9 +27,9 @@ from rclpy.signals import SignalHandlerGuardCondition, SignalHandlerOptions
 from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 
+from bracing_core.params import ConfigError
 from bracing_msgs.msg import MotorCommand
-from bracing_sim import wire
-from bracing_sim.params import ConfigError
+from bracing_ros import wire
 
 # Reliable, transient-local and deep: a subscriber that discovers a publisher late (the recorder
 # on a busy machine) still receives what was sent before the match. A KEEP_LAST writer drops its
@@ -222,22 +220,6 @@ def _deserialize(data: bytes, msg_type: type) -> Any:
         return deserialize_message(data, msg_type)
     except Exception as exc:  # rclpy raises its RMWError (and others) for bytes it cannot read
         raise wire.DecodeError(str(exc).split(", at /")[0]) from None
-
-
-def read_parameters(node: Node) -> dict[str, Any]:
-    """Declare every parameter the node was given and return them all as a flat dict.
-
-    Declared with dynamic typing so that ``offset: 0`` (an integer) or ``target: []``
-    (NOT_SET to rcl) reach the configuration layer, which validates types and names in
-    one place, with messages naming the parameter.
-    """
-    dynamic = ParameterDescriptor(dynamic_typing=True)
-    for name, parameter in node._parameter_overrides.items():  # rclpy keeps --ros-args overrides here
-        if not node.has_parameter(name):
-            node.declare_parameter(name, parameter.value, dynamic)
-    # get_parameters_by_prefix returns Parameter objects (its annotation says values).
-    parameters = cast(dict[str, Parameter], node.get_parameters_by_prefix(""))
-    return {name: parameter.value for name, parameter in parameters.items()}
 
 
 def nanoseconds(time: Time) -> int:

@@ -11,74 +11,22 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from bracing_sim.core.contacts import ContactSet, PlaneContact
-from bracing_sim.core.dynamics import ConstrainedDynamics, Derivative, InputMode
-from bracing_sim.core.model import ModelError, RobotModel
-from bracing_sim.core.motors import MotorParams
-from bracing_sim.core.simulator import DivergenceError, Simulator
-from bracing_sim.core.types import Vector
-from bracing_sim.params import (
-    ConfigError,
-    Params,
-    check_known,
-    get_bool,
-    get_float,
-    get_floats,
-    get_int,
-    get_str,
-    get_strs,
-    resolve_file,
-)
+from bracing_core import schema
+from bracing_core.contacts import ContactSet, PlaneContact
+from bracing_core.dynamics import ConstrainedDynamics, Derivative, InputMode
+from bracing_core.model import ModelError, RobotModel
+from bracing_core.motors import MotorParams
+from bracing_core.params import ConfigError, Params, resolve_file
+from bracing_core.schema import Values
+from bracing_core.simulator import DivergenceError, Simulator
+from bracing_core.types import Vector
 
 AXES = ("x", "y", "z")
 MOTOR_FIELDS = ("torque_constant", "resistance", "inductance", "rotor_inertia", "gear_ratio", "gear_damping")
-
-# Parameters read by both nodes (the scenario file's /** section), with defaults.
-SHARED_PARAMETERS: dict[str, object] = {
-    "robot.urdf": "",
-    "robot.joint_names": [],
-    "robot.gravity": [0.0, 0.0, -9.81],
-    "input_mode": "voltage",
-    **{f"motors.{f}": [] for f in MOTOR_FIELDS},
-    "motors.voltage_limit": 0.0,
-    "motors.torque_limit": 0.0,
-    "contacts.names": [],
-}
-# Fields of each contacts.<name> section.
-CONTACT_FIELDS: dict[str, object] = {
-    "frame": "",
-    "normal": [0.0, 0.0, 1.0],
-    "offset": 0.0,
-    "friction": 0.0,
-    "desired_normal_force": 0.0,
-    "brace_axes": [],
-    "kp": [],
-    "kd": [],
-    "target": [],
-    "unilateral": False,
-}
-SIMULATOR_PARAMETERS: dict[str, object] = {
-    "initial_position": [],
-    "initial_velocity": [],
-    "step": 0.001,
-    "substeps": 1,
-    "duration": 10.0,
-    "baumgarte": 0.0,
-    "slip_epsilon": 1e-4,
-    "contact_tolerance": 1e-6,
-    "stepping": "lockstep",
-    "real_time_factor": 1.0,
-    "command_timeout": 5.0,
-    "watchdog_policy": "hold",
-    "min_subscribers": 1,
-    "wait_for_recorder": False,
-    "divergence_residual": 0.01,
-    "divergence_speed": 1000.0,
-    "log_throttle_period": 1.0,
-}
 
 
 def axes_indices(name: str, axes: Sequence[str]) -> tuple[int, ...]:
@@ -107,32 +55,25 @@ class ContactConfig:
     unilateral: bool = False  # the plane only pushes: release and touchdown (bilateral: the paper)
 
     @classmethod
-    def from_params(cls, params: Params, name: str) -> ContactConfig:
+    def from_values(cls, name: str, values: dict[str, Any]) -> ContactConfig:
+        """From the schema's values of contacts.<name> (``schema.read``); controller-only fields may be absent."""
         key = f"contacts.{name}."
-        frame = get_str(params, key + "frame", None)
-        normal = get_floats(params, key + "normal", [0.0, 0.0, 1.0], length=3)
+        normal = values["normal"]
         if float(np.linalg.norm(normal)) < 1e-9:
             raise ConfigError(f"{key}normal: must be a non-zero vector, got {list(normal)}")
-        axes_names = get_strs(params, key + "brace_axes", [])
-        axes = axes_indices(key + "brace_axes", axes_names)
-        hint = f"one per brace axis {list(axes_names)}"
-        kp = get_floats(params, key + "kp", [], length=len(axes), length_hint=hint)
-        kd = get_floats(params, key + "kd", [], length=len(axes), length_hint=hint)
-        target = get_floats(params, key + "target", [])
-        if target and len(target) != 3:
-            raise ConfigError(f"{key}target: expected [x, y, z] or an empty list, got {list(target)}")
+        target = values.get("target") or ()
         return cls(
             name=name,
-            frame=frame,
+            frame=values["frame"],
             normal=(normal[0], normal[1], normal[2]),
-            offset=get_float(params, key + "offset", 0.0),
-            friction=get_float(params, key + "friction", 0.0, minimum=0.0),
-            desired_normal_force=get_float(params, key + "desired_normal_force", 0.0),
-            brace_axes=axes,
-            kp=kp,
-            kd=kd,
+            offset=values["offset"],
+            friction=values["friction"],
+            desired_normal_force=values.get("desired_normal_force", 0.0),
+            brace_axes=axes_indices(key + "brace_axes", values.get("brace_axes", ())),
+            kp=values.get("kp", ()),
+            kd=values.get("kd", ()),
             target=(target[0], target[1], target[2]) if target else None,
-            unilateral=get_bool(params, key + "unilateral", False),
+            unilateral=values["unilateral"],
         )
 
     def plane(self) -> PlaneContact:
@@ -151,32 +92,26 @@ class SharedConfig:
     contacts: tuple[ContactConfig, ...]
 
     @classmethod
-    def from_params(cls, params: Params, search_dirs: Sequence[Path] = ()) -> SharedConfig:
-        urdf = resolve_file(get_str(params, "robot.urdf", None), "robot.urdf", search_dirs)
-        joint_names = get_strs(params, "robot.joint_names", [])
-        if not joint_names:
-            raise ConfigError("robot.joint_names: expected the list of actuated joints, got none")
-        n = len(joint_names)
-        gravity = get_floats(params, "robot.gravity", [0.0, 0.0, -9.81], length=3)
-        try:
-            mode = InputMode.parse(get_str(params, "input_mode", "voltage"))
-        except ValueError as exc:
-            raise ConfigError(str(exc)) from None
-        hint = f"one per joint of robot.joint_names ({n})"
-        arrays = {
-            f: np.array(get_floats(params, f"motors.{f}", None, length=n, length_hint=hint)) for f in MOTOR_FIELDS
-        }
+    def from_values(cls, values: Values, search_dirs: Sequence[Path] = ()) -> SharedConfig:
+        urdf = resolve_file(values["robot.urdf"], "robot.urdf", search_dirs)
+        gravity = values["robot.gravity"]
         try:
             motors = MotorParams(
-                **arrays,
-                voltage_limit=get_float(params, "motors.voltage_limit", 0.0, minimum=0.0),
-                torque_limit=get_float(params, "motors.torque_limit", 0.0, minimum=0.0),
+                **{f: np.array(values[f"motors.{f}"]) for f in MOTOR_FIELDS},
+                voltage_limit=values["motors.voltage_limit"],
+                torque_limit=values["motors.torque_limit"],
             )
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
-        names = get_strs(params, "contacts.names", [])
-        contacts = tuple(ContactConfig.from_params(params, name) for name in names)
-        return cls(urdf, joint_names, (gravity[0], gravity[1], gravity[2]), mode, motors, contacts)
+        contacts = tuple(ContactConfig.from_values(name, own) for name, own in values.contacts.items())
+        return cls(
+            urdf,
+            values["robot.joint_names"],
+            (gravity[0], gravity[1], gravity[2]),
+            InputMode(values["input_mode"]),
+            motors,
+            contacts,
+        )
 
 
 class Plant:
@@ -185,7 +120,7 @@ class Plant:
     One implementation for simulator and controller: both build their plant here.
     """
 
-    def __init__(self, config: SharedConfig, slip_epsilon: float = 1e-4) -> None:
+    def __init__(self, config: SharedConfig, slip_epsilon: float) -> None:
         try:
             self.robot = RobotModel.from_urdf(config.urdf, config.gravity)
             # Index array taking configuration-ordered data to model order.
@@ -216,53 +151,34 @@ class Plant:
 
 @dataclass(frozen=True)
 class SimulatorConfig:
+    """The simulator node's configuration: the shared plant, then one field per parameter of
+    ``schema.SIMULATOR`` (units and meaning there)."""
+
     shared: SharedConfig
-    initial_position: tuple[float, ...]  # [rad], robot.joint_names order
-    initial_velocity: tuple[float, ...]  # [rad/s]
-    step: float  # [s]
+    initial_position: tuple[float, ...]
+    initial_velocity: tuple[float, ...]
+    step: float
     substeps: int
-    duration: float  # [s] of sim time, 0 = unbounded
-    baumgarte: float  # [1/s]
-    slip_epsilon: float  # [m/s]
-    contact_tolerance: float  # [m]
-    stepping: str  # lockstep | real_time
+    duration: float
+    baumgarte: float
+    slip_epsilon: float
+    contact_tolerance: float
+    stepping: str
     real_time_factor: float
-    command_timeout: float  # [s] wall time
-    watchdog_policy: str  # hold | zero
+    command_timeout: float
+    watchdog_policy: str
     min_subscribers: int
-    divergence_residual: float  # [m]; a larger |C| stops the simulation
-    divergence_speed: float = 1000.0  # [rad/s or m/s]; a step leaving a joint faster is not taken
-    wait_for_recorder: bool = False  # publish the first state only once every topic has a subscriber
-    log_throttle_period: float = 1.0  # [s] wall; at most one report per kind of bad input per period
+    divergence_residual: float
+    divergence_speed: float
+    wait_for_recorder: bool
+    log_throttle_period: float
 
     @classmethod
     def from_params(cls, params: Params, search_dirs: Sequence[Path] = ()) -> SimulatorConfig:
-        check_known(params, [*SHARED_PARAMETERS, *SIMULATOR_PARAMETERS], {"contacts.": CONTACT_FIELDS})
-        shared = SharedConfig.from_params(params, search_dirs)
-        n = len(shared.joint_names)
-        hint = f"one per joint of robot.joint_names ({n})"
-        q0 = get_floats(params, "initial_position", None, length=n, length_hint=hint)
-        dq0 = get_floats(params, "initial_velocity", [0.0] * n, length=n, length_hint=hint) or (0.0,) * n
-        return cls(
-            shared=shared,
-            initial_position=q0,
-            initial_velocity=dq0,
-            step=get_float(params, "step", 0.001, positive=True),
-            substeps=get_int(params, "substeps", 1, minimum=1),
-            duration=get_float(params, "duration", 10.0, minimum=0.0),
-            baumgarte=get_float(params, "baumgarte", 0.0, minimum=0.0),
-            slip_epsilon=get_float(params, "slip_epsilon", 1e-4, positive=True),
-            contact_tolerance=get_float(params, "contact_tolerance", 1e-6, positive=True),
-            stepping=get_str(params, "stepping", "lockstep", choices=("lockstep", "real_time")),
-            real_time_factor=get_float(params, "real_time_factor", 1.0, positive=True),
-            command_timeout=get_float(params, "command_timeout", 5.0, positive=True),
-            watchdog_policy=get_str(params, "watchdog_policy", "hold", choices=("hold", "zero")),
-            min_subscribers=get_int(params, "min_subscribers", 1, minimum=0),
-            divergence_residual=get_float(params, "divergence_residual", 0.01, positive=True),
-            divergence_speed=get_float(params, "divergence_speed", 1000.0, positive=True),
-            wait_for_recorder=get_bool(params, "wait_for_recorder", False),
-            log_throttle_period=get_float(params, "log_throttle_period", 1.0, minimum=0.0),
-        )
+        """Validated against ``schema.SIMULATOR`` (and the shared parameters)."""
+        values = schema.read("simulator", params)
+        own = {p.name: values[p.name] for p in schema.SIMULATOR}
+        return cls(shared=SharedConfig.from_values(values, search_dirs), **own)
 
 
 def _finite(a: np.ndarray) -> bool:

@@ -22,9 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from bracing_sim.core.contacts import ContactTerms
-from bracing_sim.core.dynamics import ConstrainedDynamics, Derivative, InputMode, Stage
-from bracing_sim.core.types import Vector
+from bracing_core.contacts import ContactTerms
+from bracing_core.dynamics import ConstrainedDynamics, Derivative, InputMode, Stage
+from bracing_core.types import Vector
 
 _compute_all_terms = pin.computeAllTerms
 _cholesky_decompose = pin.cholesky.decompose
@@ -137,7 +137,7 @@ class Simulator:
         self._rows = rows
         self._abs_rows = work[4:8]
         self._squared_rows = work[8:]
-        self._stages = [dynamics._stage(row) for row in rows]
+        self._stages = [dynamics.stage(row) for row in rows]
         self._state_heads = [row[:m] for row in rows]
         self._rate_heads = [row[rate0 : rate0 + m] for row in rows]
         self._powers = (rate0 + m, rate0 + m + 1)  # columns of the friction and constraint powers
@@ -193,9 +193,9 @@ class Simulator:
         u = np.array(command, dtype=float)
         self._cached = None  # the first stage's row is overwritten here
         self._state_heads[0][:] = self._y[:m]
-        dynamics._set_input(u)
+        dynamics.set_input(u)
         row, (friction, constraint) = self._rows[0], self._powers
-        row[friction], row[constraint], d = dynamics._solve(self._stages[0], True)
+        row[friction], row[constraint], d = dynamics.solve(self._stages[0], True)
         assert d is not None
         if u.shape == (self.n,):
             # The next step starts from this state: it reuses this answer (see ``_reuse``).
@@ -206,7 +206,7 @@ class Simulator:
         """The cached answer of ``evaluate`` as the step's first stage, if it holds for ``u``
         (its rates are still in the first stage's row).
 
-        Call after ``dynamics._set_input(u)``. In voltage mode ddq, f_n and the effort do
+        Call after ``dynamics.set_input(u)``. In voltage mode ddq, f_n and the effort do
         not depend on the held voltage (only di does, and di is recomputed); in torque mode
         the command must be the same.
         """
@@ -219,7 +219,7 @@ class Simulator:
         if not self._voltage:
             return None
         current_rate = self._rate_heads[0][2 * self.n :]
-        np.dot(dynamics._current_rows, self._stages[0][0], out=current_rate)  # as _solve computes it
+        np.dot(dynamics.current_rows, self._stages[0][0], out=current_rate)  # as solve computes it
         return Derivative(d.acceleration, current_rate.copy(), d.normal_force, d.effort, d.contacts)
 
     # -- checkpoints --------------------------------------------------------------------
@@ -253,8 +253,8 @@ class Simulator:
         if self._any_unilateral:
             self._release(u)
         dynamics = self.dynamics
-        solve = dynamics._solve
-        dynamics._set_input(u)
+        solve = dynamics.solve
+        dynamics.set_input(u)
         cached, self._cached = self._cached, None
         first = self._reuse(cached, u) if cached is not None else None
         h = self.step_size / self.substeps

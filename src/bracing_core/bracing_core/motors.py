@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bracing_sim.core.types import Vector
+from bracing_core.types import Vector
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """Bracing contacts: robot frames held on planes n . r = c, with Coulomb-like friction.
 
 ``evaluate_contacts`` reads one pinocchio pass (``RobotModel.compute``) and stacks, for
-all p contacts, the rows of SPEC section 2: j_c = n^T J, gamma = n . (dJ dq), the slip
+all p contacts, the rows of docs/model.md (Contacts): j_c = n^T J, gamma = n . (dJ dq), the slip
 velocity and its regularised direction, and j_t = J^T (slip direction).
 """
 
@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from bracing_sim.core.model import RobotModel
-from bracing_sim.core.types import Vector
+from bracing_core.model import RobotModel
+from bracing_core.types import Vector
 
 _WORLD = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
@@ -82,9 +82,9 @@ class ContactSet:
             raise ValueError(f"slip_epsilon: must be > 0, got {self.slip_epsilon}")
         self.frame_ids = [self.robot.frame_id(c.frame) for c in self.contacts]
         p = len(self.contacts)
-        self._normals = np.array([c.normal for c in self.contacts], dtype=float).reshape(p, 3)
-        self._offsets = np.array([c.offset for c in self.contacts], dtype=float)
-        self._friction = np.array([c.friction for c in self.contacts], dtype=float)
+        self.normals = np.array([c.normal for c in self.contacts], dtype=float).reshape(p, 3)
+        self.offsets = np.array([c.offset for c in self.contacts], dtype=float)
+        self.friction = np.array([c.friction for c in self.contacts], dtype=float)
 
     def subset(self, indices: Sequence[int]) -> ContactSet:
         """The contacts at ``indices`` (in that order), on the same robot."""
@@ -115,7 +115,7 @@ class ContactSet:
             positions[j] = pin.updateFramePlacement(model, data, frame).translation
             jacobians[j] = pin.getFrameJacobian(model, data, frame, _WORLD)[:3]
             drift_vectors[j] = pin.getFrameClassicalAcceleration(model, data, frame, _WORLD).linear
-        normals = self._normals
+        normals = self.normals
         velocity = jacobians @ dq  # (p, 3)
         slip = velocity - normals * (normals * velocity).sum(axis=1)[:, None]  # tangential part
         slip_norm = np.sqrt((slip * slip).sum(axis=1) + self.slip_epsilon**2)
@@ -126,9 +126,9 @@ class ContactSet:
             normal_jacobian=np.matmul(normals[:, None, :], jacobians)[:, 0, :],
             tangent_jacobian=np.matmul(direction[:, None, :], jacobians)[:, 0, :],
             drift=(normals * drift_vectors).sum(axis=1),
-            residual=(normals * positions).sum(axis=1) - self._offsets,
+            residual=(normals * positions).sum(axis=1) - self.offsets,
             slip_velocity=slip,
             slip_direction=direction,
-            friction=self._friction,
+            friction=self.friction,
             normals=normals,
         )

@@ -1,0 +1,93 @@
+"""Typed configuration of the controller, built once from ROS parameters and validated."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from bracing_core import schema
+from bracing_core.config import SharedConfig, axes_indices
+from bracing_core.params import ConfigError, Params
+
+
+@dataclass(frozen=True)
+class TrajectoryConfig:
+    kind: str  # circle | hold
+    center: tuple[float, float, float]
+    radius: float
+    period: float
+    direction: float
+    phase: float
+    plane: tuple[int, int]
+    point: tuple[float, float, float] | None  # hold: None = initial hand position
+
+
+@dataclass(frozen=True)
+class HandTaskConfig:
+    frame: str
+    axes: tuple[int, ...]
+    kp: tuple[float, ...]
+    kd: tuple[float, ...]
+    trajectory: TrajectoryConfig
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    shared: SharedConfig
+    hand: HandTaskConfig
+    voltage_gain: tuple[float, ...]  # K_V diagonal, robot.joint_names order
+    gravity_compensation: bool  # add g(q) to l (not in the paper)
+    damping_lambda: float  # damped-inverse regularisation for a near-singular B
+    wait_for_recorder: bool  # answer the first state only once a recorder subscribes to both outputs
+    log_throttle_period: float  # [s] wall; at most one report per kind of bad input per period
+
+    @property
+    def task_dimension(self) -> int:
+        return len(self.hand.axes) + sum(len(c.brace_axes) for c in self.shared.contacts)
+
+    @classmethod
+    def from_params(cls, params: Params, search_dirs: Sequence[Path] = ()) -> ControllerConfig:
+        """Validated against ``schema.CONTROLLER`` (and the shared parameters), with the law's
+        cross-checks: +/-1 direction, positive K_V, task dimension <= n - p."""
+        values = schema.read("controller", params)
+        shared = SharedConfig.from_values(values, search_dirs)
+        n, p = len(shared.joint_names), len(shared.contacts)
+        axes = axes_indices("hand.axes", values["hand.axes"])
+        plane = axes_indices("hand.trajectory.plane", values["hand.trajectory.plane"])
+        point = values["hand.trajectory.point"]
+        circle = values["hand.trajectory.type"] == "circle"
+        direction = values["hand.trajectory.direction"]
+        if circle and direction not in (-1.0, 1.0):
+            raise ConfigError(f"hand.trajectory.direction: expected +1 or -1, got {direction}")
+        center = values["hand.trajectory.center"] or (0.0, 0.0, 0.0)
+        trajectory = TrajectoryConfig(
+            kind=values["hand.trajectory.type"],
+            center=(center[0], center[1], center[2]),
+            radius=values["hand.trajectory.radius"] or 0.0,
+            period=values["hand.trajectory.period"],
+            direction=direction,
+            phase=values["hand.trajectory.phase"],
+            plane=(plane[0], plane[1]),
+            point=(point[0], point[1], point[2]) if point else None,
+        )
+        hand = HandTaskConfig(values["hand.frame"], axes, values["hand.kp"], values["hand.kd"], trajectory)
+        voltage_gain = values["voltage_gain"]
+        if any(k <= 0.0 for k in voltage_gain):
+            raise ConfigError(f"voltage_gain: K_V must be positive definite, got {list(voltage_gain)}")
+        config = cls(
+            shared=shared,
+            hand=hand,
+            voltage_gain=voltage_gain,
+            gravity_compensation=values["gravity_compensation"],
+            damping_lambda=values["damping_lambda"],
+            wait_for_recorder=values["wait_for_recorder"],
+            log_throttle_period=values["log_throttle_period"],
+        )
+        if config.task_dimension > n - p:
+            raise ConfigError(
+                f"task dimension {config.task_dimension} (hand {len(axes)} + brace "
+                f"{config.task_dimension - len(axes)}) exceeds n - p = {n} - {p} = {n - p}: "
+                "the null space of B cannot hold them; remove hand.axes or contacts.<name>.brace_axes"
+            )
+        return config

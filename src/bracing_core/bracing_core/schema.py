@@ -1,0 +1,588 @@
+"""Every parameter of both nodes, described once, as data.
+
+A :class:`Param` is a name, a type, a default, a unit, a description and its bounds (or
+choices, or length). From these tables everything else is derived: the nodes declare typed
+ROS parameters with a ``ParameterDescriptor`` (``bracing_ros.parameters``), :func:`read`
+validates a flat parameter dict into typed values for the configuration classes
+(``bracing_core.config``), and ``tools/param_reference.py`` writes the README's reference.
+
+Scenario files have a ``/**`` section read by both nodes (:data:`SHARED`, and the per-contact
+fields :data:`CONTACT` under ``contacts.<name>.``) and one section per node
+(:data:`SIMULATOR`, :data:`CONTROLLER`). ``tunable`` parameters can be set while the
+controller runs; every other parameter is read-only once a node has started.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from enum import Enum
+from typing import Any
+
+from bracing_core.params import (
+    ConfigError,
+    Params,
+    check_known,
+    get_bool,
+    get_float,
+    get_floats,
+    get_int,
+    get_str,
+    get_strs,
+)
+
+
+class Kind(str, Enum):  # noqa: UP042 (values are ROS parameter type names)
+    DOUBLE = "double"
+    INTEGER = "integer"
+    BOOL = "bool"
+    STRING = "string"
+    DOUBLE_ARRAY = "double_array"
+    STRING_ARRAY = "string_array"
+
+
+@dataclass(frozen=True)
+class PerJoint:
+    """A default of one ``value`` per joint of robot.joint_names."""
+
+    value: float
+
+
+REQUIRED = None  # a Param without a default must be given
+
+
+@dataclass(frozen=True)
+class Param:
+    name: str  # flat ROS name; for CONTACT fields, the part after contacts.<name>.
+    kind: Kind
+    default: Any  # REQUIRED, a value, or PerJoint
+    description: str
+    unit: str = ""
+    minimum: float | None = None  # inclusive (arrays: every value)
+    positive: bool = False  # > 0 (arrays: every value)
+    choices: tuple[str, ...] = ()
+    length: int | str | None = None  # a count, or the list parameter whose length it must match
+    may_be_empty: bool = False  # with a length: an empty list is allowed too (and means a default)
+    required_if: tuple[str, str] | None = None  # REQUIRED only when parameter [0] equals [1]
+    tunable: bool = False  # the controller accepts a new value while it runs
+    nodes: tuple[str, ...] = ("simulator", "controller")  # CONTACT fields: who uses it
+
+    @property
+    def required(self) -> bool:
+        return self.default is REQUIRED and self.required_if is None
+
+    def default_text(self) -> str:
+        if self.default is REQUIRED:
+            if self.required_if is None:
+                return "required"
+            return f"required if {self.required_if[0]} is {self.required_if[1]}"
+        if isinstance(self.default, PerJoint):
+            return f"{self.default.value:g} per joint"
+        if isinstance(self.default, bool):
+            return str(self.default).lower()
+        if isinstance(self.default, (list, tuple)):
+            return "[" + ", ".join(str(v) for v in self.default) + "]"
+        return repr(self.default) if isinstance(self.default, str) else f"{self.default:g}"
+
+    def bounds_text(self) -> str:
+        parts = []
+        if self.choices:
+            parts.append(" | ".join(self.choices))
+        if self.positive:
+            parts.append("> 0")
+        if self.minimum is not None:
+            parts.append(f">= {self.minimum:g}")
+        if isinstance(self.length, int):
+            parts.append(f"{self.length} values" + (" or empty" if self.may_be_empty else ""))
+        elif isinstance(self.length, str):
+            parts.append(f"one per {self.length}" + (" or empty" if self.may_be_empty else ""))
+        return ", ".join(parts)
+
+
+_MOTOR = "one per joint, in robot.joint_names order"
+SHARED: tuple[Param, ...] = (
+    Param(
+        "robot.urdf",
+        Kind.STRING,
+        REQUIRED,
+        "URDF of the robot (pinocchio loads it; link damping D from "
+        "<dynamics damping>); a relative name is looked up in the working directory, next to the scenario "
+        "file, $BRACING_ROOT/config and share/bracing_bringup/config",
+    ),
+    Param(
+        "robot.joint_names",
+        Kind.STRING_ARRAY,
+        REQUIRED,
+        "the actuated joints: the order of every per-joint list in the configuration",
+    ),
+    Param("robot.gravity", Kind.DOUBLE_ARRAY, [0.0, 0.0, -9.81], "gravity, world frame", "m/s^2", length=3),
+    Param(
+        "input_mode",
+        Kind.STRING,
+        "voltage",
+        "what the controller sends: motor voltages (eq. 41, motors in the loop) or link torques (eq. 38, direct drive)",
+        choices=("voltage", "torque"),
+    ),
+    Param(
+        "motors.torque_constant",
+        Kind.DOUBLE_ARRAY,
+        REQUIRED,
+        f"K = K_T = K_E, {_MOTOR}",
+        "V s/rad",
+        positive=True,
+        length="robot.joint_names",
+    ),
+    Param(
+        "motors.resistance",
+        Kind.DOUBLE_ARRAY,
+        REQUIRED,
+        f"armature resistance R, {_MOTOR}",
+        "ohm",
+        positive=True,
+        length="robot.joint_names",
+    ),
+    Param(
+        "motors.inductance",
+        Kind.DOUBLE_ARRAY,
+        REQUIRED,
+        f"armature inductance L, {_MOTOR}",
+        "H",
+        positive=True,
+        length="robot.joint_names",
+    ),
+    Param(
+        "motors.rotor_inertia",
+        Kind.DOUBLE_ARRAY,
+        REQUIRED,
+        f"rotor inertia I_m, {_MOTOR}",
+        "kg m^2",
+        minimum=0.0,
+        length="robot.joint_names",
+    ),
+    Param(
+        "motors.gear_ratio",
+        Kind.DOUBLE_ARRAY,
+        REQUIRED,
+        f"gear ratio k, {_MOTOR}",
+        "",
+        positive=True,
+        length="robot.joint_names",
+    ),
+    Param(
+        "motors.gear_damping",
+        Kind.DOUBLE_ARRAY,
+        REQUIRED,
+        f"viscous gear damping d_m (motor side), {_MOTOR}",
+        "N m s/rad",
+        minimum=0.0,
+        length="robot.joint_names",
+    ),
+    Param("motors.voltage_limit", Kind.DOUBLE, 0.0, "|v| saturation in voltage mode; 0 = none", "V", minimum=0.0),
+    Param("motors.torque_limit", Kind.DOUBLE, 0.0, "|tau| saturation in torque mode; 0 = none", "N m", minimum=0.0),
+    Param(
+        "contacts.names",
+        Kind.STRING_ARRAY,
+        [],
+        "the braced contacts, each described under contacts.<name>; empty = no bracing",
+    ),
+)
+
+CONTACT: tuple[Param, ...] = (
+    Param("frame", Kind.STRING, REQUIRED, "robot frame held on the plane"),
+    Param(
+        "normal",
+        Kind.DOUBLE_ARRAY,
+        [0.0, 0.0, 1.0],
+        "normal n of the plane n . r = offset (normalised); the plane pushes along +n",
+        length=3,
+    ),
+    Param("offset", Kind.DOUBLE, 0.0, "c of the plane n . r = c", "m"),
+    Param("friction", Kind.DOUBLE, 0.0, "Coulomb friction coefficient mu", "", minimum=0.0),
+    Param(
+        "unilateral",
+        Kind.BOOL,
+        False,
+        "false: the plane holds both ways (the paper); true: it only pushes, releases and touches down",
+    ),
+    Param(
+        "desired_normal_force",
+        Kind.DOUBLE,
+        0.0,
+        "f_nd, the normal force the controller keeps",
+        "N",
+        tunable=True,
+        nodes=("controller",),
+    ),
+    Param(
+        "brace_axes", Kind.STRING_ARRAY, [], "world axes (x, y, z) of the brace position task", nodes=("controller",)
+    ),
+    Param(
+        "kp",
+        Kind.DOUBLE_ARRAY,
+        [],
+        "brace task stiffness, one per brace axis",
+        "N/m",
+        length="brace_axes",
+        tunable=True,
+        nodes=("controller",),
+    ),
+    Param(
+        "kd",
+        Kind.DOUBLE_ARRAY,
+        [],
+        "brace task damping, one per brace axis",
+        "N s/m",
+        length="brace_axes",
+        tunable=True,
+        nodes=("controller",),
+    ),
+    Param(
+        "target",
+        Kind.DOUBLE_ARRAY,
+        [],
+        "brace target [x, y, z]; empty = the brace point's first measured position",
+        "m",
+        length=3,
+        may_be_empty=True,
+        nodes=("controller",),
+    ),
+)
+
+SIMULATOR: tuple[Param, ...] = (
+    Param(
+        "initial_position",
+        Kind.DOUBLE_ARRAY,
+        REQUIRED,
+        "q at t = 0, robot.joint_names order",
+        "rad or m",
+        length="robot.joint_names",
+    ),
+    Param(
+        "initial_velocity",
+        Kind.DOUBLE_ARRAY,
+        PerJoint(0.0),
+        "dq at t = 0, robot.joint_names order",
+        "rad/s or m/s",
+        length="robot.joint_names",
+        may_be_empty=True,
+    ),
+    Param("step", Kind.DOUBLE, 0.001, "integration step (one control period in lockstep)", "s", positive=True),
+    Param("substeps", Kind.INTEGER, 1, "RK4 sub-steps per step (input held)", minimum=1),
+    Param("duration", Kind.DOUBLE, 10.0, "sim time to run; 0 = until stopped", "s", minimum=0.0),
+    Param("baumgarte", Kind.DOUBLE, 0.0, "Baumgarte gain a of the constraint rows; 0 = the paper", "1/s", minimum=0.0),
+    Param(
+        "slip_epsilon",
+        Kind.DOUBLE,
+        1e-4,
+        "eps of the regularised slip direction s / sqrt(|s|^2 + eps^2)",
+        "m/s",
+        positive=True,
+    ),
+    Param("contact_tolerance", Kind.DOUBLE, 1e-6, "largest |C| of a contact at the start", "m", positive=True),
+    Param(
+        "stepping",
+        Kind.STRING,
+        "lockstep",
+        "lockstep: one step per command answering the last state; real_time: a wall-clock timer, latest command held",
+        choices=("lockstep", "real_time"),
+    ),
+    Param("real_time_factor", Kind.DOUBLE, 1.0, "real_time stepping: sim seconds per wall second", positive=True),
+    Param(
+        "command_timeout",
+        Kind.DOUBLE,
+        5.0,
+        "wall time without a valid command before the watchdog acts",
+        "s",
+        positive=True,
+    ),
+    Param(
+        "watchdog_policy",
+        Kind.STRING,
+        "hold",
+        "what the watchdog steps with: the last command, or zero",
+        choices=("hold", "zero"),
+    ),
+    Param(
+        "min_subscribers", Kind.INTEGER, 1, "lockstep: joint_states subscribers to wait for before stepping", minimum=0
+    ),
+    Param(
+        "wait_for_recorder",
+        Kind.BOOL,
+        False,
+        "publish the first state only once every topic has a subscriber (bracing-pair sets true)",
+    ),
+    Param(
+        "divergence_residual",
+        Kind.DOUBLE,
+        0.01,
+        "a step taking a held contact further than this off its plane is refused",
+        "m",
+        positive=True,
+    ),
+    Param(
+        "divergence_speed",
+        Kind.DOUBLE,
+        1000.0,
+        "a step leaving a joint faster than this is refused (the "
+        "watchdog acts; refused under the watchdog's own command, the run stops with exit 3)",
+        "rad/s or m/s",
+        positive=True,
+    ),
+    Param(
+        "log_throttle_period",
+        Kind.DOUBLE,
+        1.0,
+        "at most one report per kind of bad input per period (wall)",
+        "s",
+        minimum=0.0,
+    ),
+)
+
+CONTROLLER: tuple[Param, ...] = (
+    Param("hand.frame", Kind.STRING, "hand", "robot frame of the hand task"),
+    Param("hand.axes", Kind.STRING_ARRAY, ["y", "z"], "world axes (x, y, z) of the hand position task"),
+    Param(
+        "hand.kp",
+        Kind.DOUBLE_ARRAY,
+        REQUIRED,
+        "hand task stiffness, one per hand axis",
+        "N/m",
+        length="hand.axes",
+        tunable=True,
+    ),
+    Param(
+        "hand.kd",
+        Kind.DOUBLE_ARRAY,
+        REQUIRED,
+        "hand task damping, one per hand axis",
+        "N s/m",
+        length="hand.axes",
+        tunable=True,
+    ),
+    Param("hand.trajectory.type", Kind.STRING, "circle", "the hand's desired path", choices=("circle", "hold")),
+    Param(
+        "hand.trajectory.center",
+        Kind.DOUBLE_ARRAY,
+        REQUIRED,
+        "circle center",
+        "m",
+        length=3,
+        required_if=("hand.trajectory.type", "circle"),
+    ),
+    Param(
+        "hand.trajectory.radius",
+        Kind.DOUBLE,
+        REQUIRED,
+        "circle radius",
+        "m",
+        minimum=0.0,
+        required_if=("hand.trajectory.type", "circle"),
+    ),
+    Param("hand.trajectory.period", Kind.DOUBLE, 10.0, "time of one turn", "s", positive=True),
+    Param(
+        "hand.trajectory.direction", Kind.DOUBLE, 1.0, "+1 counter-clockwise in the plane, -1 clockwise (the paper: -1)"
+    ),
+    Param("hand.trajectory.phase", Kind.DOUBLE, 0.0, "angle at t = 0", "rad"),
+    Param(
+        "hand.trajectory.plane",
+        Kind.STRING_ARRAY,
+        ["y", "z"],
+        "the circle's plane: world axes of cos and sin",
+        length=2,
+    ),
+    Param(
+        "hand.trajectory.point",
+        Kind.DOUBLE_ARRAY,
+        [],
+        "hold: the point; empty = the hand's first measured position",
+        "m",
+        length=3,
+        may_be_empty=True,
+    ),
+    Param(
+        "voltage_gain",
+        Kind.DOUBLE_ARRAY,
+        PerJoint(1.0),
+        "K_V (diagonal, > 0) of eq. 41: v = K_V tau, robot.joint_names order",
+        "V/(N m)",
+        length="robot.joint_names",
+        tunable=True,
+    ),
+    Param("gravity_compensation", Kind.BOOL, False, "add g(q) to the null-space input l (not in the paper)"),
+    Param(
+        "damping_lambda",
+        Kind.DOUBLE,
+        1e-6,
+        "regularisation of the damped inverse used when B is near-singular",
+        positive=True,
+    ),
+    Param(
+        "wait_for_recorder",
+        Kind.BOOL,
+        False,
+        "answer the first state only once a recorder subscribes to both outputs (bracing-pair sets true)",
+    ),
+    Param(
+        "log_throttle_period",
+        Kind.DOUBLE,
+        1.0,
+        "at most one report per kind of bad input per period (wall)",
+        "s",
+        minimum=0.0,
+    ),
+)
+
+NODE_PARAMETERS: dict[str, tuple[Param, ...]] = {"simulator": SIMULATOR, "controller": CONTROLLER}
+
+
+def node_schema(node: str) -> tuple[Param, ...]:
+    """The global parameters of ``node`` ("simulator" or "controller"): SHARED then its own."""
+    return (*SHARED, *NODE_PARAMETERS[node])
+
+
+def default(node: str, name: str) -> Any:
+    """The schema's default of ``node``'s parameter ``name``."""
+    param = find(node, name)
+    if param is None or param.default is REQUIRED:
+        raise KeyError(f"{node} has no parameter {name} with a default")
+    return param.default
+
+
+def contact_fields(node: str) -> tuple[Param, ...]:
+    return tuple(p for p in CONTACT if node in p.nodes)
+
+
+def contact_name(name: str, field: str) -> str:
+    return f"contacts.{name}.{field}"
+
+
+_HINTS = {
+    "robot.joint_names": lambda values: f"one per joint of robot.joint_names ({len(values)})",
+    "hand.axes": lambda values: f"one per hand axis {list(values)}",
+    "brace_axes": lambda values: f"one per brace axis {list(values)}",
+}
+
+
+def read_value(param: Param, name: str, params: Params, read: Mapping[str, Any]) -> Any:
+    """One parameter's typed value from ``params`` (its default if unset), or a ConfigError naming
+    ``name``. ``read`` holds the values read so far (list lengths and conditions refer to them)."""
+    required = param.default is REQUIRED and (
+        param.required_if is None or read.get(param.required_if[0]) == param.required_if[1]
+    )
+    if param.default is REQUIRED and not required and name not in params:
+        return None  # required only under another setting
+    default = param.default
+    if isinstance(default, PerJoint):
+        default = [default.value] * len(read["robot.joint_names"])
+    if param.kind is Kind.DOUBLE:
+        return get_float(params, name, default, minimum=param.minimum, positive=param.positive)
+    if param.kind is Kind.INTEGER:
+        return get_int(params, name, default, minimum=None if param.minimum is None else int(param.minimum))
+    if param.kind is Kind.BOOL:
+        return get_bool(params, name, default)
+    if param.kind is Kind.STRING:
+        return get_str(params, name, default, choices=param.choices or None)
+    if param.kind is Kind.STRING_ARRAY:
+        value = get_strs(params, name, default if default is not None else ())
+        if required and not value:
+            raise ConfigError(f"{name}: expected a non-empty list, got none")
+        if isinstance(param.length, int) and len(value) != param.length:
+            raise ConfigError(f"{name}: expected {param.length} values, got {len(value)}")
+        return value
+    return _read_floats(param, name, params, read, default)
+
+
+def _read_floats(param: Param, name: str, params: Params, read: Mapping[str, Any], default: Any) -> tuple[float, ...]:
+    length: int | None = param.length if isinstance(param.length, int) else None
+    hint = ""
+    if isinstance(param.length, str):
+        reference = read[param.length]
+        length, hint = len(reference), _HINTS[param.length](reference)
+    value = get_floats(params, name, default)
+    if param.default is not REQUIRED and param.may_be_empty and not value:
+        if isinstance(param.default, PerJoint):  # empty: the per-joint default
+            return tuple(float(param.default.value) for _ in range(length or 0))
+        return ()
+    if length is not None and len(value) != length:
+        if param.may_be_empty:
+            raise ConfigError(f"{name}: expected {length} values or an empty list, got {list(value)}")
+        value = get_floats(params, name, default, length=length, length_hint=hint)  # raises, naming the length
+    if param.positive and any(v <= 0.0 for v in value):
+        raise ConfigError(f"{name}: values must be > 0, got {list(value)}")
+    if param.minimum is not None and any(v < param.minimum for v in value):
+        raise ConfigError(f"{name}: values must be >= {param.minimum:g}, got {list(value)}")
+    return value
+
+
+@dataclass(frozen=True)
+class Values:
+    """What :func:`read` gives: typed values of every global parameter, and per contact."""
+
+    values: dict[str, Any]
+    contacts: dict[str, dict[str, Any]]  # contacts.<name>.<field>, per name in contacts.names order
+
+    def __getitem__(self, name: str) -> Any:
+        return self.values[name]
+
+
+def read(node: str, params: Params) -> Values:
+    """Validate ``node``'s flat parameters against its schema: unknown names, types, bounds,
+    lengths. Each ConfigError names the parameter."""
+    schema, fields = node_schema(node), contact_fields(node)
+    check_known(params, [p.name for p in schema], {"contacts.": [f.name for f in CONTACT]})
+    values: dict[str, Any] = {}
+    for param in schema:
+        values[param.name] = read_value(param, param.name, params, values)
+    contacts: dict[str, dict[str, Any]] = {}
+    for contact in values["contacts.names"]:
+        own: dict[str, Any] = {}
+        for field in fields:
+            own[field.name] = read_value(field, contact_name(contact, field.name), params, {**values, **own})
+        contacts[contact] = own
+    return Values(values, contacts)
+
+
+def all_names(node: str, contacts: Sequence[str]) -> list[str]:
+    """Every parameter ``node`` declares for these contact names."""
+    names = [p.name for p in node_schema(node)]
+    names += [contact_name(c, f.name) for c in contacts for f in contact_fields(node)]
+    return names
+
+
+def find(node: str, name: str) -> Param | None:
+    """The Param behind a flat name of ``node`` (``contacts.<any>.<field>`` included)."""
+    for param in node_schema(node):
+        if param.name == name:
+            return param
+    parts = name.split(".")
+    if len(parts) == 3 and parts[0] == "contacts":
+        for field in contact_fields(node):
+            if field.name == parts[2]:
+                return field
+    return None
+
+
+def reference_markdown() -> str:
+    """The README's parameter reference (``tools/param_reference.py`` writes it there)."""
+    sections = (
+        ("`/**` (both nodes)", SHARED, ""),
+        ("`/**`, per contact: `contacts.<name>.`", CONTACT, ""),
+        ("`bracing_simulator`", SIMULATOR, ""),
+        ("`bracing_controller`", CONTROLLER, ""),
+    )
+    out: list[str] = []
+    for title, params, _ in sections:
+        out += [
+            f"**{title}**",
+            "",
+            "| parameter | type | default | unit | bounds | tunable | meaning |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for p in params:
+            who = "" if p.nodes == ("simulator", "controller") else f" ({', '.join(p.nodes)})"
+            tunable = "yes" if p.tunable else ""
+            meaning = p.description.replace("|", "\\|") + who
+            row = [f"`{p.name}`", p.kind.value, p.default_text(), p.unit, p.bounds_text().replace("|", "\\|"), tunable]
+            out.append("| " + " | ".join([*row, meaning]) + " |")
+        out.append("")
+    return "\n".join(out)

@@ -1,0 +1,92 @@
+"""A node's ROS parameters from its schema (``bracing_core.schema``): typed declarations with
+descriptors, so ``ros2 param list/describe/get`` tell a user what each one is, and a set is
+either applied (``tunable``) or refused with the reason (read-only).
+
+Validation stays in the ROS-free core: the node hands its flat parameters to the typed
+configuration (which names the parameter in every error), then declares every parameter of
+its schema with the validated value.
+"""
+
+from __future__ import annotations
+
+import array
+import sys
+from typing import Any
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from bracing_core import schema
+from bracing_core.schema import Kind, Param
+
+_TYPES = {
+    Kind.DOUBLE: Parameter.Type.DOUBLE,
+    Kind.INTEGER: Parameter.Type.INTEGER,
+    Kind.BOOL: Parameter.Type.BOOL,
+    Kind.STRING: Parameter.Type.STRING,
+    Kind.DOUBLE_ARRAY: Parameter.Type.DOUBLE_ARRAY,
+    Kind.STRING_ARRAY: Parameter.Type.STRING_ARRAY,
+}
+
+
+def given_parameters(node: Node) -> dict[str, Any]:
+    """The flat parameters the node was started with (params files and ``-p``), by name.
+
+    rclpy keeps them in ``Node._parameter_overrides`` and offers no public reader; declaring
+    them would need their types first (an empty list reaches rclpy as NOT_SET, which it refuses
+    to declare). Reading them here lets the schema name an unknown or mistyped parameter.
+    """
+    return {name: parameter.value for name, parameter in node._parameter_overrides.items()}
+
+
+def descriptor(param: Param, name: str) -> ParameterDescriptor:
+    """The ROS descriptor of ``param`` (declared as ``name``)."""
+    unit = f" [{param.unit}]" if param.unit else ""
+    text = f"{param.description}{unit}; default {param.default_text()}"
+    out = ParameterDescriptor(
+        name=name,
+        type=_TYPES[param.kind].value,
+        description=text,
+        additional_constraints=param.bounds_text() + ("" if param.tunable else " (read-only while the node runs)"),
+        read_only=not param.tunable,
+    )
+    if param.kind is Kind.DOUBLE and param.minimum is not None:
+        out.floating_point_range = [FloatingPointRange(from_value=param.minimum, to_value=sys.float_info.max)]
+    if param.kind is Kind.INTEGER and param.minimum is not None:
+        out.integer_range = [IntegerRange(from_value=int(param.minimum), to_value=2**63 - 1, step=1)]
+    return out
+
+
+def _ros_value(value: Any) -> Any:
+    return list(value) if isinstance(value, tuple) else value
+
+
+def plain(value: Any) -> Any:
+    """A parameter value as the schema reads it (rclpy gives arrays as ``array.array``)."""
+    return list(value) if isinstance(value, (list, tuple, array.array)) else value
+
+
+def declare(node: Node, kind: str, given: dict[str, Any]) -> None:
+    """Declare every parameter of ``kind``'s schema ("simulator" or "controller") on ``node``,
+    typed, described and with the value ``given`` validates to (call after the configuration was
+    built from ``given``: an invalid value has stopped the node by then)."""
+    values = schema.read(kind, given)
+    declared: list[tuple[str, Param, Any]] = [(p.name, p, values[p.name]) for p in schema.node_schema(kind)]
+    for contact, fields in values.contacts.items():
+        declared += [(schema.contact_name(contact, p.name), p, fields[p.name]) for p in schema.contact_fields(kind)]
+    for name, param, value in declared:
+        # Unset (required only in another mode) or an empty list: declared typed, without a value
+        # (rclpy would type an empty list as a byte array).
+        default = _TYPES[param.kind] if value is None or value == () else _ros_value(value)
+        node.declare_parameter(name, default, descriptor(param, name), ignore_override=True)
+
+
+def current_values(node: Node, kind: str) -> dict[str, Any]:
+    """The node's declared parameters of ``kind``'s schema as a flat dict (unset ones left out)."""
+    out: dict[str, Any] = {}
+    for name, parameter in node.get_parameters_by_prefix("").items():
+        value = parameter.value if isinstance(parameter, Parameter) else parameter
+        if value is not None and (schema.find(kind, name) is not None):
+            out[name] = plain(value)
+    return out

@@ -1,0 +1,60 @@
+"""The rosbags typestore of the bracing interface: ROS 2 Jazzy's types plus bracing_msgs.
+
+The recorder writes bags with it (definitions embedded) and ``wire`` derives message bytes
+from its field definitions, so a ``.msg`` file is the one place a message's layout is written.
+"""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+from typing import Any
+
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosbags.typesys.store import Typestore
+
+BRACING_MSGS = ("ContactState", "Contacts", "ControllerState", "MotorCommand", "MotorState")
+
+
+def bracing_msgs_dir() -> Path:
+    """Directory of the bracing_msgs ``.msg`` files (installed share dir, else source)."""
+    try:
+        from ament_index_python.packages import get_package_share_directory
+
+        share = Path(get_package_share_directory("bracing_msgs")) / "msg"
+        if all((share / f"{name}.msg").is_file() for name in BRACING_MSGS):
+            return share
+    except (ImportError, LookupError, ValueError):
+        pass
+    # src/bracing_ros/bracing_ros/typestore.py -> src/bracing_msgs/msg
+    src = Path(__file__).resolve().parents[2] / "bracing_msgs" / "msg"
+    if all((src / f"{name}.msg").is_file() for name in BRACING_MSGS):
+        return src
+    msg = "cannot find the bracing_msgs .msg files (is the workspace sourced?)"
+    raise FileNotFoundError(msg)
+
+
+def bracing_typestore(msg_dir: Path | None = None) -> Typestore:
+    """A Jazzy typestore with the bracing_msgs types registered (from ``msg_dir`` if given).
+
+    Without ``msg_dir`` the store is built once per process and shared (building one costs
+    tens of milliseconds); treat it as read-only.
+    """
+    if msg_dir is None:
+        return _default_typestore()
+    return _build_typestore(msg_dir)
+
+
+@functools.cache
+def _default_typestore() -> Typestore:
+    return _build_typestore(bracing_msgs_dir())
+
+
+def _build_typestore(folder: Path) -> Typestore:
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types: dict[str, Any] = {}
+    for name in BRACING_MSGS:
+        text = (folder / f"{name}.msg").read_text(encoding="utf-8")
+        types.update(get_types_from_msg(text, f"bracing_msgs/msg/{name}"))
+    store.register(types)
+    return store

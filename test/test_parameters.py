@@ -1,0 +1,206 @@
+"""One schema per node (bracing_core.schema): the package layout it sits in, the docs derived
+from it, and the parameter services a running node offers (what ``ros2 param`` calls)."""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from conftest import CONFIG_DIR, PAPER_YAML, node_params
+from ros_helpers import isolated_env, node_argv, start
+
+from bracing_core import schema
+from bracing_core.controller_config import ControllerConfig
+from bracing_core.law import DecoupledController
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+SRC = REPO_ROOT / "src"
+NODE_PACKAGES = ("bracing_sim", "bracing_controller", "bracing_bringup")
+
+
+def imported_packages(package: str) -> set[str]:
+    """Top-level names every module of ``package`` imports (anywhere in the module)."""
+    found: set[str] = set()
+    for path in (SRC / package / package).glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                found |= {alias.name.split(".")[0] for alias in node.names}
+            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                found.add(node.module.split(".")[0])
+    return found
+
+
+def test_the_core_never_imports_ros() -> None:
+    ros = {"rclpy", "rcl_interfaces", "rosidl_runtime_py", "bracing_msgs", "bracing_ros", *NODE_PACKAGES}
+    assert not imported_packages("bracing_core") & ros
+    modules = [f"bracing_core.{p.stem}" for p in (SRC / "bracing_core" / "bracing_core").glob("*.py")]
+    code = f"import sys; import {', '.join(modules)}; print(sorted(m for m in sys.modules if m.startswith('rcl')))"
+    loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert loaded.strip() == "[]"
+
+
+def test_no_node_package_imports_another() -> None:
+    assert not imported_packages("bracing_ros") & set(NODE_PACKAGES)
+    for package in NODE_PACKAGES:
+        assert not imported_packages(package) & (set(NODE_PACKAGES) - {package}), package
+
+
+def yaml_lines(path: Path) -> dict[str, str]:
+    """Dotted key -> its line, for a block-style YAML file (by indentation)."""
+    keys: dict[str, str] = {}
+    stack: list[tuple[int, str]] = []
+    for line in path.read_text().splitlines():
+        text = line.split("#")[0].rstrip()
+        if not text.strip() or ":" not in text or text.lstrip().startswith("-"):
+            continue
+        indent = len(text) - len(text.lstrip())
+        key = text.strip().split(":")[0].strip()
+        while stack and stack[-1][0] >= indent:
+            stack.pop()
+        stack.append((indent, key))
+        keys[".".join(k for _, k in stack)] = line
+    return keys
+
+
+@pytest.mark.parametrize("node", ["simulator", "controller"])
+def test_the_scenario_file_comments_every_parameter(node: str) -> None:
+    lines = yaml_lines(PAPER_YAML)
+    section = {"simulator": "bracing_simulator", "controller": "bracing_controller"}[node]
+    missing, uncommented = [], []
+    for name in schema.all_names(node, ["elbow"]):
+        shared = name.startswith("contacts.") or name in {p.name for p in schema.SHARED}
+        key = f"{'/**' if shared else section}.ros__parameters.{name}"
+        if key not in lines:
+            missing.append(name)
+        elif "#" not in lines[key]:
+            uncommented.append(name)
+    assert not missing, f"not in {PAPER_YAML.name}: {missing}"
+    assert not uncommented, f"no comment in {PAPER_YAML.name}: {uncommented}"
+
+
+def test_the_readme_reference_is_the_schema() -> None:
+    readme = (REPO_ROOT / "README.md").read_text()
+    begin, end = "<!-- parameters: begin (tools/param_reference.py) -->\n", "<!-- parameters: end -->"
+    assert begin in readme and end in readme
+    block = readme.split(begin)[1].split(end)[0]
+    assert block == schema.reference_markdown(), "README's parameter reference is stale: run tools/param_reference.py"
+    for param in (*schema.SHARED, *schema.SIMULATOR, *schema.CONTROLLER, *schema.CONTACT):
+        assert f"`{param.name}`" in block
+
+
+def test_each_default_is_the_one_the_configuration_uses() -> None:
+    """A parameter left out takes the schema's default (written once, in the schema)."""
+    params = node_params("bracing_simulator")
+    for param in schema.SIMULATOR:
+        if param.default is not schema.REQUIRED and not isinstance(param.default, schema.PerJoint):
+            params.pop(param.name, None)
+    from bracing_core.config import SimulatorConfig
+
+    config = SimulatorConfig.from_params(params, [CONFIG_DIR])
+    for param in schema.SIMULATOR:
+        if param.default is not schema.REQUIRED and not isinstance(param.default, schema.PerJoint):
+            assert getattr(config, param.name) == param.default, param.name
+
+
+def test_retune_applies_gains_forces_and_voltage_gain_from_the_next_update() -> None:
+    """A retuned controller answers exactly as one built with the new values."""
+    old = ControllerConfig.from_params(node_params("bracing_controller"), [CONFIG_DIR])
+    changes = {
+        "hand.kp": [150.0, 120.0],
+        "hand.kd": [30.0, 20.0],
+        "contacts.elbow.kp": [50.0],
+        "contacts.elbow.desired_normal_force": 4.0,
+        "voltage_gain": [2.0, 1.0, 1.0, 0.5],
+    }
+    new = ControllerConfig.from_params(node_params("bracing_controller", own=changes), [CONFIG_DIR])
+    rng = np.random.default_rng(3)
+    q, dq = rng.uniform(-1.0, 1.0, 4), rng.uniform(-1.0, 1.0, 4)
+    retuned, fresh = DecoupledController(old), DecoupledController(new)
+    for controller in (retuned, fresh):
+        controller.update(0.0, q, dq)  # targets from the first state
+    before = retuned.update(0.1, q, dq).command
+    retuned.retune(new)
+    after, expected = retuned.update(0.2, q, dq), fresh.update(0.2, q, dq)
+    np.testing.assert_array_equal(after.command, expected.command)
+    np.testing.assert_array_equal(after.desired_normal_force, [4.0])
+    assert not np.allclose(before, after.command)
+
+
+# ------------------------------------------------------------------ over DDS: ros2 param
+
+
+@pytest.fixture()
+def controller_node() -> Iterator[tuple[Any, Any, Any, subprocess.Popen[str]]]:
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter_client import AsyncParameterClient
+
+    env = isolated_env()
+    process = start(node_argv("bracing_controller.node"), env)
+    context = Context()
+    rclpy.init(context=context, domain_id=int(env["ROS_DOMAIN_ID"]))
+    node = rclpy.create_node("param_test", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    client = AsyncParameterClient(node, "bracing_controller")
+    deadline = time.monotonic() + 30.0
+    while not client.services_are_ready() and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.1)
+    assert client.services_are_ready(), "the controller's parameter services did not appear"
+    try:
+        yield client, executor, node, process
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+        process.terminate()
+        process.communicate(timeout=30)
+
+
+def call(executor: Any, future: Any) -> Any:
+    executor.spin_until_future_complete(future, timeout_sec=10.0)
+    assert future.done()
+    return future.result()
+
+
+def test_parameter_services_list_describe_get_and_set(controller_node: Any) -> None:
+    from rcl_interfaces.msg import ParameterType
+    from rclpy.parameter import Parameter
+
+    client, executor, _, process = controller_node
+    listed = set(call(executor, client.list_parameters()).result.names)
+    assert set(schema.all_names("controller", ["elbow"])) <= listed
+
+    names = ["hand.kp", "damping_lambda"]
+    described = {d.name: d for d in call(executor, client.describe_parameters(names)).descriptors}
+    assert described["hand.kp"].type == ParameterType.PARAMETER_DOUBLE_ARRAY
+    assert "hand task stiffness" in described["hand.kp"].description and "[N/m]" in described["hand.kp"].description
+    assert not described["hand.kp"].read_only
+    assert described["damping_lambda"].read_only and described["damping_lambda"].type == ParameterType.PARAMETER_DOUBLE
+
+    values = call(executor, client.get_parameters(["hand.kp", "input_mode"])).values
+    assert list(values[0].double_array_value) == [300.0, 300.0] and values[1].string_value == "voltage"
+
+    accepted = call(executor, client.set_parameters([Parameter("hand.kp", value=[150.0, 150.0])])).results[0]
+    assert accepted.successful, accepted.reason
+    assert list(call(executor, client.get_parameters(["hand.kp"])).values[0].double_array_value) == [150.0, 150.0]
+
+    wrong = call(executor, client.set_parameters([Parameter("hand.kp", value=[1.0])])).results[0]
+    assert not wrong.successful and "hand.kp: expected 2 values" in wrong.reason
+    negative = call(executor, client.set_parameters([Parameter("voltage_gain", value=[1.0, -1.0, 1.0, 1.0])]))
+    assert not negative.results[0].successful and "voltage_gain" in negative.results[0].reason
+    read_only = call(executor, client.set_parameters([Parameter("damping_lambda", value=0.1)])).results[0]
+    assert not read_only.successful and "read-only" in read_only.reason
+    assert list(call(executor, client.get_parameters(["hand.kp"])).values[0].double_array_value) == [150.0, 150.0]
+
+    process.terminate()
+    log = process.communicate(timeout=30)[0]
+    assert "retuned (from the next update): hand.kp = [150.0, 150.0]" in log
