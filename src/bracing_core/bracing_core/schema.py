@@ -248,6 +248,16 @@ CONTACT: tuple[Param, ...] = (
     ),
 )
 
+# Both nodes have one (each its own value).
+LOG_THROTTLE_PERIOD = Param(
+    "log_throttle_period",
+    Kind.DOUBLE,
+    1.0,
+    "at most one report per kind of bad input per period (wall)",
+    "s",
+    minimum=0.0,
+)
+
 SIMULATOR: tuple[Param, ...] = (
     Param(
         "initial_position",
@@ -328,14 +338,7 @@ SIMULATOR: tuple[Param, ...] = (
         "rad/s or m/s",
         positive=True,
     ),
-    Param(
-        "log_throttle_period",
-        Kind.DOUBLE,
-        1.0,
-        "at most one report per kind of bad input per period (wall)",
-        "s",
-        minimum=0.0,
-    ),
+    LOG_THROTTLE_PERIOD,
 )
 
 CONTROLLER: tuple[Param, ...] = (
@@ -422,14 +425,7 @@ CONTROLLER: tuple[Param, ...] = (
         False,
         "answer the first state only once a recorder subscribes to both outputs (bracing-pair sets true)",
     ),
-    Param(
-        "log_throttle_period",
-        Kind.DOUBLE,
-        1.0,
-        "at most one report per kind of bad input per period (wall)",
-        "s",
-        minimum=0.0,
-    ),
+    LOG_THROTTLE_PERIOD,
 )
 
 NODE_PARAMETERS: dict[str, tuple[Param, ...]] = {"simulator": SIMULATOR, "controller": CONTROLLER}
