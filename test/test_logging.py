@@ -41,7 +41,7 @@ SIM_REPORTS = {
 GOOD_STATE = {"name": JOINTS, "position": (np.array([-0.2, -0.6, 0.8, -0.4]) * np.pi).tolist(), "velocity": [0.0] * 4}
 # Controller: kind -> (the joint_states sent, what the log says of it).
 CONTROLLER_REPORTS: dict[str, tuple[dict[str, object], str]] = {
-    "malformed": ({"raw_hex": "00010000" + "ff" * 40}, "joint_states ignored: not a sensor_msgs/msg/JointState: Invalid string length"),
+    "malformed": ({"raw_hex": "00010000" + "ff" * 40}, "JointState: Invalid string length"),
     "missing": ({**GOOD_STATE, "name": JOINTS[:3], "position": [0.0] * 3, "velocity": [0.0] * 3}, "missing joints"),
     "duplicate": ({**GOOD_STATE, "name": [*JOINTS[:3], "joint1"]}, "duplicate joint names"),
     "length": ({**GOOD_STATE, "velocity": [0.0] * 3}, "4 names, 4 positions, 3 velocities"),
