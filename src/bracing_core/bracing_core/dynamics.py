@@ -41,17 +41,6 @@ from bracing_core.types import Vector
 _WORLD = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 # The views solve works on (see ConstrainedDynamics.stage).
 Stage = tuple[Vector, Vector, Vector, Vector, Vector, Vector]
-# Module-level aliases: solve runs 4x per step, so every lookup counts.
-_compute_all_terms = pin.computeAllTerms
-_cholesky_decompose = pin.cholesky.decompose
-_cholesky_solve = pin.cholesky.solve
-_frame_jacobian = pin.getFrameJacobian
-_frame_classical_acceleration = pin.getFrameClassicalAcceleration
-_update_frame_placement = pin.updateFramePlacement
-_dot = np.dot
-_subtract = np.subtract
-_sqrt = math.sqrt
-_array = np.array
 
 
 class ContactRow(NamedTuple):
@@ -253,31 +242,31 @@ class ConstrainedDynamics:
         """
         state, q, dq, rates, rates_ddq, head = stage
         model, data = self._model, self._data
-        _compute_all_terms(model, data, q, dq)
-        _cholesky_decompose(model, data)
-        _dot(self._linear, state, out=rates)  # [dq, drive - Dc dq, di]
+        pin.computeAllTerms(model, data, q, dq)
+        pin.cholesky.decompose(model, data)
+        np.dot(self._linear, state, out=rates)  # [dq, drive - Dc dq, di]
         p = self._p
         # One contact in scalars: an engine step of the paper model takes 50.5 us this way against
         # 81.2 us through _solve_contacts (the general path), measured side by side: worth 38% of a step.
         if p == 1:
             frame, split, work_split, n0, n1, n2, offset, mu = self._single
             work, work_jc, eps2 = self._work, self._work[3], self._eps2
-            _subtract(rates_ddq, self._nle, out=self._work_rhs)  # r = drive - (h + g) - Dc dq
-            jac = _frame_jacobian(model, data, frame, _WORLD)
-            _dot(split, jac, out=work_split)  # [tangential part of J; J_c]
+            np.subtract(rates_ddq, self._nle, out=self._work_rhs)  # r = drive - (h + g) - Dc dq
+            jac = pin.getFrameJacobian(model, data, frame, _WORLD)
+            np.dot(split, jac, out=work_split)  # [tangential part of J; J_c]
             s0, s1, s2, normal_velocity = work_split.dot(dq).tolist()  # slip velocity s, J_c dq
             slip2 = s0 * s0 + s1 * s1 + s2 * s2
-            slip_norm = _sqrt(slip2 + eps2)
-            a0, a1, a2 = _frame_classical_acceleration(model, data, frame, _WORLD).linear.tolist()
+            slip_norm = math.sqrt(slip2 + eps2)
+            a0, a1, a2 = pin.getFrameClassicalAcceleration(model, data, frame, _WORLD).linear.tolist()
             gamma = n0 * a0 + n1 * a1 + n2 * a2
             a = self.baumgarte
             if a or full:
-                r0, r1, r2 = _update_frame_placement(model, data, frame).translation.tolist()
+                r0, r1, r2 = pin.updateFramePlacement(model, data, frame).translation.tolist()
                 residual = n0 * r0 + n1 * r1 + n2 * r2 - offset
                 bias = -gamma - 2.0 * a * normal_velocity - a * a * residual
             else:
                 bias = -gamma
-            y = _cholesky_solve(model, data, work_jc)  # Mc^-1 J_c^T
+            y = pin.cholesky.solve(model, data, work_jc)  # Mc^-1 J_c^T
             t0, t1, t2, jc_y, rhs_y = work.dot(y).tolist()
             # W = J_c - mu J_t = J_c + scale s^T J with scale = -mu / sqrt(|s|^2 + eps^2) (-0.0 for mu = 0).
             scale = -mu / slip_norm
@@ -286,8 +275,8 @@ class ConstrainedDynamics:
                 raise np.linalg.LinAlgError("Singular matrix: the contact constraint has no effect on the motion")
             force = (bias - rhs_y) / schur
             c = force * scale
-            ddq = _cholesky_solve(
-                model, data, _array((c * s0, c * s1, c * s2, force, 1.0)).dot(work)
+            ddq = pin.cholesky.solve(
+                model, data, np.array((c * s0, c * s1, c * s2, force, 1.0)).dot(work)
             )  # Mc^-1 (r + W^T f_n)
             rates_ddq[:] = ddq
             friction_power = mu * force * slip2 / slip_norm
@@ -296,7 +285,7 @@ class ConstrainedDynamics:
                 return friction_power, constraint_power, None
             # Fresh arrays (the caller may keep the Derivative while the work rows change), as
             # views of one: numpy builds a flat array from floats far faster than nested ones.
-            values = _array(
+            values = np.array(
                 (r0, r1, r2, s0, s1, s2, s0 / slip_norm, s1 / slip_norm, s2 / slip_norm, gamma, residual, force)
             )
             vectors = values.reshape(4, 1, 3)
@@ -306,7 +295,7 @@ class ConstrainedDynamics:
             terms = ContactTerms(  # positional, in field order (cheaper than keywords)
                 positions,
                 jacobian[None],  # jacobians
-                _array(work_jc, ndmin=2),  # normal_jacobian
+                np.array(work_jc, ndmin=2),  # normal_jacobian
                 direction.dot(jacobian),  # tangent_jacobian
                 drift,
                 residuals,
@@ -316,7 +305,7 @@ class ConstrainedDynamics:
                 self.contacts.normals,
             )
         elif p == 0:
-            ddq = _cholesky_solve(model, data, rates_ddq - self._nle)
+            ddq = pin.cholesky.solve(model, data, rates_ddq - self._nle)
             rates_ddq[:] = ddq
             if not full:
                 return 0.0, 0.0, None
@@ -347,18 +336,18 @@ class ConstrainedDynamics:
         floats: for a few contacts that is cheaper than numpy's per-call overhead."""
         model, data = self._model, self._data
         work, rows, a, eps2 = self._work, self._contact_rows, self.baumgarte, self._eps2
-        _subtract(rates_ddq, self._nle, out=self._work_rhs)  # r = drive - (h + g) - Dc dq
+        np.subtract(rates_ddq, self._nle, out=self._work_rhs)  # r = drive - (h + g) - Dc dq
         gammas: list[float] = []
         residuals: list[float] = []
         positions: list[float] = []  # flat, 3 per contact (numpy converts flat lists faster)
         jacobians = []
         for frame, split, block, n0, n1, n2, offset, _ in rows:
-            jac = _frame_jacobian(model, data, frame, _WORLD)
-            _dot(split, jac, out=block)  # [tangential part of J_j; J_c,j]
-            a0, a1, a2 = _frame_classical_acceleration(model, data, frame, _WORLD).linear.tolist()
+            jac = pin.getFrameJacobian(model, data, frame, _WORLD)
+            np.dot(split, jac, out=block)  # [tangential part of J_j; J_c,j]
+            a0, a1, a2 = pin.getFrameClassicalAcceleration(model, data, frame, _WORLD).linear.tolist()
             gammas.append(n0 * a0 + n1 * a1 + n2 * a2)
             if a or full:
-                r0, r1, r2 = _update_frame_placement(model, data, frame).translation.tolist()
+                r0, r1, r2 = pin.updateFramePlacement(model, data, frame).translation.tolist()
                 residuals.append(n0 * r0 + n1 * r1 + n2 * r2 - offset)
                 positions += (r0, r1, r2)
                 jacobians.append(jac[:3])
@@ -367,11 +356,11 @@ class ConstrainedDynamics:
         velocities = self._work_contacts.dot(dq).tolist()  # per contact [slip velocity s_j; J_c,j dq]
         ys = self._ys
         for j, jc in enumerate(self._normal_rows):
-            ys[j] = _cholesky_solve(model, data, jc)  # Mc^-1 J_c,j^T
+            ys[j] = pin.cholesky.solve(model, data, jc)  # Mc^-1 J_c,j^T
         slips, norms, scales, biases = [], [], [], []
         for j, row in enumerate(rows):
             s0, s1, s2, normal_velocity = velocities[4 * j : 4 * j + 4]
-            slip_norm = _sqrt(s0 * s0 + s1 * s1 + s2 * s2 + eps2)
+            slip_norm = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2 + eps2)
             slips.append((s0, s1, s2))
             norms.append(slip_norm)
             scales.append(-row.friction / slip_norm)  # W_j = J_c,j + scale_j s_j^T J_j
@@ -397,15 +386,15 @@ class ConstrainedDynamics:
             friction_power += rows[j].friction * force * (s0 * s0 + s1 * s1 + s2 * s2) / norms[j]
             constraint_power += force * velocities[4 * j + 3]
         combination.append(1.0)
-        ddq = _cholesky_solve(model, data, _array(combination).dot(work))  # Mc^-1 (r + W^T f_n)
+        ddq = pin.cholesky.solve(model, data, np.array(combination).dot(work))  # Mc^-1 (r + W^T f_n)
         if not full:
             return friction_power, constraint_power, ddq, None
         # Fresh arrays, as views of one built from a flat list of floats (see solve).
         p = len(rows)
         directions = [x / norm for (s0, s1, s2), norm in zip(slips, norms, strict=True) for x in (s0, s1, s2)]
-        values = _array([*positions, *(x for slip in slips for x in slip), *directions, *gammas, *residuals, *forces])
+        values = np.array([*positions, *(x for slip in slips for x in slip), *directions, *gammas, *residuals, *forces])
         vectors = values[: 9 * p].reshape(3, p, 3)
-        jacobian = _array(jacobians)
+        jacobian = np.array(jacobians)
         terms = ContactTerms(
             vectors[0],  # positions
             jacobian,

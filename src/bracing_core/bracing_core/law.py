@@ -34,15 +34,6 @@ from bracing_core.types import Vector
 SINGULAR_RATIO = 1e-8
 
 _WORLD = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-# Module-level aliases: update runs once per control step, and every lookup counts.
-_compute_all_terms = pin.computeAllTerms
-_cholesky_decompose = pin.cholesky.decompose
-_cholesky_solve = pin.cholesky.solve
-_frame_jacobian = pin.getFrameJacobian
-_frame_classical_acceleration = pin.getFrameClassicalAcceleration
-_update_frame_placement = pin.updateFramePlacement
-_array = np.array
-_dot = np.dot
 
 
 @dataclass
@@ -173,7 +164,7 @@ class DecoupledController:
         model, data = self._model, self._data
         q = np.asarray(q, dtype=float)
         dq = np.asarray(dq, dtype=float)
-        _compute_all_terms(model, data, q, dq)
+        pin.computeAllTerms(model, data, q, dq)
         if self._hand_trajectory is None:
             self._init_targets()
         assert self._hand_trajectory is not None and self._brace_targets is not None
@@ -184,8 +175,8 @@ class DecoupledController:
         jacobians = self._task_jacobians
         positions: list[float] = []  # flat: 3 per task
         for task, rows in self._task_rows:
-            rows[:] = _frame_jacobian(model, data, task.frame, _WORLD)[:3]
-            positions += _update_frame_placement(model, data, task.frame).translation.tolist()
+            rows[:] = pin.getFrameJacobian(model, data, task.frame, _WORLD)[:3]
+            positions += pin.updateFramePlacement(model, data, task.frame).translation.tolist()
         velocities = jacobians.dot(dq).tolist()
         targets = [hand_desired.tolist(), *self._brace_target_lists]
         target_velocities = [hand_velocity_desired.tolist(), *self._zero_velocities]  # braces: hold still
@@ -201,7 +192,7 @@ class DecoupledController:
                 p1 * (r1 - a1) + d1 * (v1 - w1),
                 p2 * (r2 - a2) + d2 * (v2 - w2),
             )
-        null_input = _array(forces).dot(jacobians)  # sum of J^T F over the tasks
+        null_input = np.array(forces).dot(jacobians)  # sum of J^T F over the tasks
         gravity = None
         if self.config.gravity_compensation:
             gravity = pin.computeGeneralizedGravity(model, data, q)
@@ -213,9 +204,9 @@ class DecoupledController:
             torque, damped = self._braced_torque(dq, null_input, forces, velocities[3:6], gravity)
         elif p:
             terms = self.contact_set.evaluate_data(model, data, dq)
-            _cholesky_decompose(model, data)
+            pin.cholesky.decompose(model, data)
             jc = terms.normal_jacobian
-            b = np.array([_cholesky_solve(model, data, row) for row in jc])  # B = J_c Mc^-1 (Mc symmetric)
+            b = np.array([pin.cholesky.solve(model, data, row) for row in jc])  # B = J_c Mc^-1 (Mc symmetric)
             a_matrix = b @ (jc - terms.friction[:, None] * terms.tangent_jacobian).T
             a_vector = b @ (self._nle + self._damping * dq) - terms.drift
             b_pinv, damped = self._pseudo_inverse(b)
@@ -225,7 +216,7 @@ class DecoupledController:
         else:
             torque = null_input
         command = self._voltage_gain * torque if self._voltage else torque
-        actual = _array(positions).reshape(-1, 3)  # hand, then the braces (a flat list converts faster)
+        actual = np.array(positions).reshape(-1, 3)  # hand, then the braces (a flat list converts faster)
         return ControlOutput(
             command,
             torque,
@@ -248,18 +239,18 @@ class DecoupledController:
         paper model (p = 1), i.e. ~50 us of a ~740 us lockstep pair step (7%, above the 5% bar).
         test_controller_law checks that both paths give the same torque."""
         model, data = self._model, self._data
-        _cholesky_decompose(model, data)
+        pin.cholesky.decompose(model, data)
         brace_jacobian, jc, bias = self._brace_jacobian, self._work_jc, self._work_bias
         n0, n1, n2 = self._normal_tuple
-        _dot(self._normal, brace_jacobian, out=jc)  # J_c = n^T J
+        np.dot(self._normal, brace_jacobian, out=jc)  # J_c = n^T J
         np.multiply(self._damping, dq, out=bias)
         bias += self._nle  # h + g + Dc dq
         w0, w1, w2 = velocity
         normal_velocity = n0 * w0 + n1 * w1 + n2 * w2
         s0, s1, s2 = w0 - n0 * normal_velocity, w1 - n1 * normal_velocity, w2 - n2 * normal_velocity  # slip
-        a0, a1, a2 = _frame_classical_acceleration(model, data, self._braces[0].frame, _WORLD).linear.tolist()
+        a0, a1, a2 = pin.getFrameClassicalAcceleration(model, data, self._braces[0].frame, _WORLD).linear.tolist()
         gamma = n0 * a0 + n1 * a1 + n2 * a2
-        y = _cholesky_solve(model, data, jc)  # B^T = Mc^-1 J_c^T
+        y = pin.cholesky.solve(model, data, jc)  # B^T = Mc^-1 J_c^T
         # [task Jacobians; h + g + Dc dq] Mc^-1 J_c^T: the brace rows give B J^T, the tasks' give B l.
         products = self._work.dot(y).tolist()
         bias_y = products.pop()

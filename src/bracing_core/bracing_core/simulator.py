@@ -26,10 +26,6 @@ from bracing_core.contacts import ContactTerms
 from bracing_core.dynamics import ConstrainedDynamics, Derivative, InputMode, Stage
 from bracing_core.types import Vector
 
-_compute_all_terms = pin.computeAllTerms
-_cholesky_decompose = pin.cholesky.decompose
-_cholesky_solve = pin.cholesky.solve
-
 # Order of the energy integrals appended to the state vector.
 ENERGY_KEYS = ("consumed", "net", "copper_loss", "viscous_loss", "friction_loss", "constraint_work", "impact_loss")
 
@@ -336,7 +332,7 @@ class Simulator:
         full = self.full_dynamics
         n = self.n
         q, dq = self._y[:n], self._y[n : 2 * n]
-        _compute_all_terms(full._model, full._data, q, dq)
+        pin.computeAllTerms(full._model, full._data, q, dq)
         return full.contacts.evaluate_data(full._model, full._data, dq)
 
     def _report(self, d: Derivative) -> Derivative:
@@ -387,11 +383,11 @@ class Simulator:
         rows = np.flatnonzero(active)
         q, dq = self._y[:n].copy(), self._y[n : 2 * n].copy()
         for _ in range(10):  # Newton on C(q) = 0 along the mass-weighted direction
-            _compute_all_terms(model, data, q, dq)
-            _cholesky_decompose(model, data)
+            pin.computeAllTerms(model, data, q, dq)
+            pin.cholesky.decompose(model, data)
             terms = full.contacts.evaluate_data(model, data, dq)
             residual, jc = terms.residual[rows], terms.normal_jacobian[rows]
-            y = np.column_stack([_cholesky_solve(model, data, row) for row in jc])  # Mc^-1 J_c^T
+            y = np.column_stack([pin.cholesky.solve(model, data, row) for row in jc])  # Mc^-1 J_c^T
             if np.max(np.abs(residual)) < 1e-13:
                 break
             q = q + y.dot(np.linalg.solve(jc.dot(y), -residual))
