@@ -69,10 +69,10 @@ def joint_vectors(msg: wire.JointStateData, joint_names: list[str]) -> tuple[Vec
 class ControllerNode(Node):
     def __init__(self, **kwargs: object) -> None:
         super().__init__("bracing_controller", **kwargs)  # type: ignore[arg-type]
-        given = parameters.given_parameters(self)
-        self.config = ControllerConfig.from_params(given)
+        values = schema.read("controller", parameters.given_parameters(self))
+        self.config = ControllerConfig.from_values(values)
         self.law = DecoupledController(self.config)
-        parameters.declare(self, "controller", given)
+        parameters.declare(self, "controller", values)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.retuned: ControllerConfig | None = None  # applied at the next update
         self.joint_names = list(self.law.plant.joint_names)

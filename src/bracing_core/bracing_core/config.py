@@ -58,20 +58,22 @@ class ContactConfig:
     def from_values(cls, name: str, values: dict[str, Any]) -> ContactConfig:
         """From the schema's values of contacts.<name> (``schema.read``); controller-only fields may be absent."""
         key = f"contacts.{name}."
+        # The simulator does not read the controller's fields: they take the schema's defaults.
+        values = {**{p.name: p.default for p in schema.CONTACT if p.default is not schema.REQUIRED}, **values}
         normal = values["normal"]
         if float(np.linalg.norm(normal)) < 1e-9:
             raise ConfigError(f"{key}normal: must be a non-zero vector, got {list(normal)}")
-        target = values.get("target") or ()
+        target = values["target"]
         return cls(
             name=name,
             frame=values["frame"],
             normal=(normal[0], normal[1], normal[2]),
             offset=values["offset"],
             friction=values["friction"],
-            desired_normal_force=values.get("desired_normal_force", 0.0),
-            brace_axes=axes_indices(key + "brace_axes", values.get("brace_axes", ())),
-            kp=values.get("kp", ()),
-            kd=values.get("kd", ()),
+            desired_normal_force=values["desired_normal_force"],
+            brace_axes=axes_indices(key + "brace_axes", values["brace_axes"]),
+            kp=tuple(values["kp"]),
+            kd=tuple(values["kd"]),
             target=(target[0], target[1], target[2]) if target else None,
             unilateral=values["unilateral"],
         )
@@ -176,7 +178,10 @@ class SimulatorConfig:
     @classmethod
     def from_params(cls, params: Params, search_dirs: Sequence[Path] = ()) -> SimulatorConfig:
         """Validated against ``schema.SIMULATOR`` (and the shared parameters)."""
-        values = schema.read("simulator", params)
+        return cls.from_values(schema.read("simulator", params), search_dirs)
+
+    @classmethod
+    def from_values(cls, values: Values, search_dirs: Sequence[Path] = ()) -> SimulatorConfig:
         own = {p.name: values[p.name] for p in schema.SIMULATOR}
         return cls(shared=SharedConfig.from_values(values, search_dirs), **own)
 

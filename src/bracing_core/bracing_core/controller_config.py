@@ -50,7 +50,10 @@ class ControllerConfig:
     def from_params(cls, params: Params, search_dirs: Sequence[Path] = ()) -> ControllerConfig:
         """Validated against ``schema.CONTROLLER`` (and the shared parameters), with the law's
         cross-checks: +/-1 direction, positive K_V, task dimension <= n - p."""
-        values = schema.read("controller", params)
+        return cls.from_values(schema.read("controller", params), search_dirs)
+
+    @classmethod
+    def from_values(cls, values: schema.Values, search_dirs: Sequence[Path] = ()) -> ControllerConfig:
         shared = SharedConfig.from_values(values, search_dirs)
         n, p = len(shared.joint_names), len(shared.contacts)
         axes = axes_indices("hand.axes", values["hand.axes"])

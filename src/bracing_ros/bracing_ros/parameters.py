@@ -67,11 +67,9 @@ def plain(value: Any) -> Any:
     return list(value) if isinstance(value, (list, tuple, array.array)) else value
 
 
-def declare(node: Node, kind: str, given: dict[str, Any]) -> None:
+def declare(node: Node, kind: str, values: schema.Values) -> None:
     """Declare every parameter of ``kind``'s schema ("simulator" or "controller") on ``node``,
-    typed, described and with the value ``given`` validates to (call after the configuration was
-    built from ``given``: an invalid value has stopped the node by then)."""
-    values = schema.read(kind, given)
+    typed, described and with its validated value (``schema.read`` of what the node was given)."""
     declared: list[tuple[str, Param, Any]] = [(p.name, p, values[p.name]) for p in schema.node_schema(kind)]
     for contact, fields in values.contacts.items():
         declared += [(schema.contact_name(contact, p.name), p, fields[p.name]) for p in schema.contact_fields(kind)]

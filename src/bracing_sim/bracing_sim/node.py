@@ -19,6 +19,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
+from bracing_core import schema
 from bracing_core.config import SimulatorConfig, build_simulator, check_step
 from bracing_core.dynamics import Derivative, InputMode
 from bracing_core.simulator import DivergenceError, Energy
@@ -50,9 +51,9 @@ DESCRIPTION_QOS = QoSProfile(
 class SimulatorNode(Node):
     def __init__(self, **kwargs: object) -> None:
         super().__init__("bracing_simulator", **kwargs)  # type: ignore[arg-type]
-        given = parameters.given_parameters(self)
-        self.config = SimulatorConfig.from_params(given)
-        parameters.declare(self, "simulator", given)  # read-only: nothing changes during a run
+        values = schema.read("simulator", parameters.given_parameters(self))
+        self.config = SimulatorConfig.from_values(values)
+        parameters.declare(self, "simulator", values)  # read-only: nothing changes during a run
         self.plant, self.sim = build_simulator(self.config)
         self.joint_names = list(self.plant.joint_names)
         self.mode = self.config.shared.input_mode
