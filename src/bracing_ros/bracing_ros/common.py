@@ -11,9 +11,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import rclpy
-from builtin_interfaces.msg import Time
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
@@ -194,14 +192,7 @@ def read_joint_state(data: bytes, decoder: wire.JointStateDecoder) -> wire.Joint
     try:
         return decoder.decode(data)
     except wire.UnsupportedEncoding:
-        msg = _deserialize(data, JointState)
-        return wire.JointStateData(
-            nanoseconds(msg.header.stamp),
-            list(msg.name),
-            np.array(msg.position, dtype=float),
-            np.array(msg.velocity, dtype=float),
-            np.array(msg.effort, dtype=float),
-        )
+        return wire.joint_state_data(_deserialize(data, JointState))
 
 
 def read_motor_command(data: bytes, decoder: wire.MotorCommandDecoder) -> wire.MotorCommandData:
@@ -209,10 +200,7 @@ def read_motor_command(data: bytes, decoder: wire.MotorCommandDecoder) -> wire.M
     try:
         return decoder.decode(data)
     except wire.UnsupportedEncoding:
-        msg = _deserialize(data, MotorCommand)
-        return wire.MotorCommandData(
-            nanoseconds(msg.header.stamp), int(msg.mode), list(msg.name), np.array(msg.value, dtype=float)
-        )
+        return wire.motor_command_data(_deserialize(data, MotorCommand))
 
 
 def _deserialize(data: bytes, msg_type: type) -> Any:
@@ -220,10 +208,6 @@ def _deserialize(data: bytes, msg_type: type) -> Any:
         return deserialize_message(data, msg_type)
     except Exception as exc:  # rclpy raises its RMWError (and others) for bytes it cannot read
         raise wire.DecodeError(str(exc).split(", at /")[0]) from None
-
-
-def nanoseconds(time: Time) -> int:
-    return int(time.sec) * 1_000_000_000 + int(time.nanosec)
 
 
 def _interrupt(signum: int, frame: object) -> None:

@@ -434,8 +434,11 @@ class _Serializer:
         self.Point = types["geometry_msgs/msg/Point"]
         self.Vector3 = types["geometry_msgs/msg/Vector3"]
 
+    def time(self, stamp_ns: int) -> Any:
+        return self.Time(*divmod(stamp_ns, 1_000_000_000))
+
     def header(self, stamp_ns: int, frame_id: str) -> Any:
-        return self.Header(self.Time(*divmod(stamp_ns, 1_000_000_000)), frame_id)
+        return self.Header(self.time(stamp_ns), frame_id)
 
     def serialize(self, message: object, typename: str) -> bytes:
         return bytes(self.store.serialize_cdr(message, typename, little_endian=True))
@@ -449,7 +452,7 @@ class ClockEncoder:
         self._clock = _Messages(self._ser.store, "rosgraph_msgs/msg/Clock")
 
     def encode(self, stamp_ns: int) -> bytes:
-        message = self._clock(clock=self._ser.Time(*divmod(stamp_ns, 1_000_000_000)))
+        message = self._clock(clock=self._ser.time(stamp_ns))
         return self._ser.serialize(message, "rosgraph_msgs/msg/Clock")
 
 
@@ -596,7 +599,8 @@ def _deserialize(data: bytes, typename: str) -> Any:
         raise DecodeError(f"not a {typename}: {exc}") from None
 
 
-def _stamp_ns(stamp: Any) -> int:
+def stamp_ns(stamp: Any) -> int:
+    """A builtin_interfaces/Time (rosbags' or rclpy's) in nanoseconds."""
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
@@ -633,9 +637,13 @@ class JointStateDecoder:
 
 def decode_joint_state(data: bytes) -> JointStateData:
     """A sensor_msgs/JointState from its CDR bytes."""
-    msg = _deserialize(data, JOINT_STATE)
+    return joint_state_data(_deserialize(data, JOINT_STATE))
+
+
+def joint_state_data(msg: Any) -> JointStateData:
+    """The numbers of a JointState message object (rosbags' or rclpy's)."""
     return JointStateData(
-        _stamp_ns(msg.header.stamp),
+        stamp_ns(msg.header.stamp),
         list(msg.name),
         np.array(msg.position, dtype=float),
         np.array(msg.velocity, dtype=float),
@@ -669,7 +677,9 @@ class MotorCommandDecoder:
 
 def decode_motor_command(data: bytes) -> MotorCommandData:
     """A bracing_msgs/MotorCommand from its CDR bytes."""
-    msg = _deserialize(data, MOTOR_COMMAND)
-    return MotorCommandData(
-        _stamp_ns(msg.header.stamp), int(msg.mode), list(msg.name), np.array(msg.value, dtype=float)
-    )
+    return motor_command_data(_deserialize(data, MOTOR_COMMAND))
+
+
+def motor_command_data(msg: Any) -> MotorCommandData:
+    """The numbers of a MotorCommand message object (rosbags' or rclpy's)."""
+    return MotorCommandData(stamp_ns(msg.header.stamp), int(msg.mode), list(msg.name), np.array(msg.value, dtype=float))
