@@ -561,13 +561,13 @@ def find(node: str, name: str) -> Param | None:
 def reference_markdown() -> str:
     """The README's parameter reference (``tools/param_reference.py`` writes it there)."""
     sections = (
-        ("`/**` (both nodes)", SHARED, ""),
-        ("`/**`, per contact: `contacts.<name>.`", CONTACT, ""),
-        ("`bracing_simulator`", SIMULATOR, ""),
-        ("`bracing_controller`", CONTROLLER, ""),
+        ("`/**` (both nodes)", SHARED),
+        ("`/**`, per contact: `contacts.<name>.`", CONTACT),
+        ("`bracing_simulator`", SIMULATOR),
+        ("`bracing_controller`", CONTROLLER),
     )
     out: list[str] = []
-    for title, params, _ in sections:
+    for title, params in sections:
         out += [
             f"**{title}**",
             "",
