@@ -6,6 +6,10 @@ in one run on this machine, with medians of repeats. Prints a table, writes benc
 - the ROS pair vs the DDS bound: bracing-pair in lockstep for 10 s of sim time, against the
   round trips/s of two rclpy processes ping-ponging messages of the same size over the
   nodes' own transport, times the step, measured before and after the pair (bench/dds_bound.py);
+  and the two nodes alone (no recorder), alternately with the pair: the recorder's share of a step;
+- turnaround: the timeline of those pair runs (startup_s, stepping_s, shutdown_s, report_s,
+  whole_run_s: see bracing_bringup.timeline), a `bracing-pair --duration 0.01` from command to
+  exit, and `make run` against its two runs' stepping time;
 - controller update latency (p50, p99);
 - engine steps/s for generated chains of n links with p = 1 and 2 contacts, and the
   fitted growth exponent of cost with n.
@@ -19,6 +23,7 @@ import argparse
 import json
 import os
 import platform
+import signal
 import statistics
 import subprocess
 import sys
@@ -144,43 +149,89 @@ def scaling(repeats: int = 3) -> dict[str, Any]:
     return results
 
 
-def pair_real_time_factor(duration: float = 10.0) -> dict[str, float]:
-    """bracing-pair in lockstep: sim time over the wall time of the stepping itself (from the
-    simulator's first to last progress line) and over the whole run including start-up."""
+def pair_run(duration: float, *extra: str) -> dict[str, Any]:
+    """One bracing-pair run in lockstep, as a user starts it: its timeline (``DIR/timeline.json``:
+    startup, stepping, shutdown, report, whole run), the wall time of the command from start to
+    exit, and the stepping real-time factor (sim time over the wall time from the first step to
+    the last)."""
     out = Path(tempfile.mkdtemp(prefix="bench_pair_")) / "run"
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    argv = [sys.executable, "-m", "bracing_bringup.pair", "--config", str(PAPER), "--duration", str(duration)]
+    argv += ["--output", str(out), "--quiet", *extra]  # the pair holds a free domain id of its own
+    start = time.monotonic()
+    done = subprocess.run(argv, capture_output=True, text=True, timeout=1800)
+    command_s = time.monotonic() - start
+    if done.returncode != 0:
+        raise RuntimeError(f"bracing-pair failed: {done.stderr[-2000:]}")
+    timeline = json.loads((out / "timeline.json").read_text())
+    phases = {key: timeline[key] for key in ("startup_s", "stepping_s", "shutdown_s", "report_s", "whole_run_s")}
+    return {
+        **phases,
+        "command_s": command_s,
+        "stepping_real_time_factor": duration / phases["stepping_s"],
+        "last_step_to_last_file_s": phases["shutdown_s"] + phases["report_s"],
+        "events": timeline["events"],
+    }
+
+
+def pair_without_recorder(duration: float = 10.0) -> float:
+    """The two nodes alone in lockstep (no recorder: the simulator waits for the controller only);
+    the stepping real-time factor, measured as in ``pair_run``. Side by side with the pair, it
+    gives the recorder's share of a step."""
+    from bracing_bringup.domains import hold_domain
+    from bracing_bringup.timeline import node_events
+
+    out = Path(tempfile.mkdtemp(prefix="bench_nodes_"))
+    overrides = out / "overrides.yaml"
+    urdf = str(PAPER.parent / "paper_4link.urdf")
+    sim = {"duration": duration, "min_subscribers": 1, "wait_for_recorder": False, "robot.urdf": urdf}
+    controller = {"wait_for_recorder": False, "robot.urdf": urdf}
+    overrides.write_text(
+        json.dumps(
+            {"bracing_simulator": {"ros__parameters": sim}, "bracing_controller": {"ros__parameters": controller}}
+        )
+    )
+    args = ["--ros-args", "--params-file", str(PAPER), "--params-file", str(overrides)]
+    with hold_domain(None) as domain:
+        env = dict(os.environ, ROS_DOMAIN_ID=str(domain.domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+        with (out / "controller.log").open("wb") as clog, (out / "simulator.log").open("wb") as slog:
+            controller_proc = subprocess.Popen(
+                [sys.executable, "-m", "bracing_controller.node", *args], stdout=clog, stderr=subprocess.STDOUT, env=env
+            )
+            try:
+                code = subprocess.run(
+                    [sys.executable, "-m", "bracing_sim.node", *args],
+                    stdout=slog,
+                    stderr=subprocess.STDOUT,
+                    env=env,
+                    timeout=1800,
+                ).returncode
+            finally:
+                controller_proc.send_signal(signal.SIGINT)
+                controller_proc.wait(30)
+    if code != 0:
+        raise RuntimeError(f"the simulator failed: {(out / 'simulator.log').read_text()[-2000:]}")
+    events = dict((what, stamp) for stamp, what in node_events(out / "simulator.log", "simulator"))
+    return duration / (events["simulator finished"] - events["simulator stepping"])
+
+
+def make_run() -> dict[str, float]:
+    """``make run``'s command (both paper runs, the table, the comparison) against the two runs'
+    stepping time."""
+    out = Path(tempfile.mkdtemp(prefix="bench_make_run_"))
     start = time.monotonic()
     done = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "bracing_bringup.pair",
-            "--config",
-            str(PAPER),
-            "--duration",
-            str(duration),
-            "--output",
-            str(out),
-            "--quiet",  # the pair holds a free domain id of its own (bracing_bringup.domains)
-        ],
-        env=env,
+        [sys.executable, "-m", "bracing_bringup.paper_run", "--output", str(out)],
         capture_output=True,
         text=True,
         timeout=1800,
+        cwd=ROOT,
     )
     total = time.monotonic() - start
     if done.returncode != 0:
-        raise RuntimeError(f"bracing-pair failed: {done.stderr[-2000:]}")
-    from bracing_bringup.pair import PROGRESS
-
-    stamps = []
-    for line in (out / "logs" / "simulator.log").read_text().splitlines():
-        found = PROGRESS.search(line)
-        if found:
-            wall = float(line.split("] [")[1].split("]")[0])  # rcutils log time [s]
-            stamps.append((wall, float(found.group(1))))
-    (w0, t0), (w1, t1) = stamps[0], stamps[-1]
-    return {"stepping": (t1 - t0) / (w1 - w0), "whole_run": duration / total}
+        raise RuntimeError(f"make run failed: {done.stderr[-2000:]}")
+    timelines = [json.loads((out / name / "timeline.json").read_text()) for name in ("braced", "unbraced")]
+    stepping = sum(timeline["stepping_s"] for timeline in timelines)
+    return {"whole_s": total, "stepping_s": stepping, "ratio": total / stepping}
 
 
 def machine() -> dict[str, Any]:
@@ -232,9 +283,24 @@ def main(argv: list[str] | None = None) -> int:
         objects_runs.append(dds_round_trips_per_s(n=2000, repeats=3, wire="objects"))
 
     measure_bounds("dds bound ...")
-    print("pair (10 s of sim time) ...", flush=True)
-    pair = pair_real_time_factor(2.0 if args.quick else 10.0)
+    duration = 2.0 if args.quick else 10.0
+    print(f"pair ({duration:g} s of sim time), with and without the recorder, alternately ...", flush=True)
+    pair_runs: list[dict[str, Any]] = []
+    bare_rtf: list[float] = []
+    for _ in range(1 if args.quick else 2):
+        pair_runs.append(pair_run(duration))
+        bare_rtf.append(pair_without_recorder(duration))
     measure_bounds("dds bound again ...")
+    print("turnaround: bracing-pair --duration 0.01, and make run ...", flush=True)
+    tiny = [pair_run(0.01) for _ in range(1 if args.quick else 2)]
+    paper = make_run()
+    pair = {key: statistics.median(run[key] for run in pair_runs) for key in pair_runs[0] if key != "events"}
+    pair["stepping"] = pair["stepping_real_time_factor"]
+    pair["whole_run"] = duration / pair["whole_run_s"]
+    without_recorder = statistics.median(bare_rtf)
+    # Per 1 ms step: wall time with the recorder vs without it.
+    recorder_share = 1.0 - pair["stepping"] / without_recorder
+    tiny_command = statistics.median(run["command_s"] for run in tiny)
     print("scaling ...", flush=True)
     scale = scaling(repeats=2 if args.quick else 3)
     print("sweep throughput (1 and 2 local workers, Dask LocalCluster) ...", flush=True)
@@ -249,6 +315,20 @@ def main(argv: list[str] | None = None) -> int:
         "engine_vs_mujoco": engine / mj["steps_per_s"],
         "pair_real_time_factor": pair["stepping"],
         "pair_real_time_factor_whole_run": pair["whole_run"],
+        "pair_without_recorder_real_time_factor": without_recorder,
+        "recorder_share_of_step": recorder_share,
+        "startup_s": pair["startup_s"],
+        "stepping_s": pair["stepping_s"],
+        "shutdown_s": pair["shutdown_s"],
+        "report_s": pair["report_s"],
+        "whole_run_s": pair["whole_run_s"],
+        "last_step_to_last_file_s": pair["last_step_to_last_file_s"],
+        "timeline_events": pair_runs[0]["events"],
+        "tiny_run_command_s": tiny_command,
+        "tiny_run_timeline": {key: value for key, value in tiny[0].items() if key != "events"},
+        "make_run_s": paper["whole_s"],
+        "make_run_stepping_s": paper["stepping_s"],
+        "make_run_vs_stepping": paper["ratio"],
         "dds_bound_real_time_factor": bound,
         "dds_round_trip_us": 1e3 / bound,
         "dds_bound_before_after": [run["round_trips_per_s"] * step for run in bound_runs],
@@ -271,6 +351,19 @@ def main(argv: list[str] | None = None) -> int:
         ("engine / MuJoCo", f"{result['engine_vs_mujoco']:.3f}"),
         ("pair real-time factor (lockstep stepping)", f"{pair['stepping']:.2f}"),
         ("pair real-time factor (whole run, with start-up)", f"{pair['whole_run']:.2f}"),
+        ("the two nodes without the recorder: real-time factor", f"{without_recorder:.2f}"),
+        ("recorder's share of a lockstep step", f"{recorder_share:.1%}"),
+        (
+            f"timeline of a {duration:g} s run: startup / stepping / shutdown / report / whole [s]",
+            " / ".join(f"{pair[k]:.2f}" for k in ("startup_s", "stepping_s", "shutdown_s", "report_s", "whole_run_s")),
+        ),
+        ("  command to first step (target < 1.5 s)", f"{pair['startup_s']:.2f} s"),
+        ("  last step to last file written (target < 1.0 s)", f"{pair['last_step_to_last_file_s']:.2f} s"),
+        ("bracing-pair --duration 0.01, command to exit (target < 2.5 s)", f"{tiny_command:.2f} s"),
+        (
+            "make run / the two runs' stepping (target < 1.6)",
+            f"{paper['ratio']:.2f} ({paper['whole_s']:.1f} s / {paper['stepping_s']:.1f} s)",
+        ),
         ("DDS bound real-time factor (round trips/s x 1 ms, CDR bytes)", f"{bound:.2f}"),
         ("pair / bound", f"{result['pair_vs_bound']:.3f}"),
         ("DDS bound with rclpy message objects (for comparison)", f"{bound_objects:.2f}"),

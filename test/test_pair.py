@@ -14,6 +14,8 @@ from conftest import build_scenario, run_closed_loop
 from ros_helpers import isolated_env, pair_argv, run, start
 from rosbags.highlevel import AnyReader
 
+from bracing_bringup.animation import DEFAULT_INTERVAL_S
+from bracing_bringup.drawing import report_series
 from bracing_bringup.summary import compute_summary, read_series
 
 STEP_TOPICS = [
@@ -88,6 +90,51 @@ def test_summary_agrees_with_the_bag(paper_run: Path) -> None:
     assert summary["constraint_residual_max_m"] < 1e-9
     for png in ("hand_y.png", "hand_z.png", "brace_y.png", "normal_force.png", "energy.png"):
         assert (paper_run / png).stat().st_size > 10_000
+
+
+def test_timeline_accounts_for_the_whole_run(paper_run: Path) -> None:
+    timeline = json.loads((paper_run / "timeline.json").read_text())
+    phases = [timeline[key] for key in ("startup_s", "stepping_s", "shutdown_s", "report_s")]
+    assert all(value > 0 for value in phases), timeline
+    assert sum(phases) == pytest.approx(timeline["whole_run_s"], abs=1e-9)
+    at = {event["what"]: event["t_s"] for event in timeline["events"]}
+    # Every moment the timeline names, in the order a run goes through them.
+    order = [
+        "processes started",
+        "first step",
+        "last step",
+        "bag closed",
+        "bag read",
+        "bag checked",
+        "summary.json",
+        "last file written",
+    ]
+    assert [at[what] for what in order] == sorted(at[what] for what in order), at
+    for what in ("simulator configured", "controller configured", "controller answering", "recorder ready"):
+        assert 0 < at[what] <= at["first step"] + 0.05, what  # the recorder may print after the match
+    drawn = {what for what in at if what.startswith("plot ") or what == "animation"}
+    pngs = ("hand_y.png", "hand_z.png", "brace_y.png", "normal_force.png", "energy.png")
+    assert drawn == {f"plot {png}" for png in pngs} | {"animation"}
+    assert all(at["summary.json"] <= at[what] <= at["last file written"] for what in drawn)
+    assert timeline["stepping_s"] == pytest.approx(at["last step"] - at["first step"], abs=1e-3)
+
+
+def test_report_is_the_general_paths_report(paper_run: Path, tmp_path: Path) -> None:
+    """The pair reads its bag once, column-wise, and draws in processes of its own; on the same
+    bag, the way reports were made before (every message decoded by rosbags, drawn in this
+    process) gives the same summary.json and the same files, byte for byte."""
+    summary = json.loads((paper_run / "summary.json").read_text())
+    reference = report_series(
+        read_series(paper_run / "bag", columnar=False),
+        tmp_path,
+        wall_time_s=summary["wall_time_s"],
+        animation_interval_s=DEFAULT_INTERVAL_S,
+        parallel=False,
+    )
+    assert reference == summary
+    assert (tmp_path / "summary.json").read_bytes() == (paper_run / "summary.json").read_bytes()
+    for name in ("hand_y.png", "hand_z.png", "brace_y.png", "normal_force.png", "energy.png", "animation.gif"):
+        assert (tmp_path / name).read_bytes() == (paper_run / name).read_bytes(), name
 
 
 def _wait_for_progress(output: Path, timeout: float = 60.0) -> None:

@@ -451,6 +451,23 @@ def test_recorder_records_every_topic_exactly(tmp_path: Path, procs: list[Proc])
     assert summary["real_time_factor"] == pytest.approx((N_STEPS - 1) * DT / 2.0)
 
 
+def test_recorder_closes_the_bag_once_it_has_every_message(tmp_path: Path, procs: list[Proc]) -> None:
+    """--expect-states N (bracing-pair's lockstep runs): no signal and no drain; the recorder
+    closes the bag as soon as every topic has N messages, and exits."""
+    env = ros_env()
+    bag = tmp_path / "run" / "bag"
+    rec = start_recorder(procs, env, bag, "", CONTACTS, "--expect-states", str(N_STEPS))
+    pub = start_publisher(procs, env, tmp_path, "", CONTACTS, N_STEPS, period=0.0)
+    rc, err = rec.finish(timeout=30.0)
+    assert rc == 0, err
+    assert any(line.startswith("recorder closed the bag at ") for line in rec.stdout)
+    assert pub.finish(timeout=15.0)[0] == 0
+    data = read_bag(bag)
+    assert set(data) == expected_topics("", CONTACTS)
+    for topic, msgs in data.items():
+        assert len(msgs) == (1 if topic.endswith(ONCE) else N_STEPS), topic
+
+
 @pytest.mark.parametrize(("sig", "publisher_keeps_going"), [(signal.SIGINT, True), (signal.SIGTERM, False)])
 def test_recorder_stopped_mid_stream_leaves_readable_bag(
     tmp_path: Path, procs: list[Proc], sig: signal.Signals, publisher_keeps_going: bool

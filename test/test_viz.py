@@ -6,9 +6,11 @@ module; their bags are read with rosbags using only the definitions embedded in 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import select
+import struct
 import subprocess
 import sys
 import time
@@ -21,13 +23,26 @@ import pytest
 from ros_helpers import PAPER_YAML, isolated_env, node_argv, pair_argv, run, start
 from rosbags.highlevel import AnyReader
 
-from bracing_bringup.animation import LINK_COLOR, ArmAnimation, frame_times
+import bracing_bringup.scene as scene_module
+from bracing_bringup.animation import (
+    FORCE_COLOR,
+    LINK_COLOR,
+    POINT_COLOR,
+    SURFACE_COLOR,
+    TARGET_COLOR,
+    TRAIL_COLOR,
+    ArmAnimation,
+    GifWriter,
+    Palette,
+    frame_times,
+)
 from bracing_bringup.compare import write_comparison
 from bracing_bringup.recorder import bracing_typestore, missing_messages
 from bracing_bringup.report import main as report_main
 from bracing_bringup.report import write_report
 from bracing_bringup.scene import FORCE_ARROW_M_PER_N, DescriptionError, SceneBuilder
 from bracing_bringup.summary import read_series
+from bracing_ros import wire
 
 DURATION = 0.3
 STATES = 301  # 0.3 s at 1 ms, both ends
@@ -247,6 +262,134 @@ def _string(text: str) -> Any:
     return bracing_typestore().types["std_msgs/msg/String"](data=text)
 
 
+SCENE_TYPES = {  # derived topic key -> message type
+    "tf": "tf2_msgs/msg/TFMessage",
+    "tf_static": "tf2_msgs/msg/TFMessage",
+    "contact_markers": "visualization_msgs/msg/MarkerArray",
+}
+
+
+def _raw_inputs(bag: Path) -> list[tuple[str, bytes]]:
+    """The scene's inputs recorded in a bag, (topic, CDR bytes) in bag order."""
+    from rosbags.rosbag2 import Reader
+
+    topics = ("/joint_states", "/contacts", "/robot_description")
+    with Reader(bag) as reader:
+        return [
+            (connection.topic, bytes(data))
+            for connection, _, data in reader.messages()
+            if connection.topic in topics or connection.topic.startswith("/contact_wrench/")
+        ]
+
+
+def _derive(inputs: list[tuple[str, bytes]], contacts: list[str]) -> tuple[SceneBuilder, list[tuple[str, int, bytes]]]:
+    """Every message a SceneBuilder derives from ``inputs``, fed as the recorder feeds it (header stamps)."""
+    scene = SceneBuilder(bracing_typestore(), contacts)
+    out = []
+    for topic, data in inputs:
+        sec, nanosec = struct.unpack_from("<iI", data, 4)  # header.stamp, after the encapsulation header
+        stamp = sec * 1_000_000_000 + nanosec
+        if topic == "/robot_description":
+            derived = scene.description(data)
+        elif topic == "/joint_states":
+            derived = scene.joint_state(stamp, data)
+        elif topic == "/contacts":
+            derived = scene.contacts(stamp, data)
+        else:
+            derived = scene.wrench(topic.removeprefix("/contact_wrench/"), stamp, data)
+        out += [(d.key, d.stamp_ns, bytes(d.data)) for d in derived]
+    return scene, out
+
+
+def _derive_general(inputs: list[tuple[str, bytes]], contacts: list[str]) -> list[tuple[str, int, bytes]]:
+    """``_derive`` with no byte template: rosbags' deserialiser and serialiser for every message."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(scene_module._Layout, "fast", lambda self, key, values: None)
+        patch.setattr(scene_module._Reader, "read", lambda self, data: None)
+        patch.setattr(wire.JointStateDecoder, "decode", lambda self, data: wire.decode_joint_state(data))
+        scene, out = _derive(inputs, contacts)
+    assert scene.general["tf"] == STATES  # no template was used
+    return out
+
+
+@pytest.mark.parametrize("name", ["braced", "unbraced"])
+def test_scene_templates_give_rosbags_bytes_for_every_message(runs: dict[str, Path], name: str) -> None:
+    """The byte templates' messages are, byte for byte, rosbags' serialisation of the same messages."""
+    inputs = _raw_inputs(runs[name] / "bag")
+    contacts = sorted({topic.removeprefix("/contact_wrench/") for topic, _ in inputs if "wrench" in topic})
+    scene, out = _derive(inputs, contacts)
+    general = _derive_general(inputs, contacts)
+    assert len(out) == len(general) == (2 * STATES + 1 if contacts else STATES + 1)
+    for mine, theirs in zip(out, general, strict=True):
+        assert mine == theirs
+    # The templates did the work: rosbags only for the first message of each kind.
+    kinds = ["tf", "contacts", *(["wrench", "contact_markers"] if contacts else [])]  # unbraced: no contact
+    assert scene.general == dict.fromkeys(kinds, 1)
+    # What the recorder wrote, and rosbags' own bytes for what they hold.
+    from rosbags.rosbag2 import Reader
+
+    with Reader(runs[name] / "bag") as reader:
+        written = [
+            (connection.topic, stamp, bytes(data))
+            for connection, stamp, data in reader.messages()
+            if connection.topic in ("/tf", "/tf_static", "/contact_markers")
+        ]
+    assert sorted(written) == sorted((f"/{key}", stamp, data) for key, stamp, data in out)
+    store = bracing_typestore()
+    for key, _, data in out:
+        assert bytes(store.serialize_cdr(store.deserialize_cdr(data, SCENE_TYPES[key]), SCENE_TYPES[key])) == data
+
+
+@pytest.mark.parametrize("at", ["first", "middle"])
+def test_scene_falls_back_to_rosbags_when_the_layout_changes(runs: dict[str, Path], at: str) -> None:
+    """Messages of another layout than the first (contacts, names, frame ids) take rosbags' path, same bytes."""
+    store = bracing_typestore()
+    inputs = _raw_inputs(runs["braced"] / "bag")
+    where = {topic: [k for k, (t, _) in enumerate(inputs) if t == topic] for topic in dict(inputs)}
+    pick = 0 if at == "first" else len(where["/contacts"]) // 2
+
+    def edit(topic: str, offset: int, typename: str, change: Any) -> None:
+        k = where[topic][pick + offset]
+        message = store.deserialize_cdr(inputs[k][1], typename)
+        change(message)
+        inputs[k] = (topic, bytes(store.serialize_cdr(message, typename)))
+
+    def two_contacts(m: Any) -> None:  # a second contact, released
+        m.contacts = [m.contacts[0], dataclasses.replace(m.contacts[0], name="knee", frame="link3", active=False)]
+
+    def renamed(m: Any) -> None:  # the same length of name: only the bytes of the name differ
+        m.contacts = [dataclasses.replace(m.contacts[0], name="wrist")]
+
+    def released(m: Any) -> None:  # the same layout, another color
+        m.contacts = [dataclasses.replace(m.contacts[0], active=False)]
+
+    def other_frame(m: Any) -> None:
+        m.header.frame_id = "link2"
+
+    def reordered(m: Any) -> None:
+        m.name, m.position = m.name[::-1], m.position[::-1].copy()
+
+    edit("/contacts", 0, "bracing_msgs/msg/Contacts", two_contacts)
+    edit("/contacts", 1, "bracing_msgs/msg/Contacts", renamed)
+    edit("/contacts", 2, "bracing_msgs/msg/Contacts", released)
+    edit("/contact_wrench/elbow", 3, "geometry_msgs/msg/WrenchStamped", other_frame)
+    edit("/joint_states", 4, "sensor_msgs/msg/JointState", other_frame)
+    edit("/joint_states", 5, "sensor_msgs/msg/JointState", reordered)
+    scene, out = _derive(inputs, ["elbow"])
+    assert out == _derive_general(inputs, ["elbow"])
+    assert len(out) == 2 * STATES + 1 and scene.waiting == 0
+    markers = [
+        store.deserialize_cdr(data, SCENE_TYPES[key]).markers for key, _, data in out if key == "contact_markers"
+    ]
+    assert [len(m) for m in markers[pick : pick + 3]] == [5, 2, 3]  # knee: no wrench, no arrow; wrist: no arrow
+    assert {m.ns for m in markers[pick + 1]} == {"wrist"}
+    # rosbags for the first message of each kind (it makes the template) and the odd ones; templates for the rest.
+    if at == "first":  # the templates have the odd first layout: rosbags for every contacts and markers message
+        assert scene.general == {"tf": 1, "contacts": STATES, "contact_markers": STATES, "wrench": 1 + 1}
+    else:
+        assert scene.general == {"tf": 1, "contacts": 1 + 2, "contact_markers": 1 + 2, "wrench": 1 + 1}
+
+
 # --------------------------------------------------------------------------- the animation
 
 
@@ -287,6 +430,13 @@ def test_animation_frames_and_start_pose(runs: dict[str, Path], tmp_path: Path) 
         import imageio_ffmpeg
 
         assert imageio_ffmpeg.count_frames_and_secs(str(mp4))[0] == 4
+        # ffmpeg reads the palette indices and the palette: the links keep their colour.
+        frames = imageio_ffmpeg.read_frames(str(mp4))
+        size = next(frames)["size"]
+        video = np.frombuffer(next(frames), dtype=np.uint8).reshape(size[1], size[0], 3)
+        frames.close()
+        col, row = animation.pixel(knee / 2)
+        assert _close(video[row, col], LINK_COLOR), video[row, col]
 
 
 def test_frame_count_follows_the_interval() -> None:
@@ -294,6 +444,31 @@ def test_frame_count_follows_the_interval() -> None:
     assert frame_times(0.3, 0.1).size == 4
     assert frame_times(0.3, 0.07).size == 5
     assert frame_times(0.0, 0.1).size == 1
+
+
+def test_palette_keeps_the_drawing_colours_and_the_gif_its_frames(tmp_path: Path) -> None:
+    """White, black and every drawing colour are reduced to themselves; the GIF (each frame after
+    the first written as what changed) decodes to the frames given, an unchanged one included."""
+    from PIL import Image
+
+    palette = Palette()
+    colours = ["#ffffff", "#000000", LINK_COLOR, SURFACE_COLOR, FORCE_COLOR, TARGET_COLOR, TRAIL_COLOR, POINT_COLOR]
+    rgba = np.array([[[int(c[i : i + 2], 16) for i in (1, 3, 5)] + [255] for c in colours]], dtype=np.uint8)
+    assert ["#{:02x}{:02x}{:02x}".format(*palette.rgb[i]) for i in palette.index(rgba)[0]] == colours
+    first = np.zeros((6, 8), dtype=np.uint8)
+    second = first.copy()
+    second[2:4, 3:7] = 5
+    frames = [first, second, second, first]
+    gif = GifWriter(tmp_path / "a.gif", palette, 100)
+    for frame in frames:
+        gif.add(frame)
+    gif.close()
+    written = Image.open(tmp_path / "a.gif")
+    assert getattr(written, "n_frames", 1) == len(frames)
+    for k, frame in enumerate(frames):
+        written.seek(k)
+        assert np.array_equal(np.asarray(written.convert("RGB")), palette.rgb[frame]), k
+        assert written.info["duration"] == 100
 
 
 # --------------------------------------------------------------------------- comparison and old bags

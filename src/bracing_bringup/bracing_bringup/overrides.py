@@ -16,14 +16,15 @@ import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import yaml
 
 from bracing_core import schema
-from bracing_core.config import SimulatorConfig
-from bracing_core.controller_config import ControllerConfig
 from bracing_core.params import ConfigError, load_params_file
+
+if TYPE_CHECKING:
+    from bracing_core.config import SimulatorConfig
 
 SIMULATOR = "bracing_simulator"
 CONTROLLER = "bracing_controller"
@@ -141,6 +142,9 @@ def node_params(config: Path, overrides: NodeOverrides) -> dict[str, dict[str, A
 def validate(config: Path, overrides: NodeOverrides) -> SimulatorConfig:
     """Both nodes' typed configurations build (no model is loaded: cheap); the ConfigError names
     the parameter, prefixed with the overrides that led to it."""
+    from bracing_core.config import SimulatorConfig  # pinocchio: bracing-pair's start needs only the schema
+    from bracing_core.controller_config import ControllerConfig
+
     params = node_params(config, overrides)
     search = [config.resolve().parent]
     try:

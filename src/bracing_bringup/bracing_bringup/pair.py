@@ -2,8 +2,10 @@
 
     bracing-pair --config F [--duration S] [--output DIR] [--mode voltage|torque]
                  [--no-bracing] [--real-time] [--domain-id N] [--set KEY=VALUE ...]
+                 [--no-animation] [--timeline]
 
-Writes DIR/bag/ (mcap), DIR/logs/*.log, DIR/summary.json and the report's PNGs.
+Writes DIR/bag/ (mcap), DIR/logs/*.log, DIR/summary.json, the report's PNGs and animation,
+and DIR/timeline.json (where the wall time went: see ``timeline``).
 Exit 0 on success; non-zero with the failing process's log tail otherwise. Ctrl-C stops
 the nodes and still leaves a readable bag.
 """
@@ -14,9 +16,11 @@ import argparse
 import copy
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -27,9 +31,19 @@ import yaml
 
 from bracing_bringup.domains import hold_domain
 from bracing_bringup.overrides import parse_single, route
-from bracing_core.config import SimulatorConfig
-from bracing_core.controller_config import ControllerConfig
-from bracing_core.params import ConfigError, load_params_file
+from bracing_bringup.timeline import (
+    BAG_CLOSED,
+    FIRST_STEP,
+    LAST_FILE,
+    LAST_STEP,
+    Timeline,
+    node_events,
+    process_start_time,
+    recorder_events,
+)
+from bracing_bringup.topics import missing_from_counts
+from bracing_core import schema
+from bracing_core.params import ConfigError, load_params_file, resolve_file
 
 EXIT_FAILED = 1
 EXIT_CONFIG = 2
@@ -48,6 +62,9 @@ class RunOptions:
     quiet: bool = False
     stall_timeout: float = 60.0  # [s] wall without sim progress before the run is declared hung
     parameters: dict[str, Any] = field(default_factory=dict)  # --set KEY=VALUE (flat names; see overrides)
+    command_start: float | None = None  # wall time the run was asked for (default: run_pair's call)
+    animation: bool = True  # draw animation.gif / .mp4 with the report
+    show_timeline: bool = False  # print the timeline at the end (bracing-pair --timeline)
 
 
 @dataclass
@@ -58,6 +75,7 @@ class RunResult:
     summary: dict[str, Any] | None = None
     message: str = ""
     logs: dict[str, Path] = field(default_factory=dict)
+    timeline: Timeline | None = None
 
 
 def shared_overrides(options: RunOptions) -> dict[str, Any]:
@@ -108,13 +126,26 @@ def write_overrides(path: Path, node_overrides: dict[str, dict[str, Any]]) -> No
 
 
 class Pair:
-    """The processes of one run and their supervision."""
+    """The processes of one run and their supervision.
 
-    def __init__(self, options: RunOptions) -> None:
+    Each process's output goes to DIR/logs/<name>.log through a thread of this process that
+    also notes the lines the run waits for (the simulator's last line, the recorder's closing
+    of the bag) and the simulator's progress, and wakes ``changed``: the run reacts to them at
+    once instead of polling the logs.
+    """
+
+    def __init__(self, options: RunOptions, timeline: Timeline) -> None:
         self.options = options
         self.procs: dict[str, subprocess.Popen[bytes]] = {}
         self.logs: dict[str, Path] = {}
         self.interrupted = 0  # the signal number that asked to stop, if any
+        self.interrupted_procs: set[str] = set()
+        self.exited: set[str] = set()
+        self.timeline = timeline
+        self.changed = threading.Event()  # a watched line came, or a process closed its output
+        self.seen: set[str] = set()  # watched lines seen (WATCHED)
+        self.sim_time: float | None = None  # [s] the simulator's last progress line
+        self._followers: dict[str, threading.Thread] = {}
 
     def say(self, text: str, end: str = "\n") -> None:
         if not self.options.quiet:
@@ -123,27 +154,83 @@ class Pair:
     def start(self, name: str, argv: list[str], env: dict[str, str]) -> subprocess.Popen[bytes]:
         log = self.options.output / "logs" / f"{name}.log"
         self.logs[name] = log
-        with log.open("wb") as handle:
-            proc = subprocess.Popen(argv, stdout=handle, stderr=subprocess.STDOUT, env=env, start_new_session=True)
+        proc = subprocess.Popen(
+            argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env, start_new_session=True
+        )
         self.procs[name] = proc
+        follower = threading.Thread(target=self._follow, args=(proc, log), name=f"log-{name}", daemon=True)
+        follower.start()
+        self._followers[name] = follower
         return proc
 
-    def stop(self, name: str, timeout: float = 10.0) -> int | None:
+    def _follow(self, proc: subprocess.Popen[bytes], log: Path) -> None:
+        assert proc.stdout is not None
+        with log.open("wb") as handle:
+            for line in iter(proc.stdout.readline, b""):
+                handle.write(line)
+                handle.flush()  # the log is whole whenever someone reads it (a failure's tail)
+                text = line.decode(errors="replace")
+                progress = PROGRESS.search(text)
+                if progress is not None:
+                    self.sim_time = float(progress.group(1))
+                watched = next((needle for needle in WATCHED if needle in text), None)
+                if watched is not None:
+                    self.seen.add(watched)
+                    self.changed.set()
+        self.changed.set()  # end of output: the process exited
+
+    def exit_code(self, name: str) -> int | None:
+        """``name``'s exit code once it has exited and all its output is in its log, else None."""
+        code = self.procs[name].poll()
+        if code is not None:
+            self._followers[name].join(5.0)
+        return code
+
+    def interrupt(self, name: str) -> None:
+        """SIGINT ``name`` once (a node stops as on Ctrl-C: it flushes, then exits)."""
+        proc = self.procs.get(name)
+        if proc is not None and proc.poll() is None and name not in self.interrupted_procs:
+            self.interrupted_procs.add(name)
+            proc.send_signal(signal.SIGINT)
+
+    def stop(self, name: str, timeout: float = 10.0, ask: bool = True) -> int | None:
+        """Wait for ``name`` to exit (after a SIGINT unless ``ask`` is False), escalating to SIGTERM
+        and SIGKILL after ``timeout``; its exit code."""
         proc = self.procs.get(name)
         if proc is None:
             return None
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
+        if name in self.exited:
+            return proc.returncode
+        if ask:
+            self.interrupt(name)
+        try:
+            proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            self.interrupt(name)
+            proc.terminate()
             try:
-                proc.wait(timeout)
+                proc.wait(3.0)
             except subprocess.TimeoutExpired:
-                proc.terminate()
-                try:
-                    proc.wait(3.0)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
-                    proc.wait()
+                proc.kill()
+                proc.wait()
+        self._followers[name].join(5.0)
+        self.exited.add(name)
+        self.timeline.mark(f"{name} exited")
         return proc.returncode
+
+    def kill_all(self) -> None:
+        for name, proc in self.procs.items():
+            proc.kill()
+            proc.wait()
+            self._followers[name].join(5.0)
+            self.exited.add(name)
+
+    def stop_all(self, ask: bool = True) -> dict[str, int | None]:
+        """Stop the processes in order (each after a SIGINT unless ``ask`` is False); their exit codes."""
+        # Generous grace: the controller flushes its last answers to the recorder (<= 10 s), and a
+        # recorder that fell behind on a busy machine drains its queues (<= 60 s) before closing.
+        graces = (("simulator", 10.0), ("controller", 15.0), ("recorder", 75.0))
+        return {name: self.stop(name, grace, ask) for name, grace in graces}
 
     def tail(self, name: str, lines: int = 20) -> str:
         try:
@@ -151,24 +238,6 @@ class Pair:
         except (KeyError, OSError):
             return ""
         return "\n".join(f"  {name}| {line}" for line in text[-lines:])
-
-    def wait_for_line(self, name: str, needle: str, timeout: float) -> bool:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if needle in self.logs[name].read_text(errors="replace"):
-                return True
-            if self.procs[name].poll() is not None:
-                return False
-            time.sleep(0.05)
-        return False
-
-    def sim_time(self) -> float | None:
-        try:
-            text = self.logs["simulator"].read_text(errors="replace")
-        except OSError:
-            return None
-        found = PROGRESS.findall(text[-4000:])
-        return float(found[-1]) if found else None
 
 
 def run_pair(options: RunOptions) -> RunResult:
@@ -189,25 +258,34 @@ def run_pair(options: RunOptions) -> RunResult:
 
 
 def _run_pair(options: RunOptions, domain: int) -> RunResult:
+    timeline = Timeline(options.command_start if options.command_start is not None else time.time())
     start_wall = time.monotonic()
     out = options.output
-    sim_config = SimulatorConfig.from_params(effective_params(options, "bracing_simulator"), [options.config.parent])
-    ControllerConfig.from_params(effective_params(options, "bracing_controller"), [options.config.parent])
-    duration = options.duration if options.duration is not None else sim_config.duration
+    # What starting the processes needs, checked against the schemas (names, types, bounds); the
+    # configurations' own checks (pinocchio's imports, ~0.25 s) follow while the processes import.
+    search = [options.config.parent]
+    sim_values = schema.read("simulator", effective_params(options, "bracing_simulator"))
+    controller_values = schema.read("controller", effective_params(options, "bracing_controller"))
+    urdf = resolve_file(sim_values["robot.urdf"], "robot.urdf", search)
+    duration = options.duration if options.duration is not None else float(sim_values["duration"])
+    step = float(sim_values["step"])
     bag = out / "bag"
     if bag.exists():
         raise ConfigError(f"--output: {bag} exists already; choose a new output directory")
+    created = not out.exists()
     (out / "logs").mkdir(parents=True, exist_ok=True)
     override_file = out / "overrides.yaml"
-    write_overrides(override_file, overrides(options, sim_config.shared.urdf))
+    write_overrides(override_file, overrides(options, urdf))
 
     env = dict(os.environ)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = env.get("BRACING_DISCOVERY_RANGE", "LOCALHOST")
     env["ROS_DOMAIN_ID"] = str(domain)
     env["PYTHONUNBUFFERED"] = "1"
     ros_args = ["--ros-args", "--params-file", str(options.config.resolve()), "--params-file", str(override_file)]
-    contacts = [c.name for c in sim_config.shared.contacts]
-    pair = Pair(options)
+    contacts = list(sim_values.contacts)
+    lockstep = sim_values["stepping"] == "lockstep" and not options.real_time and duration > 0
+    expected_states = round(duration / step) + 1 if lockstep else 0
+    pair = Pair(options, timeline)
     # Ctrl-C or a SIGTERM (a CI timeout, `kill`): stop the nodes in order, keep the bag. The
     # children run in sessions of their own, so nothing else would stop them.
     previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
@@ -217,55 +295,74 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
 
     for sig in previous:
         signal.signal(sig, on_signal)
-    message, code = "", 0
+    message, code, finished = "", 0, False
     try:
         pair.say(f"bracing-pair: ROS_DOMAIN_ID={domain}, output {out}")
-        pair.start(
-            "recorder",
-            [
-                sys.executable,
-                "-m",
-                "bracing_bringup.recorder",
-                "--output",
-                str(bag),
-                "--contacts",
-                ",".join(contacts),
-                "--niceness",
-                "10",  # the lockstep loop's two nodes come first; the recorder catches up in their gaps
-            ],
-            env,
-        )
-        if not pair.wait_for_line("recorder", "recorder ready", 30.0):
-            raise _Failure("recorder", "the recorder did not start")
+        # All three at once: each imports and discovers the others while the rest start. No state
+        # goes out before the recorder is there: the simulator steps only once the recorder (and
+        # the controller) subscribe to every topic it publishes, and the controller answers only
+        # once the recorder subscribes to its outputs (the nodes' wait_for_recorder).
+        recorder = [sys.executable, "-m", "bracing_bringup.recorder", "--output", str(bag)]
+        recorder += ["--contacts", ",".join(contacts), "--niceness", "10"]  # the lockstep loop comes first
+        recorder += ["--drain-idle", "0.05"]  # stopped only after the nodes' last messages are acknowledged
+        if expected_states:
+            recorder += ["--expect-states", str(expected_states)]  # it closes the bag once it has them all
+        pair.start("recorder", recorder, env)
         pair.start("controller", [sys.executable, "-m", "bracing_controller.node", *ros_args], env)
         pair.start("simulator", [sys.executable, "-m", "bracing_sim.node", *ros_args], env)
+        timeline.mark("processes started")
+        try:
+            _check_configs(sim_values, controller_values, search)
+        except ConfigError:
+            pair.kill_all()  # they would stop on the same error; nothing of the run is kept
+            if created:
+                shutil.rmtree(out, ignore_errors=True)
+            else:
+                shutil.rmtree(bag, ignore_errors=True)
+            raise
+        timeline.mark("configuration checked")
         last_progress, last_time, last_shown = time.monotonic(), -1.0, 0.0
         tty = sys.stdout.isatty()
-        while True:
+        while FINISHED not in pair.seen:  # the simulator's last messages are acknowledged by every subscriber
             if pair.interrupted:
                 raise _Interrupted()
-            sim_code = pair.procs["simulator"].poll()
-            if sim_code is not None:
-                if sim_code != 0:
-                    raise _Failure("simulator", f"the simulator exited with code {sim_code}")
-                break
-            for name in ("controller", "recorder"):
-                if pair.procs[name].poll() is not None:
-                    raise _Failure(name, f"the {name} exited with code {pair.procs[name].returncode} during the run")
-            t = pair.sim_time()
-            now = time.monotonic()
+            pair.changed.wait(0.1)
+            pair.changed.clear()
+            for name in ("simulator", "controller", "recorder"):
+                exit_code = pair.exit_code(name)
+                # The recorder may close the bag and exit by itself once it has every message.
+                if exit_code is not None and FINISHED not in pair.seen and (name != "recorder" or exit_code != 0):
+                    raise _Failure(name, f"the {name} exited with code {exit_code} during the run")
+            t, now = pair.sim_time, time.monotonic()
             if t is not None and t > last_time:
                 last_time, last_progress = t, now
-                if now - last_shown >= (0.2 if tty else 2.0) or t >= duration:
+                if now - last_shown >= (0.2 if tty else 2.0):
                     last_shown = now
                     rtf = t / max(now - start_wall, 1e-9)
                     line = f"  sim {t:7.3f} / {duration:g} s   real-time factor {rtf:5.2f}"
                     pair.say("\r" + line if tty else line, end="" if tty else "\n")
             elif now - last_progress > options.stall_timeout:
                 raise _Failure("simulator", f"no simulation progress for {options.stall_timeout:g} s (hung)")
-            time.sleep(0.1)
+        finished = True
         if tty:
             pair.say("")
+        from bracing_bringup.drawing import prepare_drawing  # rosbags and numpy: needed from here on
+
+        prepare_drawing()  # the drawing processes load matplotlib while the nodes exit and the bag is read
+        # The controller's answers are all out (the simulator had the last one): it flushes and exits
+        # while the simulator exits by itself. The recorder closes the bag once it has every message
+        # (or, should some be missing, when stopped after both nodes are gone).
+        pair.interrupt("controller")
+        deadline = time.monotonic() + 120.0  # the nodes' flush (<= 15 s) and the recorder's drain (<= 75 s)
+        while RECORDER_CLOSED not in pair.seen and pair.exit_code("recorder") is None:
+            if pair.interrupted:
+                raise _Interrupted()
+            if time.monotonic() > deadline:
+                raise _Failure("recorder", "the recorder did not close the bag")
+            if pair.exit_code("simulator") is not None and pair.exit_code("controller") is not None:
+                pair.interrupt("recorder")
+            pair.changed.wait(0.1)
+            pair.changed.clear()
     except _Interrupted:
         code = 128 + int(pair.interrupted)
         message = f"interrupted ({signal.Signals(pair.interrupted).name}): nodes stopped, bag finalised"
@@ -273,27 +370,76 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
         code = EXIT_FAILED
         message = f"error: {failure.message}\n{pair.tail(failure.process)}"
     finally:
-        # Generous grace: the controller flushes its last answers to the recorder (<= 10 s), and a
-        # recorder that fell behind on a busy machine drains its queues (<= 60 s) before closing.
-        for name, grace in (("simulator", 10.0), ("controller", 15.0), ("recorder", 75.0)):
-            pair.stop(name, grace)
+        if not finished or code != 0:
+            pair.stop_all()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     wall = time.monotonic() - start_wall
-    if code == 0 and sim_config.stepping == "lockstep" and not options.real_time and duration > 0:
-        # Lockstep promises every step in the bag: check it rather than report on a partial record.
-        from bracing_bringup.recorder import missing_messages
-
-        problems = missing_messages(bag, contacts, round(duration / sim_config.step) + 1)
-        if problems:
-            code = EXIT_FAILED
-            message = "error: the bag is incomplete (lost messages): " + "; ".join(problems)
     summary = None
     if code == 0:
-        from bracing_bringup.report import write_report  # matplotlib: only when there is a report to draw
+        timeline.add(recorder_events(pair.logs["recorder"]))
+        timeline.mark(BAG_CLOSED, timeline.at("recorder closed the bag"))
+        # The report is drawn while the processes finish exiting (their exit codes are checked after).
+        summary, code, message = _report(bag, out, contacts, wall, options, expected_states, timeline)
+        for name, process_code in pair.stop_all(ask=False).items():
+            if process_code != 0 and code == 0:
+                code, message = EXIT_FAILED, f"error: the {name} exited with code {process_code}\n{pair.tail(name)}"
+    for name in ("simulator", "controller"):
+        timeline.add(node_events(pair.logs[name], name))
+    if code != 0:
+        timeline.add(recorder_events(pair.logs["recorder"]))
+    for phase, event in ((FIRST_STEP, "simulator stepping"), (LAST_STEP, "simulator finished")):
+        stamp = timeline.at(event)
+        if stamp is not None:
+            timeline.mark(phase, stamp)
+    timeline.write(out)
+    return RunResult(code, out, wall, summary, message, pair.logs, timeline)
 
-        summary = write_report(bag, out, wall_time_s=wall)
-    return RunResult(code, out, wall, summary, message, pair.logs)
+
+def _check_configs(sim_values: schema.Values, controller_values: schema.Values, search: list[Path]) -> None:
+    """The nodes' configuration checks (they would stop on the same error): ConfigError."""
+    from bracing_core.config import SimulatorConfig
+    from bracing_core.controller_config import ControllerConfig
+
+    SimulatorConfig.from_values(sim_values, search)
+    ControllerConfig.from_values(controller_values, search)
+
+
+FINISHED = "finished at t = "
+"""The simulator's last line: every subscriber has acknowledged everything it sent."""
+RECORDER_CLOSED = "recorder closed the bag"
+WATCHED = (FINISHED, RECORDER_CLOSED)
+
+
+def _report(
+    bag: Path,
+    out: Path,
+    contacts: list[str],
+    wall: float,
+    options: RunOptions,
+    expected_states: int,
+    timeline: Timeline,
+) -> tuple[dict[str, Any] | None, int, str]:
+    """Read the bag once: check it (a lockstep run promises every step), then write the summary,
+    the figures and the animation from what was read. (summary, exit code, message)."""
+    from bracing_bringup.animation import DEFAULT_INTERVAL_S
+    from bracing_bringup.drawing import report_series
+    from bracing_bringup.summary import BagReadError, read_series
+
+    try:
+        series = read_series(bag)
+    except BagReadError as exc:
+        return None, EXIT_FAILED, f"error: {exc}"
+    timeline.mark("bag read")
+    if expected_states:  # lockstep
+        problems = missing_from_counts(series.topic_counts, contacts, expected_states)
+        timeline.mark("bag checked")
+        if problems:
+            return None, EXIT_FAILED, "error: the bag is incomplete (lost messages): " + "; ".join(problems)
+    interval = DEFAULT_INTERVAL_S if options.animation else None
+    summary = report_series(series, out, wall_time_s=wall, animation_interval_s=interval, mark=timeline.mark)
+    timeline.mark(LAST_FILE)
+    return summary, 0, ""
 
 
 class _Failure(Exception):
@@ -324,6 +470,12 @@ def parse_args(argv: Sequence[str] | None) -> RunOptions:
     )
     parser.add_argument("--quiet", action="store_true", help="no progress line")
     parser.add_argument(
+        "--no-animation", action="store_true", help="no animation.gif / .mp4 (the report's figures only)"
+    )
+    parser.add_argument(
+        "--timeline", action="store_true", help="print where the run's wall time went (also in DIR/timeline.json)"
+    )
+    parser.add_argument(
         "--set", dest="sets", action="append", default=[], metavar="KEY=VALUE", help="override a scenario parameter"
     )
     args = parser.parse_args(argv)
@@ -346,11 +498,14 @@ def parse_args(argv: Sequence[str] | None) -> RunOptions:
         args.domain_id,
         args.quiet,
         parameters=parameters,
+        animation=not args.no_animation,
+        show_timeline=args.timeline,
     )
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     options = parse_args(argv)
+    options.command_start = process_start_time()  # the timeline counts the interpreter's start too
     try:
         result = run_pair(options)
     except ConfigError as exc:
@@ -359,10 +514,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     if result.exit_code != 0:
         print(f"bracing-pair: {result.message}", file=sys.stderr)
         return result.exit_code
-    from bracing_bringup.report import format_summary
+    from bracing_bringup.summary import format_summary
 
     print(format_summary(result.summary or {}))
     print(f"bag: {result.output / 'bag'}  report and summary.json: {result.output}")
+    if options.show_timeline and result.timeline is not None:
+        print(result.timeline.format())
+        phases = result.timeline.phases()
+        print("  ".join(f"{k} {v:.2f}" for k, v in phases.items() if v is not None))
     return 0
 
 

@@ -53,23 +53,17 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
-from bracing_bringup.scene import MARKERS_TYPE, STRING_TYPE, TF_TYPE, Derived, DescriptionError, SceneBuilder
+from bracing_bringup.scene import Derived, DescriptionError, SceneBuilder
+from bracing_bringup.topics import DESCRIPTION_TOPIC, SCENE_TOPICS, STRING_TYPE, missing_from_counts, recorded_topics
+from bracing_bringup.topics import expected_counts as expected_counts  # re-exported: the check lives in topics
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState
-from bracing_ros.common import SubscriptionWaiter
+from bracing_ros.common import SubscriptionWaiter, use_fastdds_profile
 from bracing_ros.typestore import BRACING_MSGS as BRACING_MSGS  # re-exported: the typestore lives in bracing_ros
 from bracing_ros.typestore import bracing_msgs_dir as bracing_msgs_dir
 from bracing_ros.typestore import bracing_typestore
 
 BAG_VERSION: Literal[8] = 8
 """rosbag2 metadata version written (8 is read by every Jazzy rosbag2)."""
-
-DESCRIPTION_TOPIC = "robot_description"
-SCENE_TOPICS = {
-    "tf": ("/tf", TF_TYPE),
-    "tf_static": ("/tf_static", TF_TYPE),
-    "contact_markers": ("contact_markers", MARKERS_TYPE),
-}
-"""Topics the recorder derives (``scene.Derived.key`` -> topic, type)."""
 
 MAX_SCENE_BACKLOG = 100_000
 """Recorded messages (3 per state, braced) kept for deriving /tf and markers later: ~30 MB, 30 s of a
@@ -100,56 +94,32 @@ that starts before the recorder has discovered it still delivers its first messa
 (It matches the nodes' transient-local publishers; a volatile publisher is not recorded.)"""
 
 
+_RCLPY_TYPES: dict[str, type] = {
+    "sensor_msgs/msg/JointState": JointState,
+    "geometry_msgs/msg/WrenchStamped": WrenchStamped,
+    "bracing_msgs/msg/Contacts": Contacts,
+    "bracing_msgs/msg/MotorState": MotorState,
+    "rosgraph_msgs/msg/Clock": Clock,
+    "bracing_msgs/msg/MotorCommand": MotorCommand,
+    "bracing_msgs/msg/ControllerState": ControllerState,
+}
+
+
 def topic_table(contacts: Sequence[str]) -> list[tuple[str, type, str]]:
-    """(relative topic, rclpy type, ROS 2 type name) for every recorded topic."""
-    table: list[tuple[str, type, str]] = [
-        ("joint_states", JointState, "sensor_msgs/msg/JointState"),
-    ]
-    table += [(f"contact_wrench/{name}", WrenchStamped, "geometry_msgs/msg/WrenchStamped") for name in contacts]
-    table += [
-        ("contacts", Contacts, "bracing_msgs/msg/Contacts"),
-        ("motor_state", MotorState, "bracing_msgs/msg/MotorState"),
-        ("/clock", Clock, "rosgraph_msgs/msg/Clock"),
-        ("motor_command", MotorCommand, "bracing_msgs/msg/MotorCommand"),
-        ("controller_state", ControllerState, "bracing_msgs/msg/ControllerState"),
-    ]
-    return table
-
-
-def expected_counts(contacts: Sequence[str], expected: int, namespace: str = "") -> dict[str, int]:
-    """Messages a complete lockstep bag of ``expected`` states holds, per resolved topic name."""
-    prefix = "/" + namespace.strip("/") + "/" if namespace.strip("/") else "/"
-
-    def resolve(topic: str) -> str:
-        return topic if topic.startswith("/") else prefix + topic
-
-    counts = {resolve(topic): expected for topic, _, _ in topic_table(contacts)}
-    counts[resolve(DESCRIPTION_TOPIC)] = 1
-    counts[resolve(SCENE_TOPICS["tf_static"][0])] = 1
-    counts[resolve(SCENE_TOPICS["tf"][0])] = expected
-    if contacts:
-        counts[resolve(SCENE_TOPICS["contact_markers"][0])] = expected
-    return counts
+    """(relative topic, rclpy type, ROS 2 type name) for every topic recorded once per state."""
+    return [(topic, _RCLPY_TYPES[type_name], type_name) for topic, type_name in recorded_topics(contacts)]
 
 
 def missing_messages(bag: Path, contacts: Sequence[str], expected: int, namespace: str = "") -> list[str]:
-    """What a lockstep bag lacks: one line per topic recorded fewer times than it should be.
-
-    Every topic is sent once per state in lockstep (the command and controller state once
-    per state answered), so a bag of N steps holds N + 1 of each, and as many ``/tf`` and
-    ``contact_markers``; ``robot_description`` and ``/tf_static`` once.
-    """
+    """What a lockstep bag lacks: one line per topic recorded fewer times than it should be
+    (see ``topics.expected_counts``)."""
     from rosbags.rosbag2 import Reader
 
     with Reader(bag) as reader:
         counts: dict[str, int] = {}
         for connection in reader.connections:
             counts[connection.topic] = counts.get(connection.topic, 0) + connection.msgcount
-    problems = []
-    for name, wanted in expected_counts(contacts, expected, namespace).items():
-        if counts.get(name, 0) < wanted:
-            problems.append(f"{name}: {counts.get(name, 0)} of {wanted} messages")
-    return problems
+    return missing_from_counts(counts, contacts, expected, namespace)
 
 
 def cdr_stamp_ns(data: bytes) -> int:
@@ -197,6 +167,7 @@ class Recorder(Node):
             self._roles[sub] = role
             self.counts[resolved] = 0
         self._waiter = SubscriptionWaiter(self, list(self._connections))
+        self._contacts = list(contacts)
         self.scene = SceneBuilder(typestore, contacts) if scene else None
         self._scene_inputs: deque[tuple[str, bytes]] = deque()
         self._scene_roles = {"joint_states", "contacts", "description", *(f"contact_wrench/{c}" for c in contacts)}
@@ -228,6 +199,11 @@ class Recorder(Node):
                 roles = self._roles
                 self._scene_inputs.extend((roles[sub], data) for sub, data in taken if roles[sub] in self._scene_roles)
         return len(taken)
+
+    def has_every_message(self, states: int) -> bool:
+        """Whether every subscribed topic has its messages of a complete lockstep run of ``states``."""
+        wanted = expected_counts(self._contacts, states, self.get_namespace())
+        return all(self.counts[c.topic] >= wanted[c.topic] for c in self._connections.values())
 
     @property
     def scene_backlog(self) -> int:
@@ -304,6 +280,13 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
         help="record only what arrives: no /tf, /tf_static or contact_markers (they cost CPU per state)",
     )
     parser.add_argument(
+        "--expect-states",
+        type=int,
+        default=0,
+        help="the states of a lockstep run: close the bag as soon as every topic has its messages "
+        "(default 0: only when stopped)",
+    )
+    parser.add_argument(
         "--drain-idle", type=float, default=0.2, help="on stop, keep receiving until idle this long [s] (default 0.2)"
     )
     parser.add_argument(
@@ -346,17 +329,22 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     if args.niceness:
         os.nice(args.niceness)
+    use_fastdds_profile()  # the nodes' discovery settings: matched at once when started together
     rclpy.init(args=["recorder", *full], signal_handler_options=SignalHandlerOptions.NO)
     writer = Writer(output, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
     writer.open()
     node: Recorder | None = None
     try:
         node = Recorder(writer, typestore, namespace=args.namespace, contacts=contacts, scene=not args.no_scene)
+        print(f"recorder subscribed at {time.time():.6f}", flush=True)  # wall time: for the run's timeline
         print("recorder ready", flush=True)
-        idle = False
+        idle, complete = False, False
         while not stop["requested"]:
             got = node.record(0.0 if idle and node.scene_backlog else 0.1)
             idle = not got
+            if got and args.expect_states and node.has_every_message(args.expect_states):
+                complete = True  # nothing more will come: no drain
+                break
             if node.scene_backlog and (idle or node.scene_backlog > MAX_SCENE_BACKLOG):
                 node.derive(0.05)  # idle (nothing came for 0.1 s), or the queue would grow too large
             elif got and args.batch > 0.0:
@@ -364,7 +352,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         # Drain what is still in flight: receive until idle for drain_idle (bounded).
         start = time.monotonic()
         node.last_receive = start
-        while not stop["urgent"]:
+        while not stop["urgent"] and not complete:
             now = time.monotonic()
             if now - node.last_receive >= args.drain_idle or now - start >= args.drain_timeout:
                 break
@@ -374,6 +362,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             pass  # the rest of the scene: the bag has /tf and markers for every state it holds
     finally:
         writer.close()
+        print(f"recorder closed the bag at {time.time():.6f}", flush=True)
         total = node.received if node is not None else 0
         print(f"recorder wrote {total} messages to {output}", flush=True)
         if node is not None and node.derived:

@@ -19,7 +19,7 @@ import argparse
 import json
 import math
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -31,16 +31,16 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from bracing_bringup.animation import DEFAULT_INTERVAL_S, AnimationError, write_animation
+from bracing_bringup.drawing import NO_ANIMATION, SUMMARY_FILE, report_series
 from bracing_bringup.scene import DescriptionError
 from bracing_bringup.summary import (
     BagReadError,
     BagSeries,
-    compute_summary,
+    format_summary,
     read_series,
     resolve_bag,
 )
 
-SUMMARY_FILE = "summary.json"
 ANIMATION_FILES = ("animation.gif", "animation.mp4")
 
 
@@ -100,20 +100,16 @@ def _plot_energy(series: BagSeries, out: Path) -> Path:
     return save_figure(fig, ax, out / "energy.png")
 
 
-def plot_series(series: BagSeries, output_dir: str | Path) -> list[Path]:
-    """Write the PNG plots the data allows; returns the files written."""
-    out = Path(output_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    written: list[Path] = []
+def plots(series: BagSeries, out: Path) -> list[Callable[[], Path]]:
+    """The PNG plots the data allows, each a call that draws and writes it."""
+    drawn: list[Callable[[], Path]] = []
     if series.t.size:
-        written.append(_plot_hand(series, out, 1, "y"))
-        written.append(_plot_hand(series, out, 2, "z"))
+        drawn += [lambda: _plot_hand(series, out, 1, "y"), lambda: _plot_hand(series, out, 2, "z")]
     if any(cs.t_ctrl.size or cs.t.size for cs in series.contacts.values()):
-        written.append(_plot_brace(series, out))
-        written.append(_plot_force(series, out))
+        drawn += [lambda: _plot_brace(series, out), lambda: _plot_force(series, out)]
     if series.motor_t.size:
-        written.append(_plot_energy(series, out))
-    return written
+        drawn.append(lambda: _plot_energy(series, out))
+    return drawn
 
 
 def _previous_wall_time(path: Path) -> float | None:
@@ -147,29 +143,40 @@ def write_report(
     """
     series = read_series(bag)
     out = Path(output_dir) if output_dir is not None else default_output_dir(bag)
-    out.mkdir(parents=True, exist_ok=True)
-    summary_path = out / SUMMARY_FILE
     if wall_time_s is None:
-        wall_time_s = _previous_wall_time(summary_path)
-    plot_series(series, out)
+        wall_time_s = _previous_wall_time(out / SUMMARY_FILE)
+    return report_series(series, out, wall_time_s, animation_interval_s, urdf)
+
+
+def files(
+    series: BagSeries, out: Path, animation_interval_s: float | None, urdf: str | None
+) -> list[Callable[[], object]]:
+    """Every file of the report but summary.json, each a call that draws and writes it: the animation
+    (the longest, first) and the plots the data allows."""
+    drawn: list[Callable[[], object]] = []
     if animation_interval_s is not None:
-        try:
-            write_animation(series, out, animation_interval_s, urdf=urdf)
-        except (AnimationError, DescriptionError) as exc:
-            print(f"bracing-report: no animation: {exc}", file=sys.stderr)
-    summary = compute_summary(series, wall_time_s=wall_time_s)
-    summary_path.write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
-    return summary
+        interval = animation_interval_s
+        drawn.append(lambda: _animate(series, out, interval, urdf))
+    return drawn + list(plots(series, out))
 
 
-def format_summary(summary: dict[str, Any]) -> str:
-    """The summary as an aligned two-column table."""
-    width = max(len(k) for k in summary)
-    lines = []
-    for key, value in summary.items():
-        text = "n/a" if value is None else f"{value:.6g}" if isinstance(value, float) else str(value)
-        lines.append(f"{key:<{width}}  {text}")
-    return "\n".join(lines)
+def draw_file(
+    series: BagSeries, out: Path, animation_interval_s: float | None, urdf: str | None, k: int
+) -> str | None:
+    """Draw file ``k`` of ``files``; what it wrote, or why it wrote nothing (None: there is no file ``k``)."""
+    drawn = files(series, out, animation_interval_s, urdf)
+    if k >= len(drawn):
+        return None
+    result = drawn[k]()
+    return f"plot {result.name}" if isinstance(result, Path) else str(result)
+
+
+def _animate(series: BagSeries, out: Path, interval_s: float, urdf: str | None) -> str:
+    try:
+        write_animation(series, out, interval_s, urdf=urdf)
+    except (AnimationError, DescriptionError) as exc:
+        return f"{NO_ANIMATION}: {exc}"  # said by the process that reports (the drawing may be elsewhere)
+    return "animation"
 
 
 def main(argv: Sequence[str] | None = None) -> int:

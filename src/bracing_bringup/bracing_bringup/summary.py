@@ -2,7 +2,8 @@
 
 ``read_series(bag)`` reads a rosbag2 bag (any storage) with rosbags' AnyReader, using
 only the message definitions embedded in the bag, and returns numpy time series (and the
-URDF of ``robot_description``, if the bag has it, for drawing the arm).
+URDF of ``robot_description``, if the bag has it, for drawing the arm). It decodes each
+topic's messages column-wise (``columns``); ``columnar=False`` is the plain per-message path.
 ``compute_summary(series, wall_time_s)`` returns the ``summary.json`` dict (keys: README, Topics and messages).
 
 Times are in seconds relative to ``t0``, the first ``joint_states`` stamp (the first
@@ -19,6 +20,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 from rosbags.highlevel import AnyReader
+
+from bracing_bringup.columns import Layout, column, decode
 
 FloatArray = NDArray[np.float64]
 
@@ -121,9 +124,31 @@ def resolve_bag(path: Path) -> Path:
     return path
 
 
-def read_series(bag: str | Path) -> BagSeries:
-    """Read a recorded run into time series. Raises BagReadError if unreadable."""
+def read_series(bag: str | Path, columnar: bool = True) -> BagSeries:
+    """Read a recorded run into time series. Raises BagReadError if unreadable.
+
+    ``columnar=False`` decodes every message with rosbags' deserializer (the reference the
+    columnar decoding is tested against; same result).
+    """
     path = resolve_bag(Path(bag))
+    # Columnar: read_series of a 10 s bag (50k messages) 1.5 s -> 0.25 s, best of 3 (rosbags' reading: 0.2 s of it).
+    return _read_columnar(path) if columnar else _read_general(path)
+
+
+def _wanted(reader: AnyReader, counts: dict[str, int]) -> list[Any]:
+    """The connections read_series decodes (and every topic's message count into ``counts``)."""
+    for conn in reader.connections:
+        counts[conn.topic] = counts.get(conn.topic, 0) + conn.msgcount
+    return [
+        c
+        for c in reader.connections
+        if c.msgtype in (_JOINT_STATE, _CONTACTS, _CONTROLLER_STATE, _MOTOR_STATE)
+        or (c.msgtype == _WRENCH and _WRENCH_TOPIC in c.topic)
+        or (c.msgtype == _STRING and c.topic.endswith(_DESCRIPTION_TOPIC))
+    ]
+
+
+def _read_general(path: Path) -> BagSeries:
     joint: list[tuple[int, Any]] = []
     wrenches: dict[str, list[tuple[int, tuple[float, float, float]]]] = {}
     description: str | None = None
@@ -133,15 +158,7 @@ def read_series(bag: str | Path) -> BagSeries:
     counts: dict[str, int] = {}
     try:
         with AnyReader([path]) as reader:
-            for conn in reader.connections:
-                counts[conn.topic] = counts.get(conn.topic, 0) + conn.msgcount
-            wanted = [
-                c
-                for c in reader.connections
-                if c.msgtype in (_JOINT_STATE, _CONTACTS, _CONTROLLER_STATE, _MOTOR_STATE)
-                or (c.msgtype == _WRENCH and _WRENCH_TOPIC in c.topic)
-                or (c.msgtype == _STRING and c.topic.endswith(_DESCRIPTION_TOPIC))
-            ]
+            wanted = _wanted(reader, counts)
             for conn, _, raw in reader.messages(connections=wanted):
                 msg: Any = reader.deserialize(raw, conn.msgtype)
                 if conn.msgtype == _STRING:
@@ -250,6 +267,188 @@ def read_series(bag: str | Path) -> BagSeries:
     return series
 
 
+def _kind(conn: Any) -> tuple[str, str]:
+    """What the columnar path groups messages by: the type, and the contact of a wrench topic."""
+    return (conn.msgtype, conn.topic.rsplit(_WRENCH_TOPIC, 1)[1] if conn.msgtype == _WRENCH else "")
+
+
+@dataclass
+class _Messages:
+    """The messages of one kind in bag order, decoded column-wise, and their stamp order."""
+
+    layouts: list[Layout]
+    count: int
+    stamp: NDArray[np.int64]  # header stamps [ns]
+    order: NDArray[np.intp]  # bag order -> stamp order (stable, like list.sort)
+    rank: NDArray[np.intp]  # each message's place in stamp order
+
+    def by_stamp(self, path: str) -> NDArray[Any]:
+        return column(self.layouts, path, self.count)[self.order]
+
+    def xyz(self, path: str) -> FloatArray:
+        return np.stack([self.by_stamp(f"{path}.{axis}") for axis in "xyz"], axis=1).astype(float)
+
+
+def _messages(typestore: Any, msgtype: str, raws: list[bytes]) -> _Messages:
+    layouts = decode(typestore, msgtype, raws)
+    count = len(raws)
+    sec = column(layouts, "header.stamp.sec", count).astype(np.int64)
+    stamp = sec * 1_000_000_000 + column(layouts, "header.stamp.nanosec", count).astype(np.int64)
+    order = np.argsort(stamp, kind="stable")
+    rank = np.empty(count, dtype=np.intp)
+    rank[order] = np.arange(count)
+    return _Messages(layouts, count, stamp, order, rank)
+
+
+@dataclass
+class _Rows:
+    """One contact's entries in the messages of one kind: in stamp order, then order in the message."""
+
+    entries: list[tuple[Layout, int]]  # layout, position of the contact in its messages
+    perm: NDArray[np.intp]  # concatenated entries -> row order
+    stamp: NDArray[np.int64]  # of each row [ns]
+    first: tuple[int, int]  # (rank, position) of the first row
+
+    def take(self, path: str) -> NDArray[Any]:
+        """The value at ``path`` (``{j}``: the contact's position) of each row, NaN where a message lacks it."""
+        parts = []
+        for layout, j in self.entries:
+            values = layout.values.get(path.format(j=j))
+            parts.append(np.full(len(layout.index), math.nan) if values is None else values)
+        return np.concatenate(parts)[self.perm]
+
+    def xyz(self, path: str) -> FloatArray:
+        return np.stack([self.take(f"{path}.{axis}") for axis in "xyz"], axis=1).astype(float)
+
+
+def _per_contact(messages: _Messages, sequence: str, name: str) -> dict[str, _Rows]:
+    """Contact name -> its rows; ``name`` is the path of a contact's name (``{j}``: its position)."""
+    entries: dict[str, list[tuple[Layout, int]]] = {}
+    for layout in messages.layouts:
+        for j in range(layout.lengths[sequence]):
+            entries.setdefault(layout.strings[name.format(j=j)], []).append((layout, j))
+    rows = {}
+    for contact, found in entries.items():
+        index = np.concatenate([layout.index for layout, _ in found])
+        slot = np.concatenate([np.full(len(layout.index), j) for layout, j in found])
+        perm = np.lexsort((slot, messages.rank[index]))
+        first = (int(messages.rank[index[perm[0]]]), int(slot[perm[0]]))
+        rows[contact] = _Rows(found, perm, messages.stamp[index][perm], first)
+    # Like the general path's dicts: contacts in the order they first appear.
+    return dict(sorted(rows.items(), key=lambda item: item[1].first))
+
+
+def _joint_positions(joint: _Messages, names: list[str]) -> FloatArray:
+    """_by_name per layout: every JointState's positions in the order of ``names``."""
+    blocks: list[tuple[Layout, list[str | None]]] = []
+    for layout in joint.layouts:
+        count, own = layout.lengths["position"], layout.texts("name")
+        if own == names:
+            paths: list[str | None] = [f"position[{j}]" for j in range(count)]
+        else:  # as _by_name's dict: zip stops at the shorter list, a repeated name's last position wins
+            where = dict(zip(own, range(count), strict=False))
+            paths = [f"position[{where[n]}]" if n in where else None for n in names]
+        blocks.append((layout, paths))
+    widths = {len(paths) for _, paths in blocks}
+    if len(widths) > 1:  # what np.array raises on the general path's ragged rows
+        msg = "JointState messages with different numbers of positions"
+        raise ValueError(msg)
+    out = np.empty((joint.count, widths.pop()))
+    for layout, paths in blocks:
+        for k, path in enumerate(paths):
+            out[layout.index, k] = math.nan if path is None else layout.values[path]
+    return out[joint.order]
+
+
+def _match(rows: _Rows, crow: _Rows) -> tuple[NDArray[np.int64], FloatArray]:
+    """Stamps and f_n - f_nd of the contacts rows whose stamp a controller_state row has (its last such row)."""
+    stamps, desired = crow.stamp, crow.take("desired_normal_force[{j}]").astype(float)
+    last = len(stamps) - 1 - np.unique(stamps[::-1], return_index=True)[1]  # sorted by stamp
+    at = np.minimum(np.searchsorted(stamps[last], rows.stamp), len(last) - 1)
+    hit = stamps[last][at] == rows.stamp
+    return rows.stamp[hit], rows.take("contacts[{j}].normal_force").astype(float)[hit] - desired[last][at[hit]]
+
+
+def _read_columnar(path: Path) -> BagSeries:
+    """read_series decoding each kind of message column-wise (columns.decode)."""
+    counts: dict[str, int] = {}
+    raws: dict[tuple[str, str], list[bytes]] = {(t, ""): [] for t in (_JOINT_STATE, _CONTROLLER_STATE, _CONTACTS)}
+    raws[(_MOTOR_STATE, "")] = []
+    try:
+        with AnyReader([path]) as reader:
+            wanted = _wanted(reader, counts)
+            for conn, _, raw in reader.messages(connections=wanted):
+                raws.setdefault(_kind(conn), []).append(raw)
+            store = reader.typestore
+            texts = decode(store, _STRING, raws.pop((_STRING, ""), []))
+            messages = {kind: _messages(store, kind[0], lst) for kind, lst in raws.items()}
+    except BagReadError:
+        raise
+    except Exception as exc:  # rosbags raises many kinds on a damaged bag
+        msg = f"cannot read bag {path}: {exc}"
+        raise BagReadError(msg) from exc
+
+    joint, ctrl = messages[(_JOINT_STATE, "")], messages[(_CONTROLLER_STATE, "")]
+    sim, motor = messages[(_CONTACTS, "")], messages[(_MOTOR_STATE, "")]
+    if joint.count:
+        t0 = int(joint.stamp[joint.order[0]])
+    else:
+        firsts = [int(m.stamp.min()) for m in (ctrl, sim, motor) if m.count]
+        t0 = min(firsts) if firsts else 0
+
+    def sec(ns: NDArray[np.int64]) -> FloatArray:
+        return ((ns - t0) * 1e-9).astype(float, copy=False)
+
+    # The first non-empty robot_description in bag order ("" if all are empty).
+    filled = sorted((int(layout.index[0]), layout.strings["data"]) for layout in texts if layout.strings["data"])
+    description = filled[0][1] if filled else "" if texts else None
+    series = BagSeries(t0_ns=t0, topic_counts=counts, robot_description=description)
+    series.joint_t = sec(joint.stamp[joint.order])
+    if joint.count:
+        first = next(layout for layout in joint.layouts if np.any(layout.index == joint.order[0]))
+        series.joint_names = first.texts("name")
+        series.joint_position = _joint_positions(joint, series.joint_names)
+    series.t = sec(ctrl.stamp[ctrl.order])
+    series.hand_desired = ctrl.xyz("hand_desired")
+    series.hand_actual = ctrl.xyz("hand_actual")
+    if motor.count:
+        series.motor_t = sec(motor.stamp[motor.order])
+        series.energy_consumed = motor.by_stamp("energy_consumed").astype(float)
+        series.energy_net = motor.by_stamp("energy_net").astype(float)
+        series.copper_loss = motor.by_stamp("copper_loss").astype(float)
+
+    sim_rows = _per_contact(sim, "contacts", "contacts[{j}].name")
+    ctrl_rows = _per_contact(ctrl, "contact_name", "contact_name[{j}]")
+    for name in list(sim_rows) + [n for n in ctrl_rows if n not in sim_rows]:
+        cs = ContactSeries(name=name)
+        rows = sim_rows.get(name)
+        if rows is not None:
+            cs.t = sec(rows.stamp)
+            cs.normal_force = rows.take("contacts[{j}].normal_force").astype(float)
+            cs.friction_force = rows.take("contacts[{j}].friction_force").astype(float)
+            cs.residual = rows.take("contacts[{j}].residual").astype(float)
+            cs.active = rows.take("contacts[{j}].active").astype(bool)
+            cs.position = rows.xyz("contacts[{j}].position")
+            cs.normal = rows.xyz("contacts[{j}].normal")
+        wrench = messages.get((_WRENCH, name))
+        if wrench is not None and wrench.count:
+            force = [column(wrench.layouts, f"wrench.force.{axis}", wrench.count).astype(float) for axis in "xyz"]
+            by_force = np.lexsort((*force[::-1], wrench.stamp))  # as sorted() of (stamp, force) tuples
+            cs.t_force = sec(wrench.stamp[by_force])
+            cs.force = np.stack(force, axis=1)[by_force]
+        crow = ctrl_rows.get(name)
+        if crow is not None:
+            cs.t_ctrl = sec(crow.stamp)
+            cs.normal_force_desired = crow.take("desired_normal_force[{j}]").astype(float)
+            cs.brace_desired = crow.xyz("brace_desired[{j}]")
+            cs.brace_actual = crow.xyz("brace_actual[{j}]")
+            if rows is not None:
+                stamps, cs.normal_force_error = _match(rows, crow)
+                cs.t_matched = sec(stamps)
+        series.contacts[name] = cs
+    return series
+
+
 def _by_name(msg: Any, names: list[str]) -> list[float]:
     """A JointState's positions in the order of ``names`` (NaN for a joint it lacks)."""
     if list(msg.name) == names:
@@ -305,3 +504,13 @@ def compute_summary(series: BagSeries, wall_time_s: float | None = None) -> dict
         if out["sim_time_s"] is not None and wall_time_s > 0:
             out["real_time_factor"] = out["sim_time_s"] / float(wall_time_s)
     return out
+
+
+def format_summary(summary: dict[str, Any]) -> str:
+    """The summary as an aligned two-column table."""
+    width = max(len(k) for k in summary)
+    lines = []
+    for key, value in summary.items():
+        text = "n/a" if value is None else f"{value:.6g}" if isinstance(value, float) else str(value)
+        lines.append(f"{key:<{width}}  {text}")
+    return "\n".join(lines)

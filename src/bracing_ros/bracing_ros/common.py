@@ -14,6 +14,7 @@ from typing import Any
 import rclpy
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.duration import Duration
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.exceptions import ParameterException
 from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -87,9 +88,26 @@ class RateLimitedLog:
             self._logger.info(text)
 
 
+def wake_on_match() -> PublisherEventCallbacks:
+    """Event callbacks for a publisher whose matches ``wait_until`` waits for: a match wakes the
+    executor at once (the callback itself has nothing to do; ``wait_until`` checks the counts)."""
+    return PublisherEventCallbacks(matched=_matched)
+
+
+def _matched(_: object) -> None:
+    pass
+
+
+def use_fastdds_profile() -> None:
+    """Give this process the project's Fast DDS defaults (``FASTDDS_PROFILE``) unless the user
+    chose a profile file. Call before ``rclpy.init``."""
+    os.environ.setdefault("FASTRTPS_DEFAULT_PROFILES_FILE", str(FASTDDS_PROFILE))
+
+
 def wait_until(node: Node, executor: Executor, ready: Callable[[], bool], message: str) -> None:
     """Serve ``executor`` until ``ready()`` (a subscription count, say), logging ``message`` (what
-    it waits for) once it has waited 2 s. Discovery and matching happen in DDS's own threads."""
+    it waits for) once it has waited 2 s. Discovery and matching happen in DDS's own threads; a
+    publisher made with ``wake_on_match`` ends the executor's wait when it matches."""
     since, told = time.monotonic(), False
     while not ready():
         executor.spin_once(timeout_sec=0.05)
@@ -225,7 +243,7 @@ def run(node_factory: Callable[[], Node], spin: Callable[[Node], int], args: lis
             # context down at once: a node stopping must still flush what its subscribers have
             # not acknowledged (see AckWindow), and that needs a live context. SIGTERM alike.
             signal.signal(signal.SIGTERM, _interrupt)
-            os.environ.setdefault("FASTRTPS_DEFAULT_PROFILES_FILE", str(FASTDDS_PROFILE))
+            use_fastdds_profile()
             rclpy.init(args=args if args is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
         except RCLError as exc:  # e.g. a params file rcl cannot parse
             raise ConfigError(str(exc).split(", at /")[0]) from None

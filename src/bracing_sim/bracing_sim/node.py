@@ -37,6 +37,7 @@ from bracing_ros.common import (
     read_motor_command,
     run,
     wait_until,
+    wake_on_match,
 )
 
 DESCRIPTION_QOS = QoSProfile(
@@ -63,16 +64,20 @@ class SimulatorNode(Node):
         duration = self.config.duration
         self.total_steps = round(duration / self.config.step) if duration > 0 else None
 
-        self.joint_pub = self.create_publisher(JointState, "joint_states", STREAM_QOS)
-        self.contacts_pub = self.create_publisher(Contacts, "contacts", STREAM_QOS)
-        self.motor_pub = self.create_publisher(MotorState, "motor_state", STREAM_QOS)
-        self.clock_pub = self.create_publisher(Clock, "/clock", STREAM_QOS)
+        self.joint_pub = self.create_publisher(JointState, "joint_states", STREAM_QOS, event_callbacks=wake_on_match())
+        self.contacts_pub = self.create_publisher(Contacts, "contacts", STREAM_QOS, event_callbacks=wake_on_match())
+        self.motor_pub = self.create_publisher(MotorState, "motor_state", STREAM_QOS, event_callbacks=wake_on_match())
+        self.clock_pub = self.create_publisher(Clock, "/clock", STREAM_QOS, event_callbacks=wake_on_match())
         self.wrench_pubs = [
-            self.create_publisher(WrenchStamped, f"contact_wrench/{c.name}", STREAM_QOS)
+            self.create_publisher(
+                WrenchStamped, f"contact_wrench/{c.name}", STREAM_QOS, event_callbacks=wake_on_match()
+            )
             for c in self.config.shared.contacts
         ]
         # The URDF loaded, latched: robot_state_publisher, RViz and the recorder get it whenever they join.
-        self.description_pub = self.create_publisher(String, "robot_description", DESCRIPTION_QOS)
+        self.description_pub = self.create_publisher(
+            String, "robot_description", DESCRIPTION_QOS, event_callbacks=wake_on_match()
+        )
         self.description_pub.publish(String(data=self.config.shared.urdf.read_text(encoding="utf-8")))
         # Messages travel as CDR bytes built by ``wire`` (rclpy's message classes cost more than the DDS write).
         contacts = self.config.shared.contacts
@@ -86,7 +91,15 @@ class SimulatorNode(Node):
             MotorCommand, "motor_command", self._on_command, SUBSCRIBE_QOS, raw=True
         )
         self.report = RateLimitedLog(self, self.config.log_throttle_period)
-        self.publishers_ = [self.joint_pub, self.contacts_pub, self.motor_pub, self.clock_pub, *self.wrench_pubs]
+        # robot_description too: a short run could otherwise end before the recorder has it.
+        self.publishers_ = [
+            self.joint_pub,
+            self.contacts_pub,
+            self.motor_pub,
+            self.clock_pub,
+            *self.wrench_pubs,
+            self.description_pub,
+        ]
         self.flow = AckWindow(self, self.publishers_, STREAM_QOS.depth)
 
         self.command = np.zeros(self.sim.n)  # last applied (held) command
@@ -251,7 +264,9 @@ class SimulatorNode(Node):
 
 def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None:
     cfg = node.config
-    # Wait for the controller (and a recorder, if asked) before the first state.
+    since = time.monotonic()
+    # Wait for the controller (and a recorder, if asked) before the first state. The publishers'
+    # matched events wake the executor, so the first step follows the last match at once.
     wait_until(
         node,
         executor,
@@ -267,6 +282,7 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
             lambda: all(pub.get_subscription_count() >= 1 for pub in node.publishers_),
             "waiting for the recorder to subscribe to every topic",
         )
+    node.get_logger().info(f"lockstep: stepping (subscribers matched in {time.monotonic() - since:.3f} s)")
     waiter = SubscriptionWaiter(node, node.command_sub)
     node.publish_state(node.state_effort())
     node.flow.sent()
@@ -343,6 +359,7 @@ def spin_real_time(node: SimulatorNode, executor: SingleThreadedExecutor) -> Non
         if not node.advance(np.zeros(node.sim.n)):
             raise DivergenceError(f"{node.refusal} (under a zero command)")
 
+    node.get_logger().info("real-time: stepping")
     node.publish_state(node.state_effort())
     node.create_timer(period, tick)
     while not node.done():

@@ -1,0 +1,67 @@
+"""The topics of a recorded run and what a complete lockstep bag holds (no rclpy needed).
+
+The recorder subscribes to ``recorded_topics``; the pair checks a finished bag's message
+counts (read once, with the rest of the report) against ``expected_counts``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+DESCRIPTION_TOPIC = "robot_description"
+STRING_TYPE = "std_msgs/msg/String"
+TF_TYPE = "tf2_msgs/msg/TFMessage"
+MARKERS_TYPE = "visualization_msgs/msg/MarkerArray"
+
+SCENE_TOPICS = {
+    "tf": ("/tf", TF_TYPE),
+    "tf_static": ("/tf_static", TF_TYPE),
+    "contact_markers": ("contact_markers", MARKERS_TYPE),
+}
+"""Topics the recorder derives (``scene.Derived.key`` -> topic, type)."""
+
+
+def recorded_topics(contacts: Sequence[str]) -> list[tuple[str, str]]:
+    """(relative topic, ROS 2 type name) of every topic the nodes publish once per state."""
+    return [
+        ("joint_states", "sensor_msgs/msg/JointState"),
+        *((f"contact_wrench/{name}", "geometry_msgs/msg/WrenchStamped") for name in contacts),
+        ("contacts", "bracing_msgs/msg/Contacts"),
+        ("motor_state", "bracing_msgs/msg/MotorState"),
+        ("/clock", "rosgraph_msgs/msg/Clock"),
+        ("motor_command", "bracing_msgs/msg/MotorCommand"),
+        ("controller_state", "bracing_msgs/msg/ControllerState"),
+    ]
+
+
+def expected_counts(contacts: Sequence[str], expected: int, namespace: str = "") -> dict[str, int]:
+    """Messages a complete lockstep bag of ``expected`` states holds, per resolved topic name.
+
+    Every topic is sent once per state in lockstep (the command and controller state once
+    per state answered), so a bag of N steps holds N + 1 of each, and as many ``/tf`` and
+    ``contact_markers``; ``robot_description`` and ``/tf_static`` once.
+    """
+    prefix = "/" + namespace.strip("/") + "/" if namespace.strip("/") else "/"
+
+    def resolve(topic: str) -> str:
+        return topic if topic.startswith("/") else prefix + topic
+
+    counts = {resolve(topic): expected for topic, _ in recorded_topics(contacts)}
+    counts[resolve(DESCRIPTION_TOPIC)] = 1
+    counts[resolve(SCENE_TOPICS["tf_static"][0])] = 1
+    counts[resolve(SCENE_TOPICS["tf"][0])] = expected
+    if contacts:
+        counts[resolve(SCENE_TOPICS["contact_markers"][0])] = expected
+    return counts
+
+
+def missing_from_counts(
+    counts: Mapping[str, int], contacts: Sequence[str], expected: int, namespace: str = ""
+) -> list[str]:
+    """One line per topic of ``counts`` (messages per topic in a bag) recorded fewer times than a
+    complete lockstep bag of ``expected`` states holds."""
+    return [
+        f"{name}: {counts.get(name, 0)} of {wanted} messages"
+        for name, wanted in expected_counts(contacts, expected, namespace).items()
+        if counts.get(name, 0) < wanted
+    ]
