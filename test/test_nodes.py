@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import json
+import signal
+import subprocess
 from pathlib import Path
 
 import numpy as np
 from conftest import PAPER_YAML, build_scenario, node_params
 from lockstep_driver import JOINTS, known_command
-from ros_helpers import REPO_ROOT, drive, node_argv, params_file, run
+from ros_helpers import REPO_ROOT, drive, isolated_env, node_argv, params_file, run
 
 from bracing_core.controller_config import ControllerConfig
 from bracing_core.law import DecoupledController
@@ -85,3 +87,29 @@ def test_infeasible_start_is_refused_naming_the_contact(tmp_path: Path) -> None:
     done = run(node_argv("bracing_sim.node", params_file(tmp_path, "bracing_simulator", {"initial_position": q})))
     assert done.returncode == 2
     assert "contact 'elbow'" in done.stderr and "off its plane" in done.stderr
+
+
+def test_nodes_stop_on_sigint_even_when_started_with_it_ignored() -> None:
+    """bracing-pair stops the nodes with SIGINT. A script's background job (nohup, `cmd &`)
+    starts them with SIGINT ignored; they must still stop on it (cleanly: exit 0), at once."""
+    env = isolated_env()
+    for module in ("bracing_controller.node", "bracing_sim.node"):
+        node = subprocess.Popen(
+            node_argv(module),
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            cwd=REPO_ROOT,
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN),
+        )
+        try:
+            assert node.stdout is not None
+            # Configured: the controller waits for the recorder, the simulator for its subscribers.
+            while "voltage" not in (line := node.stdout.readline()):
+                assert line, f"{module} exited before it was configured"
+            node.send_signal(signal.SIGINT)
+            assert node.wait(timeout=10.0) == 0, module
+        finally:
+            node.kill()
+            node.wait()

@@ -376,8 +376,8 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
             signal.signal(sig, handler)
     wall = time.monotonic() - start_wall
     summary = None
+    timeline.add(recorder_events(pair.logs["recorder"]))
     if code == 0:
-        timeline.add(recorder_events(pair.logs["recorder"]))
         timeline.mark(BAG_CLOSED, timeline.at("recorder closed the bag"))
         # The report is drawn while the processes finish exiting (their exit codes are checked after).
         summary, code, message = _report(bag, out, contacts, wall, options, expected_states, timeline)
@@ -386,8 +386,6 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
                 code, message = EXIT_FAILED, f"error: the {name} exited with code {process_code}\n{pair.tail(name)}"
     for name in ("simulator", "controller"):
         timeline.add(node_events(pair.logs[name], name))
-    if code != 0:
-        timeline.add(recorder_events(pair.logs["recorder"]))
     for phase, event in ((FIRST_STEP, "simulator stepping"), (LAST_STEP, "simulator finished")):
         stamp = timeline.at(event)
         if stamp is not None:

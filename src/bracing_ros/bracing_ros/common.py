@@ -243,6 +243,9 @@ def run(node_factory: Callable[[], Node], spin: Callable[[Node], int], args: lis
             # context down at once: a node stopping must still flush what its subscribers have
             # not acknowledged (see AckWindow), and that needs a live context. SIGTERM alike.
             signal.signal(signal.SIGTERM, _interrupt)
+            # Even when started with SIGINT ignored (a background job of a script, nohup): bracing-pair
+            # stops the nodes with it. Seen: the controller of a backgrounded make bench ignored it.
+            signal.signal(signal.SIGINT, signal.default_int_handler)
             use_fastdds_profile()
             rclpy.init(args=args if args is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
         except RCLError as exc:  # e.g. a params file rcl cannot parse
