@@ -207,7 +207,11 @@ def pair_without_recorder(duration: float = 10.0) -> float:
                 ).returncode
             finally:
                 controller_proc.send_signal(signal.SIGINT)
-                controller_proc.wait(30)
+                try:
+                    controller_proc.wait(30)
+                except subprocess.TimeoutExpired:  # never leave it running in a domain another run may take
+                    controller_proc.kill()
+                    controller_proc.wait()
     if code != 0:
         raise RuntimeError(f"the simulator failed: {(out / 'simulator.log').read_text()[-2000:]}")
     events = dict((what, stamp) for stamp, what in node_events(out / "simulator.log", "simulator"))

@@ -18,7 +18,6 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
-from test_viz import runs  # noqa: F401  (the module's two short bracing-pair runs, a fixture)
 
 from bracing_bringup.columns import MAX_PROBES, Layout, decode
 from bracing_bringup.recorder import BAG_VERSION
@@ -418,7 +417,7 @@ def test_read_series_damaged_message_is_a_bag_read_error(tmp_path: Path) -> None
 # --------------------------------------------------------------------------- read_series on recorded bags
 
 
-def test_read_series_of_pair_runs_equals_general(runs: dict[str, Path]) -> None:  # noqa: F811
+def test_read_series_of_pair_runs_equals_general(runs: dict[str, Path]) -> None:
     braced = assert_columnar_is_general(runs["braced"] / "bag")
     assert list(braced.contacts) == ["elbow"] and braced.contacts["elbow"].t_matched.size > 0
     assert braced.robot_description

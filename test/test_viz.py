@@ -20,7 +20,8 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 import pytest
-from ros_helpers import PAPER_YAML, isolated_env, node_argv, pair_argv, run, start
+from conftest import SHORT_RUN_S
+from ros_helpers import PAPER_YAML, isolated_env, node_argv, start
 from rosbags.highlevel import AnyReader
 
 import bracing_bringup.scene as scene_module
@@ -44,7 +45,7 @@ from bracing_bringup.scene import FORCE_ARROW_M_PER_N, DescriptionError, SceneBu
 from bracing_bringup.summary import read_series
 from bracing_ros import wire
 
-DURATION = 0.3
+DURATION = SHORT_RUN_S  # the `runs` fixture's (conftest)
 STATES = 301  # 0.3 s at 1 ms, both ends
 PAPER_URDF = PAPER_YAML.parent / "paper_4link.urdf"
 Q0 = np.array([-0.2, -0.6, 0.8, -0.4]) * np.pi  # the paper's start pose
@@ -64,17 +65,6 @@ def read_bag(bag: Path) -> dict[str, list[tuple[int, Any]]]:
             out.setdefault(connection.topic, [])
         for connection, stamp, raw in reader.messages():
             out[connection.topic].append((stamp, reader.deserialize(raw, connection.msgtype)))
-    return out
-
-
-@pytest.fixture(scope="module")
-def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    root = tmp_path_factory.mktemp("viz")
-    out = {}
-    for name, extra in (("braced", ()), ("unbraced", ("--no-bracing",))):
-        done = run(pair_argv(root / name, "--duration", str(DURATION), *extra), timeout=300)
-        assert done.returncode == 0, done.stdout + done.stderr
-        out[name] = root / name
     return out
 
 
