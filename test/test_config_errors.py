@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import subprocess
 import sys
 from pathlib import Path
 from typing import Any
@@ -121,3 +122,17 @@ def test_pair_refuses_a_bad_configuration_before_starting_anything(tmp_path: Pat
     assert done.returncode == 2
     assert "motors.resistance: expected 4 values" in done.stderr
     assert not (tmp_path / "run" / "bag").exists()
+
+
+def test_pair_refusing_what_only_the_full_check_finds_keeps_nothing(tmp_path: Path) -> None:
+    """The schema allows a zero contact normal; the configuration's own check, which runs while
+    the processes start, refuses it: the same exit code and line, no run directory left, and
+    no process of the run alive."""
+    output = tmp_path / "run"
+    done = run(pair_argv(output, "--set", "contacts.elbow.normal=[0,0,0]"))
+    assert done.returncode == 2
+    assert "contacts.elbow.normal: must be a non-zero vector" in done.stderr
+    assert "Traceback" not in done.stderr
+    assert not output.exists()
+    left = subprocess.run(["pgrep", "-f", str(output)], capture_output=True, text=True)
+    assert left.stdout == "", left.stdout
