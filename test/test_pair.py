@@ -166,6 +166,26 @@ def test_signal_mid_run_leaves_a_readable_bag(tmp_path: Path, sig: signal.Signal
     assert subprocess.run(["pgrep", "-f", str(output)], capture_output=True).stdout == b""  # nothing left running
 
 
+def test_killed_pair_stops_its_processes_and_leaves_a_readable_bag(tmp_path: Path) -> None:
+    """SIGKILL gives bracing-pair no chance to stop its processes: they stop by themselves (the
+    kernel tells them) instead of living on in a domain id the next run may be given."""
+    output = tmp_path / "run"
+    proc = start(pair_argv(output, "--duration", "30"), isolated_env())
+    try:
+        _wait_for_progress(output)
+        time.sleep(0.5)
+        proc.kill()
+        proc.wait(10)
+        deadline = time.monotonic() + 30.0
+        while subprocess.run(["pgrep", "-f", str(output)], capture_output=True).stdout:
+            assert time.monotonic() < deadline, "a process of the killed run is still running"
+            time.sleep(0.2)
+    finally:
+        subprocess.run(["pkill", "-KILL", "-f", str(output)], capture_output=True)
+    messages = read_bag(output / "bag")  # the recorder closed it
+    assert len(messages["joint_states"]) > 10
+
+
 def test_killed_controller_fails_the_run_with_a_clear_message(tmp_path: Path) -> None:
     output = tmp_path / "run"
     proc = start(pair_argv(output, "--duration", "30"), isolated_env())

@@ -44,6 +44,7 @@ from bracing_bringup.timeline import (
 from bracing_bringup.topics import missing_from_counts
 from bracing_core import schema
 from bracing_core.params import ConfigError, load_params_file, resolve_file
+from bracing_ros.lifetime import STOP_WITH_PARENT
 
 EXIT_FAILED = 1
 EXIT_CONFIG = 2
@@ -281,6 +282,7 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = env.get("BRACING_DISCOVERY_RANGE", "LOCALHOST")
     env["ROS_DOMAIN_ID"] = str(domain)
     env["PYTHONUNBUFFERED"] = "1"
+    env[STOP_WITH_PARENT] = str(os.getpid())  # they stop should this process be killed
     ros_args = ["--ros-args", "--params-file", str(options.config.resolve()), "--params-file", str(override_file)]
     contacts = list(sim_values.contacts)
     lockstep = sim_values["stepping"] == "lockstep" and not options.real_time and duration > 0

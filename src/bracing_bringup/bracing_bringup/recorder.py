@@ -58,6 +58,7 @@ from bracing_bringup.topics import DESCRIPTION_TOPIC, SCENE_TOPICS, STRING_TYPE,
 from bracing_bringup.topics import expected_counts as expected_counts  # re-exported: the check lives in topics
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState
 from bracing_ros.common import SubscriptionWaiter, use_fastdds_profile
+from bracing_ros.lifetime import stop_with_parent
 from bracing_ros.typestore import BRACING_MSGS as BRACING_MSGS  # re-exported: the typestore lives in bracing_ros
 from bracing_ros.typestore import bracing_msgs_dir as bracing_msgs_dir
 from bracing_ros.typestore import bracing_typestore
@@ -320,6 +321,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
+    stop_with_parent()  # a SIGKILLed bracing-pair still gets its bag closed
 
     try:
         typestore = bracing_typestore()

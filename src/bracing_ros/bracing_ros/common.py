@@ -29,6 +29,7 @@ from sensor_msgs.msg import JointState
 from bracing_core.params import ConfigError
 from bracing_msgs.msg import MotorCommand
 from bracing_ros import wire
+from bracing_ros.lifetime import stop_with_parent
 
 # Reliable, transient-local and deep: a subscriber that discovers a publisher late (the recorder
 # on a busy machine) still receives what was sent before the match. A KEEP_LAST writer drops its
@@ -246,6 +247,7 @@ def run(node_factory: Callable[[], Node], spin: Callable[[Node], int], args: lis
             # Even when started with SIGINT ignored (a background job of a script, nohup): bracing-pair
             # stops the nodes with it. Seen: the controller of a backgrounded make bench ignored it.
             signal.signal(signal.SIGINT, signal.default_int_handler)
+            stop_with_parent()
             use_fastdds_profile()
             rclpy.init(args=args if args is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
         except RCLError as exc:  # e.g. a params file rcl cannot parse
