@@ -19,6 +19,7 @@ import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -27,8 +28,6 @@ from bracing_bringup.summary import BagSeries, compute_summary
 SUMMARY_FILE = "summary.json"
 NO_ANIMATION = "no animation"
 """How ``report.draw_file`` says that a bag cannot be animated (the reason follows)."""
-MAX_FILES = 6
-"""The animation and at most five plots (``report.files``)."""
 
 Mark = Callable[..., None]
 """Called with what was just written and when (``timeline.Timeline.mark``)."""
@@ -88,23 +87,34 @@ def report_series(
     (out / SUMMARY_FILE).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     if mark is not None:
         mark(SUMMARY_FILE)
-    args = (series, out, animation_interval_s, urdf)
-    if parallel and (os.cpu_count() or 1) > 1:
-        written = list(drawing_pool().map(_draw, *zip(*[(*args, k) for k in range(MAX_FILES)], strict=True)))
-    else:
-        written = [_draw(*args, k) for k in range(MAX_FILES)]
+    names = file_names(series, animation=animation_interval_s is not None)
+    draw = partial(_draw, series=series, out=out, animation_interval_s=animation_interval_s, urdf=urdf)
+    written = list(drawing_pool().map(draw, names) if parallel and (os.cpu_count() or 1) > 1 else map(draw, names))
     for stamp, label in written:
-        if label is not None and label.startswith(NO_ANIMATION):
+        if label.startswith(NO_ANIMATION):
             print(f"bracing-report: {label}", file=sys.stderr, flush=True)
-        elif label is not None and mark is not None:
+        elif mark is not None:
             mark(label, stamp)
     return summary
 
 
+def file_names(series: BagSeries, animation: bool) -> list[str]:
+    """The report's files but summary.json that ``series`` allows, by name (``report.draw_file``):
+    the animation (the longest, first), then each plot that has data."""
+    names = ["animation"] if animation else []
+    if series.t.size:
+        names += ["hand_y", "hand_z"]
+    if any(cs.t_ctrl.size or cs.t.size for cs in series.contacts.values()):
+        names += ["brace_y", "normal_force"]
+    if series.motor_t.size:
+        names.append("energy")
+    return names
+
+
 def _draw(
-    series: BagSeries, out: Path, animation_interval_s: float | None, urdf: str | None, k: int
-) -> tuple[float, str | None]:
+    name: str, series: BagSeries, out: Path, animation_interval_s: float | None, urdf: str | None
+) -> tuple[float, str]:
     from bracing_bringup.report import draw_file  # loaded already in the drawing processes
 
-    label = draw_file(series, out, animation_interval_s, urdf, k)
+    label = draw_file(name, series, out, animation_interval_s, urdf)
     return time.time(), label

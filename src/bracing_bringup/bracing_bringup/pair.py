@@ -180,6 +180,14 @@ class Pair:
                     self.changed.set()
         self.changed.set()  # end of output: the process exited
 
+    def wait_for_change(self, timeout: float) -> None:
+        """Until a watched line comes or a process exits (at most ``timeout`` [s]); _Interrupted
+        if Ctrl-C or SIGTERM asked the run to stop."""
+        if self.interrupted:
+            raise _Interrupted()
+        self.changed.wait(timeout)
+        self.changed.clear()
+
     def exit_code(self, name: str) -> int | None:
         """``name``'s exit code once it has exited and all its output is in its log, else None."""
         code = self.procs[name].poll()
@@ -326,10 +334,7 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
         last_progress, last_time, last_shown = time.monotonic(), -1.0, 0.0
         tty = sys.stdout.isatty()
         while FINISHED not in pair.seen:  # the simulator's last messages are acknowledged by every subscriber
-            if pair.interrupted:
-                raise _Interrupted()
-            pair.changed.wait(0.1)
-            pair.changed.clear()
+            pair.wait_for_change(0.1)
             for name in ("simulator", "controller", "recorder"):
                 exit_code = pair.exit_code(name)
                 # The recorder may close the bag and exit by itself once it has every message.
@@ -357,14 +362,11 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
         pair.interrupt("controller")
         deadline = time.monotonic() + 120.0  # the nodes' flush (<= 15 s) and the recorder's drain (<= 75 s)
         while RECORDER_CLOSED not in pair.seen and pair.exit_code("recorder") is None:
-            if pair.interrupted:
-                raise _Interrupted()
             if time.monotonic() > deadline:
                 raise _Failure("recorder", "the recorder did not close the bag")
             if pair.exit_code("simulator") is not None and pair.exit_code("controller") is not None:
                 pair.interrupt("recorder")
-            pair.changed.wait(0.1)
-            pair.changed.clear()
+            pair.wait_for_change(0.1)
     except _Interrupted:
         code = 128 + int(pair.interrupted)
         message = f"interrupted ({signal.Signals(pair.interrupted).name}): nodes stopped, bag finalised"

@@ -100,16 +100,14 @@ def _plot_energy(series: BagSeries, out: Path) -> Path:
     return save_figure(fig, ax, out / "energy.png")
 
 
-def plots(series: BagSeries, out: Path) -> list[Callable[[], Path]]:
-    """The PNG plots the data allows, each a call that draws and writes it."""
-    drawn: list[Callable[[], Path]] = []
-    if series.t.size:
-        drawn += [lambda: _plot_hand(series, out, 1, "y"), lambda: _plot_hand(series, out, 2, "z")]
-    if any(cs.t_ctrl.size or cs.t.size for cs in series.contacts.values()):
-        drawn += [lambda: _plot_brace(series, out), lambda: _plot_force(series, out)]
-    if series.motor_t.size:
-        drawn.append(lambda: _plot_energy(series, out))
-    return drawn
+PLOTS: dict[str, Callable[[BagSeries, Path], Path]] = {
+    "hand_y": lambda series, out: _plot_hand(series, out, 1, "y"),
+    "hand_z": lambda series, out: _plot_hand(series, out, 2, "z"),
+    "brace_y": _plot_brace,
+    "normal_force": _plot_force,
+    "energy": _plot_energy,
+}
+"""Each plot by name (``drawing.file_names`` says which a run gets)."""
 
 
 def _previous_wall_time(path: Path) -> float | None:
@@ -148,27 +146,14 @@ def write_report(
     return report_series(series, out, wall_time_s, animation_interval_s, urdf)
 
 
-def files(
-    series: BagSeries, out: Path, animation_interval_s: float | None, urdf: str | None
-) -> list[Callable[[], object]]:
-    """Every file of the report but summary.json, each a call that draws and writes it: the animation
-    (the longest, first) and the plots the data allows."""
-    drawn: list[Callable[[], object]] = []
-    if animation_interval_s is not None:
-        interval = animation_interval_s
-        drawn.append(lambda: _animate(series, out, interval, urdf))
-    return drawn + list(plots(series, out))
-
-
 def draw_file(
-    series: BagSeries, out: Path, animation_interval_s: float | None, urdf: str | None, k: int
-) -> str | None:
-    """Draw file ``k`` of ``files``; what it wrote, or why it wrote nothing (None: there is no file ``k``)."""
-    drawn = files(series, out, animation_interval_s, urdf)
-    if k >= len(drawn):
-        return None
-    result = drawn[k]()
-    return f"plot {result.name}" if isinstance(result, Path) else str(result)
+    name: str, series: BagSeries, out: Path, animation_interval_s: float | None, urdf: str | None
+) -> str:
+    """Draw the report's file ``name`` (``drawing.file_names``); what it wrote, or why it wrote nothing."""
+    if name == "animation":
+        assert animation_interval_s is not None
+        return _animate(series, out, animation_interval_s, urdf)
+    return f"plot {PLOTS[name](series, out).name}"
 
 
 def _animate(series: BagSeries, out: Path, interval_s: float, urdf: str | None) -> str:

@@ -31,10 +31,10 @@ from bracing_ros.common import (
     AckWindow,
     RateLimitedLog,
     SubscriptionWaiter,
+    create_waking_publisher,
     read_joint_state,
     run,
     wait_until,
-    wake_on_match,
 )
 
 STAMP_RANGE_NS = (-(2**31) * 1_000_000_000, 2**31 * 1_000_000_000)
@@ -79,12 +79,9 @@ class ControllerNode(Node):
         self.joint_names = list(self.law.plant.joint_names)
         self.mode_code = MODE_CODES[self.config.shared.input_mode]
         self.contact_names = [c.name for c in self.config.shared.contacts]
-        self.command_pub = self.create_publisher(
-            MotorCommand, "motor_command", STREAM_QOS, event_callbacks=wake_on_match()
-        )
-        self.state_pub = self.create_publisher(
-            ControllerState, "controller_state", STREAM_QOS, event_callbacks=wake_on_match()
-        )
+        # The wait for the recorder wakes on each match.
+        self.command_pub = create_waking_publisher(self, MotorCommand, "motor_command", STREAM_QOS)
+        self.state_pub = create_waking_publisher(self, ControllerState, "controller_state", STREAM_QOS)
         # Messages travel as CDR bytes built by ``wire`` (rclpy's message classes cost more than the DDS write).
         self.command_wire = wire.MotorCommandEncoder(self.joint_names, self.mode_code)
         self.state_wire = wire.ControllerStateEncoder(self.contact_names, len(self.joint_names))

@@ -89,10 +89,10 @@ class RateLimitedLog:
             self._logger.info(text)
 
 
-def wake_on_match() -> PublisherEventCallbacks:
-    """Event callbacks for a publisher whose matches ``wait_until`` waits for: a match wakes the
-    executor at once (the callback itself has nothing to do; ``wait_until`` checks the counts)."""
-    return PublisherEventCallbacks(matched=_matched)
+def create_waking_publisher(node: Node, msg_type: type, topic: str, qos: QoSProfile) -> Publisher:
+    """``node.create_publisher``, for a publisher whose matches ``wait_until`` waits for: a match
+    wakes the executor at once (the callback itself has nothing to do; ``wait_until`` checks)."""
+    return node.create_publisher(msg_type, topic, qos, event_callbacks=PublisherEventCallbacks(matched=_matched))
 
 
 def _matched(_: object) -> None:
@@ -108,7 +108,7 @@ def use_fastdds_profile() -> None:
 def wait_until(node: Node, executor: Executor, ready: Callable[[], bool], message: str) -> None:
     """Serve ``executor`` until ``ready()`` (a subscription count, say), logging ``message`` (what
     it waits for) once it has waited 2 s. Discovery and matching happen in DDS's own threads; a
-    publisher made with ``wake_on_match`` ends the executor's wait when it matches."""
+    publisher made with ``create_waking_publisher`` ends the executor's wait when it matches."""
     since, told = time.monotonic(), False
     while not ready():
         executor.spin_once(timeout_sec=0.05)

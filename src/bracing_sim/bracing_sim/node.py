@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import sys
 import time
+from functools import partial
 
 import numpy as np
 from geometry_msgs.msg import WrenchStamped
@@ -34,10 +35,10 @@ from bracing_ros.common import (
     AckWindow,
     RateLimitedLog,
     SubscriptionWaiter,
+    create_waking_publisher,
     read_motor_command,
     run,
     wait_until,
-    wake_on_match,
 )
 
 DESCRIPTION_QOS = QoSProfile(
@@ -64,20 +65,16 @@ class SimulatorNode(Node):
         duration = self.config.duration
         self.total_steps = round(duration / self.config.step) if duration > 0 else None
 
-        self.joint_pub = self.create_publisher(JointState, "joint_states", STREAM_QOS, event_callbacks=wake_on_match())
-        self.contacts_pub = self.create_publisher(Contacts, "contacts", STREAM_QOS, event_callbacks=wake_on_match())
-        self.motor_pub = self.create_publisher(MotorState, "motor_state", STREAM_QOS, event_callbacks=wake_on_match())
-        self.clock_pub = self.create_publisher(Clock, "/clock", STREAM_QOS, event_callbacks=wake_on_match())
+        publisher = partial(create_waking_publisher, self)  # the lockstep wait wakes on each match
+        self.joint_pub = publisher(JointState, "joint_states", STREAM_QOS)
+        self.contacts_pub = publisher(Contacts, "contacts", STREAM_QOS)
+        self.motor_pub = publisher(MotorState, "motor_state", STREAM_QOS)
+        self.clock_pub = publisher(Clock, "/clock", STREAM_QOS)
         self.wrench_pubs = [
-            self.create_publisher(
-                WrenchStamped, f"contact_wrench/{c.name}", STREAM_QOS, event_callbacks=wake_on_match()
-            )
-            for c in self.config.shared.contacts
+            publisher(WrenchStamped, f"contact_wrench/{c.name}", STREAM_QOS) for c in self.config.shared.contacts
         ]
         # The URDF loaded, latched: robot_state_publisher, RViz and the recorder get it whenever they join.
-        self.description_pub = self.create_publisher(
-            String, "robot_description", DESCRIPTION_QOS, event_callbacks=wake_on_match()
-        )
+        self.description_pub = publisher(String, "robot_description", DESCRIPTION_QOS)
         self.description_pub.publish(String(data=self.config.shared.urdf.read_text(encoding="utf-8")))
         # Messages travel as CDR bytes built by ``wire`` (rclpy's message classes cost more than the DDS write).
         contacts = self.config.shared.contacts
