@@ -61,9 +61,9 @@ def series_from_recording(rec: Recording) -> BagSeries:
         energy_net=rec.energy_net,
         copper_loss=rec.copper_loss,
     )
+    braced = {name: b for b, name in enumerate(rec.braced_names)}
     for j, name in enumerate(rec.contact_names):
-        desired = np.full(rec.time.size, rec.desired_normal_force[j])
-        series.contacts[name] = ContactSeries(
+        contact = ContactSeries(
             name=name,
             t=rec.time,
             normal_force=rec.normal_force[:, j],
@@ -71,13 +71,16 @@ def series_from_recording(rec: Recording) -> BagSeries:
             residual=rec.residual[:, j],
             active=rec.active[:, j],
             position=rec.contact_position[:, j],
-            t_ctrl=rec.time,
-            normal_force_desired=desired,
-            brace_desired=rec.brace_desired[:, j],
-            brace_actual=rec.brace_actual[:, j],
-            t_matched=rec.time,
-            normal_force_error=rec.normal_force[:, j] - desired,
+            slip_velocity=rec.slip_velocity[:, j],
         )
+        if name in braced:  # the controller's side: what controller_state holds for it
+            b = braced[name]
+            desired = np.full(rec.time.size, rec.desired_normal_force[b])
+            contact.t_ctrl = contact.t_matched = rec.time
+            contact.normal_force_desired = desired
+            contact.brace_desired, contact.brace_actual = rec.brace_desired[:, b], rec.brace_actual[:, b]
+            contact.normal_force_error = rec.normal_force[:, j] - desired
+        series.contacts[name] = contact
     return series
 
 
@@ -90,7 +93,7 @@ def summarize(rec: Recording, wall_time_s: float) -> dict[str, Any]:
         errors = [np.abs(c.normal_force_error) for c in series.contacts.values()]
         summary[FORCE_MAX_ERROR_KEY] = float(np.max(np.concatenate(errors))) if errors else None
     summary.setdefault("input_mode", rec.input_mode)
-    summary.setdefault("bracing", bool(rec.contact_names))
+    summary.setdefault("bracing", bool(rec.braced_names))
     return summary
 
 

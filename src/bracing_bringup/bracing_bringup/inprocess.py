@@ -21,7 +21,7 @@ import numpy as np
 
 from bracing_core.config import Plant, SimulatorConfig, build_simulator, check_step
 from bracing_core.controller_config import ControllerConfig
-from bracing_core.law import DecoupledController
+from bracing_core.law import DecoupledController, check_task_rank
 from bracing_core.params import load_params_file
 from bracing_core.simulator import DivergenceError, Energy, Simulator
 
@@ -67,7 +67,9 @@ def build_scenario_from_params(
     plant, simulator = build_simulator(sim_config)
     controller = None
     if ctl_params is not None:
-        controller = DecoupledController(ControllerConfig.from_params(ctl_params, search or []))
+        controller_config = ControllerConfig.from_params(ctl_params, search or [])
+        check_task_rank(controller_config, plant, simulator.position)
+        controller = DecoupledController(controller_config)
     return Scenario(plant, simulator, controller, sim_config)
 
 
@@ -138,18 +140,20 @@ class Recording:
     command: np.ndarray  # (N+1, n) [V] or [N m]
     hand_desired: np.ndarray  # (N+1, 3) [m]
     hand_actual: np.ndarray  # (N+1, 3) [m]
-    brace_desired: np.ndarray  # (N+1, p, 3) [m]
-    brace_actual: np.ndarray  # (N+1, p, 3) [m]
-    contact_position: np.ndarray  # (N+1, p, 3) [m], the simulator's contact points
+    brace_desired: np.ndarray  # (N+1, b, 3) [m], the b braced contacts (braced_names)
+    brace_actual: np.ndarray  # (N+1, b, 3) [m]
+    contact_position: np.ndarray  # (N+1, p, 3) [m], the simulator's p contact points (contact_names)
+    slip_velocity: np.ndarray  # (N+1, p, 3) [m/s]
     normal_force: np.ndarray  # (N+1, p) [N]
     friction_force: np.ndarray  # (N+1, p) [N]
     residual: np.ndarray  # (N+1, p) [m]
     active: np.ndarray  # (N+1, p) bool
-    desired_normal_force: np.ndarray  # (p,) [N]
+    desired_normal_force: np.ndarray  # (b,) [N]
     energy_consumed: np.ndarray  # (N+1,) [J]
     energy_net: np.ndarray  # (N+1,) [J]
     copper_loss: np.ndarray  # (N+1,) [J]
-    contact_names: tuple[str, ...]
+    contact_names: tuple[str, ...]  # the simulator's contacts (obstacles and collision frames too)
+    braced_names: tuple[str, ...]  # the controller's: the contacts it keeps a force on
     joint_names: tuple[str, ...]  # model order (the columns of position, ...)
     input_mode: str
 
@@ -157,6 +161,7 @@ class Recording:
         """Every field as an array (for an .npz; the names as string arrays, no pickles)."""
         out = {name: value for name, value in vars(self).items() if isinstance(value, np.ndarray)}
         out["contact_names"] = np.array(self.contact_names, dtype=str)
+        out["braced_names"] = np.array(self.braced_names, dtype=str)
         out["joint_names"] = np.array(self.joint_names, dtype=str)
         out["input_mode"] = np.array(self.input_mode)
         return out
@@ -174,9 +179,11 @@ def run_recorded(scenario: Scenario, duration: float) -> Recording:
         raise ValueError("run_recorded needs a scenario built with a controller")
     steps = round(duration / sim.step_size)
     rows, n, p = steps + 1, sim.n, len(scenario.plant.contact_set)
+    braced = len(controller.contact_set)
     joint = {key: np.zeros((rows, n)) for key in ("position", "velocity", "current", "command")}
     task = {key: np.zeros((rows, 3)) for key in ("hand_desired", "hand_actual")}
-    brace = {key: np.zeros((rows, p, 3)) for key in ("brace_desired", "brace_actual", "contact_position")}
+    brace = {key: np.zeros((rows, braced, 3)) for key in ("brace_desired", "brace_actual")}
+    brace |= {key: np.zeros((rows, p, 3)) for key in ("contact_position", "slip_velocity")}
     contact = {key: np.zeros((rows, p)) for key in ("normal_force", "friction_force", "residual")}
     active = np.ones((rows, p), dtype=bool)
     energy = np.zeros((rows, 3))
@@ -196,6 +203,7 @@ def run_recorded(scenario: Scenario, duration: float) -> Recording:
         terms = d.contacts
         contact["normal_force"][k], contact["friction_force"][k] = d.normal_force, d.friction_force
         contact["residual"][k], brace["contact_position"][k] = terms.residual, terms.positions
+        brace["slip_velocity"][k] = terms.slip_velocity
         if d.active is not None:
             active[k] = d.active
         if scenario.sim_config is not None:  # where the simulator node would refuse the step
@@ -214,7 +222,8 @@ def run_recorded(scenario: Scenario, duration: float) -> Recording:
         energy_consumed=energy[:, 0],
         energy_net=energy[:, 1],
         copper_loss=energy[:, 2],
-        contact_names=tuple(c.name for c in scenario.plant.config.contacts),
+        contact_names=tuple(scenario.plant.contact_set.names),
+        braced_names=tuple(controller.contact_set.names),
         joint_names=tuple(scenario.plant.joint_names),
         input_mode=scenario.plant.mode.value,
     )

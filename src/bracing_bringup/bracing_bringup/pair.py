@@ -1,7 +1,7 @@
 """bracing-pair: simulator + controller as separate processes over DDS, recorded to rosbag2.
 
     bracing-pair --config F [--duration S] [--output DIR] [--mode voltage|torque]
-                 [--no-bracing] [--real-time] [--domain-id N] [--set KEY=VALUE ...]
+                 [--no-bracing | --free-space] [--real-time] [--domain-id N] [--set KEY=VALUE ...]
                  [--no-animation] [--timeline]
 
 Writes DIR/bag/ (mcap), DIR/logs/*.log, DIR/summary.json, the report's PNGs and animation,
@@ -57,7 +57,7 @@ class RunOptions:
     output: Path
     duration: float | None = None
     mode: str | None = None
-    bracing: bool = True
+    bracing: bool = True  # False: --no-bracing (no brace tasks; the surfaces stay, as obstacles)
     real_time: bool = False
     domain_id: int | None = None
     quiet: bool = False
@@ -66,6 +66,7 @@ class RunOptions:
     command_start: float | None = None  # wall time the run was asked for (default: run_pair's call)
     animation: bool = True  # draw animation.gif / .mp4 with the report
     show_timeline: bool = False  # print the timeline at the end (bracing-pair --timeline)
+    free_space: bool = False  # --free-space: the surfaces removed (only watched), the paper's comparison
 
 
 @dataclass
@@ -85,7 +86,9 @@ def shared_overrides(options: RunOptions) -> dict[str, Any]:
     if options.mode is not None:
         common["input_mode"] = options.mode
     if not options.bracing:
-        common["contacts.names"] = []
+        common["bracing"] = False
+    if options.free_space:
+        common["free_space"] = True
     return common
 
 
@@ -399,12 +402,14 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
 
 
 def _check_configs(sim_values: schema.Values, controller_values: schema.Values, search: list[Path]) -> None:
-    """The nodes' configuration checks (they would stop on the same error): ConfigError."""
-    from bracing_core.config import SimulatorConfig
+    """The nodes' configuration checks (they would stop on the same error), the start posture's
+    feasibility and the task's rank there: ConfigError, before the run leaves a bag behind."""
+    from bracing_core.config import SimulatorConfig, build_simulator
     from bracing_core.controller_config import ControllerConfig
+    from bracing_core.law import check_task_rank
 
-    SimulatorConfig.from_values(sim_values, search)
-    ControllerConfig.from_values(controller_values, search)
+    plant, simulator = build_simulator(SimulatorConfig.from_values(sim_values, search))  # a feasible start
+    check_task_rank(ControllerConfig.from_values(controller_values, search), plant, simulator.position)
 
 
 FINISHED = "finished at t = "
@@ -462,7 +467,14 @@ def parse_args(argv: Sequence[str] | None) -> RunOptions:
     parser.add_argument("--duration", type=float, default=None, help="sim time [s] (default: the file's)")
     parser.add_argument("--output", type=Path, default=None, help="run directory (default: out/<time>)")
     parser.add_argument("--mode", choices=("voltage", "torque"), default=None, help="input mode override")
-    parser.add_argument("--no-bracing", action="store_true", help="the same task with no contacts")
+    parser.add_argument(
+        "--no-bracing",
+        action="store_true",
+        help="the same task with no brace tasks and no desired forces; the surfaces stay as obstacles",
+    )
+    parser.add_argument(
+        "--free-space", action="store_true", help="the surfaces removed (the paper's comparison); implies --no-bracing"
+    )
     parser.add_argument("--real-time", action="store_true", help="wall-clock stepping instead of lockstep")
     parser.add_argument(
         "--domain-id",
@@ -502,6 +514,7 @@ def parse_args(argv: Sequence[str] | None) -> RunOptions:
         parameters=parameters,
         animation=not args.no_animation,
         show_timeline=args.timeline,
+        free_space=args.free_space,
     )
 
 

@@ -78,7 +78,7 @@ class ControllerNode(Node):
         self.retuned: ControllerConfig | None = None  # applied at the next update
         self.joint_names = list(self.law.plant.joint_names)
         self.mode_code = MODE_CODES[self.config.shared.input_mode]
-        self.contact_names = [c.name for c in self.config.shared.contacts]
+        self.contact_names = [c.name for c in self.config.shared.braced_contacts]
         # The wait for the recorder wakes on each match.
         self.command_pub = create_waking_publisher(self, MotorCommand, "motor_command", STREAM_QOS)
         self.state_pub = create_waking_publisher(self, ControllerState, "controller_state", STREAM_QOS)

@@ -8,7 +8,7 @@ controller alike. Everything is validated here, once, with errors naming the par
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -16,17 +16,18 @@ from typing import Any
 import numpy as np
 
 from bracing_core import schema
-from bracing_core.contacts import ContactSet, PlaneContact
+from bracing_core.contacts import Contact, ContactSet, Cylinder, Plane, Sphere, Surface, project_onto_contacts
 from bracing_core.dynamics import ConstrainedDynamics, Derivative, InputMode
 from bracing_core.model import ModelError, RobotModel
+from bracing_core.motors import FIELDS as MOTOR_FIELDS
 from bracing_core.motors import MotorParams
 from bracing_core.params import ConfigError, Params, resolve_file
 from bracing_core.schema import Values
 from bracing_core.simulator import DivergenceError, Simulator
+from bracing_core.trajectory import TrajectoryConfig
 from bracing_core.types import Vector
 
 AXES = ("x", "y", "z")
-MOTOR_FIELDS = ("torque_constant", "resistance", "inductance", "rotor_inertia", "gear_ratio", "gear_damping")
 
 
 def axes_indices(name: str, axes: Sequence[str]) -> tuple[int, ...]:
@@ -38,48 +39,111 @@ def axes_indices(name: str, axes: Sequence[str]) -> tuple[int, ...]:
     return tuple(AXES.index(a) for a in axes)
 
 
+def trajectory_from_values(prefix: str, values: Mapping[str, Any], point: Sequence[float] | None) -> TrajectoryConfig:
+    """A task's path from the schema's values of ``schema.trajectory_params(prefix, ...)``;
+    ``point``: the held point (hold), or None for the first measured position."""
+    plane = axes_indices(prefix + "plane", values[prefix + "plane"])
+    direction = values[prefix + "direction"]
+    kind = values[prefix + "type"]
+    if kind == "circle" and direction not in (-1.0, 1.0):
+        raise ConfigError(f"{prefix}direction: expected +1 or -1, got {direction}")
+    flat = values[prefix + "waypoints"] or ()
+    if kind == "waypoints" and len(flat) % 3:
+        raise ConfigError(f"{prefix}waypoints: expected x, y, z per waypoint (a multiple of 3 values), got {len(flat)}")
+    center = values[prefix + "center"] or (0.0, 0.0, 0.0)
+    return TrajectoryConfig(
+        kind=kind,
+        center=(center[0], center[1], center[2]),
+        radius=values[prefix + "radius"] or 0.0,
+        period=values[prefix + "period"],
+        direction=direction,
+        phase=values[prefix + "phase"],
+        plane=(plane[0], plane[1]),
+        point=(point[0], point[1], point[2]) if point else None,
+        waypoints=tuple((flat[k], flat[k + 1], flat[k + 2]) for k in range(0, len(flat) - 2, 3)),
+        segment_time=values[prefix + "segment_time"],
+    )
+
+
+def surface_from_values(key: str, values: Mapping[str, Any]) -> Surface:
+    """contacts.<name>: its surface (plane, sphere or cylinder), checked; errors name the parameter."""
+    kind = values["surface"]
+    if kind != "plane" and not values["radius"] > 0.0:
+        raise ConfigError(f"{key}radius: a {kind} needs a radius > 0 m, got {values['radius']}")
+    for name in ("normal", "axis"):
+        if float(np.linalg.norm(values[name])) < 1e-9:
+            raise ConfigError(f"{key}{name}: must be a non-zero vector, got {list(values[name])}")
+    if kind == "sphere":
+        return Sphere(np.array(values["center"]), values["radius"], values["inside"])
+    if kind == "cylinder":
+        return Cylinder(np.array(values["point"]), np.array(values["axis"]), values["radius"], values["inside"])
+    return Plane(np.array(values["normal"]), values["offset"])
+
+
+def surface_key(surface: Surface) -> tuple[Any, ...]:
+    """Equal for the same surface described twice (two contacts on one floor)."""
+    numbers = [float(x) for name, value in vars(surface).items() if not name.startswith("_") for x in np.ravel(value)]
+    return (surface.kind, *(round(x, 12) for x in numbers))
+
+
 @dataclass(frozen=True)
 class ContactConfig:
-    """contacts.<name>: the plane, and the controller's force and brace task for it."""
+    """contacts.<name>: the surface, and for a braced contact the controller's force and brace task.
+
+    A contact without a desired normal force is an obstacle: unilateral, it only pushes.
+    """
 
     name: str
     frame: str
-    normal: tuple[float, float, float]
-    offset: float  # c [m]
+    surface: Surface
     friction: float  # mu
-    desired_normal_force: float  # f_nd [N]
+    desired_normal_force: float | None  # f_nd [N]; None: an obstacle
     brace_axes: tuple[int, ...]  # world axis indices of the brace task
     kp: tuple[float, ...]  # one per brace axis
     kd: tuple[float, ...]
     target: tuple[float, float, float] | None  # None: the brace point's initial position
-    unilateral: bool = False  # the plane only pushes: release and touchdown (bilateral: the paper)
+    trajectory: TrajectoryConfig  # the brace point's path (hold: target)
+    unilateral: bool = False  # the surface only pushes: release and touchdown (bilateral: the paper)
+
+    @property
+    def braced(self) -> bool:
+        return self.desired_normal_force is not None
 
     @classmethod
-    def from_values(cls, name: str, values: dict[str, Any]) -> ContactConfig:
-        """From the schema's values of contacts.<name> (``schema.read``); controller-only fields may be absent."""
+    def from_values(cls, name: str, values: dict[str, Any], bracing: bool = True) -> ContactConfig:
+        """From the schema's values of contacts.<name> (``schema.read``); controller-only fields may be
+        absent. ``bracing`` False: an obstacle whatever the file says (no force, no brace task)."""
         key = f"contacts.{name}."
         # The simulator does not read the controller's fields: they take the schema's defaults.
-        values = {**{p.name: p.default for p in schema.CONTACT if p.default is not schema.REQUIRED}, **values}
-        normal = values["normal"]
-        if float(np.linalg.norm(normal)) < 1e-9:
-            raise ConfigError(f"{key}normal: must be a non-zero vector, got {list(normal)}")
+        defaults = {
+            p.name: None if p.default in (schema.REQUIRED, schema.ABSENT) else p.default for p in schema.CONTACT
+        }
+        values = {**defaults, **values}
+        desired = values["desired_normal_force"] if bracing else None
+        brace_axes = axes_indices(key + "brace_axes", values["brace_axes"]) if desired is not None else ()
+        if desired is None and bracing and values["brace_axes"]:
+            raise ConfigError(
+                f"{key}brace_axes: contact {name!r} has no desired_normal_force, so it is an obstacle with no brace "
+                "task; give it a desired_normal_force or remove its brace_axes"
+            )
         target = values["target"]
         return cls(
             name=name,
             frame=values["frame"],
-            normal=(normal[0], normal[1], normal[2]),
-            offset=values["offset"],
+            surface=surface_from_values(key, values),
             friction=values["friction"],
-            desired_normal_force=values["desired_normal_force"],
-            brace_axes=axes_indices(key + "brace_axes", values["brace_axes"]),
-            kp=tuple(values["kp"]),
-            kd=tuple(values["kd"]),
+            desired_normal_force=desired,
+            brace_axes=brace_axes,
+            kp=tuple(values["kp"]) if desired is not None else (),
+            kd=tuple(values["kd"]) if desired is not None else (),
             target=(target[0], target[1], target[2]) if target else None,
-            unilateral=values["unilateral"],
+            trajectory=trajectory_from_values("trajectory.", values, target),
+            unilateral=values["unilateral"] or desired is None,
         )
 
-    def plane(self) -> PlaneContact:
-        return PlaneContact(self.name, self.frame, np.array(self.normal), self.offset, self.friction, self.unilateral)
+    def contact(self, enforced: bool = True) -> Contact:
+        """The core's contact; not ``enforced``: only watched (free space)."""
+        return Contact(self.name, self.frame, self.surface, self.friction, self.unilateral or not enforced, enforced)
 
 
 @dataclass(frozen=True)
@@ -92,6 +156,16 @@ class SharedConfig:
     input_mode: InputMode
     motors: MotorParams  # in joint_names order
     contacts: tuple[ContactConfig, ...]
+    locked_joints: tuple[str, ...] = ()
+    locked_positions: tuple[float, ...] = ()  # robot.locked_joints order; empty = 0 each
+    collision_frames: tuple[str, ...] = ()
+    bracing: bool = True
+    free_space: bool = False  # the surfaces only watched
+
+    @property
+    def braced_contacts(self) -> tuple[ContactConfig, ...]:
+        """The contacts the controller keeps a force on (none in free space)."""
+        return () if self.free_space else tuple(c for c in self.contacts if c.braced)
 
     @classmethod
     def from_values(cls, values: Values, search_dirs: Sequence[Path] = ()) -> SharedConfig:
@@ -105,14 +179,27 @@ class SharedConfig:
             )
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
-        contacts = tuple(ContactConfig.from_values(name, own) for name, own in values.contacts.items())
+        bracing = values["bracing"] and not values["free_space"]
+        try:
+            contacts = tuple(ContactConfig.from_values(name, own, bracing) for name, own in values.contacts.items())
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
+        joint_names = values["robot.joint_names"]
+        for joint in values["robot.locked_joints"]:
+            if joint not in joint_names:
+                raise ConfigError(f"robot.locked_joints: {joint!r} is not in robot.joint_names {list(joint_names)}")
         return cls(
             urdf,
-            values["robot.joint_names"],
+            joint_names,
             (gravity[0], gravity[1], gravity[2]),
             InputMode(values["input_mode"]),
             motors,
             contacts,
+            tuple(values["robot.locked_joints"]),
+            tuple(values["robot.locked_positions"]),
+            tuple(values["robot.collision_frames"]),
+            values["bracing"],
+            values["free_space"],
         )
 
 
@@ -120,22 +207,65 @@ class Plant:
     """The robot model, motors (model joint order) and contacts built from a SharedConfig.
 
     One implementation for simulator and controller: both build their plant here.
+    ``contact_set`` is the simulator's (every contact, and each collision frame against each
+    surface); ``braced_set`` the controller's (the contacts it keeps a force on).
     """
 
     def __init__(self, config: SharedConfig, slip_epsilon: float) -> None:
         try:
-            self.robot = RobotModel.from_urdf(config.urdf, config.gravity)
-            # Index array taking configuration-ordered data to model order.
-            self.order = self.robot.joint_permutation(config.joint_names)
+            self.robot = RobotModel.from_urdf(
+                config.urdf, config.gravity, config.locked_joints, config.locked_positions
+            )
+            # Index array taking configuration-ordered data to model order (locked joints dropped).
+            actuated = [name for name in config.joint_names if name not in config.locked_joints]
+            order = self.robot.joint_permutation(actuated)
         except ModelError as exc:
             raise ConfigError(str(exc)) from None
+        self.order = np.array([config.joint_names.index(actuated[k]) for k in order], dtype=int)
         for contact in config.contacts:
             self.frame_id(contact.frame, f"contacts.{contact.name}.frame")
-        self.contact_set = ContactSet(self.robot, [c.plane() for c in config.contacts], slip_epsilon)
+        for frame in config.collision_frames:
+            self.frame_id(frame, "robot.collision_frames")
         self.config = config
         self.joint_names = self.robot.joint_names  # model order: the order of every message
-        self.motors = config.motors.permuted(self.order)
+        self.motors = config.motors.selected(self.order)
+        self._check_transmissions()
         self.mode = config.input_mode
+        enforced = not config.free_space
+        contacts = [c.contact(enforced) for c in config.contacts] + self._collision_contacts(enforced)
+        try:
+            self.contact_set = ContactSet(self.robot, contacts, slip_epsilon)
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
+        self.braced_set = ContactSet(self.robot, [c.contact() for c in config.braced_contacts], slip_epsilon)
+
+    def _check_transmissions(self) -> None:
+        """A prismatic joint needs a transmission radius (its motor turns a wheel or pinion); a revolute none."""
+        for name, prismatic, radius in zip(
+            self.joint_names, self.robot.prismatic, self.motors.transmission_radius, strict=True
+        ):
+            if prismatic and not radius > 0.0:
+                raise ConfigError(
+                    f"motors.transmission_radius: joint {name!r} is prismatic, so its motor drives it through a wheel "
+                    "or pinion: give its radius rho [m] (> 0)"
+                )
+            if not prismatic and radius > 0.0:
+                raise ConfigError(f"motors.transmission_radius: joint {name!r} is revolute: its radius must be 0")
+
+    def _collision_contacts(self, enforced: bool) -> list[Contact]:
+        """Each collision frame against each distinct surface: unilateral, named <frame>@<contact>."""
+        surfaces: dict[tuple[Any, ...], ContactConfig] = {}
+        taken = set()
+        for contact in self.config.contacts:
+            key = surface_key(contact.surface)
+            surfaces.setdefault(key, contact)
+            taken.add((contact.frame, key))
+        out = []
+        for frame in self.config.collision_frames:
+            for key, owner in surfaces.items():
+                if (frame, key) not in taken:
+                    out.append(Contact(f"{frame}@{owner.name}", frame, owner.surface, owner.friction, True, enforced))
+        return out
 
     def frame_id(self, name: str, parameter: str) -> int:
         """The model frame ``name``; a ConfigError naming ``parameter`` if there is none."""
@@ -145,6 +275,7 @@ class Plant:
             raise ConfigError(f"{parameter}: {exc}") from None
 
     def to_model_order(self, values: Sequence[float]) -> np.ndarray:
+        """Per-joint values in robot.joint_names order -> model order (locked joints dropped)."""
         return np.asarray(values, dtype=float)[self.order]
 
     def dynamics(self, baumgarte: float = 0.0) -> ConstrainedDynamics:
@@ -165,6 +296,7 @@ class SimulatorConfig:
     baumgarte: float
     slip_epsilon: float
     contact_tolerance: float
+    project_initial_position: bool
     stepping: str
     real_time_factor: float
     command_timeout: float
@@ -215,36 +347,60 @@ def check_step(config: SimulatorConfig, d: Derivative, velocity: Vector, *also_f
 
 
 def build_simulator(config: SimulatorConfig) -> tuple[Plant, Simulator]:
-    """The plant and a simulator at the configured start; refuses an infeasible start."""
+    """The plant and a simulator at the configured start (moved onto the contacts first if
+    ``project_initial_position``); refuses an infeasible start."""
     plant = Plant(config.shared, config.slip_epsilon)
     q0 = plant.to_model_order(config.initial_position)
     dq0 = plant.to_model_order(config.initial_velocity)
-    simulator = Simulator(plant.dynamics(config.baumgarte), config.step, q0, dq0, config.substeps)
+    if config.project_initial_position:
+        q0 = project_initial_position(plant, q0)
+    try:
+        simulator = Simulator(plant.dynamics(config.baumgarte), config.step, q0, dq0, config.substeps)
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
     check_start(plant, simulator, config.contact_tolerance)
     return plant, simulator
 
 
+def project_initial_position(plant: Plant, q0: Vector) -> Vector:
+    """The posture nearest ``q0`` (joint-space metric M) where every bilateral contact holds."""
+    contacts = plant.contact_set
+    bilateral = [j for j, c in enumerate(contacts.contacts) if not c.unilateral]
+    robot = plant.robot
+    try:
+        return project_onto_contacts(robot.model, robot.data, contacts, q0, bilateral)
+    except ValueError as exc:
+        raise ConfigError(f"project_initial_position: {exc}") from None
+
+
 def check_start(plant: Plant, simulator: Simulator, tolerance: float) -> None:
-    """A start state must satisfy every contact (|C| <= tolerance), and every contact must be
-    able to push: a frame that no joint can move along the plane's normal (n^T J = 0) gives a
-    singular system."""
-    if not len(plant.contact_set):
+    """A start state must satisfy every held contact (|C| <= tolerance; a unilateral one may also
+    start above its surface, released), and every contact must be able to push: a frame that no
+    joint can move along the surface normal (n^T J = 0) gives a singular system. The error names
+    every contact that is off."""
+    contacts = plant.contact_set.contacts
+    if not contacts:
         return
     plant.robot.compute(simulator.position, simulator.velocity)
     terms = plant.contact_set.evaluate(simulator.velocity)
-    for contact, row in zip(plant.config.contacts, terms.normal_jacobian, strict=True):
-        if float(np.linalg.norm(row)) < 1e-9:
+    enforced = np.array([c.enforced for c in contacts])
+    for contact, row, held in zip(contacts, terms.normal_jacobian, enforced, strict=True):
+        if held and not contact.unilateral and float(np.linalg.norm(row)) < 1e-9:
             raise ConfigError(
-                f"contacts.{contact.name}: no joint moves frame {contact.frame!r} along the normal "
-                f"{list(contact.normal)} at the start (n^T J = 0), so the contact cannot hold a force; "
-                f"check contacts.{contact.name}.normal"
+                f"contacts.{contact.name}: no joint moves frame {contact.frame!r} along the surface normal "
+                f"at the start (n^T J = 0), so the contact cannot hold a force; check contacts.{contact.name}"
             )
-    above = np.array([c.unilateral for c in plant.config.contacts]) & (terms.residual > tolerance)
-    if above.any():  # a unilateral contact above its plane starts released, in flight
-        simulator.set_active(~above)
-    for contact, residual, released in zip(plant.config.contacts, terms.residual, above, strict=True):
-        if abs(residual) > tolerance and not released:
-            raise ConfigError(
-                f"infeasible start: contact {contact.name!r} (frame {contact.frame!r}) is {residual:+.6g} m "
-                f"off its plane (tolerance {tolerance:g} m); change initial_position or the plane offset"
-            )
+    unilateral = np.array([c.unilateral for c in contacts])
+    released = ~enforced | (unilateral & (terms.residual > tolerance))  # in flight, or only watched
+    off = [
+        f"contact {c.name!r} (frame {c.frame!r}) is {residual:+.6g} m off its surface"
+        for c, residual, free in zip(contacts, terms.residual, released, strict=True)
+        if abs(residual) > tolerance and not free
+    ]
+    if off:
+        raise ConfigError(
+            f"infeasible start: {'; '.join(off)} (tolerance {tolerance:g} m; negative: through it); change "
+            "initial_position or the surface, or set project_initial_position"
+        )
+    if released.any():
+        simulator.set_active(~released)

@@ -1,8 +1,11 @@
-"""Bracing contacts: robot frames held on planes n . r = c, with Coulomb-like friction.
+"""Contacts: robot frames held on surfaces C(r) = 0 (planes, spheres, cylinders), with friction.
 
-``evaluate_contacts`` reads one pinocchio pass (``RobotModel.compute``) and stacks, for
-all p contacts, the rows of docs/model.md (Contacts): j_c = n^T J, gamma = n . (dJ dq), the slip
-velocity and its regularised direction, and j_t = J^T (slip direction).
+Each surface gives, at a point r, the signed distance C(r) (positive on the side the robot
+stays on), its unit gradient n(r) = dC/dr (the direction the surface pushes) and its
+Hessian H_C(r) (zero for a plane). ``ContactSet.evaluate_data`` reads one pinocchio pass
+(``RobotModel.compute``) and stacks, for all p contacts, the rows of docs/model.md
+(Contacts): j_c = n^T J, gamma = n . (dJ dq) + (J dq)^T H_C (J dq), the slip velocity
+(the part of J dq in the tangent plane) and its regularised direction, j_t = J^T (slip direction).
 """
 
 from __future__ import annotations
@@ -17,35 +20,139 @@ from bracing_core.model import RobotModel
 from bracing_core.types import Vector
 
 _WORLD = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+_NO_CURVATURE = np.zeros((3, 3))
+
+
+def _vector(value: Sequence[float] | Vector, what: str, unit: bool = False) -> Vector:
+    array = np.asarray(value, dtype=float)
+    if array.shape != (3,) or not np.all(np.isfinite(array)):
+        raise ValueError(f"{what}: expected 3 finite numbers, got {np.ravel(value).tolist()}")
+    if unit:
+        norm = float(np.linalg.norm(array))
+        if norm < 1e-9:
+            raise ValueError(f"{what}: expected a non-zero 3-vector, got {array.tolist()}")
+        array = array / norm
+    return array
+
+
+def _radius(value: float, what: str) -> float:
+    if not (np.isfinite(value) and value > 0.0):
+        raise ValueError(f"{what}: must be > 0 m, got {value}")
+    return float(value)
 
 
 @dataclass(frozen=True)
-class PlaneContact:
-    """A robot frame held on the plane ``normal . r = offset`` (normal is normalised).
+class Plane:
+    """C = n . r - offset (n normalised): the half-space n . r >= offset is free."""
 
-    Bilateral (the paper): the plane holds the frame both ways. Unilateral: it only pushes;
-    the contact releases when the force would pull and re-engages at touchdown.
+    normal: Vector
+    offset: float = 0.0
+    kind = "plane"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "normal", _vector(self.normal, "normal", unit=True))
+        if not np.isfinite(self.offset):
+            raise ValueError("offset: must be finite")
+
+    def evaluate(self, point: Vector) -> tuple[float, Vector, Vector]:
+        """(C, n, H_C) at ``point``."""
+        return float(self.normal.dot(point)) - self.offset, self.normal, _NO_CURVATURE
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """C = |r - center| - radius: the frame stays outside (``inside``: C = radius - |r - center|)."""
+
+    center: Vector
+    radius: float
+    inside: bool = False
+    kind = "sphere"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "center", _vector(self.center, "center"))
+        object.__setattr__(self, "radius", _radius(self.radius, "radius"))
+
+    def evaluate(self, point: Vector) -> tuple[float, Vector, Vector]:
+        return _round_surface(np.asarray(point) - self.center, np.eye(3), self.radius, self.inside)
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """An infinite cylinder about the line through ``point`` along ``axis``:
+    C = |(I - a a^T)(r - point)| - radius, outside (``inside`` flips the sign)."""
+
+    point: Vector
+    axis: Vector
+    radius: float
+    inside: bool = False
+    kind = "cylinder"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "point", _vector(self.point, "point"))
+        object.__setattr__(self, "axis", _vector(self.axis, "axis", unit=True))
+        object.__setattr__(self, "radius", _radius(self.radius, "radius"))
+        object.__setattr__(self, "_projector", np.eye(3) - np.outer(self.axis, self.axis))
+
+    def evaluate(self, point: Vector) -> tuple[float, Vector, Vector]:
+        projector = self._projector  # type: ignore[attr-defined]
+        return _round_surface(projector.dot(np.asarray(point) - self.point), projector, self.radius, self.inside)
+
+
+def _round_surface(offset: Vector, projector: Vector, radius: float, inside: bool) -> tuple[float, Vector, Vector]:
+    """(C, n, H_C) of a sphere (projector I) or cylinder (projector I - a a^T) from the point's
+    offset from the centre (line), already projected: with d = |offset|, n = offset / d and
+    H_C = (projector - n n^T) / d; inside, all three change sign."""
+    distance = float(np.linalg.norm(offset))
+    if distance < 1e-12:
+        raise ValueError("a contact point is at the centre of its sphere or on the axis of its cylinder")
+    normal = offset / distance
+    hessian = (projector - np.outer(normal, normal)) / distance
+    if inside:
+        return radius - distance, -normal, -hessian
+    return distance - radius, normal, hessian
+
+
+Surface = Plane | Sphere | Cylinder
+
+
+@dataclass(frozen=True)
+class Contact:
+    """A robot frame held on a surface.
+
+    Bilateral (the paper): the surface holds the frame both ways. Unilateral: it only
+    pushes; the contact releases when the force would pull and lands again at touchdown.
+    ``enforced`` False: the surface is only watched (the residual is reported, never a
+    force), as in the free-space comparison where the surfaces are removed.
     """
 
     name: str
     frame: str
-    normal: Vector
-    offset: float = 0.0
+    surface: Surface
     friction: float = 0.0
     unilateral: bool = False
+    enforced: bool = True
 
     def __post_init__(self) -> None:
-        normal = np.asarray(self.normal, dtype=float)
-        norm = float(np.linalg.norm(normal)) if normal.shape == (3,) else 0.0
-        if normal.shape != (3,) or not np.isfinite(norm) or norm < 1e-9:
-            raise ValueError(
-                f"contacts.{self.name}.normal: expected a non-zero 3-vector, got {np.ravel(self.normal).tolist()}"
-            )
-        object.__setattr__(self, "normal", normal / norm)
-        if not np.isfinite(self.offset):
-            raise ValueError(f"contacts.{self.name}.offset: must be finite")
         if not (np.isfinite(self.friction) and self.friction >= 0.0):
             raise ValueError(f"contacts.{self.name}.friction: must be >= 0, got {self.friction}")
+        if not self.enforced and not self.unilateral:
+            raise ValueError(f"contacts.{self.name}: a contact that is only watched must be unilateral")
+
+
+def plane_contact(
+    name: str,
+    frame: str,
+    normal: Sequence[float] | Vector,
+    offset: float = 0.0,
+    friction: float = 0.0,
+    unilateral: bool = False,
+) -> Contact:
+    """A contact on the plane ``normal . r = offset`` (the paper's kind)."""
+    try:
+        plane = Plane(np.asarray(normal, dtype=float), offset)
+    except ValueError as exc:
+        raise ValueError(f"contacts.{name}.{exc}") from None
+    return Contact(name, frame, plane, friction, unilateral)
 
 
 @dataclass
@@ -56,12 +163,12 @@ class ContactTerms:
     jacobians: Vector  # (p, 3, n) translational Jacobians, world axes
     normal_jacobian: Vector  # J_c (p, n): rows n_j^T J_j
     tangent_jacobian: Vector  # J_t (p, n): rows J_j^T s_j / sqrt(|s_j|^2 + eps^2)
-    drift: Vector  # gamma (p,): n_j . (dJ_j dq)
-    residual: Vector  # C (p,): n_j . r_j - c_j [m]
+    drift: Vector  # gamma (p,): n_j . (dJ_j dq) + v_j^T H_j v_j
+    residual: Vector  # C (p,): signed distance to the surface [m]
     slip_velocity: Vector  # (p, 3) tangential velocity of the contact points [m/s]
     slip_direction: Vector  # (p, 3) regularised unit-ish slip direction
     friction: Vector  # mu (p,)
-    normals: Vector  # (p, 3)
+    normals: Vector  # (p, 3) surface normals n(r) at the contact points
 
     @property
     def count(self) -> int:
@@ -73,7 +180,7 @@ class ContactSet:
     """The contacts of one robot, with their frames resolved once."""
 
     robot: RobotModel
-    contacts: Sequence[PlaneContact]
+    contacts: Sequence[Contact]
     slip_epsilon: float = 1e-4
     frame_ids: list[int] = field(init=False)
 
@@ -82,8 +189,11 @@ class ContactSet:
             raise ValueError(f"slip_epsilon: must be > 0, got {self.slip_epsilon}")
         self.frame_ids = [self.robot.frame_id(c.frame) for c in self.contacts]
         p = len(self.contacts)
-        self.normals = np.array([c.normal for c in self.contacts], dtype=float).reshape(p, 3)
-        self.offsets = np.array([c.offset for c in self.contacts], dtype=float)
+        # Constant normals of the planes (a curved surface's row is its normal at the last evaluation).
+        self.normals = np.array(
+            [c.surface.normal if isinstance(c.surface, Plane) else (0.0, 0.0, 1.0) for c in self.contacts], dtype=float
+        ).reshape(p, 3)
+        self.planar = [isinstance(c.surface, Plane) for c in self.contacts]
         self.friction = np.array([c.friction for c in self.contacts], dtype=float)
 
     def subset(self, indices: Sequence[int]) -> ContactSet:
@@ -110,12 +220,16 @@ class ContactSet:
         p, n = len(self.frame_ids), self.robot.nv
         positions = np.empty((p, 3))
         jacobians = np.empty((p, 3, n))
-        drift_vectors = np.empty((p, 3))
-        for j, frame in enumerate(self.frame_ids):
+        normals = np.empty((p, 3))
+        residual = np.empty(p)
+        drift = np.empty(p)
+        for j, (frame, contact) in enumerate(zip(self.frame_ids, self.contacts, strict=True)):
             positions[j] = pin.updateFramePlacement(model, data, frame).translation
             jacobians[j] = pin.getFrameJacobian(model, data, frame, _WORLD)[:3]
-            drift_vectors[j] = pin.getFrameClassicalAcceleration(model, data, frame, _WORLD).linear
-        normals = self.normals
+            acceleration = pin.getFrameClassicalAcceleration(model, data, frame, _WORLD).linear
+            residual[j], normals[j], hessian = contact.surface.evaluate(positions[j])
+            velocity = jacobians[j].dot(dq)
+            drift[j] = normals[j].dot(acceleration) + velocity.dot(hessian).dot(velocity)
         velocity = jacobians @ dq  # (p, 3)
         slip = velocity - normals * (normals * velocity).sum(axis=1)[:, None]  # tangential part
         slip_norm = np.sqrt((slip * slip).sum(axis=1) + self.slip_epsilon**2)
@@ -125,10 +239,33 @@ class ContactSet:
             jacobians=jacobians,
             normal_jacobian=np.matmul(normals[:, None, :], jacobians)[:, 0, :],
             tangent_jacobian=np.matmul(direction[:, None, :], jacobians)[:, 0, :],
-            drift=(normals * drift_vectors).sum(axis=1),
-            residual=(normals * positions).sum(axis=1) - self.offsets,
+            drift=drift,
+            residual=residual,
             slip_velocity=slip,
             slip_direction=direction,
             friction=self.friction,
             normals=normals,
         )
+
+
+def project_onto_contacts(
+    model: pin.Model, data: pin.Data, contacts: ContactSet, q: Vector, rows: Sequence[int], tolerance: float = 1e-13
+) -> Vector:
+    """The posture near ``q`` where the contacts at ``rows`` hold (C = 0), found by Newton steps
+    along the metric of the model's joint-space inertia: q <- q - M^-1 J_c^T (J_c M^-1 J_c^T)^-1 C
+    (the M-nearest posture for a flat constraint, to first order otherwise). ``model`` is the
+    contacts' robot model or a copy with armature (whose M then includes it).
+    Raises ValueError if it does not converge (e.g. a contact no posture reaches)."""
+    q = np.array(q, dtype=float)
+    zero = np.zeros(model.nv)
+    for _ in range(50):
+        pin.computeAllTerms(model, data, q, zero)
+        terms = contacts.evaluate_data(model, data, zero)
+        residual, jc = terms.residual[list(rows)], terms.normal_jacobian[list(rows)]
+        if not residual.size or float(np.max(np.abs(residual))) < tolerance:
+            return q
+        pin.cholesky.decompose(model, data)
+        y = np.column_stack([pin.cholesky.solve(model, data, row) for row in jc])  # M^-1 J_c^T
+        q = q + y.dot(np.linalg.lstsq(jc.dot(y), -residual, rcond=None)[0])
+    names = ", ".join(f"{contacts.contacts[j].name} ({terms.residual[j]:+.3g} m)" for j in rows)
+    raise ValueError(f"no posture near the given one holds every contact: after 50 steps {names}")

@@ -7,20 +7,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bracing_core import schema
-from bracing_core.config import SharedConfig, axes_indices
+from bracing_core.config import SharedConfig, axes_indices, trajectory_from_values
 from bracing_core.params import ConfigError, Params
-
-
-@dataclass(frozen=True)
-class TrajectoryConfig:
-    kind: str  # circle | hold
-    center: tuple[float, float, float]
-    radius: float
-    period: float
-    direction: float
-    phase: float
-    plane: tuple[int, int]
-    point: tuple[float, float, float] | None  # hold: None = initial hand position
+from bracing_core.trajectory import TrajectoryConfig
 
 
 @dataclass(frozen=True)
@@ -44,7 +33,7 @@ class ControllerConfig:
 
     @property
     def task_dimension(self) -> int:
-        return len(self.hand.axes) + sum(len(c.brace_axes) for c in self.shared.contacts)
+        return len(self.hand.axes) + sum(len(c.brace_axes) for c in self.shared.braced_contacts)
 
     @classmethod
     def from_params(cls, params: Params, search_dirs: Sequence[Path] = ()) -> ControllerConfig:
@@ -55,25 +44,9 @@ class ControllerConfig:
     @classmethod
     def from_values(cls, values: schema.Values, search_dirs: Sequence[Path] = ()) -> ControllerConfig:
         shared = SharedConfig.from_values(values, search_dirs)
-        n, p = len(shared.joint_names), len(shared.contacts)
+        n, p = len(shared.joint_names) - len(shared.locked_joints), len(shared.braced_contacts)
         axes = axes_indices("hand.axes", values["hand.axes"])
-        plane = axes_indices("hand.trajectory.plane", values["hand.trajectory.plane"])
-        point = values["hand.trajectory.point"]
-        circle = values["hand.trajectory.type"] == "circle"
-        direction = values["hand.trajectory.direction"]
-        if circle and direction not in (-1.0, 1.0):
-            raise ConfigError(f"hand.trajectory.direction: expected +1 or -1, got {direction}")
-        center = values["hand.trajectory.center"] or (0.0, 0.0, 0.0)
-        trajectory = TrajectoryConfig(
-            kind=values["hand.trajectory.type"],
-            center=(center[0], center[1], center[2]),
-            radius=values["hand.trajectory.radius"] or 0.0,
-            period=values["hand.trajectory.period"],
-            direction=direction,
-            phase=values["hand.trajectory.phase"],
-            plane=(plane[0], plane[1]),
-            point=(point[0], point[1], point[2]) if point else None,
-        )
+        trajectory = trajectory_from_values("hand.trajectory.", values.values, values["hand.trajectory.point"])
         hand = HandTaskConfig(values["hand.frame"], axes, values["hand.kp"], values["hand.kd"], trajectory)
         voltage_gain = values["voltage_gain"]
         if any(k <= 0.0 for k in voltage_gain):

@@ -33,7 +33,7 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
-from bracing_core.contacts import ContactSet, ContactTerms
+from bracing_core.contacts import ContactSet, ContactTerms, Plane, Surface
 from bracing_core.model import RobotModel
 from bracing_core.motors import MotorParams
 from bracing_core.types import Vector
@@ -54,6 +54,7 @@ class ContactRow(NamedTuple):
     n2: float
     offset: float  # c [m]
     friction: float  # mu
+    surface: Surface | None  # a curved surface (its normal changes with the point); None: a plane (n0, n1, n2, offset)
 
 
 class InputMode(str, Enum):  # noqa: UP042 (str() / format() of a StrEnum differ; kept as it was)
@@ -165,15 +166,30 @@ class ConstrainedDynamics:
         for j, (frame, contact) in enumerate(zip(contacts.frame_ids, contacts.contacts, strict=True)):
             normal = contacts.normals[j]
             # [I - n n^T, 0; n^T, 0] @ the 6 x n frame Jacobian = [tangential part of J; J_c]
+            # (a curved surface's rows are rewritten at each evaluation, from its normal there)
             split = np.zeros((4, 6))
             split[:3, :3] = np.eye(3) - np.outer(normal, normal)
             split[3, :3] = normal
             n0, n1, n2 = normal.tolist()
+            surface = contact.surface
+            plane = isinstance(surface, Plane)
             rows.append(
-                ContactRow(frame, split, self._work[4 * j : 4 * j + 4], n0, n1, n2, contact.offset, contact.friction)
+                ContactRow(
+                    frame,
+                    split,
+                    self._work[4 * j : 4 * j + 4],
+                    n0,
+                    n1,
+                    n2,
+                    surface.offset if isinstance(surface, Plane) else 0.0,
+                    contact.friction,
+                    None if plane else surface,
+                )
             )
         self._contact_rows = tuple(rows)
-        if p == 1:
+        # The scalar path of ``solve`` is for one plane; a curved surface takes the general path.
+        self._single_plane = p == 1 and rows[0].surface is None
+        if self._single_plane:
             self._single = rows[0]
         self._no_contacts = ContactTerms(
             positions=np.zeros((0, 3)),
@@ -248,8 +264,8 @@ class ConstrainedDynamics:
         p = self._p
         # One contact in scalars: an engine step of the paper model takes 50.5 us this way against
         # 81.2 us through _solve_contacts (the general path), measured side by side: worth 38% of a step.
-        if p == 1:
-            frame, split, work_split, n0, n1, n2, offset, mu = self._single
+        if self._single_plane:
+            frame, split, work_split, n0, n1, n2, offset, mu, _ = self._single
             work, work_jc, eps2 = self._work, self._work[3], self._eps2
             np.subtract(rates_ddq, self._nle, out=self._work_rhs)  # r = drive - (h + g) - Dc dq
             jac = pin.getFrameJacobian(model, data, frame, _WORLD)
@@ -341,10 +357,26 @@ class ConstrainedDynamics:
         residuals: list[float] = []
         positions: list[float] = []  # flat, 3 per contact (numpy converts flat lists faster)
         jacobians = []
-        for frame, split, block, n0, n1, n2, offset, _ in rows:
+        normals = self.contacts.normals.copy() if full else self.contacts.normals
+        for j, (frame, split, block, n0, n1, n2, offset, _, surface) in enumerate(rows):
             jac = pin.getFrameJacobian(model, data, frame, _WORLD)
+            acceleration = pin.getFrameClassicalAcceleration(model, data, frame, _WORLD).linear
+            if surface is not None:  # the normal and the curvature at the point: C, n, H_C
+                point = pin.updateFramePlacement(model, data, frame).translation
+                residual, normal, hessian = surface.evaluate(point)
+                split[:3, :3] = np.eye(3) - np.outer(normal, normal)
+                split[3, :3] = normal
+                np.dot(split, jac, out=block)
+                velocity = jac[:3].dot(dq)
+                gammas.append(float(normal.dot(acceleration) + velocity.dot(hessian).dot(velocity)))
+                residuals.append(residual)
+                if full:
+                    positions += point.tolist()
+                    jacobians.append(jac[:3])
+                    normals[j] = normal
+                continue
             np.dot(split, jac, out=block)  # [tangential part of J_j; J_c,j]
-            a0, a1, a2 = pin.getFrameClassicalAcceleration(model, data, frame, _WORLD).linear.tolist()
+            a0, a1, a2 = acceleration.tolist()
             gammas.append(n0 * a0 + n1 * a1 + n2 * a2)
             if a or full:
                 r0, r1, r2 = pin.updateFramePlacement(model, data, frame).translation.tolist()
@@ -405,7 +437,7 @@ class ConstrainedDynamics:
             vectors[1],  # slip velocity
             vectors[2],  # slip direction
             self.contacts.friction,
-            self.contacts.normals,
+            normals,
         )
         return friction_power, constraint_power, ddq, (terms, values[11 * p :])
 

@@ -27,7 +27,8 @@ from bracing_core import schema
 from bracing_core.config import Plant
 from bracing_core.controller_config import ControllerConfig
 from bracing_core.dynamics import InputMode, reflected_terms
-from bracing_core.trajectory import Circle, Hold, Trajectory
+from bracing_core.params import ConfigError
+from bracing_core.trajectory import Hold, Trajectory
 from bracing_core.types import Vector
 
 # Smallest singular value of B (relative to its largest) below which B^+ is damped.
@@ -79,11 +80,11 @@ class DecoupledController:
         self.plant = plant if plant is not None else Plant(config.shared, schema.default("simulator", "slip_epsilon"))
         robot = self.plant.robot
         self.robot = robot
-        self.contact_set = self.plant.contact_set
+        self.contact_set = self.plant.braced_set  # obstacles are the simulator's business
         self.mode = config.shared.input_mode
         self._added_inertia, self._damping = reflected_terms(robot, self.plant.motors, self.mode)
         self._voltage_gain = self.plant.to_model_order(config.voltage_gain)
-        contacts = config.shared.contacts
+        contacts = config.shared.braced_contacts
         self.desired_normal_force = np.array([c.desired_normal_force for c in contacts], dtype=float)
         hand = config.hand
         self._hand = _Task(
@@ -96,8 +97,9 @@ class DecoupledController:
             _Task(fid, np.eye(3)[list(c.brace_axes)], np.array(c.kp), np.array(c.kd))
             for fid, c in zip(self.contact_set.frame_ids, contacts, strict=True)
         ]
-        # Targets that default to the first measured state.
+        # Paths that start from the first measured state.
         self._hand_trajectory: Trajectory | None = None
+        self._brace_trajectories: list[Trajectory] = []
         self._brace_targets: Vector | None = None
         self._identity = np.eye(robot.nv)
         # Own pinocchio copy with the rotor inertia as armature: computeAllTerms gives Mc directly.
@@ -114,10 +116,12 @@ class DecoupledController:
         self._work_bias = self._work[-1]
         self._zero_velocities = [[0.0, 0.0, 0.0]] * len(self._braces)
         self._brace_target_lists: list[list[float]] = []
-        self._single_contact = single_contact_fast_path and len(self._braces) == 1  # see _braced_torque
+        self._braces_held = True
+        # see _braced_torque: one contact, on a plane
+        self._single_contact = single_contact_fast_path and len(self._braces) == 1 and self.contact_set.planar[0]
         if self._single_contact:
             plane = self.contact_set.contacts[0]
-            self._normal = np.asarray(plane.normal, dtype=float)
+            self._normal = np.asarray(self.contact_set.normals[0], dtype=float)
             self._normal_tuple = tuple(self._normal.tolist())
             self._friction = float(plane.friction)
             self._eps2 = float(self.contact_set.slip_epsilon) ** 2
@@ -129,34 +133,33 @@ class DecoupledController:
         forces, K_V) from the next update on. Everything else must be as this controller's."""
         self.config = config
         self._hand.set_gains(np.array(config.hand.kp), np.array(config.hand.kd))
-        for task, contact in zip(self._braces, config.shared.contacts, strict=True):
+        for task, contact in zip(self._braces, config.shared.braced_contacts, strict=True):
             task.set_gains(np.array(contact.kp), np.array(contact.kd))
-        self.desired_normal_force[:] = [c.desired_normal_force for c in config.shared.contacts]
+        self.desired_normal_force[:] = [c.desired_normal_force for c in config.shared.braced_contacts]
         self._voltage_gain = self.plant.to_model_order(config.voltage_gain)
 
     def reset(self) -> None:
         """Forget the targets taken from the first state (a new run starts)."""
         self._hand_trajectory = None
+        self._brace_trajectories = []
         self._brace_targets = None
         self._brace_target_lists = []
 
     def _init_targets(self) -> None:
-        """Targets not given in the configuration: the current positions (after ``computeAllTerms``)."""
+        """The task paths, from the current positions (after ``computeAllTerms``)."""
         model, data = self._model, self._data
         pin.updateFramePlacements(model, data)
-        cfg = self.config.hand.trajectory
-        if cfg.kind == "circle":
-            self._hand_trajectory = Circle(cfg.center, cfg.radius, cfg.period, cfg.direction, cfg.phase, cfg.plane)
-        else:
-            point = cfg.point if cfg.point is not None else tuple(data.oMf[self._hand.frame].translation)
-            self._hand_trajectory = Hold((float(point[0]), float(point[1]), float(point[2])))
-        self._brace_targets = np.array(
-            [
-                c.target if c.target is not None else data.oMf[t.frame].translation.copy()
-                for c, t in zip(self.config.shared.contacts, self._braces, strict=True)
-            ],
-            dtype=float,
-        ).reshape(len(self._braces), 3)
+        self._hand_trajectory = self.config.hand.trajectory.build(data.oMf[self._hand.frame].translation.tolist())
+        contacts = self.config.shared.braced_contacts
+        self._brace_trajectories = [
+            c.trajectory.build(data.oMf[t.frame].translation.tolist())
+            for c, t in zip(contacts, self._braces, strict=True)
+        ]
+        # Held braces (the paper's) are sampled once.
+        self._braces_held = all(isinstance(b, Hold) for b in self._brace_trajectories)
+        self._brace_targets = np.array([b.sample(0.0)[0] for b in self._brace_trajectories], dtype=float).reshape(
+            len(self._braces), 3
+        )
         self._brace_target_lists = self._brace_targets.tolist()
 
     def update(self, t: float, q: Vector, dq: Vector) -> ControlOutput:
@@ -178,8 +181,15 @@ class DecoupledController:
             rows[:] = pin.getFrameJacobian(model, data, task.frame, _WORLD)[:3]
             positions += pin.updateFramePlacement(model, data, task.frame).translation.tolist()
         velocities = jacobians.dot(dq).tolist()
-        targets = [hand_desired.tolist(), *self._brace_target_lists]
-        target_velocities = [hand_velocity_desired.tolist(), *self._zero_velocities]  # braces: hold still
+        if self._braces_held:
+            brace_targets, brace_velocities = self._brace_target_lists, self._zero_velocities
+        else:
+            samples = [b.sample(t) for b in self._brace_trajectories]
+            self._brace_targets = np.array([position for position, _ in samples]).reshape(len(self._braces), 3)
+            brace_targets = self._brace_targets.tolist()
+            brace_velocities = [velocity.tolist() for _, velocity in samples]
+        targets = [hand_desired.tolist(), *brace_targets]
+        target_velocities = [hand_velocity_desired.tolist(), *brace_velocities]
         forces: list[float] = []
         for k, task in enumerate(self._tasks):
             (p0, p1, p2), (d0, d1, d2) = task.kp_list, task.kd_list
@@ -284,3 +294,28 @@ class DecoupledController:
             return np.asarray(np.linalg.solve(gram, b).T, dtype=np.float64), False
         lam = self.config.damping_lambda * max(singular[0] ** 2, 1.0)
         return np.asarray(np.linalg.solve(gram + lam * np.eye(gram.shape[0]), b).T, dtype=np.float64), True
+
+
+def check_task_rank(config: ControllerConfig, plant: Plant, q0: Vector) -> None:
+    """Refuse a task direction the arm cannot move along at the start ``q0`` (model order): each
+    configured axis (hand axes, then each brace's) must add a rank to the stacked task Jacobian
+    within the motions the braced contacts allow (the null space of J_c). ConfigError names the
+    first axis that adds none."""
+    robot = plant.robot
+    robot.compute(np.asarray(q0, dtype=float), np.zeros(robot.nv))
+    jc = plant.braced_set.evaluate(np.zeros(robot.nv)).normal_jacobian
+    allowed = np.eye(robot.nv) - np.linalg.pinv(jc) @ jc if jc.size else np.eye(robot.nv)
+    tasks = [("hand.axes", config.hand.frame, config.hand.axes)]
+    tasks += [(f"contacts.{c.name}.brace_axes", c.frame, c.brace_axes) for c in config.shared.braced_contacts]
+    rows: list[Vector] = []
+    for parameter, frame, axes in tasks:
+        jacobian = robot.frame_jacobian(plant.frame_id(frame, parameter))
+        for axis in axes:
+            candidate = np.array([*rows, jacobian[axis] @ allowed])
+            singular = np.linalg.svd(candidate, compute_uv=False)
+            if singular[-1] <= 1e-6 * max(singular[0], 1.0):
+                raise ConfigError(
+                    f"{parameter}: frame {frame!r} cannot move along {'xyz'[axis]} at the start (that direction adds "
+                    "no rank to the task Jacobian, within the motions the braced contacts allow); remove the axis"
+                )
+            rows.append(candidate[-1])

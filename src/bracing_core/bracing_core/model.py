@@ -55,9 +55,24 @@ class RobotModel:
         self.source = source
         self.joint_names: tuple[str, ...] = tuple(model.names[j] for j in range(1, model.njoints))
         self.damping: Vector = np.array(model.damping, dtype=float)
+        # Prismatic joints move in metres (a force drives them); the rest rotate.
+        self.prismatic = np.array(
+            [model.joints[j].shortname().startswith("JointModelP") for j in range(1, model.njoints)]
+        )
+        # The URDF's position limits (pinocchio reads <limit lower upper>).
+        self.lower_limits: Vector = np.array(model.lowerPositionLimit, dtype=float)
+        self.upper_limits: Vector = np.array(model.upperPositionLimit, dtype=float)
 
     @classmethod
-    def from_urdf(cls, path: str | Path, gravity: Sequence[float] = (0.0, 0.0, -9.81)) -> RobotModel:
+    def from_urdf(
+        cls,
+        path: str | Path,
+        gravity: Sequence[float] = (0.0, 0.0, -9.81),
+        locked_joints: Sequence[str] = (),
+        locked_positions: Sequence[float] = (),
+    ) -> RobotModel:
+        """The URDF's model; ``locked_joints`` are held at ``locked_positions`` (default 0) and removed
+        with pinocchio's ``buildReducedModel`` (their links ride along, rigidly)."""
         path = Path(path)
         if not path.is_file():
             raise ModelError(f"robot.urdf: file not found: {path}")
@@ -69,6 +84,8 @@ class RobotModel:
         if gravity_vector.shape != (3,) or not np.all(np.isfinite(gravity_vector)):
             raise ModelError(f"robot.gravity: expected 3 finite numbers, got {list(gravity)}")
         model.gravity.linear = gravity_vector
+        if locked_joints:
+            model = _reduced(model, locked_joints, locked_positions, str(path))
         return cls(model, source=str(path))
 
     def with_armature(self, armature: Vector) -> RobotModel:
@@ -121,3 +138,21 @@ class RobotModel:
 
     def potential_energy(self, q: Vector) -> float:
         return float(pin.computePotentialEnergy(self.model, self.data, q))
+
+
+def _reduced(model: pin.Model, locked: Sequence[str], positions: Sequence[float], source: str) -> pin.Model:
+    """``model`` with the joints ``locked`` fixed at ``positions`` (0 each if empty)."""
+    values = list(positions) or [0.0] * len(locked)
+    reference = pin.neutral(model)
+    ids = []
+    for name, value in zip(locked, values, strict=True):
+        if not model.existJointName(name):
+            raise ModelError(f"robot.locked_joints: {name!r} is not a joint of {source}")
+        joint = model.getJointId(name)
+        if model.nqs[joint] != 1:
+            raise ModelError(f"robot.locked_joints: {name!r} is not a 1-dof joint")
+        reference[model.idx_qs[joint]] = value
+        ids.append(joint)
+    if len(ids) == model.njoints - 1:
+        raise ModelError("robot.locked_joints: every joint is locked; nothing would move")
+    return pin.buildReducedModel(model, ids, reference)

@@ -73,7 +73,7 @@ def check_known(
         if name in known_set:
             continue
         for prefix, fields in dynamic.items():
-            rest = name[len(prefix) :].split(".") if name.startswith(prefix) else []
+            rest = name[len(prefix) :].split(".", 1) if name.startswith(prefix) else []
             if len(rest) == 2 and rest[1] in fields:
                 break
         else:

@@ -51,6 +51,16 @@ class PerJoint:
 REQUIRED = None  # a Param without a default must be given
 
 
+class _Absent:
+    """The default of a parameter that may be left out, and means something by its absence."""
+
+    def __repr__(self) -> str:
+        return "ABSENT"
+
+
+ABSENT = _Absent()  # read as None when not given (e.g. no desired_normal_force: an obstacle)
+
+
 @dataclass(frozen=True)
 class Param:
     name: str  # flat ROS name; for CONTACT fields, the part after contacts.<name>.
@@ -78,6 +88,8 @@ class Param:
             return f"required if {self.required_if[0]} is {self.required_if[1]}"
         if isinstance(self.default, PerJoint):
             return f"{self.default.value:g} per joint"
+        if self.default is ABSENT:
+            return "none"
         if isinstance(self.default, bool):
             return str(self.default).lower()
         if isinstance(self.default, (list, tuple)):
@@ -99,6 +111,72 @@ class Param:
         return ", ".join(parts)
 
 
+def trajectory_params(
+    prefix: str, default_type: str, what: str, nodes: tuple[str, ...] = ("simulator", "controller")
+) -> tuple[Param, ...]:
+    """The parameters of a task's desired path under ``prefix`` (the hand's and each brace's)."""
+    kind = prefix + "type"
+    return (
+        Param(kind, Kind.STRING, default_type, what, choices=("hold", "circle", "waypoints"), nodes=nodes),
+        Param(
+            prefix + "center",
+            Kind.DOUBLE_ARRAY,
+            REQUIRED,
+            "circle center",
+            "m",
+            length=3,
+            required_if=(kind, "circle"),
+            nodes=nodes,
+        ),
+        Param(
+            prefix + "radius",
+            Kind.DOUBLE,
+            REQUIRED,
+            "circle radius",
+            "m",
+            minimum=0.0,
+            required_if=(kind, "circle"),
+            nodes=nodes,
+        ),
+        Param(prefix + "period", Kind.DOUBLE, 10.0, "circle: time of one turn", "s", positive=True, nodes=nodes),
+        Param(
+            prefix + "direction",
+            Kind.DOUBLE,
+            1.0,
+            "circle: +1 counter-clockwise in the plane, -1 clockwise (the paper: -1)",
+            nodes=nodes,
+        ),
+        Param(prefix + "phase", Kind.DOUBLE, 0.0, "circle: angle at t = 0", "rad", nodes=nodes),
+        Param(
+            prefix + "plane",
+            Kind.STRING_ARRAY,
+            ["y", "z"],
+            "circle: its plane, the world axes of cos and sin",
+            length=2,
+            nodes=nodes,
+        ),
+        Param(
+            prefix + "waypoints",
+            Kind.DOUBLE_ARRAY,
+            REQUIRED,
+            "waypoints: [x1, y1, z1, x2, y2, z2, ...], visited in order from the first measured position, "
+            "rest to rest, each segment a minimum-jerk (quintic) profile; then held",
+            "m",
+            required_if=(kind, "waypoints"),
+            nodes=nodes,
+        ),
+        Param(
+            prefix + "segment_time",
+            Kind.DOUBLE,
+            1.0,
+            "waypoints: duration of each segment",
+            "s",
+            positive=True,
+            nodes=nodes,
+        ),
+    )
+
+
 _MOTOR = "one per joint, in robot.joint_names order"
 SHARED: tuple[Param, ...] = (
     Param(
@@ -116,6 +194,27 @@ SHARED: tuple[Param, ...] = (
         "the actuated joints: the order of every per-joint list in the configuration",
     ),
     Param("robot.gravity", Kind.DOUBLE_ARRAY, [0.0, 0.0, -9.81], "gravity, world frame", "m/s^2", length=3),
+    Param(
+        "robot.locked_joints",
+        Kind.STRING_ARRAY,
+        [],
+        "joints of robot.joint_names held fixed (pinocchio's reduced model): no motor, not in the messages",
+    ),
+    Param(
+        "robot.locked_positions",
+        Kind.DOUBLE_ARRAY,
+        [],
+        "where each locked joint is held, robot.locked_joints order; empty = 0 each",
+        "rad or m",
+        length="robot.locked_joints",
+        may_be_empty=True,
+    ),
+    Param(
+        "robot.collision_frames",
+        Kind.STRING_ARRAY,
+        [],
+        "frames kept on the free side of every contact's surface (unilateral, inelastic touchdown)",
+    ),
     Param(
         "input_mode",
         Kind.STRING,
@@ -177,41 +276,93 @@ SHARED: tuple[Param, ...] = (
         minimum=0.0,
         length="robot.joint_names",
     ),
+    Param(
+        "motors.transmission_radius",
+        Kind.DOUBLE_ARRAY,
+        PerJoint(0.0),
+        "rho of the wheel or pinion driving a prismatic joint (K_m = K k / rho [N/A], J_m = I_m k^2 / rho^2 [kg], "
+        f"D_m = d_m k^2 / rho^2 [N s/m]); 0 for a revolute joint; {_MOTOR}",
+        "m",
+        minimum=0.0,
+        length="robot.joint_names",
+        may_be_empty=True,
+    ),
     Param("motors.voltage_limit", Kind.DOUBLE, 0.0, "|v| saturation in voltage mode; 0 = none", "V", minimum=0.0),
     Param("motors.torque_limit", Kind.DOUBLE, 0.0, "|tau| saturation in torque mode; 0 = none", "N m", minimum=0.0),
     Param(
         "contacts.names",
         Kind.STRING_ARRAY,
         [],
-        "the braced contacts, each described under contacts.<name>; empty = no bracing",
+        "the contacts (braced, or obstacles), each described under contacts.<name>; empty = none",
+    ),
+    Param(
+        "bracing",
+        Kind.BOOL,
+        True,
+        "false: no brace tasks and no desired forces; every contact is an obstacle (bracing-pair --no-bracing)",
+    ),
+    Param(
+        "free_space",
+        Kind.BOOL,
+        False,
+        "true: the surfaces are removed (only watched, for the penetration report); the paper's free comparison "
+        "(bracing-pair --free-space)",
     ),
 )
 
 CONTACT: tuple[Param, ...] = (
-    Param("frame", Kind.STRING, REQUIRED, "robot frame held on the plane"),
+    Param("frame", Kind.STRING, REQUIRED, "robot frame held on the surface"),
+    Param(
+        "surface",
+        Kind.STRING,
+        "plane",
+        "plane: C = n . r - offset; sphere: C = |r - center| - radius; cylinder: C = |(I - a a^T)(r - point)| - radius",
+        choices=("plane", "sphere", "cylinder"),
+    ),
     Param(
         "normal",
         Kind.DOUBLE_ARRAY,
         [0.0, 0.0, 1.0],
-        "normal n of the plane n . r = offset (normalised); the plane pushes along +n",
+        "plane: normal n of n . r = offset (normalised); the plane pushes along +n",
         length=3,
     ),
-    Param("offset", Kind.DOUBLE, 0.0, "c of the plane n . r = c", "m"),
+    Param("offset", Kind.DOUBLE, 0.0, "plane: c of n . r = c", "m"),
+    Param(
+        "center",
+        Kind.DOUBLE_ARRAY,
+        REQUIRED,
+        "sphere: its centre",
+        "m",
+        length=3,
+        required_if=("surface", "sphere"),
+    ),
+    Param(
+        "point",
+        Kind.DOUBLE_ARRAY,
+        REQUIRED,
+        "cylinder: a point on its axis",
+        "m",
+        length=3,
+        required_if=("surface", "cylinder"),
+    ),
+    Param("axis", Kind.DOUBLE_ARRAY, [0.0, 0.0, 1.0], "cylinder: direction of its axis (normalised)", length=3),
+    Param("radius", Kind.DOUBLE, 0.0, "sphere or cylinder: radius (> 0 for those surfaces)", "m", minimum=0.0),
+    Param("inside", Kind.BOOL, False, "sphere or cylinder: the frame stays inside (C changes sign)"),
     Param("friction", Kind.DOUBLE, 0.0, "Coulomb friction coefficient mu", "", minimum=0.0),
     Param(
         "unilateral",
         Kind.BOOL,
         False,
-        "false: the plane holds both ways (the paper); true: it only pushes, releases and touches down",
+        "false: the surface holds both ways (the paper); true: it only pushes, releases and touches down "
+        "(an obstacle always is)",
     ),
     Param(
         "desired_normal_force",
         Kind.DOUBLE,
-        0.0,
-        "f_nd, the normal force the controller keeps",
+        ABSENT,
+        "f_nd, the normal force the controller keeps; none: an obstacle (unilateral, no brace task, only pushes)",
         "N",
         tunable=True,
-        nodes=("controller",),
     ),
     Param(
         "brace_axes", Kind.STRING_ARRAY, [], "world axes (x, y, z) of the brace position task", nodes=("controller",)
@@ -240,12 +391,13 @@ CONTACT: tuple[Param, ...] = (
         "target",
         Kind.DOUBLE_ARRAY,
         [],
-        "brace target [x, y, z]; empty = the brace point's first measured position",
+        "brace target [x, y, z] held (trajectory.type hold); empty = the brace point's first measured position",
         "m",
         length=3,
         may_be_empty=True,
         nodes=("controller",),
     ),
+    *trajectory_params("trajectory.", "hold", "the brace point's desired path", ("controller",)),
 )
 
 # Both nodes have one (each its own value).
@@ -289,6 +441,13 @@ SIMULATOR: tuple[Param, ...] = (
         positive=True,
     ),
     Param("contact_tolerance", Kind.DOUBLE, 1e-6, "largest |C| of a contact at the start", "m", positive=True),
+    Param(
+        "project_initial_position",
+        Kind.BOOL,
+        False,
+        "true: initial_position is a guess, moved to the nearest posture (metric M) where every bilateral contact "
+        "holds; the result is logged",
+    ),
     Param(
         "stepping",
         Kind.STRING,
@@ -362,37 +521,7 @@ CONTROLLER: tuple[Param, ...] = (
         length="hand.axes",
         tunable=True,
     ),
-    Param("hand.trajectory.type", Kind.STRING, "circle", "the hand's desired path", choices=("circle", "hold")),
-    Param(
-        "hand.trajectory.center",
-        Kind.DOUBLE_ARRAY,
-        REQUIRED,
-        "circle center",
-        "m",
-        length=3,
-        required_if=("hand.trajectory.type", "circle"),
-    ),
-    Param(
-        "hand.trajectory.radius",
-        Kind.DOUBLE,
-        REQUIRED,
-        "circle radius",
-        "m",
-        minimum=0.0,
-        required_if=("hand.trajectory.type", "circle"),
-    ),
-    Param("hand.trajectory.period", Kind.DOUBLE, 10.0, "time of one turn", "s", positive=True),
-    Param(
-        "hand.trajectory.direction", Kind.DOUBLE, 1.0, "+1 counter-clockwise in the plane, -1 clockwise (the paper: -1)"
-    ),
-    Param("hand.trajectory.phase", Kind.DOUBLE, 0.0, "angle at t = 0", "rad"),
-    Param(
-        "hand.trajectory.plane",
-        Kind.STRING_ARRAY,
-        ["y", "z"],
-        "the circle's plane: world axes of cos and sin",
-        length=2,
-    ),
+    *trajectory_params("hand.trajectory.", "circle", "the hand's desired path"),
     Param(
         "hand.trajectory.point",
         Kind.DOUBLE_ARRAY,
@@ -456,6 +585,7 @@ _HINTS = {
     "robot.joint_names": lambda values: f"one per joint of robot.joint_names ({len(values)})",
     "hand.axes": lambda values: f"one per hand axis {list(values)}",
     "brace_axes": lambda values: f"one per brace axis {list(values)}",
+    "robot.locked_joints": lambda values: f"one per locked joint {list(values)}",
 }
 
 
@@ -465,9 +595,14 @@ def read_value(param: Param, name: str, params: Params, read: Mapping[str, Any])
     required = param.default is REQUIRED and (
         param.required_if is None or read.get(param.required_if[0]) == param.required_if[1]
     )
-    if param.default is REQUIRED and not required and name not in params:
-        return None  # required only under another setting
-    default = param.default
+    if ((param.default is REQUIRED and not required) or param.default is ABSENT) and name not in params:
+        return None  # required only under another setting, or absent by choice
+    if param.kind is Kind.DOUBLE_ARRAY and param.default is REQUIRED and not required and not params.get(name):
+        return None  # an empty list for a value only another setting needs (a plane's sphere centre)
+    if param.default is ABSENT:
+        default = None
+    else:
+        default = param.default
     if isinstance(default, PerJoint):
         default = [default.value] * len(read["robot.joint_names"])
     if param.kind is Kind.DOUBLE:
@@ -550,7 +685,7 @@ def find(node: str, name: str) -> Param | None:
     for param in node_schema(node):
         if param.name == name:
             return param
-    parts = name.split(".")
+    parts = name.split(".", 2)
     if len(parts) == 3 and parts[0] == "contacts":
         for field in contact_fields(node):
             if field.name == parts[2]:

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from bracing_core.contacts import ContactTerms
+from bracing_core.contacts import ContactTerms, project_onto_contacts
 from bracing_core.dynamics import ConstrainedDynamics, Derivative, InputMode, Stage
 from bracing_core.types import Vector
 
@@ -32,6 +32,10 @@ ENERGY_KEYS = ("consumed", "net", "copper_loss", "viscous_loss", "friction_loss"
 
 class DivergenceError(RuntimeError):
     """The integration produced a non-finite state; the state was left as it was."""
+
+
+class JointLimitError(DivergenceError):
+    """A step would take a joint past its URDF position limit; the state was left as it was."""
 
 
 @dataclass(frozen=True)
@@ -99,6 +103,7 @@ class Simulator:
         self.full_dynamics = dynamics
         contacts = dynamics.contacts
         self._unilateral = np.array([c.unilateral for c in contacts.contacts], dtype=bool)
+        self._enforced = np.array([c.enforced for c in contacts.contacts], dtype=bool)  # the rest are only watched
         self._any_unilateral = bool(self._unilateral.any())
         self.active = np.ones(len(contacts), dtype=bool)
         self._all_active = True
@@ -107,6 +112,14 @@ class Simulator:
         self.step_size = float(step)
         self.substeps = int(substeps)
         self.n = n
+        robot = dynamics.robot
+        self._lower, self._upper = robot.lower_limits, robot.upper_limits
+        self._limited = bool(np.isfinite(self._lower).any() or np.isfinite(self._upper).any())
+        for name, value, lower, upper in zip(robot.joint_names, q0, self._lower, self._upper, strict=True):
+            if not lower <= value <= upper:
+                raise ValueError(
+                    f"initial_position: joint {name!r} at {value:.6g} is outside its URDF limits [{lower:g}, {upper:g}]"
+                )
         self.steps_taken = 0
         self.t0 = 0.0
         # y = [q, dq, i, energies]; a step writes the next y into the spare buffer and swaps.
@@ -284,6 +297,8 @@ class Simulator:
             y = y_next
         if not math.isfinite(y.dot(y)) and not np.isfinite(y).all():
             raise DivergenceError(f"non-finite state after the step at t = {self.time:.6f} s; state kept")
+        if self._limited:
+            self._check_limits(y[: self.n])
         assert first is not None
         report = self._report(first)  # contact terms at the step's start
         self._y, self._y_next = y, self._y
@@ -292,6 +307,18 @@ class Simulator:
         if self._any_unilateral and not self._all_active:
             self._touchdown()
         return report
+
+    def _check_limits(self, q: Vector) -> None:
+        """JointLimitError naming the first joint that ``q`` takes past its URDF limits."""
+        outside = (q < self._lower) | (q > self._upper)
+        if outside.any():
+            j = int(np.flatnonzero(outside)[0])
+            robot = self.dynamics.robot
+            unit = "m" if robot.prismatic[j] else "rad"
+            raise JointLimitError(
+                f"joint {robot.joint_names[j]!r} would leave its URDF limits [{self._lower[j]:g}, {self._upper[j]:g}] "
+                f"{unit} (q = {q[j]:.6g}) in the step at t = {self.time:.6f} s; state kept"
+            )
 
     def _plan_for(
         self, h: float
@@ -319,6 +346,8 @@ class Simulator:
         active = np.asarray(active, dtype=bool)
         if active.shape != self.active.shape or np.any(~active & ~self._unilateral):
             raise ValueError("only unilateral contacts can be released")
+        if np.any(active & ~self._enforced):
+            raise ValueError("a contact that is only watched never holds a force")
         self._set_active(active.copy())
 
     def _set_active(self, active: np.ndarray) -> None:
@@ -365,7 +394,7 @@ class Simulator:
         land (inelastic impact), so no state the simulator shows is below a plane."""
         terms = self._all_contact_terms()
         approach = terms.normal_jacobian.dot(self._y[self.n : 2 * self.n])
-        landing = ~self.active & (terms.residual <= 0.0) & (approach < 0.0)
+        landing = ~self.active & self._enforced & (terms.residual <= 0.0) & (approach < 0.0)
         if landing.any():
             loss = self._impact(self.active | landing)
             for j in np.flatnonzero(landing):
@@ -375,22 +404,18 @@ class Simulator:
             self._set_active(self.active | landing)
 
     def _impact(self, active: np.ndarray) -> float:
-        """Inelastic, frictionless touchdown: put the active contact points back on their planes
+        """Inelastic, frictionless touchdown: put the active contact points back on their surfaces
         (mass-weighted projection of q) and remove their normal velocity with the impulse
         Mc^-1 J_c^T lambda. Returns the kinetic energy lost [J] (added to impact_loss)."""
         full, n = self.full_dynamics, self.n
         model, data = full._model, full._data
-        rows = np.flatnonzero(active)
-        q, dq = self._y[:n].copy(), self._y[n : 2 * n].copy()
-        for _ in range(10):  # Newton on C(q) = 0 along the mass-weighted direction
-            pin.computeAllTerms(model, data, q, dq)
-            pin.cholesky.decompose(model, data)
-            terms = full.contacts.evaluate_data(model, data, dq)
-            residual, jc = terms.residual[rows], terms.normal_jacobian[rows]
-            y = np.column_stack([pin.cholesky.solve(model, data, row) for row in jc])  # Mc^-1 J_c^T
-            if np.max(np.abs(residual)) < 1e-13:
-                break
-            q = q + y.dot(np.linalg.solve(jc.dot(y), -residual))
+        rows = np.flatnonzero(active).tolist()
+        q = project_onto_contacts(model, data, full.contacts, self._y[:n], rows)
+        dq = self._y[n : 2 * n].copy()
+        pin.computeAllTerms(model, data, q, dq)
+        pin.cholesky.decompose(model, data)
+        jc = full.contacts.evaluate_data(model, data, dq).normal_jacobian[rows]
+        y = np.column_stack([pin.cholesky.solve(model, data, row) for row in jc])  # Mc^-1 J_c^T
         normal_velocity = jc.dot(dq)
         delassus = jc.dot(y)
         impulse = -np.linalg.solve(delassus, normal_velocity)

@@ -1,8 +1,9 @@
-"""Desired trajectories of task points: the paper's circle and a hold."""
+"""Desired trajectories of task points: a hold, the paper's circle, and waypoints with a smooth profile."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -50,3 +51,53 @@ class Circle:
         velocity[u] = -self.radius * rate * math.sin(angle)
         velocity[v] = self.radius * rate * math.cos(angle)
         return position, velocity
+
+
+@dataclass(frozen=True)
+class Waypoints:
+    """From ``start`` through each waypoint in turn, rest to rest: each segment of ``segment_time``
+    seconds follows the minimum-jerk profile s(u) = 10 u^3 - 15 u^4 + 6 u^5 (zero velocity and
+    acceleration at both ends), then the last waypoint is held."""
+
+    start: tuple[float, float, float]
+    points: tuple[tuple[float, float, float], ...]
+    segment_time: float  # [s]
+
+    def sample(self, t: float) -> tuple[Vector, Vector]:
+        path = (self.start, *self.points)
+        segment = int(t // self.segment_time) if t > 0.0 else 0
+        if segment >= len(self.points):
+            return np.array(path[-1], dtype=float), np.zeros(3)
+        u = t / self.segment_time - segment
+        s = u * u * u * (10.0 + u * (-15.0 + 6.0 * u))
+        ds = 30.0 * u * u * (1.0 - u) ** 2 / self.segment_time
+        a, b = np.array(path[segment], dtype=float), np.array(path[segment + 1], dtype=float)
+        return a + s * (b - a), ds * (b - a)
+
+
+def _point(values: Sequence[float]) -> tuple[float, float, float]:
+    return (float(values[0]), float(values[1]), float(values[2]))
+
+
+@dataclass(frozen=True)
+class TrajectoryConfig:
+    """A task's desired path as configured (``schema.trajectory_params``): hold, circle or waypoints."""
+
+    kind: str  # hold | circle | waypoints
+    center: tuple[float, float, float]
+    radius: float  # [m]
+    period: float  # [s]
+    direction: float  # +1 / -1
+    phase: float  # [rad]
+    plane: tuple[int, int]  # world axis indices (u, v)
+    point: tuple[float, float, float] | None  # hold: None = the first measured position
+    waypoints: tuple[tuple[float, float, float], ...]
+    segment_time: float  # [s]
+
+    def build(self, start: Sequence[float]) -> Trajectory:
+        """The trajectory, given the task point's first measured position ``start``."""
+        if self.kind == "circle":
+            return Circle(self.center, self.radius, self.period, self.direction, self.phase, self.plane)
+        if self.kind == "waypoints":
+            return Waypoints(_point(start), self.waypoints, self.segment_time)
+        return Hold(self.point if self.point is not None else _point(start))

@@ -70,6 +70,8 @@ class SimulatorNode(Node):
         self.contacts_pub = publisher(Contacts, "contacts", STREAM_QOS)
         self.motor_pub = publisher(MotorState, "motor_state", STREAM_QOS)
         self.clock_pub = publisher(Clock, "/clock", STREAM_QOS)
+        # A wrench topic per configured contact (the contact set lists them first); the contacts a
+        # collision frame adds are reported in `contacts` only.
         self.wrench_pubs = [
             publisher(WrenchStamped, f"contact_wrench/{c.name}", STREAM_QOS) for c in self.config.shared.contacts
         ]
@@ -77,7 +79,7 @@ class SimulatorNode(Node):
         self.description_pub = publisher(String, "robot_description", DESCRIPTION_QOS)
         self.description_pub.publish(String(data=self.config.shared.urdf.read_text(encoding="utf-8")))
         # Messages travel as CDR bytes built by ``wire`` (rclpy's message classes cost more than the DDS write).
-        contacts = self.config.shared.contacts
+        contacts = self.plant.contact_set.contacts
         self.joint_wire = wire.JointStateEncoder(self.joint_names)
         self.clock_wire = wire.ClockEncoder()
         self.wrench_wire = wire.WrenchStampedEncoder("world")
@@ -110,6 +112,12 @@ class SimulatorNode(Node):
             f"{self.mode.value} input, {len(self.plant.contact_set)} contact(s), step {self.config.step} s, "
             f"{self.config.stepping}, duration {duration or 'unbounded'} s"
         )
+        if self.config.project_initial_position:
+            given = self.plant.to_model_order(self.config.initial_position)
+            self.get_logger().info(
+                f"initial position projected onto the contacts: {dict(zip(self.joint_names, self.sim.position.round(9).tolist(), strict=True))} "
+                f"(moved {float(np.max(np.abs(self.sim.position - given))):.3g} at most)"
+            )
 
     # -- commands -------------------------------------------------------------------
     def _on_command(self, data: bytes) -> None:
@@ -157,11 +165,13 @@ class SimulatorNode(Node):
         terms = d.contacts
         active = d.active if d.active is not None else np.ones(terms.count, dtype=bool)
         reports = []
-        for j in range(len(self.wrench_pubs)):
+        wrench_pubs = self.wrench_pubs
+        for j in range(terms.count):
             normal, friction = terms.normals[j], float(d.friction_force[j])
             normal_force = float(d.normal_force[j])
-            force = normal_force * normal - friction * terms.slip_direction[j]
-            self.wrench_pubs[j].publish(self.wrench_wire.encode(t_ns, force))  # at the contact point: no moment
+            if j < len(wrench_pubs):
+                force = normal_force * normal - friction * terms.slip_direction[j]
+                wrench_pubs[j].publish(self.wrench_wire.encode(t_ns, force))  # at the contact point: no moment
             reports.append(
                 wire.ContactReport(
                     active=bool(active[j]),
