@@ -7,7 +7,7 @@ PY_SRC := src/bracing_core/bracing_core src/bracing_ros/bracing_ros src/bracing_
 .PHONY: help setup test test-slow lint typecheck pytest run bench lock clean
 
 help:
-	@echo "make run    - set up if needed, run the paper scenario braced and unbraced, print the table"
+	@echo "make run    - set up if needed, run the paper scenario braced, passive and in free space, print the table"
 	@echo "make test   - set up if needed, then ruff, mypy and the pytest suite"
 	@echo "make test-slow - the long runs: 10 min of sim time; 3 pairs at once x 10 rounds; make run x 10 and in two clones at once"
 	@echo "make bench  - benchmarks (engine vs MuJoCo, pair vs DDS bound, controller latency, scaling)"

@@ -102,11 +102,11 @@ SHORT_RUN_S = 0.3
 
 @pytest.fixture(scope="session")
 def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """Two short bracing-pair runs of the paper scenario, braced and with --no-bracing (their run
-    directories), shared by the tests that read recorded bags."""
+    """Two short bracing-pair runs of the paper scenario, braced and with no contacts at all (their
+    run directories), shared by the tests that read recorded bags."""
     root = tmp_path_factory.mktemp("runs")
     out = {}
-    for name, extra in (("braced", ()), ("unbraced", ("--no-bracing",))):
+    for name, extra in (("braced", ()), ("unbraced", ("--set", "contacts.names=[]"))):
         done = ros_helpers.run(ros_helpers.pair_argv(root / name, "--duration", str(SHORT_RUN_S), *extra), timeout=300)
         assert done.returncode == 0, done.stdout + done.stderr
         out[name] = root / name

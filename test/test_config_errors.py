@@ -58,7 +58,11 @@ CONTROLLER_CASES: list[tuple[str, dict[str, Any], str]] = [
     ("brace gains length", {"contacts.elbow.kd": [20.0, 1.0]}, "contacts.elbow.kd: expected 1 values"),
     ("unknown hand frame", {"hand.frame": "gripper"}, "unknown frame 'gripper'"),
     ("bad axis", {"hand.axes": ["y", "w"]}, "hand.axes: axes must be among x, y, z"),
-    ("bad trajectory", {"hand.trajectory.type": "spiral"}, "hand.trajectory.type: expected one of hold, circle, waypoints"),
+    (
+        "bad trajectory",
+        {"hand.trajectory.type": "spiral"},
+        "hand.trajectory.type: expected one of hold, circle, waypoints",
+    ),
     ("zero period", {"hand.trajectory.period": 0.0}, "hand.trajectory.period: must be > 0"),
     ("voltage gain sign", {"voltage_gain": [1.0, -1.0, 1.0, 1.0]}, "voltage_gain: K_V must be positive definite"),
 ]

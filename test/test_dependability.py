@@ -45,7 +45,7 @@ def _clone(tmp_path: Path, name: str) -> Path:
 
 
 def _energy_ratio(output: str) -> float:
-    found = re.findall(r"energy ratio braced / unbraced: ([0-9.]+)", output)
+    found = re.findall(r"energy ratio braced / free space: ([0-9.]+)", output)
     assert found, output[-3000:]
     return float(found[-1])
 

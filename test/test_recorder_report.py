@@ -37,6 +37,7 @@ from rosbags.highlevel import AnyReader  # noqa: E402
 from bracing_bringup.report import main as report_main  # noqa: E402
 from bracing_bringup.report import write_report  # noqa: E402
 from bracing_bringup.summary import (  # noqa: E402
+    SUMMARY_EXTRA_KEYS,
     SUMMARY_KEYS,
     BagSeries,
     ContactSeries,
@@ -537,7 +538,7 @@ def test_summary_constant_hand_offset_and_no_contacts() -> None:
     s.hand_actual[t_early := s.t < 2.0] += np.array([0.0, 1.0, 0.0])  # huge, but before 2 s
     assert t_early.any()
     out = compute_summary(s)
-    assert list(out) == list(SUMMARY_KEYS)
+    assert list(out) == [*SUMMARY_KEYS, *SUMMARY_EXTRA_KEYS]
     assert out["hand_rms_error_m"] == pytest.approx(0.01, abs=1e-12)
     assert out["hand_max_error_m"] == pytest.approx(0.01, abs=1e-12)
     assert out["brace_rms_error_m"] == 0.0
@@ -592,7 +593,8 @@ def test_read_series_matches_force_by_stamp(tmp_path: Path) -> None:
 
 # --------------------------------------------------------------------------- report tests
 
-PLOTS = ("hand_y.png", "hand_z.png", "brace_y.png", "normal_force.png", "energy.png")
+# The synthetic brace point stays put but for its constant offset along z: its plot is brace_z.
+PLOTS = ("hand_y.png", "hand_z.png", "brace_z.png", "normal_force.png", "energy.png")
 
 
 def test_report_writes_plots_and_summary(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -606,7 +608,7 @@ def test_report_writes_plots_and_summary(tmp_path: Path, capsys: pytest.CaptureF
         assert png.stat().st_size > 5000, name
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     summary = json.loads((run / "summary.json").read_text())
-    assert list(summary) == list(SUMMARY_KEYS)
+    assert list(summary) == [*SUMMARY_KEYS, *SUMMARY_EXTRA_KEYS]
     assert summary["wall_time_s"] == 1.99  # kept from the existing summary.json
     assert summary["real_time_factor"] == pytest.approx((N_STEPS - 1) * DT / 1.99)
     assert summary["hand_rms_error_m"] == pytest.approx(HAND_OFFSET, abs=1e-12)

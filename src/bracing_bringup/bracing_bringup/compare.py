@@ -32,7 +32,12 @@ ROWS: dict[str, tuple[str, str]] = {
     "sim_time_s": ("sim time", "s"),
     "wall_time_s": ("wall time", "s"),
     "real_time_factor": ("real-time factor", ""),
+    "max_penetration_m": ("max penetration", "m"),
+    "input_mode": ("input mode", ""),
+    "bracing": ("bracing", ""),
 }
+TABLE_KEYS = (*SUMMARY_KEYS, "max_penetration_m", "input_mode", "bracing")
+"""compare.md's rows: summary.json's single values (each run's summary.json has the per-contact ones)."""
 
 
 def run_labels(bags: Sequence[str | Path]) -> list[str]:
@@ -60,6 +65,10 @@ def _cell(value: Any) -> str:
     return f"{value:.4g}" if isinstance(value, float) else str(value)
 
 
+def _number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
 def markdown_table(labels: Sequence[str], summaries: Sequence[dict[str, Any]]) -> str:
     """The summaries as a Markdown table: a row per metric, a column per run, and ratios to the last run."""
     head = ["metric", *labels]
@@ -67,14 +76,14 @@ def markdown_table(labels: Sequence[str], summaries: Sequence[dict[str, Any]]) -
     if ratio:
         head += [f"{label} / {labels[-1]}" for label in labels[:-1]]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for key in SUMMARY_KEYS:
+    for key in TABLE_KEYS:
         label, unit = ROWS.get(key, (key, ""))
         cells = [f"{label} [{unit}]" if unit else label] + [_cell(s.get(key)) for s in summaries]
         if ratio:
             last = summaries[-1].get(key)
             for s in summaries[:-1]:
                 value = s.get(key)
-                ok = isinstance(value, (int, float)) and isinstance(last, (int, float)) and last
+                ok = _number(value) and _number(last) and last
                 cells.append(f"{value / last:.3f}" if ok else "n/a")  # type: ignore[operator]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
@@ -130,7 +139,7 @@ def plot_comparison(runs: Sequence[tuple[str, BagSeries]], out: Path) -> list[Pa
 
 
 def default_compare_dir(bags: Sequence[str | Path]) -> Path:
-    """The directory that holds every run (``out`` for out/braced/bag and out/unbraced/bag)."""
+    """The directory that holds every run (``out`` for out/braced/bag and out/free_space/bag)."""
     return Path(os.path.commonpath([str(resolve_bag(Path(b)).resolve().parent) for b in bags]))
 
 

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from bracing_bringup.inprocess import Recording, build_scenario_from_params, run_recorded
-from bracing_bringup.summary import BagSeries, ContactSeries, compute_summary
+from bracing_bringup.summary import BagSeries, ContactSeries, compute_summary, flat_summary
 
 STATUS_OK = "ok"
 STATUS_FAILED = "failed"
@@ -60,6 +60,7 @@ def series_from_recording(rec: Recording) -> BagSeries:
         energy_consumed=rec.energy_consumed,
         energy_net=rec.energy_net,
         copper_loss=rec.copper_loss,
+        input_mode=rec.input_mode,
     )
     braced = {name: b for b, name in enumerate(rec.braced_names)}
     for j, name in enumerate(rec.contact_names):
@@ -92,20 +93,7 @@ def summarize(rec: Recording, wall_time_s: float) -> dict[str, Any]:
     if FORCE_MAX_ERROR_KEY not in summary:
         errors = [np.abs(c.normal_force_error) for c in series.contacts.values()]
         summary[FORCE_MAX_ERROR_KEY] = float(np.max(np.concatenate(errors))) if errors else None
-    summary.setdefault("input_mode", rec.input_mode)
-    summary.setdefault("bracing", bool(rec.braced_names))
     return summary
-
-
-def flat_metrics(summary: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    """Scalar metrics as table columns; nested dicts (per contact) as ``contacts.<name>.<key>``."""
-    out: dict[str, Any] = {}
-    for key, value in summary.items():
-        if isinstance(value, dict):
-            out.update(flat_metrics(value, f"{prefix}{key}."))
-        elif value is None or isinstance(value, (bool, int, float, str)):
-            out[prefix + key] = value
-    return out
 
 
 _URDF_COPIES: dict[str, str] = {}
@@ -143,7 +131,8 @@ def execute_run(spec: RunSpec) -> RunOutcome:
         row.update(status=STATUS_FAILED, error=f"{type(exc).__name__}: {exc}", wall_time_s=time.perf_counter() - start)
         row["traceback"] = traceback.format_exc(limit=6)
         return RunOutcome(row)
-    for key, value in flat_metrics(summary).items():
-        row.setdefault(key, value)  # a varied value keeps its column
+    for key, value in flat_summary(summary).items():
+        if not isinstance(value, dict):  # an empty contacts: {} has no column
+            row.setdefault(key, value)  # a varied value keeps its column
     row.update(status=STATUS_OK, error=None, wall_time_s=wall)
     return RunOutcome(row, summary, buffer.getvalue())

@@ -158,9 +158,7 @@ class Pair:
     def start(self, name: str, argv: list[str], env: dict[str, str]) -> subprocess.Popen[bytes]:
         log = self.options.output / "logs" / f"{name}.log"
         self.logs[name] = log
-        proc = subprocess.Popen(
-            argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env, start_new_session=True
-        )
+        proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env, start_new_session=True)
         self.procs[name] = proc
         follower = threading.Thread(target=self._follow, args=(proc, log), name=f"log-{name}", daemon=True)
         follower.start()

@@ -1,19 +1,46 @@
-"""make run: the paper's claim, reproduced. The paper scenario braced and unbraced, each
-as a bracing-pair run (two node processes over DDS, recorded, reported with an animation),
-then a side-by-side table and the comparison figures (compare_*.png, compare.md)."""
+"""make run: the paper's claim, reproduced. The paper scenario three ways, each as a bracing-pair
+run (two node processes over DDS, recorded, reported with an animation): braced; passive (no brace
+task, the floor kept as an obstacle the elbow can rest on); in free space (the planes removed: the
+paper's comparison). Then a side-by-side table and the comparison figures (compare_*.png, compare.md)."""
 
 from __future__ import annotations
 
 import argparse
+import math
 import shutil
 import sys
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from bracing_bringup.pair import RunOptions, run_pair
 from bracing_bringup.summary import BagReadError
 from bracing_core.params import ConfigError
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run of the comparison."""
+
+    name: str  # its directory under --output
+    column: str  # its column in the table
+    label: str  # what it is
+    bracing: bool = True
+    free_space: bool = False
+
+    def flags(self) -> str:
+        """The bracing-pair options that make this run."""
+        return ("" if self.bracing else " --no-bracing") + (" --free-space" if self.free_space else "")
+
+
+RUNS = (
+    Run("braced", "braced", "braced"),
+    Run("passive", "passive", "passive (no brace task, the floor an obstacle)", bracing=False),
+    Run("free_space", "free space", "free space (the paper's comparison)", bracing=False, free_space=True),
+)
+RATIOS = (("braced", "free_space"), ("braced", "passive"))
+"""The ratios printed, the paper's headline (braced against free space) first."""
 
 ROWS: list[tuple[str, str, str]] = [
     ("hand_rms_error_m", "hand RMS error (t >= 2 s)", "m"),
@@ -23,26 +50,34 @@ ROWS: list[tuple[str, str, str]] = [
     ("energy_consumed_j", "energy consumed", "J"),
     ("copper_loss_j", "copper loss", "J"),
     ("constraint_residual_max_m", "max constraint residual", "m"),
+    ("max_penetration_m", "max penetration", "m"),
     ("real_time_factor", "real-time factor", ""),
 ]
 
 
-def table(braced: dict[str, Any], unbraced: dict[str, Any]) -> str:
-    lines = [f"{'':28s} {'braced':>12s} {'unbraced':>12s}", "-" * 54]
+def _number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _ratio(a: dict[str, Any], b: dict[str, Any], key: str) -> float:
+    return a[key] / b[key] if _number(a.get(key)) and _number(b.get(key)) and b[key] else math.nan
+
+
+def table(summaries: dict[str, dict[str, Any]]) -> str:
+    """The runs' summaries (by run name, RUNS) side by side, then RATIOS of energy and hand error."""
+    runs = [run for run in RUNS if run.name in summaries]
+    columns = [summaries[run.name] for run in runs]
+    rule = "-" * (28 + 13 * len(runs))
+    lines = [f"{'':28s}" + "".join(f" {run.column:>12s}" for run in runs), rule]
     for key, label, unit in ROWS:
-        cells = [
-            f"{s[key]:12.4g}" if isinstance(s.get(key), (int, float)) else f"{'n/a':>12s}" for s in (braced, unbraced)
-        ]
-        lines.append(f"{label + (f' [{unit}]' if unit else ''):28s} {cells[0]} {cells[1]}")
-    ratio = (
-        braced["energy_consumed_j"] / unbraced["energy_consumed_j"] if unbraced["energy_consumed_j"] else float("nan")
-    )
-    hand = braced["hand_rms_error_m"] / unbraced["hand_rms_error_m"] if unbraced["hand_rms_error_m"] else float("nan")
-    lines += [
-        "-" * 54,
-        f"energy ratio braced / unbraced: {ratio:.3f}",
-        f"hand RMS error ratio braced / unbraced: {hand:.3f}",
-    ]
+        cells = "".join(f" {s[key]:12.4g}" if _number(s.get(key)) else f" {'n/a':>12s}" for s in columns)
+        lines.append(f"{label + (f' [{unit}]' if unit else ''):28s}{cells}")
+    lines.append(rule)
+    column = {run.name: run.column for run in runs}
+    for a, b in RATIOS:
+        if a in summaries and b in summaries:
+            for key, what in (("energy_consumed_j", "energy ratio"), ("hand_rms_error_m", "hand RMS error ratio")):
+                lines.append(f"{what} {column[a]} / {column[b]}: {_ratio(summaries[a], summaries[b], key):.3f}")
     return "\n".join(lines)
 
 
@@ -54,25 +89,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--mode", choices=("voltage", "torque"), default=None)
     args = parser.parse_args(argv)
     summaries: dict[str, dict[str, Any]] = {}
-    for name, bracing in (("braced", True), ("unbraced", False)):
-        output = args.output / name
+    for run in RUNS:
+        output = args.output / run.name
         if output.exists():
-            shutil.rmtree(output)  # this command owns out/braced and out/unbraced
-        print(
-            f"== {name}: bracing-pair --config {args.config} --output {output}" + ("" if bracing else " --no-bracing")
+            shutil.rmtree(output)  # this command owns the directory of each of its runs
+        print(f"== {run.label}: bracing-pair --config {args.config} --output {output}{run.flags()}")
+        options = RunOptions(
+            args.config, output, args.duration, args.mode, bracing=run.bracing, free_space=run.free_space
         )
         try:
-            result = run_pair(RunOptions(args.config, output, args.duration, args.mode, bracing))
+            result = run_pair(options)
         except ConfigError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 2
         if result.exit_code != 0 or result.summary is None:
-            print(f"{name} run failed: {result.message}", file=sys.stderr)
+            print(f"{run.name} run failed: {result.message}", file=sys.stderr)
             return result.exit_code or 1
-        summaries[name] = result.summary
+        summaries[run.name] = result.summary
     print()
-    print(table(summaries["braced"], summaries["unbraced"]))
-    print(f"\nbags, plots and summary.json: {args.output / 'braced'} and {args.output / 'unbraced'}")
+    print(table(summaries))
+    dirs = [str(args.output / name) for name in summaries]
+    print(f"\nbags, plots and summary.json: {', '.join(dirs[:-1])} and {dirs[-1]}")
     from bracing_bringup.compare import write_comparison  # matplotlib: only once there is something to draw
     from bracing_bringup.report import ANIMATION_FILES
 
@@ -84,7 +121,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BagReadError as exc:
         print(f"error: comparison: {exc}", file=sys.stderr)
         return 1
-    print("braced vs unbraced: " + ", ".join(str(p) for p in compared))
+    print(" vs ".join(run.column for run in RUNS) + ": " + ", ".join(str(p) for p in compared))
     return 0
 
 

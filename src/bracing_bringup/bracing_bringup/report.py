@@ -1,11 +1,13 @@
 """``bracing-report DIR/bag [--output DIR]``: the paper's figures, an animation and summary.json.
 
 Writes into the output directory (default: the bag's parent directory):
-``hand_y.png``, ``hand_z.png`` (Figs. 6/7, 9/10, 13/14), ``brace_y.png`` (Figs. 11/15),
-``normal_force.png`` (Figs. 12/16), ``energy.png`` (Fig. 8), ``summary.json`` and
-``animation.gif`` / ``animation.mp4`` (the arm moving, see ``animation``). Runs without
-contacts skip the brace and force plots; a bag without ``robot_description`` (recorded
-by an older version) gets no animation unless ``--urdf`` names the robot.
+``hand_y.png``, ``hand_z.png`` (Figs. 6/7, 9/10, 13/14), ``brace_x.png``, ``brace_y.png``
+(Figs. 11/15), ``brace_z.png``, ``normal_force.png`` (Figs. 12/16), ``energy.png`` (Fig. 8),
+``summary.json`` and ``animation.gif`` / ``animation.mp4`` (the arm moving, see ``animation``).
+A brace plot is drawn for each axis along which a braced contact's brace point moves
+(``drawing.brace_axes``: the paper's elbow gets ``brace_y.png`` only); runs without contacts
+skip the force plot; a bag without ``robot_description`` (recorded by an older version) gets
+no animation unless ``--urdf`` names the robot.
 
 ``bracing-report BAG1 BAG2 ... --compare [--output DIR]`` draws the runs side by side
 instead (``compare_*.png`` and ``compare.md``, see ``compare``; default output: the
@@ -72,15 +74,14 @@ def _plot_hand(series: BagSeries, out: Path, axis: int, name: str) -> Path:
     return save_figure(fig, ax, out / f"hand_{name}.png")
 
 
-def _plot_brace(series: BagSeries, out: Path) -> Path:
-    fig, ax = figure("Brace point y position (paper Figs. 11, 15)", "brace point y [m]")
+def _plot_brace(series: BagSeries, out: Path, axis: int, name: str) -> Path:
+    paper = " (paper Figs. 11, 15)" if name == "y" else ""
+    fig, ax = figure(f"Brace point {name} position{paper}", f"brace point {name} [m]")
     for cs in series.contacts.values():
-        if cs.t_ctrl.size:
-            ax.plot(cs.t_ctrl, cs.brace_desired[:, 1], "--", label=f"{cs.name} target y")
-            ax.plot(cs.t_ctrl, cs.brace_actual[:, 1], label=f"{cs.name} y")
-        elif cs.t.size:
-            ax.plot(cs.t, cs.position[:, 1], label=f"{cs.name} y (simulator)")
-    return save_figure(fig, ax, out / "brace_y.png")
+        if cs.t_ctrl.size:  # braced (an obstacle has no brace point to follow)
+            ax.plot(cs.t_ctrl, cs.brace_desired[:, axis], "--", label=f"{cs.name} target {name}")
+            ax.plot(cs.t_ctrl, cs.brace_actual[:, axis], label=f"{cs.name} {name}")
+    return save_figure(fig, ax, out / f"brace_{name}.png")
 
 
 def _plot_force(series: BagSeries, out: Path) -> Path:
@@ -103,7 +104,9 @@ def _plot_energy(series: BagSeries, out: Path) -> Path:
 PLOTS: dict[str, Callable[[BagSeries, Path], Path]] = {
     "hand_y": lambda series, out: _plot_hand(series, out, 1, "y"),
     "hand_z": lambda series, out: _plot_hand(series, out, 2, "z"),
-    "brace_y": _plot_brace,
+    "brace_x": lambda series, out: _plot_brace(series, out, 0, "x"),
+    "brace_y": lambda series, out: _plot_brace(series, out, 1, "y"),
+    "brace_z": lambda series, out: _plot_brace(series, out, 2, "z"),
     "normal_force": _plot_force,
     "energy": _plot_energy,
 }

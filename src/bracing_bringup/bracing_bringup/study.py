@@ -138,7 +138,9 @@ def build_study(
     origin = np.array(contact.target if contact.target is not None else start[shared.contacts.index(contact)])
     offsets = np.linspace(-span, span, positions) if positions > 1 else np.zeros(1)
     targets = [float(origin[axis] + d) for d in offsets]
-    forces = [contact.desired_normal_force * s for s in force_scales]
+    desired = contact.desired_normal_force
+    assert desired is not None  # a braced contact (study_specs picks one)
+    forces = [desired * s for s in force_scales]
     placement = []
     for force in forces:
         for target in targets:

@@ -4,7 +4,9 @@
 only the message definitions embedded in the bag, and returns numpy time series (and the
 URDF of ``robot_description``, if the bag has it, for drawing the arm). It decodes each
 topic's messages column-wise (``columns``); ``columnar=False`` is the plain per-message path.
-``compute_summary(series, wall_time_s)`` returns the ``summary.json`` dict (keys: README, Topics and messages).
+``compute_summary(series, wall_time_s)`` returns the ``summary.json`` dict (keys: README, Topics and messages):
+SUMMARY_KEYS, then SUMMARY_EXTRA_KEYS (per-contact metrics ``contact_metrics``, the input mode, whether
+the controller braced).
 
 Times are in seconds relative to ``t0``, the first ``joint_states`` stamp (the first
 stamp of any recorded message if there is no ``joint_states``).
@@ -24,6 +26,7 @@ from rosbags.highlevel import AnyReader
 from bracing_bringup.columns import Layout, column, decode
 
 FloatArray = NDArray[np.float64]
+_Xyz = tuple[float, ...]
 
 HAND_ERROR_T_MIN_S = 2.0
 """Hand errors are taken over t >= this [s] (after the initial transient)."""
@@ -40,11 +43,30 @@ SUMMARY_KEYS = (
     "wall_time_s",
     "real_time_factor",
 )
+SUMMARY_EXTRA_KEYS = ("contacts", "max_penetration_m", "input_mode", "bracing")
+"""summary.json's keys after SUMMARY_KEYS (added later: tools that read SUMMARY_KEYS by position keep working)."""
+
+CONTACT_KEYS = (
+    "braced",
+    "normal_force_rms_error_n",
+    "brace_rms_error_m",
+    "normal_force_mean_n",
+    "normal_force_max_n",
+    "slip_m",
+    "residual_max_m",
+    "active_fraction",
+    "penetration_m",
+)
+"""The keys of each contact in summary.json's ``contacts`` (``contact_metrics``)."""
+
+INPUT_MODES = {0: "voltage", 1: "torque"}
+"""MotorCommand.mode (VOLTAGE, TORQUE) -> the input_mode parameter's name for it."""
 
 _JOINT_STATE = "sensor_msgs/msg/JointState"
 _CONTACTS = "bracing_msgs/msg/Contacts"
 _CONTROLLER_STATE = "bracing_msgs/msg/ControllerState"
 _MOTOR_STATE = "bracing_msgs/msg/MotorState"
+_MOTOR_COMMAND = "bracing_msgs/msg/MotorCommand"
 _WRENCH = "geometry_msgs/msg/WrenchStamped"
 _STRING = "std_msgs/msg/String"
 _WRENCH_TOPIC = "contact_wrench/"
@@ -72,6 +94,7 @@ class ContactSeries:
     active: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
     position: FloatArray = field(default_factory=lambda: _empty(3))  # [m]
     normal: FloatArray = field(default_factory=lambda: _empty(3))  # surface normal at the contact
+    slip_velocity: FloatArray = field(default_factory=lambda: _empty(3))  # s = J dq, tangential [m/s]
     # From `contact_wrench/<name>` (the simulator): force on the robot, world axes:
     t_force: FloatArray = field(default_factory=_empty)  # [s]
     force: FloatArray = field(default_factory=lambda: _empty(3))  # [N]
@@ -103,6 +126,7 @@ class BagSeries:
     energy_net: FloatArray = field(default_factory=_empty)  # [J]
     copper_loss: FloatArray = field(default_factory=_empty)  # [J]
     topic_counts: dict[str, int] = field(default_factory=dict)  # messages per topic
+    input_mode: str | None = None  # motor_command's mode ("voltage", "torque"); None if none was recorded
 
 
 def _stamp_ns(msg: Any) -> int:
@@ -148,6 +172,19 @@ def _wanted(reader: AnyReader, counts: dict[str, int]) -> list[Any]:
     ]
 
 
+def _input_mode(reader: AnyReader) -> str | None:
+    """The mode of the first motor_command (the controller sends one mode for a whole run), decoded
+    by rosbags: both read paths call this, so they agree by construction; None if none was recorded
+    or the mode is not one MotorCommand defines."""
+    commands = [c for c in reader.connections if c.msgtype == _MOTOR_COMMAND]
+    if not commands:  # (an empty list would make reader.messages read every topic)
+        return None
+    for conn, _, raw in reader.messages(connections=commands):
+        command: Any = reader.deserialize(raw, conn.msgtype)
+        return INPUT_MODES.get(int(command.mode))
+    return None
+
+
 def _read_general(path: Path) -> BagSeries:
     joint: list[tuple[int, Any]] = []
     wrenches: dict[str, list[tuple[int, tuple[float, float, float]]]] = {}
@@ -159,6 +196,7 @@ def _read_general(path: Path) -> BagSeries:
     try:
         with AnyReader([path]) as reader:
             wanted = _wanted(reader, counts)
+            mode = _input_mode(reader)
             for conn, _, raw in reader.messages(connections=wanted):
                 msg: Any = reader.deserialize(raw, conn.msgtype)
                 if conn.msgtype == _STRING:
@@ -195,7 +233,7 @@ def _read_general(path: Path) -> BagSeries:
     def sec(ns: int) -> float:
         return (ns - t0) * 1e-9
 
-    series = BagSeries(t0_ns=t0, topic_counts=counts, robot_description=description)
+    series = BagSeries(t0_ns=t0, topic_counts=counts, robot_description=description, input_mode=mode)
     series.joint_t = np.array([sec(s) for s, _ in joint], dtype=float)
     if joint:
         series.joint_names = [str(n) for n in joint[0][1].name]
@@ -213,7 +251,7 @@ def _read_general(path: Path) -> BagSeries:
         series.copper_loss = arr[:, 3]
 
     # Per contact, from the simulator.
-    sim_rows: dict[str, list[tuple[int, float, float, float, bool, tuple[float, ...], tuple[float, ...]]]] = {}
+    sim_rows: dict[str, list[tuple[int, float, float, float, bool, _Xyz, _Xyz, _Xyz]]] = {}
     for stamp, msg in contacts:
         for c in msg.contacts:
             sim_rows.setdefault(str(c.name), []).append(
@@ -225,6 +263,7 @@ def _read_general(path: Path) -> BagSeries:
                     bool(c.active),
                     _xyz(c.position),
                     _xyz(c.normal),
+                    _xyz(c.slip_velocity),
                 )
             )
     # Per contact, from the controller.
@@ -248,6 +287,7 @@ def _read_general(path: Path) -> BagSeries:
             cs.active = np.array([r[4] for r in rows], dtype=bool)
             cs.position = np.array([r[5] for r in rows], dtype=float).reshape(-1, 3)
             cs.normal = np.array([r[6] for r in rows], dtype=float).reshape(-1, 3)
+            cs.slip_velocity = np.array([r[7] for r in rows], dtype=float).reshape(-1, 3)
         forces = sorted(wrenches.get(name, []))
         if forces:
             cs.t_force = np.array([sec(s) for s, _ in forces], dtype=float)
@@ -377,6 +417,7 @@ def _read_columnar(path: Path) -> BagSeries:
     try:
         with AnyReader([path]) as reader:
             wanted = _wanted(reader, counts)
+            mode = _input_mode(reader)
             for conn, _, raw in reader.messages(connections=wanted):
                 raws.setdefault(_kind(conn), []).append(raw)
             store = reader.typestore
@@ -402,7 +443,7 @@ def _read_columnar(path: Path) -> BagSeries:
     # The first non-empty robot_description in bag order ("" if all are empty).
     filled = sorted((int(layout.index[0]), layout.strings["data"]) for layout in texts if layout.strings["data"])
     description = filled[0][1] if filled else "" if texts else None
-    series = BagSeries(t0_ns=t0, topic_counts=counts, robot_description=description)
+    series = BagSeries(t0_ns=t0, topic_counts=counts, robot_description=description, input_mode=mode)
     series.joint_t = sec(joint.stamp[joint.order])
     if joint.count:
         first = next(layout for layout in joint.layouts if np.any(layout.index == joint.order[0]))
@@ -430,6 +471,7 @@ def _read_columnar(path: Path) -> BagSeries:
             cs.active = rows.take("contacts[{j}].active").astype(bool)
             cs.position = rows.xyz("contacts[{j}].position")
             cs.normal = rows.xyz("contacts[{j}].normal")
+            cs.slip_velocity = rows.xyz("contacts[{j}].slip_velocity")
         wrench = messages.get((_WRENCH, name))
         if wrench is not None and wrench.count:
             force = [column(wrench.layouts, f"wrench.force.{axis}", wrench.count).astype(float) for axis in "xyz"]
@@ -461,13 +503,72 @@ def _rms(values: FloatArray) -> float:
     return float(np.sqrt(np.mean(np.square(values))))
 
 
+def _braced(cs: ContactSeries) -> bool:
+    """The controller keeps a desired force on the contact (it names it in controller_state)."""
+    return bool(cs.t_ctrl.size)
+
+
+def _active(cs: ContactSeries) -> NDArray[np.bool_]:
+    """Which of the contact's samples are active; all of them for a series made without the flags
+    (by hand, in tests and tools), as the summary counted every sample before it knew of them."""
+    return cs.active if cs.active.shape == cs.t.shape else np.ones(cs.t.shape, dtype=bool)
+
+
+def _brace_errors(cs: ContactSeries) -> FloatArray:
+    """|r_dj - r_j| [m] at each controller_state sample that has both (none for an unbraced contact)."""
+    error = np.linalg.norm(cs.brace_desired - cs.brace_actual, axis=1)
+    return error[np.isfinite(error)]
+
+
+def _force_errors(cs: ContactSeries) -> FloatArray:
+    """f_n - f_nd [N] where both are known (none for an unbraced contact)."""
+    return cs.normal_force_error[np.isfinite(cs.normal_force_error)]
+
+
+def _slip(cs: ContactSeries, active: NDArray[np.bool_]) -> float | None:
+    """How far the contact point slid while active [m]: the trapezoid rule on the contacts stamps
+    of |s| (0 where inactive, so touchdown and lift-off intervals count half). None if the series
+    has no slip velocities (a series not read from a bag)."""
+    if cs.slip_velocity.shape != (cs.t.size, 3):
+        return None
+    speed = np.where(active, np.linalg.norm(cs.slip_velocity, axis=1), 0.0)
+    # By hand: np.trapezoid is numpy >= 2 only (a Jazzy workspace's system numpy is 1.26).
+    return float(np.sum(np.diff(cs.t) * (speed[1:] + speed[:-1]) / 2))
+
+
+def _rms_or_none(values: FloatArray) -> float | None:
+    return _rms(values) if values.size else None
+
+
+def contact_metrics(cs: ContactSeries) -> dict[str, Any]:
+    """One contact's entry of summary.json's ``contacts`` (keys: CONTACT_KEYS); None where a metric
+    does not apply: the errors of a contact the controller does not brace, the force and residual
+    of a contact never active."""
+    braced, active = _braced(cs), _active(cs)
+    force, residual = cs.normal_force[active], cs.residual[active]
+    return {
+        "braced": braced,
+        "normal_force_rms_error_n": _rms_or_none(_force_errors(cs)) if braced else None,
+        "brace_rms_error_m": _rms_or_none(_brace_errors(cs)) if braced else None,
+        "normal_force_mean_n": float(np.mean(force)) if force.size else None,
+        "normal_force_max_n": float(np.max(force)) if force.size else None,
+        "slip_m": _slip(cs, active),
+        "residual_max_m": float(np.max(np.abs(residual))) if residual.size else None,
+        "active_fraction": float(np.mean(active)) if active.size else None,
+        # Over every sample: an obstacle's frame below its surface has penetrated, active or not.
+        "penetration_m": max(0.0, -float(np.min(cs.residual))) if cs.residual.size else None,
+    }
+
+
 def compute_summary(series: BagSeries, wall_time_s: float | None = None) -> dict[str, Any]:
-    """The summary.json dict (keys: SUMMARY_KEYS, in that order).
+    """The summary.json dict (keys: SUMMARY_KEYS, then SUMMARY_EXTRA_KEYS, in that order).
 
     A value that the recorded data cannot give (e.g. no controller_state after 2 s, no
-    motor_state) is None; the contact-related values are 0.0 for a run without contacts.
+    motor_state) is None. The brace and force errors count the braced contacts only (0.0 for a
+    run without any), the constraint residual every contact while active (0.0 if none is).
+    ``contacts`` has every contact of the ``contacts`` topic (``contact_metrics``).
     """
-    out: dict[str, Any] = dict.fromkeys(SUMMARY_KEYS)
+    out: dict[str, Any] = dict.fromkeys(SUMMARY_KEYS + SUMMARY_EXTRA_KEYS)
 
     mask = series.t >= HAND_ERROR_T_MIN_S - 1e-9
     if np.any(mask):
@@ -476,22 +577,12 @@ def compute_summary(series: BagSeries, wall_time_s: float | None = None) -> dict
         out["hand_max_error_m"] = float(np.max(err))
 
     contacts = list(series.contacts.values())
-    if not contacts:
-        out["brace_rms_error_m"] = 0.0
-        out["normal_force_rms_error_n"] = 0.0
-        out["constraint_residual_max_m"] = 0.0
-    else:
-        brace = np.concatenate([np.linalg.norm(c.brace_desired - c.brace_actual, axis=1) for c in contacts])
-        brace = brace[np.isfinite(brace)]
-        if brace.size:
-            out["brace_rms_error_m"] = _rms(brace)
-        force = np.concatenate([c.normal_force_error for c in contacts])
-        force = force[np.isfinite(force)]
-        if force.size:
-            out["normal_force_rms_error_n"] = _rms(force)
-        residual = np.concatenate([c.residual for c in contacts])
-        if residual.size:
-            out["constraint_residual_max_m"] = float(np.max(np.abs(residual)))
+    braced = [c for c in contacts if _braced(c)]
+    # Over every sample of every braced contact (an unbraced one has no target); 0.0 without any.
+    for key, errors in (("brace_rms_error_m", _brace_errors), ("normal_force_rms_error_n", _force_errors)):
+        out[key] = _rms_or_none(np.concatenate([errors(c) for c in braced])) if braced else 0.0
+    residual = np.concatenate([np.zeros(0), *(c.residual[_active(c)] for c in contacts)])
+    out["constraint_residual_max_m"] = float(np.max(np.abs(residual))) if residual.size else 0.0
 
     if series.motor_t.size:
         out["energy_consumed_j"] = float(series.energy_consumed[-1])
@@ -503,14 +594,32 @@ def compute_summary(series: BagSeries, wall_time_s: float | None = None) -> dict
         out["wall_time_s"] = float(wall_time_s)
         if out["sim_time_s"] is not None and wall_time_s > 0:
             out["real_time_factor"] = out["sim_time_s"] / float(wall_time_s)
+
+    out["contacts"] = {c.name: contact_metrics(c) for c in contacts if c.t.size}
+    penetrations = [m["penetration_m"] for m in out["contacts"].values() if m["penetration_m"] is not None]
+    out["max_penetration_m"] = max(penetrations) if penetrations else None
+    out["input_mode"] = series.input_mode
+    out["bracing"] = bool(braced) if series.t.size else None
+    return out
+
+
+def flat_summary(summary: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    """The summary with its nested dicts (per contact) as dotted keys: ``contacts.elbow.slip_m``."""
+    out: dict[str, Any] = {}
+    for key, value in summary.items():
+        if isinstance(value, dict) and value:
+            out.update(flat_summary(value, f"{prefix}{key}."))
+        else:
+            out[prefix + key] = value
     return out
 
 
 def format_summary(summary: dict[str, Any]) -> str:
-    """The summary as an aligned two-column table."""
-    width = max(len(k) for k in summary)
+    """The summary as an aligned two-column table, a line per value (per contact metric too)."""
+    flat = flat_summary(summary)
+    width = max((len(k) for k in flat), default=0)
     lines = []
-    for key, value in summary.items():
+    for key, value in flat.items():
         text = "n/a" if value is None else f"{value:.6g}" if isinstance(value, float) else str(value)
         lines.append(f"{key:<{width}}  {text}")
     return "\n".join(lines)

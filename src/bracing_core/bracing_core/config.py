@@ -393,7 +393,7 @@ def check_start(plant: Plant, simulator: Simulator, tolerance: float) -> None:
     unilateral = np.array([c.unilateral for c in contacts])
     released = ~enforced | (unilateral & (terms.residual > tolerance))  # in flight, or only watched
     off = [
-        f"contact {c.name!r} (frame {c.frame!r}) is {residual:+.6g} m off its surface"
+        f"contact {c.name!r} (frame {c.frame!r}) is {residual:+.6g} m off its {c.surface.kind}"
         for c, residual, free in zip(contacts, terms.residual, released, strict=True)
         if abs(residual) > tolerance and not free
     ]

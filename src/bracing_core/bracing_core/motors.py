@@ -8,7 +8,7 @@ J_m = I_m k^2 / rho^2, D_m = d_m k^2 / rho^2) and the joint effort is a force [N
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -43,11 +43,11 @@ class MotorParams:
     gear_damping: Vector
     voltage_limit: float = 0.0
     torque_limit: float = 0.0
-    transmission_radius: Vector | None = None  # None: every joint revolute
+    transmission_radius: Vector = field(default_factory=lambda: np.zeros(0))  # empty: every joint revolute
 
     def __post_init__(self) -> None:
         n = len(self.torque_constant)
-        if self.transmission_radius is None:
+        if not len(self.transmission_radius):
             object.__setattr__(self, "transmission_radius", np.zeros(n))
         for name in FIELDS:
             value = np.asarray(getattr(self, name), dtype=float)
@@ -72,15 +72,12 @@ class MotorParams:
     @property
     def prismatic(self) -> np.ndarray:
         """Which joints the motors drive through a transmission radius (prismatic joints)."""
-        radius = self.transmission_radius
-        assert radius is not None
-        return np.asarray(radius > 0.0)
+        return np.asarray(self.transmission_radius > 0.0)
 
     @property
     def _ratio(self) -> Vector:
         """Motor radians per joint unit: k per rad (revolute), k / rho per m (prismatic)."""
         radius = self.transmission_radius
-        assert radius is not None
         return np.asarray(
             np.where(radius > 0.0, self.gear_ratio / np.where(radius > 0.0, radius, 1.0), self.gear_ratio)
         )

@@ -599,10 +599,7 @@ def read_value(param: Param, name: str, params: Params, read: Mapping[str, Any])
         return None  # required only under another setting, or absent by choice
     if param.kind is Kind.DOUBLE_ARRAY and param.default is REQUIRED and not required and not params.get(name):
         return None  # an empty list for a value only another setting needs (a plane's sphere centre)
-    if param.default is ABSENT:
-        default = None
-    else:
-        default = param.default
+    default: Any = None if param.default is ABSENT else param.default
     if isinstance(default, PerJoint):
         default = [default.value] * len(read["robot.joint_names"])
     if param.kind is Kind.DOUBLE:

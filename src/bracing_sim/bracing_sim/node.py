@@ -114,9 +114,10 @@ class SimulatorNode(Node):
         )
         if self.config.project_initial_position:
             given = self.plant.to_model_order(self.config.initial_position)
+            projected = dict(zip(self.joint_names, self.sim.position.round(9).tolist(), strict=True))
+            moved = float(np.max(np.abs(self.sim.position - given)))
             self.get_logger().info(
-                f"initial position projected onto the contacts: {dict(zip(self.joint_names, self.sim.position.round(9).tolist(), strict=True))} "
-                f"(moved {float(np.max(np.abs(self.sim.position - given))):.3g} at most)"
+                f"initial position projected onto the contacts: {projected} (moved {moved:.3g} at most)"
             )
 
     # -- commands -------------------------------------------------------------------
