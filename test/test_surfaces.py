@@ -154,7 +154,8 @@ def test_yaml_surfaces_reach_the_simulator(urdf: Path) -> None:
     _, sim = build_simulator(SimulatorConfig.from_params(base))
     assert np.linalg.norm(sim.position) == pytest.approx(0.4, abs=1e-12)  # projected onto the sphere
     obstacle = {k: v for k, v in base.items() if k != "contacts.ball.desired_normal_force"}
-    with pytest.raises(ConfigError, match=r"infeasible start: contact 'ball' \(frame 'tip'\) is -0.0394\d* m off its sphere"):
+    off = r"infeasible start: contact 'ball' \(frame 'tip'\) is -0.0394\d* m off its sphere"
+    with pytest.raises(ConfigError, match=off):
         build_simulator(SimulatorConfig.from_params(obstacle))  # an obstacle is not projected: inside it
     with pytest.raises(ConfigError, match=r"contacts\.ball\.radius: a sphere needs a radius > 0"):
         SimulatorConfig.from_params({**base, "contacts.ball.radius": 0.0})
