@@ -143,3 +143,17 @@ def test_the_start_check_names_every_contact_off() -> None:
     message = str(info.value)
     assert "contact 'elbow' (frame 'elbow') is -0.02 m off its plane" in message
     assert "contact 'hand' (frame 'hand') is +0.654" in message
+
+
+def test_an_in_process_passive_run_summarises_its_obstacle() -> None:
+    """--no-bracing in-process (a sweep's row): the elbow is an obstacle the arm rests on."""
+    from bracing_bringup.experiment import summarize
+    from bracing_bringup.inprocess import run_recorded
+
+    sc = build_scenario({"bracing": False})
+    summary = summarize(run_recorded(sc, 0.2), 1.0)
+    assert summary["bracing"] is False and summary["input_mode"] == "voltage"
+    elbow = summary["contacts"]["elbow"]
+    assert elbow["braced"] is False and elbow["normal_force_rms_error_n"] is None
+    assert elbow["active_fraction"] == 1.0 and elbow["normal_force_mean_n"] > 0.0  # resting on the floor
+    assert summary["max_penetration_m"] < 1e-9

@@ -1,3 +1,5 @@
+from glob import glob
+
 from setuptools import find_packages, setup
 
 package_name = "bracing_bringup"
@@ -9,7 +11,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
-        ("share/" + package_name + "/config", ["../../config/paper_4link.yaml", "../../config/paper_4link.urdf"]),
+        ("share/" + package_name + "/config", sorted(glob("../../config/*.yaml") + glob("../../config/*.urdf"))),
     ],
     install_requires=["setuptools"],
     zip_safe=True,

@@ -91,7 +91,7 @@ def summarize(rec: Recording, wall_time_s: float) -> dict[str, Any]:
     series = series_from_recording(rec)
     summary = compute_summary(series, wall_time_s=wall_time_s)
     if FORCE_MAX_ERROR_KEY not in summary:
-        errors = [np.abs(c.normal_force_error) for c in series.contacts.values()]
+        errors = [np.abs(c.normal_force_error) for c in series.contacts.values() if c.normal_force_error.size]
         summary[FORCE_MAX_ERROR_KEY] = float(np.max(np.concatenate(errors))) if errors else None
     return summary
 
