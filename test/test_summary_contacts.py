@@ -28,7 +28,6 @@ from bracing_bringup.summary import (
     read_series,
 )
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
 DT = 0.01
 OBSTACLE = "link3_tip@floor"  # a collision frame on the floor: reported by the simulator, not braced
 
@@ -248,10 +247,9 @@ def test_rclpy_serialized_bag_both_ways(tmp_path: Path) -> None:
     assert out["input_mode"] == "voltage"
 
 
-def test_recorded_run_both_ways() -> None:
-    bag = REPO_ROOT / "out" / "braced" / "bag"
-    if not (bag / "metadata.yaml").exists():
-        pytest.skip(f"no recorded run at {bag} (make run writes it)")
+def test_recorded_run_both_ways(runs: dict[str, Path]) -> None:
+    """A real pair run's bag (the session's short braced run): both read paths, one summary."""
+    bag = runs["braced"] / "bag"
     general, columnar = compute_summary(read_series(bag, columnar=False)), compute_summary(read_series(bag))
     assert json.dumps(general["contacts"]) == json.dumps(columnar["contacts"])
     assert general["input_mode"] == columnar["input_mode"] in ("voltage", "torque")
