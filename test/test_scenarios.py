@@ -21,7 +21,9 @@ CONFIG = Path(__file__).resolve().parents[1] / "config"
 SCENARIOS = {
     "hyper_7link": ("hyper_7link.yaml", {}),
     "wall_7link": ("wall_7link.yaml", {}),
-    "mobile_8joint": ("mobile_8joint.yaml", {}),  # the base locked (the file's default)
+    "mobile_8joint": ("mobile_8joint.yaml", {}),  # the base free (the file's default)
+    "mobile_8joint_locked": ("mobile_8joint.yaml", {"robot.locked_joints": ["base_joint"]}),
+    "writing_desk": ("writing_desk.yaml", {}),
 }
 SECONDS = 1.0  # of each scenario's run here (its file sets its own duration)
 
@@ -87,7 +89,7 @@ def test_voltage_mode_energy_books_close(name: str) -> None:
     assert e.consumed > 1.0  # the motors did work
 
 
-@pytest.mark.parametrize("name", ["hyper_7link", "wall_7link"])
+@pytest.mark.parametrize("name", ["hyper_7link", "wall_7link", "writing_desk"])
 def test_the_projected_start_is_on_the_contacts(name: str) -> None:
     """project_initial_position: the file's rough posture lands on every bilateral contact, and
     moving it again changes nothing (it is the fixed point of the projection)."""
@@ -102,7 +104,7 @@ def test_the_projected_start_is_on_the_contacts(name: str) -> None:
     np.testing.assert_allclose(again, q0, rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize("name", list(SCENARIOS))
+@pytest.mark.parametrize("name", ["hyper_7link", "wall_7link", "mobile_8joint", "writing_desk"])
 def test_the_pair_runs_it_as_the_in_process_loop(name: str, tmp_path: Path) -> None:
     """Separate processes over DDS, recorded: the same trajectory as the in-process loop."""
     seconds = 0.2
@@ -120,3 +122,24 @@ def test_the_pair_runs_it_as_the_in_process_loop(name: str, tmp_path: Path) -> N
     summary = json.loads((output / "summary.json").read_text())
     assert summary["bracing"] is True and summary["max_penetration_m"] < 1e-9
     assert set(summary["contacts"]) == set(reference.contact_names)
+
+
+def test_the_dynamically_consistent_inverse_leaves_a_resting_arm_still() -> None:
+    """At rest with zero task errors and g(q) compensated, the torques that make f_n = f_nd should
+    not move the arm. The paper's B^+ does move it (the desk arm's light wrist at ~150 rad/s^2);
+    J_c^T (J_c Mc^-1 J_c^T)^-1 is the statics of pushing on the desk: no acceleration."""
+    accelerations = {}
+    for null_space in ("paper", "dynamically_consistent"):
+        sc = build_scenario(
+            CONFIG / "writing_desk.yaml",
+            shared={"input_mode": "torque", "robot.collision_frames": []},
+            sim={"baumgarte": 0.0},
+            ctl={"null_space": null_space},
+        )
+        sim, controller = sc.sim, sc.controller
+        assert controller is not None
+        d = sim.evaluate(controller.update(0.0, sim.position, sim.velocity).command)
+        np.testing.assert_allclose(d.normal_force, [5.0, 2.5], rtol=0, atol=1e-9)  # eq. 40 either way
+        accelerations[null_space] = float(np.max(np.abs(d.acceleration)))
+    assert accelerations["paper"] > 10.0
+    assert accelerations["dynamically_consistent"] < 1e-9

@@ -28,6 +28,7 @@ class ControllerConfig:
     voltage_gain: tuple[float, ...]  # K_V diagonal, robot.joint_names order
     gravity_compensation: bool  # add g(q) to l (not in the paper)
     damping_lambda: float  # damped-inverse regularisation for a near-singular B
+    null_space: str  # paper: B^+ (the paper's eq. 38) | dynamically_consistent: B^# = Mc B^T (B Mc B^T)^-1
     wait_for_recorder: bool  # answer the first state only once a recorder subscribes to both outputs
     log_throttle_period: float  # [s] wall; at most one report per kind of bad input per period
 
@@ -57,6 +58,7 @@ class ControllerConfig:
             voltage_gain=voltage_gain,
             gravity_compensation=values["gravity_compensation"],
             damping_lambda=values["damping_lambda"],
+            null_space=values["null_space"],
             wait_for_recorder=values["wait_for_recorder"],
             log_throttle_period=values["log_throttle_period"],
         )

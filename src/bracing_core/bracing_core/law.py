@@ -118,7 +118,10 @@ class DecoupledController:
         self._brace_target_lists: list[list[float]] = []
         self._braces_held = True
         # see _braced_torque: one contact, on a plane
-        self._single_contact = single_contact_fast_path and len(self._braces) == 1 and self.contact_set.planar[0]
+        self._consistent = config.null_space == "dynamically_consistent"
+        self._single_contact = (
+            single_contact_fast_path and len(self._braces) == 1 and self.contact_set.planar[0] and not self._consistent
+        )
         if self._single_contact:
             plane = self.contact_set.contacts[0]
             self._normal = np.asarray(self.contact_set.normals[0], dtype=float)
@@ -219,7 +222,10 @@ class DecoupledController:
             b = np.array([pin.cholesky.solve(model, data, row) for row in jc])  # B = J_c Mc^-1 (Mc symmetric)
             a_matrix = b @ (jc - terms.friction[:, None] * terms.tangent_jacobian).T
             a_vector = b @ (self._nle + self._damping * dq) - terms.drift
-            b_pinv, damped = self._pseudo_inverse(b)
+            if self._consistent:  # B^# = Mc B^T (B Mc B^T)^-1 = J_c^T (J_c Mc^-1 J_c^T)^-1 (Khatib)
+                b_pinv, damped = np.linalg.solve(b @ jc.T, jc).T, False
+            else:
+                b_pinv, damped = self._pseudo_inverse(b)
             torque = (
                 b_pinv @ (a_vector - a_matrix @ self.desired_normal_force) + (self._identity - b_pinv @ b) @ null_input
             )

@@ -542,6 +542,14 @@ CONTROLLER: tuple[Param, ...] = (
     ),
     Param("gravity_compensation", Kind.BOOL, False, "add g(q) to the null-space input l (not in the paper)"),
     Param(
+        "null_space",
+        Kind.STRING,
+        "paper",
+        "the inverse of B in eq. 38: paper = B^+ (minimum norm); dynamically_consistent = Mc B^T (B Mc B^T)^-1 = "
+        "J_c^T (J_c Mc^-1 J_c^T)^-1, whose contact torques leave the task motions alone at rest (not in the paper)",
+        choices=("paper", "dynamically_consistent"),
+    ),
+    Param(
         "damping_lambda",
         Kind.DOUBLE,
         1e-6,
