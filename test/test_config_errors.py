@@ -128,14 +128,23 @@ def test_pair_refuses_a_bad_configuration_before_starting_anything(tmp_path: Pat
     assert not (tmp_path / "run" / "bag").exists()
 
 
-def test_pair_refusing_what_only_the_full_check_finds_keeps_nothing(tmp_path: Path) -> None:
-    """The schema allows a zero contact normal; the configuration's own check, which runs while
-    the processes start, refuses it: the same exit code and line, no run directory left, and
-    no process of the run alive."""
+@pytest.mark.parametrize(
+    ("setting", "message"),
+    [
+        ("contacts.elbow.normal=[0,0,0]", "contacts.elbow.normal: must be a non-zero vector"),
+        ("contacts.elbow.offset=0.05", "infeasible start: contact 'elbow' (frame 'elbow') is -0.05 m off its plane"),
+        ("hand.axes=[x,y]", "hand.axes: frame 'hand' cannot move along x"),
+    ],
+    ids=["zero normal", "infeasible start", "task rank"],
+)
+def test_pair_refusing_what_only_the_full_check_finds_keeps_nothing(tmp_path: Path, setting: str, message: str) -> None:
+    """The schema allows these; the configuration's own checks (the start posture, the task's
+    rank there), which run while the processes start, refuse them: exit code 2, the line, no run
+    directory (no empty bag) left, and no process of the run alive."""
     output = tmp_path / "run"
-    done = run(pair_argv(output, "--set", "contacts.elbow.normal=[0,0,0]"))
+    done = run(pair_argv(output, "--set", setting))
     assert done.returncode == 2
-    assert "contacts.elbow.normal: must be a non-zero vector" in done.stderr
+    assert message in done.stderr
     assert "Traceback" not in done.stderr
     assert not output.exists()
     left = subprocess.run(["pgrep", "-f", str(output)], capture_output=True, text=True)
