@@ -50,6 +50,10 @@ DESCRIPTION_QOS = QoSProfile(
 """robot_description as robot_state_publisher offers it: one message, kept for late subscribers."""
 
 
+DRIFT_WARNING_M = 1e-7
+"""A held contact further than this off its surface: a warning that points at ``baumgarte``."""
+
+
 class SimulatorNode(Node):
     def __init__(self, **kwargs: object) -> None:
         super().__init__("bracing_simulator", **kwargs)  # type: ignore[arg-type]
@@ -216,6 +220,11 @@ class SimulatorNode(Node):
             self.refusal = str(exc)
             return False
         self.command = command
+        if residual > DRIFT_WARNING_M >= self.max_residual:  # said once, when the drift first gets there
+            self.get_logger().warning(
+                f"a held contact has drifted {residual:.3g} m off its surface at t = {self.sim.time:.3f} s "
+                f"(baumgarte = {self.config.baumgarte:g} 1/s; raise it, e.g. 10-200 1/s, to hold the contacts)"
+            )
         self.max_residual = max(self.max_residual, residual)
         self.publish_state(effort)
         self.publish_step(t_ns, command, d, current, energy)
