@@ -139,22 +139,6 @@ class Contact:
             raise ValueError(f"contacts.{self.name}: a contact that is only watched must be unilateral")
 
 
-def plane_contact(
-    name: str,
-    frame: str,
-    normal: Sequence[float] | Vector,
-    offset: float = 0.0,
-    friction: float = 0.0,
-    unilateral: bool = False,
-) -> Contact:
-    """A contact on the plane ``normal . r = offset`` (the paper's kind)."""
-    try:
-        plane = Plane(np.asarray(normal, dtype=float), offset)
-    except ValueError as exc:
-        raise ValueError(f"contacts.{name}.{exc}") from None
-    return Contact(name, frame, plane, friction, unilateral)
-
-
 @dataclass
 class ContactTerms:
     """Stacked contact quantities at one state (p rows; p may be 0)."""

@@ -70,11 +70,6 @@ class MotorParams:
         return int(self.torque_constant.size)
 
     @property
-    def prismatic(self) -> np.ndarray:
-        """Which joints the motors drive through a transmission radius (prismatic joints)."""
-        return np.asarray(self.transmission_radius > 0.0)
-
-    @property
     def _ratio(self) -> Vector:
         """Motor radians per joint unit: k per rad (revolute), k / rho per m (prismatic)."""
         radius = self.transmission_radius
