@@ -129,7 +129,8 @@ class Simulator:
         # y = [q, dq, i, energies]; a step writes the next y into the spare buffer and swaps.
         self._y = np.concatenate([q0, dq0, np.zeros(n), np.zeros(len(ENERGY_KEYS))])
         self._y_next = np.empty_like(self._y)
-        self._revision = 0  # counts the changes of the state (keys the cached answer of ``evaluate``)
+        self._revision = 0  # counts the changes of the state (keys the cached answers below)
+        self._all_terms: tuple[int, ContactTerms] | None = None  # (revision, every contact's terms)
         self._voltage = dynamics.mode is InputMode.VOLTAGE
         self._resistance = dynamics.motors.resistance
         # RK4 work, a row per stage k: [x_k | rates_k | friction power, constraint power] with
@@ -363,12 +364,17 @@ class Simulator:
         self._cached = None
 
     def _all_contact_terms(self) -> ContactTerms:
-        """Terms of every contact (active or not) at the current state."""
+        """Terms of every contact (active or not) at the current state, computed once per state: a
+        step's touchdown check and the next step's report (while a contact is released) read the same."""
+        if self._all_terms is not None and self._all_terms[0] == self._revision:
+            return self._all_terms[1]
         full = self.full_dynamics
         n = self.n
         q, dq = self._y[:n], self._y[n : 2 * n]
         pin.computeAllTerms(full._model, full._data, q, dq)
-        return full.contacts.evaluate_data(full._model, full._data, dq)
+        terms = full.contacts.evaluate_data(full._model, full._data, dq)
+        self._all_terms = (self._revision, terms)
+        return terms
 
     def _report(self, d: Derivative) -> Derivative:
         """A Derivative over all contacts (released ones: zero force, ``active`` False)."""
