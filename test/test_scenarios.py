@@ -15,7 +15,6 @@ from ros_helpers import pair_argv, run
 from rosbags.highlevel import AnyReader
 
 from bracing_bringup.inprocess import Scenario, build_scenario, run_recorded
-from bracing_core.contacts import project_onto_contacts
 
 CONFIG = Path(__file__).resolve().parents[1] / "config"
 SCENARIOS = {
@@ -100,7 +99,7 @@ def test_the_projected_start_is_on_the_contacts(name: str) -> None:
     terms = contacts.evaluate(np.zeros(robot.nv))
     rows = braced_rows(sc)
     assert np.max(np.abs(terms.residual[rows])) < 1e-12
-    again = project_onto_contacts(robot.model, robot.data, contacts, q0, rows)
+    again = sc.plant.dynamics().project(q0, rows)
     np.testing.assert_allclose(again, q0, rtol=0, atol=1e-12)
 
 

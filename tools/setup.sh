@@ -69,9 +69,10 @@ if [[ "$(cat install/.src-hash 2>/dev/null)" != "$src_hash" ]]; then
   (
     # shellcheck disable=SC1091
     source "$venv/bin/activate"
-    export AMENT_PREFIX_PATH="$venv" CMAKE_PREFIX_PATH="$venv"
+    # pinocchio's, Eigen's and urdfdom's CMake configs sit in the wheels' cmeel prefix.
+    export AMENT_PREFIX_PATH="$venv" CMAKE_PREFIX_PATH="$venv:$("$venv/bin/python" -m cmeel cmake)"
     colcon --log-base log build --base-paths src --event-handlers console_cohesion- \
-      --cmake-args -DBUILD_TESTING=OFF -DPython3_EXECUTABLE="$venv/bin/python"
+      --cmake-args -DBUILD_TESTING=OFF -DPython3_EXECUTABLE="$venv/bin/python" -DPython_EXECUTABLE="$venv/bin/python"
   ) > build.log 2>&1 || { tail -40 build.log >&2; die "colcon build failed (full log: build.log)"; }
   echo "$src_hash" > install/.src-hash
 else

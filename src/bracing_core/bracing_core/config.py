@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from bracing_core import schema
-from bracing_core.contacts import Contact, ContactSet, Cylinder, Plane, Sphere, Surface, project_onto_contacts
+from bracing_core.contacts import Contact, ContactSet, Cylinder, Plane, Sphere, Surface
 from bracing_core.dynamics import ConstrainedDynamics, Derivative, InputMode
 from bracing_core.model import ModelError, RobotModel
 from bracing_core.motors import FIELDS as MOTOR_FIELDS
@@ -366,9 +366,10 @@ def project_initial_position(plant: Plant, q0: Vector) -> Vector:
     """The posture nearest ``q0`` (joint-space metric M) where every bilateral contact holds."""
     contacts = plant.contact_set
     bilateral = [j for j, c in enumerate(contacts.contacts) if not c.unilateral]
-    robot = plant.robot
+    # in the metric of M (torque mode: no rotor inertia), whatever the input mode
+    metric = ConstrainedDynamics(plant.robot, plant.motors, contacts, InputMode.TORQUE)
     try:
-        return project_onto_contacts(robot.model, robot.data, contacts, q0, bilateral)
+        return metric.project(q0, bilateral)
     except ValueError as exc:
         raise ConfigError(f"project_initial_position: {exc}") from None
 

@@ -230,26 +230,3 @@ class ContactSet:
             friction=self.friction,
             normals=normals,
         )
-
-
-def project_onto_contacts(
-    model: pin.Model, data: pin.Data, contacts: ContactSet, q: Vector, rows: Sequence[int], tolerance: float = 1e-13
-) -> Vector:
-    """The posture near ``q`` where the contacts at ``rows`` hold (C = 0), found by Newton steps
-    along the metric of the model's joint-space inertia: q <- q - M^-1 J_c^T (J_c M^-1 J_c^T)^-1 C
-    (the M-nearest posture for a flat constraint, to first order otherwise). ``model`` is the
-    contacts' robot model or a copy with armature (whose M then includes it).
-    Raises ValueError if it does not converge (e.g. a contact no posture reaches)."""
-    q = np.array(q, dtype=float)
-    zero = np.zeros(model.nv)
-    for _ in range(50):
-        pin.computeAllTerms(model, data, q, zero)
-        terms = contacts.evaluate_data(model, data, zero)
-        residual, jc = terms.residual[list(rows)], terms.normal_jacobian[list(rows)]
-        if not residual.size or float(np.max(np.abs(residual))) < tolerance:
-            return q
-        pin.cholesky.decompose(model, data)
-        y = np.column_stack([pin.cholesky.solve(model, data, row) for row in jc])  # M^-1 J_c^T
-        q = q + y.dot(np.linalg.lstsq(jc.dot(y), -residual, rcond=None)[0])
-    names = ", ".join(f"{contacts.contacts[j].name} ({terms.residual[j]:+.3g} m)" for j in rows)
-    raise ValueError(f"no posture near the given one holds every contact: after 50 steps {names}")

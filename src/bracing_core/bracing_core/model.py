@@ -35,7 +35,13 @@ class RobotModel:
     Link-side viscous friction D comes from the URDF ``<dynamics damping>``.
     """
 
-    def __init__(self, model: pin.Model, source: str = "<model>") -> None:
+    def __init__(
+        self,
+        model: pin.Model,
+        source: str = "<model>",
+        locked_joints: Sequence[str] = (),
+        locked_positions: Sequence[float] = (),
+    ) -> None:
         if model.nq != model.nv:
             raise ModelError(
                 f"{source}: only 1-dof revolute/prismatic joints are supported (nq={model.nq}, nv={model.nv})"
@@ -53,6 +59,12 @@ class RobotModel:
         self.model = model
         self.data = model.createData()
         self.source = source
+        # What the engine rebuilds the same model from (bracing_engine.Robot): the URDF, gravity and
+        # the locked joints with their positions (0 each if none are given).
+        self.urdf_path = source
+        self.gravity: Vector = np.array(model.gravity.linear, dtype=float)
+        self.locked_joints = tuple(locked_joints)
+        self.locked_positions = tuple(float(v) for v in locked_positions) or (0.0,) * len(self.locked_joints)
         self.joint_names: tuple[str, ...] = tuple(model.names[j] for j in range(1, model.njoints))
         self.damping: Vector = np.array(model.damping, dtype=float)
         # Prismatic joints move in metres (a force drives them); the rest rotate.
@@ -86,7 +98,7 @@ class RobotModel:
         model.gravity.linear = gravity_vector
         if locked_joints:
             model = _reduced(model, locked_joints, locked_positions, str(path))
-        return cls(model, source=str(path))
+        return cls(model, str(path), locked_joints, locked_positions)
 
     def with_armature(self, armature: Vector) -> RobotModel:
         """A copy (own pinocchio Model and Data) whose joint-space inertia is M + diag(armature).
@@ -99,7 +111,7 @@ class RobotModel:
             raise ModelError(f"armature: expected {self.nv} finite values >= 0, got {np.ravel(values).tolist()}")
         model = self.model.copy()
         model.armature[:] = model.armature + values
-        return RobotModel(model, source=self.source)
+        return RobotModel(model, self.source, self.locked_joints, self.locked_positions)
 
     @property
     def nv(self) -> int:

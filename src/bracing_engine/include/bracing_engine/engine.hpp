@@ -1,0 +1,185 @@
+// The bracing engine: the constrained robot + motor-circuit model (docs/model.md) and its RK4
+// integrator. pinocchio stays behind Dynamics' pimpl, so only dynamics.cpp pays its compile time.
+#pragma once
+
+#include <Eigen/Core>
+
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace bracing_engine {
+
+using Vector = Eigen::VectorXd;
+using Vector3 = Eigen::Vector3d;
+using Matrix3 = Eigen::Matrix3d;
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using Mask = std::vector<bool>;
+
+// The contact forces are not determined: the constraint rows have no effect on the motion.
+struct SingularError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// The pinocchio version the engine was compiled against (its headers).
+std::string compiled_pinocchio_version();
+
+enum class SurfaceKind { plane = 0, sphere = 1, cylinder = 2 };
+
+// C(r) >= 0 is free; n = dC/dr is unit; H is C's Hessian (zero for a plane).
+struct Surface {
+  SurfaceKind kind = SurfaceKind::plane;
+  Vector3 normal = Vector3::UnitZ();  // plane: C = n . r - offset
+  double offset = 0.0;
+  Vector3 center = Vector3::Zero();  // sphere centre, or a point on a cylinder's axis
+  Vector3 axis = Vector3::UnitZ();   // cylinder
+  double radius = 0.0;
+  bool inside = false;  // sphere/cylinder: the robot stays inside, C = radius - distance
+
+  // C, n and H at point r (throws std::domain_error at a sphere's centre or on a cylinder's axis).
+  void evaluate(const Vector3& r, double& c, Vector3& n, Matrix3& h) const;
+};
+
+struct Contact {
+  std::string name;
+  std::string frame;
+  Surface surface;
+  double friction = 0.0;    // mu
+  bool unilateral = false;  // only pushes; releases and lands
+  bool enforced = true;     // false: only watched, never holds a force
+};
+
+// What builds the pinocchio model: the URDF, gravity and the joints held still.
+struct Robot {
+  std::string urdf_path;
+  Vector3 gravity = Vector3(0.0, 0.0, -9.81);
+  std::vector<std::string> locked_joints;
+  std::vector<double> locked_positions;
+};
+
+// Per joint, model order. Voltage mode: drive = K_m i, Mc = M + J_m, Dc = D + D_m, and
+// L di = v - R i - K_m dq. Torque mode: drive = tau, Mc = M, Dc = D, no circuit.
+struct Drive {
+  bool voltage = true;
+  Vector added_inertia;      // Mc - M (J_m, or zeros)
+  Vector damping;            // Dc
+  Vector torque_constant;    // K_m [N m / A]
+  Vector resistance;         // R [ohm]
+  Vector inductance;         // L [H]
+  Vector reflected_damping;  // D_m (the effort the link sees is K_m i - D_m dq - J_m ddq)
+};
+
+// The model's answer at one state. Forces are zero for contacts not held; the contact terms
+// are every contact's when the answer is full (rows in contact order).
+struct Answer {
+  Vector ddq, di, force, effort;
+  double friction_power = 0.0;    // sum mu f_n (dir . slip) [W]
+  double constraint_power = 0.0;  // sum f_n (J_c dq) [W]
+  RowMatrix positions;            // p x 3
+  RowMatrix jacobians;            // 3p x n: contact j's translational Jacobian in rows 3j..3j+2
+  RowMatrix normal_jacobian;      // p x n, rows n^T J
+  RowMatrix tangent_jacobian;     // p x n, rows dir^T J
+  RowMatrix slip;                 // p x 3, tangential velocity
+  RowMatrix direction;            // p x 3, slip / sqrt(|slip|^2 + eps^2)
+  RowMatrix normals;              // p x 3, n at the point
+  Vector drift;                   // gamma = n . (dJ dq) + v^T H v
+  Vector residual;                // C
+};
+
+class Dynamics {
+ public:
+  Dynamics(const Robot& robot, const Drive& drive, std::vector<Contact> contacts, double slip_epsilon,
+           double baumgarte);
+  ~Dynamics();
+  Dynamics(const Dynamics&) = delete;
+  Dynamics& operator=(const Dynamics&) = delete;
+
+  int nv() const;
+  int contact_count() const;
+  const std::vector<Contact>& contacts() const;
+  const Drive& drive() const;
+  std::vector<std::string> joint_names() const;
+  double baumgarte = 0.0;  // a [1/s]: J_c ddq = -gamma - 2 a J_c dq - a^2 C
+
+  // ddq, di, f_n at (q, dq, i) with input u held, the contacts in `held` holding forces. `full`:
+  // also every contact's terms. Throws SingularError.
+  void evaluate(const Vector& q, const Vector& dq, const Vector& current, const Vector& u, const Mask& held,
+                bool full, Answer& out) const;
+  // Every contact's terms at (q, dq), no solve (force, ddq and di untouched).
+  void terms(const Vector& q, const Vector& dq, Answer& out) const;
+  // Newton steps in the metric of Mc onto C = 0 for the contacts `rows`; throws std::domain_error
+  // naming the contacts if 50 steps do not bring every |C| under `tolerance`.
+  Vector project(const Vector& q, const std::vector<int>& rows, double tolerance = 1e-13) const;
+  // Inelastic, frictionless impact of the contacts `rows` at (q, dq): q is put on the surfaces and
+  // their normal velocity removed with the impulse Mc^-1 J_c^T lambda. Returns the kinetic energy lost.
+  double impact(Vector& q, Vector& dq, const std::vector<int>& rows) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+struct ContactEvent {
+  long step;    // the step count when it happened
+  int contact;  // index in the contact list
+  bool touchdown;
+  double impact_loss;  // [J]
+};
+
+enum class StepStatus { ok = 0, diverged = 1, joint_limit = 2 };
+
+// Energy integrals appended to the state, in this order (simulator.py ENERGY_KEYS).
+constexpr int kEnergies = 7;
+
+// Classic RK4 with the input held over a step (sub-steps of step / substeps), the energy
+// integrals integrated with the state, unilateral release (at a step's start) and touchdown (at
+// its end), the joint-limit stop and the divergence check.
+class Simulator {
+ public:
+  Simulator(std::shared_ptr<const Dynamics> dynamics, double step, int substeps, const Vector& q0,
+            const Vector& dq0, const Vector& lower_limits, const Vector& upper_limits);
+
+  // Advances one step with u held. On ok, `report` is the model at the step's start (every
+  // contact's terms); otherwise the state is unchanged and `failed_joint` names a limit.
+  StepStatus step(const Vector& u);
+  // `report` = the model at the current state under u (no time passes).
+  void evaluate(const Vector& u);
+  void set_active(const Mask& active);
+  void set_state(const Vector& y);  // [q, dq, i, energies]
+  void truncate_events(std::size_t count);
+
+  const Dynamics& dynamics() const { return *dynamics_; }
+  int nv() const { return n_; }
+  double step_size() const { return step_; }
+  int substeps() const { return substeps_; }
+  const Vector& state() const { return y_; }
+  const Mask& active() const { return active_; }
+  bool all_active() const;
+  const std::vector<ContactEvent>& events() const { return events_; }
+  long steps_taken = 0;
+  Answer report;
+  int failed_joint = -1;       // the joint a refused step would have taken past its limit
+  double failed_position = 0.0;  // where
+
+ private:
+  void release(const Vector& u);
+  void touchdown();
+  // The rates [dq, ddq, di] and the energy rates at stage state x (`evaluated`: `answer` is already
+  // the model there).
+  void rates(const Vector& x, const Vector& u, bool evaluated, Answer& answer, Vector& k, Vector& e) const;
+
+  std::shared_ptr<const Dynamics> dynamics_;
+  int n_, p_;
+  double step_;
+  int substeps_;
+  Vector lower_, upper_;
+  Vector y_;  // q, dq, i, energies
+  Mask active_, unilateral_, enforced_;
+  bool any_unilateral_ = false;
+  std::vector<ContactEvent> events_;
+  Answer stage_;  // the later stages' answers
+  Vector x_, k_[4], e_[4];
+};
+
+}  // namespace bracing_engine
