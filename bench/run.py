@@ -47,7 +47,7 @@ def _median_rate(run_once: Any, repeats: int) -> tuple[float, list[float]]:
 
 
 def engine_steps_per_s(steps: int = 3000, repeats: int = 5, scenario: Any = None) -> tuple[float, list[float]]:
-    from bracing_bringup.inprocess import build_scenario
+    from bracing_core.rollout import build_scenario
 
     def once() -> float:
         sim = (scenario() if scenario else build_scenario(PAPER, with_controller=False)).sim
@@ -63,7 +63,7 @@ def engine_steps_per_s(steps: int = 3000, repeats: int = 5, scenario: Any = None
 
 
 def controller_latency_us(updates: int = 3000) -> dict[str, float]:
-    from bracing_bringup.inprocess import build_scenario
+    from bracing_core.rollout import build_scenario
 
     scenario = build_scenario(PAPER)
     sim, controller = scenario.sim, scenario.controller
@@ -125,7 +125,7 @@ def chain_scenario(n: int, p: int) -> Any:
         params[f"contacts.c{j}.offset"] = float(robot.frame_position(robot.frame_id(f"c{j}"))[2])
 
     def build() -> Any:
-        from bracing_bringup.inprocess import Scenario
+        from bracing_core.rollout import Scenario
 
         plant, sim = build_simulator(SimulatorConfig.from_params(params))
         return Scenario(plant, sim, None)

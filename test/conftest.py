@@ -15,8 +15,8 @@ from typing import Any
 import pytest
 import ros_helpers
 
-from bracing_bringup import inprocess
-from bracing_bringup.inprocess import Run, Scenario, run_closed_loop
+from bracing_core import rollout
+from bracing_core.rollout import Run, Scenario, run_closed_loop
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 CONFIG_DIR = REPO_ROOT / "config"
@@ -28,14 +28,14 @@ Overrides = Mapping[str, Any] | None
 
 def node_params(node: str, shared: Overrides = None, own: Overrides = None) -> dict[str, Any]:
     """A fresh copy of the paper scenario's flat parameters for ``node``, with overrides."""
-    return inprocess.node_params(PAPER_YAML, node, shared, own)
+    return rollout.node_params(PAPER_YAML, node, shared, own)
 
 
 def build_scenario(
     shared: Overrides = None, sim: Overrides = None, ctl: Overrides = None, with_controller: bool = True
 ) -> Scenario:
     """The paper scenario, in process (the library's builder, bound to the paper's file)."""
-    return inprocess.build_scenario(PAPER_YAML, shared, sim, ctl, with_controller)
+    return rollout.build_scenario(PAPER_YAML, shared, sim, ctl, with_controller)
 
 
 def _freeze(value: Any) -> Any:

@@ -17,7 +17,7 @@ from bracing_core.model import RobotModel
 from bracing_core.motors import MotorParams
 from bracing_core.params import ConfigError
 from bracing_core.simulator import JointLimitError, Simulator
-from bracing_core.trajectory import Waypoints
+from bracing_core.trajectory import TrajectoryConfig
 
 PAPER_Q0 = np.array([-0.2, -0.6, 0.8, -0.4]) * np.pi
 
@@ -93,7 +93,10 @@ def test_a_urdf_limit_stops_the_step_naming_the_joint(tmp_path: Path) -> None:
 
 
 def test_waypoints_rest_at_each_point_and_are_smooth() -> None:
-    path = Waypoints((0.0, 0.0, 0.0), ((0.1, 0.0, 0.0), (0.1, 0.2, 0.0)), 0.5)
+    waypoints = ((0.1, 0.0, 0.0), (0.1, 0.2, 0.0))
+    path = TrajectoryConfig("waypoints", (0.0, 0.0, 0.0), 0.0, 1.0, 1.0, 0.0, (1, 2), None, waypoints, 0.5).build(
+        (0, 0, 0)
+    )
     for t, point in ((0.0, (0, 0, 0)), (0.5, (0.1, 0, 0)), (1.0, (0.1, 0.2, 0)), (3.0, (0.1, 0.2, 0))):
         position, velocity = path.sample(t)
         assert position == pytest.approx(point, abs=1e-15) and velocity == pytest.approx(np.zeros(3), abs=1e-12)
@@ -148,7 +151,7 @@ def test_the_start_check_names_every_contact_off() -> None:
 def test_an_in_process_passive_run_summarises_its_obstacle() -> None:
     """--no-bracing in-process (a sweep's row): the elbow is an obstacle the arm rests on."""
     from bracing_bringup.experiment import summarize
-    from bracing_bringup.inprocess import run_recorded
+    from bracing_core.rollout import run_recorded
 
     sc = build_scenario({"bracing": False})
     summary = summarize(run_recorded(sc, 0.2), 1.0)

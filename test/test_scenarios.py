@@ -14,7 +14,7 @@ import pytest
 from ros_helpers import pair_argv, run
 from rosbags.highlevel import AnyReader
 
-from bracing_bringup.inprocess import Scenario, build_scenario, run_recorded
+from bracing_core.rollout import Scenario, build_scenario, run_recorded
 
 CONFIG = Path(__file__).resolve().parents[1] / "config"
 SCENARIOS = {

@@ -19,7 +19,6 @@ import pytest
 
 from bracing_bringup.executors import DaskExecutor, LocalExecutor
 from bracing_bringup.experiment import STATUS_FAILED, STATUS_OK, RunOutcome, execute_run
-from bracing_bringup.inprocess import build_scenario, run_closed_loop
 from bracing_bringup.overrides import (
     CONTROLLER,
     SIMULATOR,
@@ -40,6 +39,7 @@ from bracing_bringup.sweep import (
     run_sweep,
 )
 from bracing_core.params import ConfigError
+from bracing_core.rollout import build_scenario, run_closed_loop
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PAPER_YAML = REPO_ROOT / "config" / "paper_4link.yaml"

@@ -90,7 +90,7 @@ def build_study(
     gain_scales: Sequence[float] = GAIN_SCALES,
 ) -> Study:
     """Every run of the three comparisons, validated. ``base``: overrides applied to all runs."""
-    from bracing_bringup.inprocess import build_scenario
+    from bracing_core.rollout import build_scenario
 
     base = dict(base or {})
     routed = route(base)

@@ -4,7 +4,7 @@
                   [--workers N] [--scheduler ADDRESS] --output DIR
 
 Every combination of the --set values (or, with --zip, the i-th value of every key together)
-is one run of the nodes' core objects in one process (bracing_bringup.inprocess), on local
+is one run of the nodes' core objects in one process (bracing_core.rollout), on local
 worker processes, or on a Dask cluster with --scheduler tcp://HOST:PORT (``local``: a Dask
 LocalCluster on this machine). Writes DIR/runs/<run id>/{row.json,summary.json,arrays.npz}
 as each run finishes and DIR/results.parquet + DIR/results.csv, one row per run. A failing

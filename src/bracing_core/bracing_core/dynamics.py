@@ -70,6 +70,26 @@ class Derivative:
         return self.contacts.friction * self.normal_force
 
 
+def engine_robot(robot: RobotModel) -> engine.Robot:
+    """What the engine rebuilds ``robot``'s pinocchio model from."""
+    return engine.Robot(str(robot.urdf_path), robot.gravity, list(robot.locked_joints), list(robot.locked_positions))
+
+
+def engine_drive(robot: RobotModel, motors: MotorParams, mode: InputMode) -> engine.Drive:
+    """The joints' drive as the engine takes it: motors in the loop (voltage) or direct drive (torque)."""
+    voltage = mode is InputMode.VOLTAGE
+    added_inertia, damping = reflected_terms(robot, motors, mode)
+    return engine.Drive(
+        voltage,
+        added_inertia,
+        damping,
+        motors.reflected_constant,
+        motors.resistance,
+        motors.inductance,
+        motors.reflected_damping if voltage else np.zeros(robot.nv),
+    )
+
+
 def engine_contact(contact: Contact) -> engine.Contact:
     """A contact as the engine takes it."""
     surface = contact.surface
@@ -121,20 +141,10 @@ class ConstrainedDynamics:
         self.motors = motors
         self.contacts = contacts
         self.mode = mode
-        voltage = mode is InputMode.VOLTAGE
         self.added_inertia, self.total_damping = reflected_terms(robot, motors, mode)
-        drive = engine.Drive(
-            voltage,
-            self.added_inertia,
-            self.total_damping,
-            motors.reflected_constant,
-            motors.resistance,
-            motors.inductance,
-            motors.reflected_damping if voltage else np.zeros(robot.nv),
-        )
         self.engine = engine.Dynamics(
-            engine.Robot(str(robot.urdf_path), robot.gravity, list(robot.locked_joints), list(robot.locked_positions)),
-            drive,
+            engine_robot(robot),
+            engine_drive(robot, motors, mode),
             [engine_contact(c) for c in contacts.contacts],
             float(contacts.slip_epsilon),
             float(baumgarte),

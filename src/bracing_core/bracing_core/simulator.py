@@ -24,7 +24,11 @@ from bracing_core.types import Vector
 
 # Order of the energy integrals appended to the state vector.
 ENERGY_KEYS = ("consumed", "net", "copper_loss", "viscous_loss", "friction_loss", "constraint_work", "impact_loss")
-_DIVERGED, _JOINT_LIMIT = 1, 2  # bracing_engine.Simulator.step's status codes (0: ok)
+# Status codes of bracing_engine.Simulator.step and of bracing_engine.rollout (0: ok): the step
+# diverged or hit a joint limit (state kept); after a step (rollout only), where the simulator
+# node refuses to go on (bracing_core.config.check_step): non-finite forces, too fast, a held
+# contact too far off its surface.
+_DIVERGED, _JOINT_LIMIT, _NON_FINITE_FORCES, _TOO_FAST, _OFF_SURFACE = 1, 2, 3, 4, 5
 
 
 class DivergenceError(RuntimeError):
@@ -115,18 +119,18 @@ class Simulator:
         self.n = n
         self.t0 = 0.0
         self.events: list[ContactEvent] = []
-        self._engine = engine.Simulator(
+        self.engine = engine.Simulator(  # the compiled integrator (public: a rollout steps it)
             dynamics.engine, self.step_size, self.substeps, q0, dq0, robot.lower_limits, robot.upper_limits
         )
 
     # -- state ------------------------------------------------------------------------
     @property
     def steps_taken(self) -> int:
-        return int(self._engine.steps_taken)
+        return int(self.engine.steps_taken)
 
     @steps_taken.setter
     def steps_taken(self, value: int) -> None:
-        self._engine.steps_taken = int(value)
+        self.engine.steps_taken = int(value)
 
     @property
     def time(self) -> float:
@@ -134,44 +138,44 @@ class Simulator:
 
     @property
     def position(self) -> Vector:
-        return self._engine.state[: self.n]
+        return self.engine.state[: self.n]
 
     @property
     def velocity(self) -> Vector:
-        return self._engine.state[self.n : 2 * self.n]
+        return self.engine.state[self.n : 2 * self.n]
 
     @property
     def current(self) -> Vector:
-        return self._engine.state[2 * self.n : 3 * self.n]
+        return self.engine.state[2 * self.n : 3 * self.n]
 
     @property
     def energy(self) -> Energy:
-        return Energy(*self._engine.state[3 * self.n :].tolist())
+        return Energy(*self.engine.state[3 * self.n :].tolist())
 
     @property
     def active(self) -> np.ndarray:
         """(p,) bool: the contacts holding a force now."""
-        return np.array(self._engine.active, dtype=bool)
+        return np.array(self.engine.active, dtype=bool)
 
     # -- model answers ----------------------------------------------------------------
     def evaluate(self, command: Vector) -> Derivative:
         """The model at the current state under ``command`` (no time passes)."""
         try:
-            self._engine.evaluate(np.asarray(command, dtype=float))
+            self.engine.evaluate(np.asarray(command, dtype=float))
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
         return self._report()
 
     def _report(self) -> Derivative:
         """The engine's last answer, over all contacts (released ones: zero force, ``active`` False)."""
-        ddq, di, force, effort, _, _ = self._engine.solution()
-        active = self._engine.active
+        ddq, di, force, effort, _, _ = self.engine.solution()
+        active = self.engine.active
         return Derivative(
             ddq,
             di,
             force,
             effort,
-            contact_terms(self._engine.contact_terms(), self.dynamics.contacts),
+            contact_terms(self.engine.contact_terms(), self.dynamics.contacts),
             None if all(active) else np.array(active, dtype=bool),
         )
 
@@ -179,15 +183,15 @@ class Simulator:
     def checkpoint(self) -> Checkpoint:
         """The state as it is now, for :meth:`restore` (e.g. to take back a step whose result
         the caller refuses)."""
-        return Checkpoint(self._engine.state, self.steps_taken, self.active, len(self.events))
+        return Checkpoint(self.engine.state, self.steps_taken, self.active, len(self.events))
 
     def restore(self, checkpoint: Checkpoint) -> None:
         """Back to ``checkpoint``: state, step count, released contacts and event log."""
-        self._engine.set_state(checkpoint.state)
+        self.engine.set_state(checkpoint.state)
         self.steps_taken = checkpoint.steps_taken
         del self.events[checkpoint.events :]
-        self._engine.truncate_events(checkpoint.events)
-        self._engine.set_active(checkpoint.active.tolist())
+        self.engine.truncate_events(checkpoint.events)
+        self.engine.set_active(checkpoint.active.tolist())
 
     # -- integration ------------------------------------------------------------------
     def step(self, command: Vector) -> Derivative:
@@ -203,26 +207,60 @@ class Simulator:
             raise ValueError(f"command: expected {self.n} finite values, got {np.ravel(u).tolist()}")
         time = self.time
         try:
-            status = self._engine.step(u)
+            status = self.engine.step(u)
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
         finally:
             self._take_events()
+        self._raise_for(status, time)
+        return self._report()
+
+    def rollout(
+        self, law: engine.Law, steps: int, divergence_speed: float = np.inf, divergence_residual: float = np.inf
+    ) -> dict[str, np.ndarray]:
+        """The closed loop with ``law`` (a ``bracing_engine.Law``) for ``steps`` steps, in the engine:
+        per state k = 0..steps what the nodes publish in lockstep (``bracing_engine.rollout``; the
+        last state answered and evaluated without a step). Raises as ``step`` does, and
+        DivergenceError where the simulator node would refuse a step (speed above
+        ``divergence_speed`` [rad/s], a held contact further than ``divergence_residual`` [m] off)."""
+        try:
+            out = engine.rollout(law, self.engine, int(steps), self.t0, divergence_speed, divergence_residual)
+        except engine.SingularError as exc:
+            raise np.linalg.LinAlgError(str(exc)) from None
+        finally:
+            self._take_events()
+        status = int(out["status"])
+        self._raise_for(status, self.time)  # a step refused: the state is the one it started from
+        if status:  # a step taken whose result the node refuses: the last row's
+            if status == _NON_FINITE_FORCES:
+                reason = "non-finite forces or effort"
+            elif status == _TOO_FAST:
+                reason = f"joint speed exceeds divergence_speed {divergence_speed}: {out['measured']:.3g}"
+            elif status == _OFF_SURFACE:
+                reason = (
+                    f"constraint residual {out['measured']:.3g} m exceeds divergence_residual {divergence_residual} m"
+                )
+            else:
+                reason = f"status {status}"
+            raise DivergenceError(f"{reason} after the step at t = {out['time'][-1]:.3f} s")
+        return out
+
+    def _raise_for(self, status: int, time: float) -> None:
+        """The error of a step from ``time`` that the engine refused (status 1 or 2), if any."""
         if status == _DIVERGED:
             raise DivergenceError(f"non-finite state after the step at t = {time:.6f} s; state kept")
         if status == _JOINT_LIMIT:
-            robot, j = self.dynamics.robot, self._engine.failed_joint
+            robot, j = self.dynamics.robot, self.engine.failed_joint
             unit = "m" if robot.prismatic[j] else "rad"
             raise JointLimitError(
                 f"joint {robot.joint_names[j]!r} would leave its URDF limits [{robot.lower_limits[j]:g}, "
-                f"{robot.upper_limits[j]:g}] {unit} (q = {self._engine.failed_position:.6g}) in the step at "
+                f"{robot.upper_limits[j]:g}] {unit} (q = {self.engine.failed_position:.6g}) in the step at "
                 f"t = {time:.6f} s; state kept"
             )
-        return self._report()
 
     def _take_events(self) -> None:
         """The engine's new release and touchdown events into ``events``."""
-        for steps, j, touchdown, loss in self._engine.events_since(len(self.events)):
+        for steps, j, touchdown, loss in self.engine.events_since(len(self.events)):
             kind = "touchdown" if touchdown else "release"
             self.events.append(ContactEvent(self.t0 + steps * self.step_size, self._names[j], kind, loss))
 
@@ -235,4 +273,4 @@ class Simulator:
             raise ValueError("only unilateral contacts can be released")
         if np.any(active & ~self._enforced):
             raise ValueError("a contact that is only watched never holds a force")
-        self._engine.set_active(active.tolist())
+        self.engine.set_active(active.tolist())

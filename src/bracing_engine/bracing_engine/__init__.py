@@ -1,18 +1,25 @@
 """The compiled engine (C++ on pinocchio, docs/model.md): ``Dynamics`` evaluates the constrained
 robot + motor-circuit model, ``Simulator`` integrates it (RK4, energy integrals, unilateral
-contacts). ``bracing_core.dynamics`` and ``bracing_core.simulator`` are its readable Python face."""
+contacts), ``Law`` is the decoupled control law with its task ``Path``s, and ``rollout`` runs the
+closed loop (law + simulator) for many steps without coming back to Python. ``bracing_core``'s
+dynamics, simulator, law and trajectory modules are its readable Python face."""
 
 import pinocchio  # first: the engine links the libpinocchio this loads (one copy in the process)
 
 from bracing_engine._engine import (
     PINOCCHIO_VERSION,
+    BracedContact,
     Contact,
     Drive,
     Dynamics,
+    Law,
+    Path,
     Robot,
     Simulator,
     SingularError,
     Surface,
+    Task,
+    rollout,
 )
 
 if PINOCCHIO_VERSION != pinocchio.__version__:
@@ -21,4 +28,17 @@ if PINOCCHIO_VERSION != pinocchio.__version__:
         "is installed: run 'make setup' to rebuild it"
     )
 
-__all__ = ["Contact", "Drive", "Dynamics", "Robot", "Simulator", "SingularError", "Surface"]
+__all__ = [
+    "BracedContact",
+    "Contact",
+    "Drive",
+    "Dynamics",
+    "Law",
+    "Path",
+    "Robot",
+    "Simulator",
+    "SingularError",
+    "Surface",
+    "Task",
+    "rollout",
+]

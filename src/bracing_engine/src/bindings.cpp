@@ -2,6 +2,7 @@
 // cross by copy, so nothing Python keeps changes under it.
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
+#include <nanobind/stl/optional.h>
 #include <nanobind/stl/pair.h>
 #include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
@@ -9,6 +10,7 @@
 #include <nanobind/stl/vector.h>
 
 #include "bracing_engine/engine.hpp"
+#include "bracing_engine/law.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -139,6 +141,7 @@ NB_MODULE(_engine, m) {
       .def("step", [](Simulator& s, const Vector& u) { return static_cast<int>(s.step(u)); }, "u"_a,
            "0 ok, 1 diverged, 2 joint limit (failed_joint); the state is unchanged unless 0")
       .def("evaluate", &Simulator::evaluate, "u"_a)
+      .def_prop_ro("report_active", &Simulator::report_active)
       .def("solution", [](const Simulator& s) { return solution(s.report); })
       .def("contact_terms", [](const Simulator& s) { return contact_terms(s.report); })
       .def_prop_ro("state", [](const Simulator& s) { return Vector(s.state()); })
@@ -161,4 +164,92 @@ NB_MODULE(_engine, m) {
           },
           "first"_a, "(step count, contact index, touchdown?, impact loss [J]) of the events from `first` on")
       .def("truncate_events", &Simulator::truncate_events, "count"_a);
+
+  nb::class_<Path>(m, "Path")
+      .def(
+          "__init__",
+          [](Path* path, int kind, const Vector3& center, double radius, double period, double direction, double phase,
+             int u, int v, std::optional<Vector3> point, std::vector<Vector3> waypoints, double segment_time) {
+            new (path) Path{static_cast<PathKind>(kind), center, radius, period, direction, phase, u, v,
+                            point.has_value(), point.value_or(Vector3::Zero()), std::move(waypoints), segment_time};
+          },
+          "kind"_a, "center"_a, "radius"_a, "period"_a, "direction"_a, "phase"_a, "u"_a, "v"_a, "point"_a.none(),
+          "waypoints"_a, "segment_time"_a, "kind: 0 hold, 1 circle, 2 waypoints")
+      .def(
+          "sample",
+          [](const Path& path, const Vector3& start, double t) {
+            Vector3 position, velocity;
+            path.sample(start, t, position, velocity);
+            return nb::make_tuple(position, velocity);
+          },
+          "start"_a, "t"_a);
+
+  nb::class_<Task>(m, "Task").def(
+      "__init__",
+      [](Task* task, std::string frame, const Vector3& kp, const Vector3& kd, const Path& path) {
+        new (task) Task{std::move(frame), kp, kd, path};
+      },
+      "frame"_a, "kp"_a, "kd"_a, "path"_a, "gains per world axis (zero: an axis the task does not use)");
+
+  nb::class_<BracedContact>(m, "BracedContact")
+      .def(
+          "__init__",
+          [](BracedContact* brace, const Contact& contact, double desired_normal_force, const Task& task) {
+            new (brace) BracedContact{contact, desired_normal_force, task};
+          },
+          "contact"_a, "desired_normal_force"_a, "task"_a);
+
+  nb::class_<Law>(m, "Law")
+      .def(
+          "__init__",
+          [](Law* law, const Robot& robot, const Drive& drive, Vector voltage_gain, const Task& hand,
+             std::vector<BracedContact> braces, bool gravity_compensation, double damping_lambda,
+             bool dynamically_consistent, double slip_epsilon) {
+            new (law) Law(LawSpec{robot, drive, std::move(voltage_gain), hand, std::move(braces), gravity_compensation,
+                                  damping_lambda, dynamically_consistent, slip_epsilon});
+          },
+          "robot"_a, "drive"_a, "voltage_gain"_a, "hand"_a, "braces"_a, "gravity_compensation"_a, "damping_lambda"_a,
+          "dynamically_consistent"_a, "slip_epsilon"_a)
+      .def(
+          "update",
+          [](Law& law, double t, const Vector& q, const Vector& dq) {
+            LawOutput out;
+            law.update(t, q, dq, out);
+            return nb::make_tuple(out.command, out.torque, Vector3(out.hand_desired), Vector3(out.hand_actual),
+                                  out.brace_desired, out.brace_actual, out.damped);
+          },
+          "t"_a, "q"_a, "dq"_a,
+          "(command, torque, hand desired, hand actual, brace desired (b x 3), brace actual, damped)")
+      .def("reset", &Law::reset)
+      .def("retune", &Law::retune, "hand_kp"_a, "hand_kd"_a, "brace_kp"_a, "brace_kd"_a, "desired_normal_force"_a,
+           "voltage_gain"_a)
+      .def_prop_ro("desired_normal_force", &Law::desired_normal_force);
+
+  m.def(
+      "rollout",
+      [](Law& law, Simulator& simulator, long steps, double t0, double divergence_speed, double divergence_residual) {
+        Recording r;
+        {
+          nb::gil_scoped_release release;
+          rollout(law, simulator, steps, t0, divergence_speed, divergence_residual, r);
+        }
+        nb::dict out;
+        const long rows = r.rows;
+        out["time"] = Vector(r.time.head(rows));
+        const std::pair<const char*, RowMatrix*> arrays[] = {
+            {"position", &r.position}, {"velocity", &r.velocity}, {"current", &r.current},
+            {"command", &r.command}, {"hand_desired", &r.hand_desired}, {"hand_actual", &r.hand_actual},
+            {"brace_desired", &r.brace_desired}, {"brace_actual", &r.brace_actual},
+            {"contact_position", &r.contact_position}, {"slip_velocity", &r.slip_velocity},
+            {"normal_force", &r.normal_force}, {"friction_force", &r.friction_force}, {"residual", &r.residual},
+            {"active", &r.active}, {"energy", &r.energy}};
+        for (const auto& [name, array] : arrays) out[name] = RowMatrix(array->topRows(rows));
+        out["status"] = r.status;
+        out["measured"] = r.measured;
+        return out;
+      },
+      "law"_a, "simulator"_a, "steps"_a, "t0"_a, "divergence_speed"_a, "divergence_residual"_a,
+      "The closed loop for `steps` steps (and the final state's answer), all in C++: the recorded arrays per "
+      "state, 'status' (0 ok; 1 diverged, 2 joint limit in the last row's step; 3 non-finite forces, 4 too fast, "
+      "5 a held contact too far off, after it) and 'measured' (the speed or residual of 4 / 5).");
 }

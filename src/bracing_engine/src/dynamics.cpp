@@ -6,14 +6,10 @@
 // solved through the Schur complement of the held contacts: Y = Mc^-1 J_c^T,
 // (Y^T W^T) f_n = b - Y^T r, Mc ddq = r + W^T f_n, with Mc factorised by pinocchio's cholesky.
 #include "bracing_engine/engine.hpp"
+#include "model.hpp"
 
-#include <pinocchio/algorithm/cholesky.hpp>
-#include <pinocchio/algorithm/compute-all-terms.hpp>
-#include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/algorithm/joint-configuration.hpp>
 #include <pinocchio/algorithm/model.hpp>
-#include <pinocchio/multibody/data.hpp>
-#include <pinocchio/multibody/model.hpp>
 #include <pinocchio/parsers/urdf.hpp>
 
 #include <Eigen/Dense>
@@ -110,8 +106,6 @@ struct Dynamics::Impl {
   }
 };
 
-namespace {
-
 pin::Model build_model(const Robot& robot, const Vector& armature) {
   pin::Model full;
   pin::urdf::buildModel(robot.urdf_path, full);
@@ -136,8 +130,6 @@ pin::Model build_model(const Robot& robot, const Vector& armature) {
   model.armature += armature;
   return model;
 }
-
-}  // namespace
 
 Dynamics::Dynamics(const Robot& robot, const Drive& drive, std::vector<Contact> contacts, double slip_epsilon,
                    double baumgarte_gain)

@@ -23,6 +23,7 @@ Simulator::Simulator(std::shared_ptr<const Dynamics> dynamics, double step, int 
   y_.head(n_) = q0;
   y_.segment(n_, n_) = dq0;
   active_.assign(p_, true);
+  report_active_ = active_;
   for (const auto& contact : dynamics_->contacts()) {
     unilateral_.push_back(contact.unilateral);
     enforced_.push_back(contact.enforced);
@@ -76,6 +77,7 @@ void Simulator::rates(const Vector& x, const Vector& u, bool evaluated, Answer& 
 void Simulator::evaluate(const Vector& u) {
   const int n = n_;
   dynamics_->evaluate(y_.head(n), y_.segment(n, n), y_.segment(2 * n, n), u, active_, true, report);
+  report_active_ = active_;
 }
 
 void Simulator::release(const Vector& u) {

@@ -155,6 +155,7 @@ class Simulator {
   int substeps() const { return substeps_; }
   const Vector& state() const { return y_; }
   const Mask& active() const { return active_; }
+  const Mask& report_active() const { return report_active_; }  // the contacts held when `report` was made
   bool all_active() const;
   const std::vector<ContactEvent>& events() const { return events_; }
   long steps_taken = 0;
@@ -175,7 +176,7 @@ class Simulator {
   int substeps_;
   Vector lower_, upper_;
   Vector y_;  // q, dq, i, energies
-  Mask active_, unilateral_, enforced_;
+  Mask active_, report_active_, unilateral_, enforced_;
   bool any_unilateral_ = false;
   std::vector<ContactEvent> events_;
   Answer stage_;  // the later stages' answers

@@ -1,5 +1,6 @@
-"""The experiment without ROS: the same plant, simulator and controller cores the nodes run,
-stepped in one process (tests, benchmarks, parameter sweeps).
+"""The experiment without ROS: the same plant, simulator and controller the nodes run, stepped in
+one process by the engine's closed-loop rollout (``bracing_engine.rollout``: law and simulator
+in C++, no return to Python between steps), for tests, benchmarks, sweeps and studies.
 
     scenario = build_scenario("config/paper_4link.yaml", shared={"input_mode": "torque"})
     run = run_closed_loop(scenario, duration=10.0)
@@ -19,11 +20,11 @@ from typing import Any
 
 import numpy as np
 
-from bracing_core.config import Plant, SimulatorConfig, build_simulator, check_step
+from bracing_core.config import Plant, SimulatorConfig, build_simulator
 from bracing_core.controller_config import ControllerConfig
 from bracing_core.law import DecoupledController, check_task_rank
 from bracing_core.params import load_params_file
-from bracing_core.simulator import DivergenceError, Energy, Simulator
+from bracing_core.simulator import Energy, Simulator
 
 Overrides = Mapping[str, Any] | None
 
@@ -94,36 +95,21 @@ class Run:
 
 
 def run_closed_loop(scenario: Scenario, duration: float) -> Run:
-    sim, controller = scenario.sim, scenario.controller
-    if controller is None:
-        raise ValueError("run_closed_loop needs a scenario built with a controller")
-    steps = round(duration / sim.step_size)
-    n, p = sim.n, len(scenario.plant.contact_set)
-    rec = {key: np.zeros((steps, n)) for key in ("position", "velocity", "current", "command")}
-    time, hand_error = np.zeros(steps), np.zeros(steps)
-    normal_force, residual = np.zeros((steps, p)), np.zeros((steps, p))
-    for k in range(steps):
-        time[k] = sim.time
-        q, dq = sim.position, sim.velocity
-        out = controller.update(sim.time, q, dq)
-        rec["position"][k], rec["velocity"][k], rec["current"][k] = q, dq, sim.current
-        rec["command"][k] = out.command
-        hand_error[k] = float(np.linalg.norm(out.hand_desired - out.hand_actual))
-        derivative = sim.step(out.command)
-        normal_force[k] = derivative.normal_force
-        residual[k] = derivative.contacts.residual
+    """The closed loop for ``duration`` seconds (rows: the N states stepped from)."""
+    recording = run_recorded(scenario, duration, divergence_checks=False)
+    steps = recording.time.size - 1
     return Run(
-        time,
-        rec["position"],
-        rec["velocity"],
-        rec["current"],
-        rec["command"],
-        normal_force,
-        controller.desired_normal_force.copy(),
-        residual,
-        hand_error,
-        sim.position,
-        sim.energy,
+        recording.time[:steps],
+        recording.position[:steps],
+        recording.velocity[:steps],
+        recording.current[:steps],
+        recording.command[:steps],
+        recording.normal_force[:steps],
+        recording.desired_normal_force,
+        recording.residual[:steps],
+        np.linalg.norm(recording.hand_desired[:steps] - recording.hand_actual[:steps], axis=1),
+        scenario.sim.position,
+        scenario.sim.energy,
     )
 
 
@@ -167,61 +153,41 @@ class Recording:
         return out
 
 
-def run_recorded(scenario: Scenario, duration: float) -> Recording:
-    """The lockstep loop of the nodes, recording what they publish.
+def run_recorded(scenario: Scenario, duration: float, divergence_checks: bool = True) -> Recording:
+    """The lockstep loop of the nodes, recording what they publish (the engine's rollout).
 
-    Stops where the simulator node refuses to go on: DivergenceError for a non-finite state or
-    force, a joint faster than ``divergence_speed`` or a held contact further than
-    ``divergence_residual`` off its plane.
+    Stops where the simulator node refuses to go on (``divergence_checks``, with the scenario's
+    simulator configuration): DivergenceError for a non-finite state or force, a joint faster
+    than ``divergence_speed`` or a held contact further than ``divergence_residual`` off its surface.
     """
     sim, controller = scenario.sim, scenario.controller
     if controller is None:
         raise ValueError("run_recorded needs a scenario built with a controller")
     steps = round(duration / sim.step_size)
-    rows, n, p = steps + 1, sim.n, len(scenario.plant.contact_set)
-    braced = len(controller.contact_set)
-    joint = {key: np.zeros((rows, n)) for key in ("position", "velocity", "current", "command")}
-    task = {key: np.zeros((rows, 3)) for key in ("hand_desired", "hand_actual")}
-    brace = {key: np.zeros((rows, braced, 3)) for key in ("brace_desired", "brace_actual")}
-    brace |= {key: np.zeros((rows, p, 3)) for key in ("contact_position", "slip_velocity")}
-    contact = {key: np.zeros((rows, p)) for key in ("normal_force", "friction_force", "residual")}
-    active = np.ones((rows, p), dtype=bool)
-    energy = np.zeros((rows, 3))
-    time = np.zeros(rows)
-    for k in range(rows):
-        time[k] = sim.time
-        q, dq = sim.position, sim.velocity
-        out = controller.update(sim.time, q, dq)
-        joint["position"][k], joint["velocity"][k], joint["current"][k] = q, dq, sim.current
-        joint["command"][k] = out.command
-        task["hand_desired"][k], task["hand_actual"][k] = out.hand_desired, out.hand_actual
-        brace["brace_desired"][k], brace["brace_actual"][k] = out.brace_desired, out.brace_actual
-        e = sim.energy
-        energy[k] = (e.consumed, e.net, e.copper_loss)
-        # The final state gets its reports without a step, as the node's finish() does.
-        d = sim.step(out.command) if k < steps else sim.evaluate(out.command)
-        terms = d.contacts
-        contact["normal_force"][k], contact["friction_force"][k] = d.normal_force, d.friction_force
-        contact["residual"][k], brace["contact_position"][k] = terms.residual, terms.positions
-        brace["slip_velocity"][k] = terms.slip_velocity
-        if d.active is not None:
-            active[k] = d.active
-        if scenario.sim_config is not None:  # where the simulator node would refuse the step
-            try:
-                check_step(scenario.sim_config, d, sim.velocity)
-            except DivergenceError as exc:
-                raise DivergenceError(f"{exc} after the step at t = {time[k]:.3f} s") from None
+    config = scenario.sim_config if divergence_checks else None
+    limits = (config.divergence_speed, config.divergence_residual) if config is not None else (np.inf, np.inf)
+    out = sim.rollout(controller.engine, steps, *limits)
+    rows, p, braced = steps + 1, len(scenario.plant.contact_set), len(controller.contact_set)
     return Recording(
-        time=time,
-        **joint,
-        **task,
-        **brace,
-        **contact,
-        active=active,
+        time=out["time"],
+        position=out["position"],
+        velocity=out["velocity"],
+        current=out["current"],
+        command=out["command"],
+        hand_desired=out["hand_desired"],
+        hand_actual=out["hand_actual"],
+        brace_desired=out["brace_desired"].reshape(rows, braced, 3),
+        brace_actual=out["brace_actual"].reshape(rows, braced, 3),
+        contact_position=out["contact_position"].reshape(rows, p, 3),
+        slip_velocity=out["slip_velocity"].reshape(rows, p, 3),
+        normal_force=out["normal_force"],
+        friction_force=out["friction_force"],
+        residual=out["residual"],
+        active=out["active"].astype(bool),
         desired_normal_force=controller.desired_normal_force.copy(),
-        energy_consumed=energy[:, 0],
-        energy_net=energy[:, 1],
-        copper_loss=energy[:, 2],
+        energy_consumed=out["energy"][:, 0],
+        energy_net=out["energy"][:, 1],
+        copper_loss=out["energy"][:, 2],
         contact_names=tuple(scenario.plant.contact_set.names),
         braced_names=tuple(controller.contact_set.names),
         joint_names=tuple(scenario.plant.joint_names),

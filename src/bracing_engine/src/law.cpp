@@ -1,0 +1,306 @@
+// The decoupled law on pinocchio (docs/model.md, Control law):
+//
+//   B = J_c Mc^-1,  A = B (J_c - mu J_t)^T,  a = B (h + g + Dc dq) - gamma
+//   tau = B^+ (a - A f_nd) + (I - B^+ B) l,   v = K_V tau (voltage mode)
+//   l = sum over the tasks of J^T [Kp (r_d - r) + Kd (dr_d - dr)] (+ g(q))
+#include "bracing_engine/law.hpp"
+
+#include "model.hpp"
+
+#include <pinocchio/algorithm/cholesky.hpp>
+#include <pinocchio/algorithm/compute-all-terms.hpp>
+#include <pinocchio/algorithm/frames.hpp>
+#include <pinocchio/algorithm/rnea.hpp>
+
+#include <Eigen/Dense>
+#include <Eigen/SVD>
+
+#include <cmath>
+
+namespace bracing_engine {
+
+namespace pin = pinocchio;
+
+// Smallest singular value of B (relative to its largest) below which B^+ is damped.
+constexpr double kSingularRatio = 1e-8;
+
+namespace {
+
+// Python's float floor division (t // step), so a segment switches at the same sample.
+double floor_div(double t, double step) {
+  double mod = std::fmod(t, step);
+  double div = (t - mod) / step;
+  if (mod != 0.0 && ((step < 0.0) != (mod < 0.0))) div -= 1.0;
+  double floor_value = std::floor(div);
+  if (div - floor_value > 0.5) floor_value += 1.0;
+  return floor_value;
+}
+
+}  // namespace
+
+void Path::sample(const Vector3& start, double t, Vector3& position, Vector3& velocity) const {
+  velocity.setZero();
+  switch (kind) {
+    case PathKind::hold:
+      position = has_point ? point : start;
+      return;
+    case PathKind::circle: {
+      const double rate = direction * 2.0 * M_PI / period;
+      const double angle = rate * t + phase;
+      position = center;
+      position[u] += radius * std::cos(angle);
+      position[v] += radius * std::sin(angle);
+      velocity[u] = -radius * rate * std::sin(angle);
+      velocity[v] = radius * rate * std::cos(angle);
+      return;
+    }
+    case PathKind::waypoints: {
+      // rest to rest through each waypoint, minimum jerk s(x) = 10 x^3 - 15 x^4 + 6 x^5 per segment
+      const long segment = t > 0.0 ? static_cast<long>(floor_div(t, segment_time)) : 0;
+      const long count = static_cast<long>(waypoints.size());
+      if (segment >= count) {
+        position = count ? waypoints.back() : start;
+        return;
+      }
+      const double x = t / segment_time - static_cast<double>(segment);
+      const double s = x * x * x * (10.0 + x * (-15.0 + 6.0 * x));
+      const double ds = 30.0 * x * x * (1.0 - x) * (1.0 - x) / segment_time;
+      const Vector3& a = segment ? waypoints[segment - 1] : start;
+      const Vector3& b = waypoints[segment];
+      position = a + s * (b - a);
+      velocity = ds * (b - a);
+      return;
+    }
+  }
+}
+
+struct Law::Impl {
+  LawSpec spec;
+  pin::Model model;
+  mutable pin::Data data;
+  std::vector<pin::FrameIndex> frames;  // hand, then each brace
+  std::vector<Vector3> starts;          // the tasks' first measured positions
+  bool started = false;
+  Eigen::Matrix<double, 3, Eigen::Dynamic> jacobian;
+  pin::Data::Matrix6x frame_jacobian;
+  Vector y_column;
+};
+
+Law::Law(const LawSpec& spec) : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  m.spec = spec;
+  m.model = build_model(spec.robot, spec.drive.added_inertia);
+  const int n = m.model.nv;
+  if (spec.drive.added_inertia.size() != n || spec.drive.damping.size() != n || spec.voltage_gain.size() != n)
+    throw std::invalid_argument("law: one value per joint expected");
+  m.data = pin::Data(m.model);
+  auto frame = [&](const std::string& name) {
+    if (!m.model.existFrame(name)) throw std::invalid_argument("unknown frame " + name);
+    return m.model.getFrameId(name);
+  };
+  m.frames.push_back(frame(spec.hand.frame));
+  for (const auto& brace : spec.braces) m.frames.push_back(frame(brace.contact.frame));
+  m.starts.assign(m.frames.size(), Vector3::Zero());
+  m.jacobian.setZero(3, n);
+  m.frame_jacobian.setZero(6, n);
+  m.y_column.setZero(n);
+}
+
+Law::~Law() = default;
+
+int Law::nv() const { return impl_->model.nv; }
+int Law::braces() const { return static_cast<int>(impl_->spec.braces.size()); }
+
+Vector Law::desired_normal_force() const {
+  Vector f(braces());
+  for (int j = 0; j < braces(); ++j) f[j] = impl_->spec.braces[j].desired_normal_force;
+  return f;
+}
+
+void Law::reset() { impl_->started = false; }
+
+void Law::retune(const Vector3& hand_kp, const Vector3& hand_kd, const std::vector<Vector3>& brace_kp,
+                 const std::vector<Vector3>& brace_kd, const Vector& desired_normal_force, const Vector& voltage_gain) {
+  LawSpec& s = impl_->spec;
+  const std::size_t b = s.braces.size();
+  if (brace_kp.size() != b || brace_kd.size() != b || static_cast<std::size_t>(desired_normal_force.size()) != b ||
+      voltage_gain.size() != s.voltage_gain.size())
+    throw std::invalid_argument("retune: sizes differ from the law's");
+  s.hand.kp = hand_kp;
+  s.hand.kd = hand_kd;
+  for (std::size_t j = 0; j < b; ++j) {
+    s.braces[j].task.kp = brace_kp[j];
+    s.braces[j].task.kd = brace_kd[j];
+    s.braces[j].desired_normal_force = desired_normal_force[j];
+  }
+  s.voltage_gain = voltage_gain;
+}
+
+void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
+  Impl& m = *impl_;
+  const LawSpec& s = m.spec;
+  const int n = m.model.nv, p = braces();
+  pin::computeAllTerms(m.model, m.data, q, dq);
+  if (!m.started) {
+    for (std::size_t k = 0; k < m.frames.size(); ++k)
+      m.starts[k] = pin::updateFramePlacement(m.model, m.data, m.frames[k]).translation();
+    m.started = true;
+  }
+  out.brace_desired.resize(p, 3);
+  out.brace_actual.resize(p, 3);
+  // l: the PD tasks along their axes (eq. 39)
+  Vector l = Vector::Zero(n);
+  Eigen::MatrixXd brace_jacobians(3 * p, n);
+  for (int k = 0; k <= p; ++k) {
+    const Task& task = k ? s.braces[k - 1].task : s.hand;
+    m.frame_jacobian.setZero();
+    pin::getFrameJacobian(m.model, m.data, m.frames[k], pin::LOCAL_WORLD_ALIGNED, m.frame_jacobian);
+    m.jacobian = m.frame_jacobian.topRows<3>();
+    const Vector3 position = pin::updateFramePlacement(m.model, m.data, m.frames[k]).translation();
+    const Vector3 velocity = m.jacobian * dq;
+    Vector3 desired, desired_velocity;
+    task.path.sample(m.starts[k], t, desired, desired_velocity);
+    const Vector3 force = task.kp.cwiseProduct(desired - position) + task.kd.cwiseProduct(desired_velocity - velocity);
+    l.noalias() += m.jacobian.transpose() * force;
+    if (k == 0) {
+      out.hand_desired = desired;
+      out.hand_actual = position;
+    } else {
+      out.brace_desired.row(k - 1) = desired.transpose();
+      out.brace_actual.row(k - 1) = position.transpose();
+      brace_jacobians.middleRows<3>(3 * (k - 1)) = m.jacobian;
+    }
+  }
+  if (s.gravity_compensation) l += pin::computeGeneralizedGravity(m.model, m.data, q);
+  out.damped = false;
+  if (p == 0) {
+    out.torque = l;
+  } else {
+    pin::cholesky::decompose(m.model, m.data);
+    Eigen::MatrixXd jc(p, n), b(p, n), w(p, n);
+    Vector gamma(p), f_nd(p);
+    for (int j = 0; j < p; ++j) {
+      const BracedContact& brace = s.braces[j];
+      const auto jacobian = brace_jacobians.middleRows<3>(3 * j);
+      const Vector3 position = out.brace_actual.row(j).transpose();
+      const Vector3 acceleration =
+          pin::getFrameClassicalAcceleration(m.model, m.data, m.frames[j + 1], pin::LOCAL_WORLD_ALIGNED).linear();
+      double c;
+      Vector3 normal;
+      Matrix3 hessian;
+      brace.contact.surface.evaluate(position, c, normal, hessian);
+      const Vector3 velocity = jacobian * dq;
+      gamma[j] = normal.dot(acceleration);
+      if (brace.contact.surface.kind != SurfaceKind::plane) gamma[j] += velocity.dot(hessian * velocity);
+      const Vector3 slip = velocity - normal * normal.dot(velocity);
+      const Vector3 direction = slip / std::sqrt(slip.squaredNorm() + s.slip_epsilon * s.slip_epsilon);
+      jc.row(j).noalias() = normal.transpose() * jacobian;
+      w.row(j) = jc.row(j) - brace.contact.friction * (direction.transpose() * jacobian);  // J_c - mu J_t
+      m.y_column = jc.row(j).transpose();
+      pin::cholesky::solve(m.model, m.data, m.y_column);
+      b.row(j) = m.y_column.transpose();  // B = J_c Mc^-1 (Mc symmetric)
+      f_nd[j] = brace.desired_normal_force;
+    }
+    const Eigen::MatrixXd a_matrix = b * w.transpose();
+    const Vector a_vector = b * (m.data.nle + s.drive.damping.cwiseProduct(dq)) - gamma;
+    Eigen::MatrixXd b_pinv;  // n x p
+    if (s.dynamically_consistent) {
+      b_pinv = (b * jc.transpose()).partialPivLu().solve(jc).transpose();
+    } else {
+      const Eigen::MatrixXd gram = b * b.transpose();
+      double largest, smallest;
+      if (p == 1) {
+        largest = smallest = std::sqrt(gram(0, 0));
+      } else {
+        const Eigen::JacobiSVD<Eigen::MatrixXd> svd(b);
+        largest = svd.singularValues()[0];
+        smallest = svd.singularValues()[p - 1];
+      }
+      if (smallest > kSingularRatio * std::max(largest, 1e-300)) {
+        b_pinv = gram.partialPivLu().solve(b).transpose();
+      } else {
+        const double lambda = s.damping_lambda * std::max(largest * largest, 1.0);
+        b_pinv = (gram + lambda * Eigen::MatrixXd::Identity(p, p)).partialPivLu().solve(b).transpose();
+        out.damped = true;
+      }
+    }
+    // tau = B^+ (a - A f_nd) + (I - B^+ B) l = l + B^+ ((a - A f_nd) - B l)
+    out.torque = l + b_pinv * (a_vector - a_matrix * f_nd - b * l);
+  }
+  out.command = s.drive.voltage ? Vector(s.voltage_gain.cwiseProduct(out.torque)) : out.torque;
+}
+
+void rollout(Law& law, Simulator& simulator, long steps, double t0, double divergence_speed,
+             double divergence_residual, Recording& out) {
+  const int n = simulator.nv(), p = simulator.dynamics().contact_count(), b = law.braces();
+  const long rows = steps + 1;
+  out.time.setZero(rows);
+  for (RowMatrix* a : {&out.position, &out.velocity, &out.current, &out.command}) a->setZero(rows, n);
+  for (RowMatrix* a : {&out.hand_desired, &out.hand_actual, &out.energy}) a->setZero(rows, 3);
+  for (RowMatrix* a : {&out.brace_desired, &out.brace_actual}) a->setZero(rows, 3 * b);
+  for (RowMatrix* a : {&out.contact_position, &out.slip_velocity}) a->setZero(rows, 3 * p);
+  for (RowMatrix* a : {&out.normal_force, &out.friction_force, &out.residual, &out.active}) a->setZero(rows, p);
+  out.rows = 0;
+  out.status = 0;
+  LawOutput command;
+  const auto& contacts = simulator.dynamics().contacts();
+  for (long k = 0; k < rows; ++k) {
+    const double t = t0 + static_cast<double>(simulator.steps_taken) * simulator.step_size();
+    const Vector& y = simulator.state();
+    const Vector q = y.head(n), dq = y.segment(n, n);
+    law.update(t, q, dq, command);
+    out.time[k] = t;
+    out.position.row(k) = q.transpose();
+    out.velocity.row(k) = dq.transpose();
+    out.current.row(k) = y.segment(2 * n, n).transpose();
+    out.command.row(k) = command.command.transpose();
+    out.hand_desired.row(k) = command.hand_desired.transpose();
+    out.hand_actual.row(k) = command.hand_actual.transpose();
+    out.brace_desired.row(k) = Eigen::Map<const Vector>(command.brace_desired.data(), 3 * b).transpose();
+    out.brace_actual.row(k) = Eigen::Map<const Vector>(command.brace_actual.data(), 3 * b).transpose();
+    out.energy.row(k) << y[3 * n], y[3 * n + 1], y[3 * n + 2];
+    // the final state gets its reports without a step, as the simulator node's finish() does
+    if (k < steps) {
+      const StepStatus status = simulator.step(command.command);
+      if (status != StepStatus::ok) {
+        out.rows = k;
+        out.status = static_cast<int>(status);
+        return;
+      }
+    } else {
+      simulator.evaluate(command.command);
+    }
+    const Answer& report = simulator.report;
+    out.contact_position.row(k) = Eigen::Map<const Vector>(report.positions.data(), 3 * p).transpose();
+    out.slip_velocity.row(k) = Eigen::Map<const Vector>(report.slip.data(), 3 * p).transpose();
+    double residual = 0.0;
+    for (int j = 0; j < p; ++j) {
+      out.normal_force(k, j) = report.force[j];
+      out.friction_force(k, j) = contacts[j].friction * report.force[j];
+      out.residual(k, j) = report.residual[j];
+      const bool held = simulator.report_active()[j];
+      out.active(k, j) = held ? 1.0 : 0.0;
+      if (held) residual = std::max(residual, std::abs(report.residual[j]));
+    }
+    out.rows = k + 1;
+    // where the simulator node refuses a step (bracing_core.config.check_step)
+    if (!out.normal_force.row(k).allFinite() || !out.friction_force.row(k).allFinite() ||
+        !out.slip_velocity.row(k).allFinite()) {
+      out.status = 3;
+      return;
+    }
+    const double speed = simulator.state().segment(n, n).cwiseAbs().maxCoeff();
+    if (speed > divergence_speed) {
+      out.status = 4;
+      out.measured = speed;
+      return;
+    }
+    if (residual > divergence_residual) {
+      out.status = 5;
+      out.measured = residual;
+      return;
+    }
+  }
+}
+
+}  // namespace bracing_engine
