@@ -17,6 +17,7 @@ and its contacts to the engine and turns its answers into ``Derivative``s.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import Enum
@@ -122,6 +123,51 @@ def contact_terms(values: tuple[Vector, ...], contacts: ContactSet) -> ContactTe
     )
 
 
+@functools.cache
+def _packed_layout(n: int, p: int) -> tuple[slice, ...]:
+    """The parts of a packed answer (bindings.cpp ``packed``) for n joints and p contacts."""
+    sizes = (n, n, p, n, 2, 3 * p, 3 * p * n, p * n, p * n, p, p, 3 * p, 3 * p, 3 * p, p)
+    ends = np.cumsum(sizes).tolist()
+    return tuple(slice(end - size, end) for size, end in zip(sizes, ends, strict=True))
+
+
+def unpack(values: Vector, n: int, contacts: ContactSet) -> tuple[Derivative, float, float]:
+    """(Derivative, friction power, constraint power) from the engine's packed answer (one array, so
+    that a step's report crosses from C++ in one allocation; layout in bindings.cpp ``packed``)."""
+    p = len(contacts)
+    (
+        ddq,
+        di,
+        force,
+        effort,
+        powers,
+        positions,
+        jacobians,
+        normal,
+        tangent,
+        drift,
+        residual,
+        slip,
+        direction,
+        normals,
+        held,
+    ) = (values[part] for part in _packed_layout(n, p))
+    terms = ContactTerms(
+        positions.reshape(p, 3),
+        jacobians.reshape(p, 3, n),
+        normal.reshape(p, n),
+        tangent.reshape(p, n),
+        drift,
+        residual,
+        slip.reshape(p, 3),
+        direction.reshape(p, 3),
+        contacts.friction,
+        normals.reshape(p, 3),
+    )
+    active = None if held.all() else held.astype(bool)
+    return Derivative(ddq, di, force, effort, terms, active), float(powers[0]), float(powers[1])
+
+
 class ConstrainedDynamics:
     """The model of docs/model.md for one robot, its motors and its contacts (evaluated by the engine)."""
 
@@ -173,7 +219,7 @@ class ConstrainedDynamics:
         n = self.n
         current = np.asarray(current, dtype=float) if self.mode is InputMode.VOLTAGE else np.zeros(n)
         try:
-            (ddq, di, force, effort, _, _), terms = self.engine.evaluate(
+            values = self.engine.evaluate_packed(
                 np.asarray(q, dtype=float),
                 np.asarray(dq, dtype=float),
                 current,
@@ -182,7 +228,7 @@ class ConstrainedDynamics:
             )
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
-        return Derivative(ddq, di, force, effort, contact_terms(terms, self.contacts))
+        return unpack(values, n, self.contacts)[0]
 
     def terms(self, q: Vector, dq: Vector) -> ContactTerms:
         """Every contact's terms at (q, dq) (positions, Jacobians, residuals, slip)."""

@@ -108,18 +108,17 @@ class DecoupledController:
 
     def update(self, t: float, q: Vector, dq: Vector) -> ControlOutput:
         """The command for the measured state (q, dq) at time t [s] (model joint order)."""
-        command, torque, hand_desired, hand_actual, brace_desired, brace_actual, damped = self.engine.update(
-            float(t), np.asarray(q, dtype=float), np.asarray(dq, dtype=float)
-        )
+        values = self.engine.update_packed(float(t), np.asarray(q, dtype=float), np.asarray(dq, dtype=float))
+        n, b = self.robot.nv, self.desired_normal_force.size  # layout: bindings.cpp, Law.update_packed
         return ControlOutput(
-            command,
-            torque,
-            hand_desired,
-            hand_actual,
-            brace_desired,
-            brace_actual,
+            values[:n],
+            values[n : 2 * n],
+            values[2 * n : 2 * n + 3],
+            values[2 * n + 3 : 2 * n + 6],
+            values[2 * n + 6 : 2 * n + 6 + 3 * b].reshape(b, 3),
+            values[2 * n + 6 + 3 * b : 2 * n + 6 + 6 * b].reshape(b, 3),
             self.desired_normal_force.copy(),
-            damped,
+            bool(values[-1]),
         )
 
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import bracing_engine as engine
-from bracing_core.dynamics import ConstrainedDynamics, Derivative, contact_terms
+from bracing_core.dynamics import ConstrainedDynamics, Derivative, unpack
 from bracing_core.types import Vector
 
 # Order of the energy integrals appended to the state vector.
@@ -161,23 +161,10 @@ class Simulator:
     def evaluate(self, command: Vector) -> Derivative:
         """The model at the current state under ``command`` (no time passes)."""
         try:
-            self.engine.evaluate(np.asarray(command, dtype=float))
+            values = self.engine.evaluate_packed(np.asarray(command, dtype=float))
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
-        return self._report()
-
-    def _report(self) -> Derivative:
-        """The engine's last answer, over all contacts (released ones: zero force, ``active`` False)."""
-        ddq, di, force, effort, _, _ = self.engine.solution()
-        active = self.engine.active
-        return Derivative(
-            ddq,
-            di,
-            force,
-            effort,
-            contact_terms(self.engine.contact_terms(), self.dynamics.contacts),
-            None if all(active) else np.array(active, dtype=bool),
-        )
+        return unpack(values, self.n, self.dynamics.contacts)[0]
 
     # -- checkpoints --------------------------------------------------------------------
     def checkpoint(self) -> Checkpoint:
@@ -207,13 +194,14 @@ class Simulator:
             raise ValueError(f"command: expected {self.n} finite values, got {np.ravel(u).tolist()}")
         time = self.time
         try:
-            status = self.engine.step(u)
+            status, values = self.engine.step_packed(u)
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
         finally:
-            self._take_events()
+            if self.engine.event_count != len(self.events):
+                self._take_events()
         self._raise_for(status, time)
-        return self._report()
+        return unpack(values, self.n, self.dynamics.contacts)[0]
 
     def rollout(
         self, law: engine.Law, steps: int, divergence_speed: float = np.inf, divergence_residual: float = np.inf

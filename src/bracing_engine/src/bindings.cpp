@@ -25,10 +25,31 @@ nb::tuple contact_terms(const Answer& a) {
                         RowMatrix(a.direction), RowMatrix(a.normals));
 }
 
-// ddq, di, f_n, effort, friction power, constraint power
-nb::tuple solution(const Answer& a) {
-  return nb::make_tuple(Vector(a.ddq), Vector(a.di), Vector(a.force), Vector(a.effort), a.friction_power,
-                        a.constraint_power);
+// The whole answer in one array (one allocation crossing to Python, sliced there: see
+// bracing_core.dynamics.REPORT_LAYOUT): ddq, di, f_n, effort (n, n, p, n), friction and constraint
+// power, then the contact terms (positions 3p, jacobians 3pn, J_c pn, J_t pn, drift p, residual p,
+// slip 3p, direction 3p, normals 3p) and which contacts were held (p, 1/0).
+Vector packed(const Answer& a, const Mask& held) {
+  const Eigen::Index n = a.ddq.size(), p = a.force.size();
+  Vector out(4 * n + p + 2 + 3 * p + 3 * p * n + 2 * p * n + 2 * p + 9 * p + p);
+  Eigen::Index at = 0;
+  auto put = [&](const auto& block) {
+    const Eigen::Index size = block.size();
+    if (size) out.segment(at, size) = Eigen::Map<const Vector>(block.data(), size);
+    at += size;
+  };
+  put(a.ddq);
+  put(a.di);
+  put(a.force);
+  put(a.effort);
+  out[at++] = a.friction_power;
+  out[at++] = a.constraint_power;
+  for (const RowMatrix* m : {&a.positions, &a.jacobians, &a.normal_jacobian, &a.tangent_jacobian}) put(*m);
+  put(a.drift);
+  put(a.residual);
+  for (const RowMatrix* m : {&a.slip, &a.direction, &a.normals}) put(*m);
+  for (Eigen::Index j = 0; j < p; ++j) out[at++] = held[j] ? 1.0 : 0.0;
+  return out;
 }
 
 }  // namespace
@@ -108,15 +129,14 @@ NB_MODULE(_engine, m) {
       .def_prop_ro("joint_names", &Dynamics::joint_names)
       .def_rw("baumgarte", &Dynamics::baumgarte)
       .def(
-          "evaluate",
+          "evaluate_packed",
           [](const Dynamics& d, const Vector& q, const Vector& dq, const Vector& current, const Vector& u,
              const Mask& held) {
             Answer a;
             d.evaluate(q, dq, current, u, held, true, a);
-            return nb::make_tuple(solution(a), contact_terms(a));
+            return packed(a, held);
           },
-          "q"_a, "dq"_a, "current"_a, "u"_a, "held"_a,
-          "((ddq, di, f_n, effort, friction power, constraint power), contact terms) at one state")
+          "q"_a, "dq"_a, "current"_a, "u"_a, "held"_a)
       .def(
           "terms",
           [](const Dynamics& d, const Vector& q, const Vector& dq) {
@@ -138,12 +158,22 @@ NB_MODULE(_engine, m) {
       .def(nb::init<std::shared_ptr<const Dynamics>, double, int, const Vector&, const Vector&, const Vector&,
                     const Vector&>(),
            "dynamics"_a, "step"_a, "substeps"_a, "q0"_a, "dq0"_a, "lower_limits"_a, "upper_limits"_a)
-      .def("step", [](Simulator& s, const Vector& u) { return static_cast<int>(s.step(u)); }, "u"_a,
-           "0 ok, 1 diverged, 2 joint limit (failed_joint); the state is unchanged unless 0")
-      .def("evaluate", &Simulator::evaluate, "u"_a)
+      .def(
+          "step_packed",
+          [](Simulator& s, const Vector& u) {
+            const int status = static_cast<int>(s.step(u));
+            return std::make_pair(status, status ? Vector() : packed(s.report, s.report_active()));
+          },
+          "u"_a, "(0 ok, 1 diverged, 2 joint limit (failed_joint; the state is unchanged unless 0), the packed report at "
+          "the step's start)")
+      .def(
+          "evaluate_packed",
+          [](Simulator& s, const Vector& u) {
+            s.evaluate(u);
+            return packed(s.report, s.report_active());
+          },
+          "u"_a)
       .def_prop_ro("report_active", &Simulator::report_active)
-      .def("solution", [](const Simulator& s) { return solution(s.report); })
-      .def("contact_terms", [](const Simulator& s) { return contact_terms(s.report); })
       .def_prop_ro("state", [](const Simulator& s) { return Vector(s.state()); })
       .def("set_state", &Simulator::set_state, "y"_a)
       .def_prop_ro("active", &Simulator::active)
@@ -211,15 +241,20 @@ NB_MODULE(_engine, m) {
           "robot"_a, "drive"_a, "voltage_gain"_a, "hand"_a, "braces"_a, "gravity_compensation"_a, "damping_lambda"_a,
           "dynamically_consistent"_a, "slip_epsilon"_a)
       .def(
-          "update",
+          "update_packed",
           [](Law& law, double t, const Vector& q, const Vector& dq) {
-            LawOutput out;
-            law.update(t, q, dq, out);
-            return nb::make_tuple(out.command, out.torque, Vector3(out.hand_desired), Vector3(out.hand_actual),
-                                  out.brace_desired, out.brace_actual, out.damped);
+            LawOutput o;
+            law.update(t, q, dq, o);
+            const Eigen::Index n = o.command.size(), b = o.brace_desired.rows();
+            Vector out(2 * n + 6 + 6 * b + 1);
+            out << o.command, o.torque, o.hand_desired, o.hand_actual,
+                Eigen::Map<const Vector>(o.brace_desired.data(), 3 * b),
+                Eigen::Map<const Vector>(o.brace_actual.data(), 3 * b), o.damped ? 1.0 : 0.0;
+            return out;
           },
           "t"_a, "q"_a, "dq"_a,
-          "(command, torque, hand desired, hand actual, brace desired (b x 3), brace actual, damped)")
+          "update's answer in one array: command, torque (n each), hand desired, hand actual (3 each), brace desired, "
+          "brace actual (3b each, row-major), damped (1/0)")
       .def("reset", &Law::reset)
       .def("retune", &Law::retune, "hand_kp"_a, "hand_kd"_a, "brace_kp"_a, "brace_kd"_a, "desired_normal_force"_a,
            "voltage_gain"_a)

@@ -57,10 +57,16 @@ struct Dynamics::Impl {
   // work, reused between calls (the engine is single-threaded per object)
   mutable pin::Data::Matrix6x frame_jacobian;
   mutable Vector r, y_column;
-  mutable RowMatrix y, w;  // held contacts: rows Mc^-1 J_c,j^T and W_j
+  // the held contacts' rows Mc^-1 J_c,j^T and W_j, and the p x p system (kept: no allocation per call
+  // while the set of held contacts stays the same size)
+  mutable RowMatrix y, w;
+  mutable Eigen::MatrixXd schur;
+  mutable Vector bias, normal_velocity, rhs, force;
+  mutable std::vector<int> index;
+  mutable Eigen::PartialPivLU<Eigen::MatrixXd> lu;
 
   // One contact's terms after computeAllTerms, into row j of `out`.
-  void contact_terms(int j, const Vector& dq, Answer& out) const {
+  void contact_terms(int j, const Eigen::Ref<const Vector>& dq, Answer& out) const {
     const auto frame = frames[j];
     frame_jacobian.setZero();
     pin::getFrameJacobian(model, data, frame, pin::LOCAL_WORLD_ALIGNED, frame_jacobian);
@@ -166,14 +172,15 @@ std::vector<std::string> Dynamics::joint_names() const {
   return std::vector<std::string>(names.begin() + 1, names.end());
 }
 
-void Dynamics::terms(const Vector& q, const Vector& dq, Answer& out) const {
+void Dynamics::terms(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& dq, Answer& out) const {
   const Impl& m = *impl_;
   m.resize(out);
   pin::computeAllTerms(m.model, m.data, q, dq);
   for (int j = 0; j < contact_count(); ++j) m.contact_terms(j, dq, out);
 }
 
-void Dynamics::evaluate(const Vector& q, const Vector& dq, const Vector& current, const Vector& u, const Mask& held,
+void Dynamics::evaluate(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& dq,
+                        const Eigen::Ref<const Vector>& current, const Eigen::Ref<const Vector>& u, const Mask& held,
                         bool full, Answer& out) const {
   const Impl& m = *impl_;
   const Drive& d = m.drive;
@@ -199,8 +206,12 @@ void Dynamics::evaluate(const Vector& q, const Vector& dq, const Vector& current
     // Per held contact: Y_j = Mc^-1 J_c,j^T and W_j = J_c,j + scale_j slip_j^T J_j, scale_j = -mu / |slip|_eps.
     m.y.resize(k, n);
     m.w.resize(k, n);
-    Vector bias(k), scale(k), normal_velocity(k);
-    std::vector<int> index;
+    m.bias.resize(k);
+    m.normal_velocity.resize(k);
+    Vector& bias = m.bias;
+    Vector& normal_velocity = m.normal_velocity;
+    std::vector<int>& index = m.index;
+    index.clear();
     for (int j = 0; j < p; ++j) {
       if (!held[j]) continue;
       const int i = static_cast<int>(index.size());
@@ -209,17 +220,21 @@ void Dynamics::evaluate(const Vector& q, const Vector& dq, const Vector& current
       pin::cholesky::solve(m.model, m.data, m.y_column);
       m.y.row(i) = m.y_column.transpose();
       const double slip2 = out.slip.row(j).squaredNorm();
-      scale[i] = -m.contacts[j].friction / std::sqrt(slip2 + m.eps2);
-      m.w.row(i) = out.normal_jacobian.row(j) + scale[i] * (out.slip.row(j) * out.jacobians.middleRows<3>(3 * j));
+      const double scale = -m.contacts[j].friction / std::sqrt(slip2 + m.eps2);
+      m.w.row(i) = out.normal_jacobian.row(j);
+      m.w.row(i).noalias() += scale * (out.slip.row(j) * out.jacobians.middleRows<3>(3 * j));
       normal_velocity[i] = out.normal_jacobian.row(j).dot(dq);
       bias[i] = -out.drift[j] - 2.0 * baumgarte * normal_velocity[i] - baumgarte * baumgarte * out.residual[j];
     }
-    const Eigen::MatrixXd schur = m.y * m.w.transpose();  // J_c Mc^-1 W^T
-    const Vector rhs = bias - m.y * m.r;
-    const Eigen::PartialPivLU<Eigen::MatrixXd> lu(schur);
-    if ((lu.matrixLU().diagonal().array() == 0.0).any())
+    m.schur.noalias() = m.y * m.w.transpose();  // J_c Mc^-1 W^T
+    m.rhs = bias;
+    m.rhs.noalias() -= m.y * m.r;
+    m.lu.compute(m.schur);
+    if ((m.lu.matrixLU().diagonal().array() == 0.0).any())
       throw SingularError("Singular matrix: the contact constraints do not determine the forces");
-    const Vector force = lu.solve(rhs);
+    m.force.resize(k);
+    m.force = m.lu.solve(m.rhs);
+    const Vector& force = m.force;
     ddq.noalias() += m.w.transpose() * force;
     for (int i = 0; i < k; ++i) {
       const int j = index[i];
@@ -231,9 +246,10 @@ void Dynamics::evaluate(const Vector& q, const Vector& dq, const Vector& current
   }
   pin::cholesky::solve(m.model, m.data, ddq);  // Mc^-1 (r + W^T f_n)
   if (d.voltage) {
-    out.di = (u - d.resistance.cwiseProduct(current) - d.torque_constant.cwiseProduct(dq)).cwiseQuotient(d.inductance);
-    out.effort = d.torque_constant.cwiseProduct(current) - d.reflected_damping.cwiseProduct(dq) -
-                 d.added_inertia.cwiseProduct(ddq);
+    out.di.array() = (u - d.resistance.cwiseProduct(current) - d.torque_constant.cwiseProduct(dq)).array() /
+                     d.inductance.array();
+    out.effort.array() = d.torque_constant.cwiseProduct(current).array() -
+                         d.reflected_damping.cwiseProduct(dq).array() - d.added_inertia.cwiseProduct(ddq).array();
   } else {
     out.di.setZero(n);
     out.effort = u;

@@ -20,6 +20,7 @@ Simulator::Simulator(std::shared_ptr<const Dynamics> dynamics, double step, int 
   if (q0.size() != n_ || dq0.size() != n_ || lower_.size() != n_ || upper_.size() != n_)
     throw std::invalid_argument("one value per joint expected");
   y_.setZero(3 * n_ + kEnergies);
+  y_next_.setZero(3 * n_ + kEnergies);
   y_.head(n_) = q0;
   y_.segment(n_, n_) = dq0;
   active_.assign(p_, true);
@@ -54,7 +55,8 @@ void Simulator::truncate_events(std::size_t count) {
   if (count < events_.size()) events_.resize(count);
 }
 
-void Simulator::rates(const Vector& x, const Vector& u, bool evaluated, Answer& answer, Vector& k, Vector& e) const {
+void Simulator::rates(const Eigen::Ref<const Vector>& x, const Vector& u, bool evaluated, Answer& answer, Vector& k,
+                      Vector& e) const {
   const int n = n_;
   const auto q = x.head(n), dq = x.segment(n, n), i = x.segment(2 * n, n);
   if (!evaluated) dynamics_->evaluate(q, dq, i, u, active_, false, answer);
@@ -105,7 +107,8 @@ StepStatus Simulator::step(const Vector& u) {
   const double h = step_ / substeps_;
   const double c[3] = {0.5 * h, 0.5 * h, h};
   const double w[4] = {h / 6.0, 2.0 * h / 6.0, 2.0 * h / 6.0, h / 6.0};
-  Vector y = y_;
+  Vector& y = y_next_;
+  y = y_;
   for (int s = 0; s < substeps_; ++s) {
     const auto start = y.head(m);
     if (s == 0)
@@ -116,7 +119,7 @@ StepStatus Simulator::step(const Vector& u) {
       x_ = c[stage - 1] * k_[stage - 1] + start;
       rates(x_, u, false, stage_, k_[stage], e_[stage]);
     }
-    y.head(m) += w[0] * k_[0] + w[1] * k_[1] + w[2] * k_[2] + w[3] * k_[3];
+    y.head(m).noalias() += w[0] * k_[0] + w[1] * k_[1] + w[2] * k_[2] + w[3] * k_[3];
     y.tail(kEnergies) += w[0] * e_[0] + w[1] * e_[1] + w[2] * e_[2] + w[3] * e_[3];
   }
   if (!y.allFinite()) return StepStatus::diverged;
@@ -126,7 +129,7 @@ StepStatus Simulator::step(const Vector& u) {
       failed_position = y[j];
       return StepStatus::joint_limit;
     }
-  y_ = y;
+  y_.swap(y_next_);
   ++steps_taken;
   if (any_unilateral_ && !all_active()) touchdown();
   return StepStatus::ok;

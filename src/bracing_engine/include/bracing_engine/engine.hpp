@@ -104,10 +104,11 @@ class Dynamics {
 
   // ddq, di, f_n at (q, dq, i) with input u held, the contacts in `held` holding forces. `full`:
   // also every contact's terms. Throws SingularError.
-  void evaluate(const Vector& q, const Vector& dq, const Vector& current, const Vector& u, const Mask& held,
-                bool full, Answer& out) const;
+  void evaluate(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& dq,
+                const Eigen::Ref<const Vector>& current, const Eigen::Ref<const Vector>& u, const Mask& held, bool full,
+                Answer& out) const;
   // Every contact's terms at (q, dq), no solve (force, ddq and di untouched).
-  void terms(const Vector& q, const Vector& dq, Answer& out) const;
+  void terms(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& dq, Answer& out) const;
   // Newton steps in the metric of Mc onto C = 0 for the contacts `rows`; throws std::domain_error
   // naming the contacts if 50 steps do not bring every |C| under `tolerance`.
   Vector project(const Vector& q, const std::vector<int>& rows, double tolerance = 1e-13) const;
@@ -168,14 +169,15 @@ class Simulator {
   void touchdown();
   // The rates [dq, ddq, di] and the energy rates at stage state x (`evaluated`: `answer` is already
   // the model there).
-  void rates(const Vector& x, const Vector& u, bool evaluated, Answer& answer, Vector& k, Vector& e) const;
+  void rates(const Eigen::Ref<const Vector>& x, const Vector& u, bool evaluated, Answer& answer, Vector& k,
+             Vector& e) const;
 
   std::shared_ptr<const Dynamics> dynamics_;
   int n_, p_;
   double step_;
   int substeps_;
   Vector lower_, upper_;
-  Vector y_;  // q, dq, i, energies
+  Vector y_, y_next_;  // q, dq, i, energies (a step writes the next into y_next_ and swaps)
   Mask active_, report_active_, unilateral_, enforced_;
   bool any_unilateral_ = false;
   std::vector<ContactEvent> events_;
