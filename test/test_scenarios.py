@@ -93,10 +93,9 @@ def test_the_projected_start_is_on_the_contacts(name: str) -> None:
     """project_initial_position: the file's rough posture lands on every bilateral contact, and
     moving it again changes nothing (it is the fixed point of the projection)."""
     sc = scenario(name)
-    robot, contacts = sc.plant.robot, sc.plant.contact_set
+    robot = sc.plant.robot
     q0 = sc.sim.position
-    robot.compute(q0, np.zeros(robot.nv))
-    terms = contacts.evaluate(np.zeros(robot.nv))
+    terms = sc.sim.dynamics.terms(q0, np.zeros(robot.nv))
     rows = braced_rows(sc)
     assert np.max(np.abs(terms.residual[rows])) < 1e-12
     again = sc.plant.dynamics().project(q0, rows)

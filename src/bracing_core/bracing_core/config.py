@@ -382,8 +382,7 @@ def check_start(plant: Plant, simulator: Simulator, tolerance: float) -> None:
     contacts = plant.contact_set.contacts
     if not contacts:
         return
-    plant.robot.compute(simulator.position, simulator.velocity)
-    terms = plant.contact_set.evaluate(simulator.velocity)
+    terms = simulator.dynamics.terms(simulator.position, simulator.velocity)
     enforced = np.array([c.enforced for c in contacts])
     for contact, row, held in zip(contacts, terms.normal_jacobian, enforced, strict=True):
         if held and not contact.unilateral and float(np.linalg.norm(row)) < 1e-9:

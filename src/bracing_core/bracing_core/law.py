@@ -22,7 +22,7 @@ import bracing_engine as engine
 from bracing_core import schema
 from bracing_core.config import Plant
 from bracing_core.controller_config import ControllerConfig
-from bracing_core.dynamics import engine_contact, engine_drive, engine_robot
+from bracing_core.dynamics import ConstrainedDynamics, InputMode, engine_contact, engine_drive, engine_robot
 from bracing_core.params import ConfigError
 from bracing_core.types import Vector
 
@@ -129,7 +129,8 @@ def check_task_rank(config: ControllerConfig, plant: Plant, q0: Vector) -> None:
     first axis that adds none."""
     robot = plant.robot
     robot.compute(np.asarray(q0, dtype=float), np.zeros(robot.nv))
-    jc = plant.braced_set.evaluate(np.zeros(robot.nv)).normal_jacobian
+    braced = ConstrainedDynamics(robot, plant.motors, plant.braced_set, InputMode.TORQUE)
+    jc = braced.terms(q0, np.zeros(robot.nv)).normal_jacobian
     allowed = np.eye(robot.nv) - np.linalg.pinv(jc) @ jc if jc.size else np.eye(robot.nv)
     tasks = [("hand.axes", config.hand.frame, config.hand.axes)]
     tasks += [(f"contacts.{c.name}.brace_axes", c.frame, c.brace_axes) for c in config.shared.braced_contacts]
