@@ -7,7 +7,7 @@ other ("pong", playing the controller) answers each message at once with a
 bracing_msgs/MotorCommand with 4 values on ``pong``, stamped with the request's stamp.
 The transport is the nodes' own: their QoS (bracing_ros.common STREAM_QOS /
 SUBSCRIBE_QOS), their wait (SubscriptionWaiter) and,
-with ``--wire cdr``, their CDR bytes (bracing_sim.wire); ``--wire objects`` sends rclpy
+with ``--wire cdr``, their CDR bytes (bracing_ros.wire); ``--wire objects`` sends rclpy
 message objects instead, for comparison. No computation besides the messages.
 
 Process layout (the parent never imports rclpy):

@@ -1,20 +1,28 @@
 """make bench: how fast the engine, the controller and the ROS pair are, measured side by side
 in one run on this machine, with medians of repeats. Prints a table, writes bench/latest.json.
 
-- engine vs MuJoCo: the simulator core stepping the paper model in-process (voltage input,
-  RK4, 1 ms, elbow braced) against MuJoCo stepping an equivalent MJCF (bench/mujoco_paper.py);
+- in process, alternately: the engine stepping the paper model (voltage input, RK4, 1 ms, elbow
+  braced) against MuJoCo stepping an equivalent MJCF (bench/mujoco_paper.py); the closed loop
+  (law + engine, ``Simulator.rollout``: no return to Python between steps) on the paper model and
+  on hyper_7link; the engine step alone on hyper_7link (``Simulator.step``, a fixed command);
 - the ROS pair vs the DDS bound: bracing-pair in lockstep for 10 s of sim time, against the
   round trips/s of two rclpy processes ping-ponging messages of the same size over the
   nodes' own transport, times the step, measured before and after the pair (bench/dds_bound.py);
   and the two nodes alone (no recorder), alternately with the pair: the recorder's share of a step;
 - turnaround: the timeline of those pair runs (startup_s, stepping_s, shutdown_s, report_s,
   whole_run_s: see bracing_bringup.timeline), a `bracing-pair --duration 0.01` from command to
-  exit, and `make run` against its two runs' stepping time;
+  exit, and `make run` against its runs' stepping time (the runs of bracing_bringup.paper_run);
 - controller update latency (p50, p99);
 - engine steps/s for generated chains of n links with p = 1 and 2 contacts, and the
   fitted growth exponent of cost with n.
 - sweep throughput: in-process runs per minute with 1 and 2 local worker processes and a
   Dask LocalCluster, and the parallel efficiency (bench/sweep_bench.py).
+
+``--quick`` cuts every figure to about a second or less (runs of 0.01 s of sim time, few
+steps, one repeat): it checks that every key is produced (``make test`` runs it,
+test/test_bench.py), its numbers are not measurements. Without ``mujoco`` (requirements-bench.lock,
+which ``make bench`` installs) a quick run writes the MuJoCo keys as null and says why; a full run
+stops.
 """
 
 from __future__ import annotations
@@ -38,7 +46,16 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 PAPER = ROOT / "config" / "paper_4link.yaml"
+HYPER = ROOT / "config" / "hyper_7link.yaml"
+TINY_RUN_S = 0.01  # the sim time of the turnaround's `bracing-pair --duration 0.01`
 sys.path.insert(0, str(HERE))
+
+_scratch_root: Path | None = None  # main's temporary directory: every run's files, removed at the end
+
+
+def scratch(prefix: str) -> Path:
+    """A new directory for one measurement's files (under main's temporary directory)."""
+    return Path(tempfile.mkdtemp(prefix=prefix, dir=_scratch_root))
 
 
 def _median_rate(run_once: Any, repeats: int) -> tuple[float, list[float]]:
@@ -60,6 +77,46 @@ def engine_steps_per_s(steps: int = 3000, repeats: int = 5, scenario: Any = None
         return steps / (time.perf_counter() - start)
 
     return _median_rate(once, repeats)
+
+
+def engine_step_us(config: Path, steps: int = 3000, segment: int = 500) -> float:
+    """Microseconds per ``Simulator.step`` of ``config``'s simulator (no controller), 1.0 V held on
+    every joint; from the initial state again every ``segment`` steps, outside the clock, so every
+    timed step has the scenario's contacts as they start (hyper_7link: both elbows braced, no
+    obstacle touched; 500 steps of 1 V keep it so)."""
+    from bracing_core.rollout import build_scenario
+
+    sim = build_scenario(config, with_controller=False).sim
+    command = np.full(sim.n, 1.0)
+    start = sim.checkpoint()
+    for _ in range(50):  # warm-up
+        sim.step(command)
+    elapsed, done = 0.0, 0
+    while done < steps:
+        sim.restore(start)
+        count = min(segment, steps - done)
+        begin = time.perf_counter()
+        for _ in range(count):
+            sim.step(command)
+        elapsed += time.perf_counter() - begin
+        done += count
+    return 1e6 * elapsed / steps
+
+
+def rollout_steps_per_s(config: Path, duration: float = 10.0) -> float:
+    """Closed-loop steps/s of ``config``'s scenario (the controller's law and the simulator) for
+    ``duration`` seconds of sim time from its start, in the engine's rollout
+    (``Simulator.rollout``, as the in-process runs of ``bracing_core.rollout`` step it, with the
+    simulator node's divergence checks). Building the scenario is not timed."""
+    from bracing_core.rollout import build_scenario
+
+    scenario = build_scenario(config)
+    sim, controller, sim_config = scenario.sim, scenario.controller, scenario.sim_config
+    assert controller is not None and sim_config is not None
+    steps = round(duration / sim.step_size)
+    start = time.perf_counter()
+    sim.rollout(controller.engine, steps, sim_config.divergence_speed, sim_config.divergence_residual)
+    return steps / (time.perf_counter() - start)
 
 
 def controller_latency_us(updates: int = 3000) -> dict[str, float]:
@@ -85,8 +142,7 @@ def chain_scenario(n: int, p: int) -> Any:
     from bracing_core.config import SimulatorConfig, build_simulator
 
     links = [max(1, (n * (j + 1)) // (2 * p)) for j in range(p)] if p else []
-    tmp = Path(tempfile.mkdtemp(prefix="bench_chain_"))
-    urdf = tmp / f"chain{n}.urdf"
+    urdf = scratch("bench_chain_") / f"chain{n}.urdf"
     urdf.write_text(
         chain_urdf(
             f"chain{n}", [1.0] * n, [0.5] * n, [0.03] * n, [2.0] * n, {f"c{j}": link for j, link in enumerate(links)}
@@ -133,13 +189,13 @@ def chain_scenario(n: int, p: int) -> Any:
     return build
 
 
-def scaling(repeats: int = 3) -> dict[str, Any]:
+def scaling(repeats: int = 3, steps: int = 1000) -> dict[str, Any]:
     results: dict[str, Any] = {}
     sizes = (4, 8, 16, 32)
     samples: dict[tuple[int, int], list[float]] = {(p, n): [] for p in (1, 2) for n in sizes}
     for _ in range(repeats):  # every size once per round: a drift of the machine's speed hits all alike
         for p, n in samples:
-            samples[p, n] += engine_steps_per_s(steps=1000, repeats=1, scenario=chain_scenario(n, p))[1]
+            samples[p, n] += engine_steps_per_s(steps=steps, repeats=1, scenario=chain_scenario(n, p))[1]
     for p in (1, 2):
         rates = {n: statistics.median(samples[p, n]) for n in sizes}
         ns = np.array(list(rates))
@@ -154,7 +210,7 @@ def pair_run(duration: float, *extra: str) -> dict[str, Any]:
     startup, stepping, shutdown, report, whole run), the wall time of the command from start to
     exit, and the stepping real-time factor (sim time over the wall time from the first step to
     the last)."""
-    out = Path(tempfile.mkdtemp(prefix="bench_pair_")) / "run"
+    out = scratch("bench_pair_") / "run"
     argv = [sys.executable, "-m", "bracing_bringup.pair", "--config", str(PAPER), "--duration", str(duration)]
     argv += ["--output", str(out), "--quiet", *extra]  # the pair holds a free domain id of its own
     start = time.monotonic()
@@ -180,7 +236,7 @@ def pair_without_recorder(duration: float = 10.0) -> float:
     from bracing_bringup.domains import hold_domain
     from bracing_bringup.timeline import node_events
 
-    out = Path(tempfile.mkdtemp(prefix="bench_nodes_"))
+    out = scratch("bench_nodes_")
     overrides = out / "overrides.yaml"
     urdf = str(PAPER.parent / "paper_4link.urdf")
     sim = {"duration": duration, "min_subscribers": 1, "wait_for_recorder": False, "robot.urdf": urdf}
@@ -218,24 +274,23 @@ def pair_without_recorder(duration: float = 10.0) -> float:
     return duration / (events["simulator finished"] - events["simulator stepping"])
 
 
-def make_run() -> dict[str, float]:
-    """``make run``'s command (both paper runs, the table, the comparison) against the two runs'
-    stepping time."""
-    out = Path(tempfile.mkdtemp(prefix="bench_make_run_"))
+def make_run(duration: float | None = None) -> dict[str, Any]:
+    """``make run``'s command (bracing_bringup.paper_run: its runs, the table, the comparison) from
+    command to exit, against the sum of its runs' stepping time (each run's timeline.json).
+    ``duration``: the runs' sim time (``--duration``; None: the scenario's, as ``make run``)."""
+    from bracing_bringup.paper_run import RUNS
+
+    out = scratch("bench_make_run_")
+    argv = [sys.executable, "-m", "bracing_bringup.paper_run", "--output", str(out)]
+    argv += [] if duration is None else ["--duration", str(duration)]
     start = time.monotonic()
-    done = subprocess.run(
-        [sys.executable, "-m", "bracing_bringup.paper_run", "--output", str(out)],
-        capture_output=True,
-        text=True,
-        timeout=1800,
-        cwd=ROOT,
-    )
+    done = subprocess.run(argv, capture_output=True, text=True, timeout=1800, cwd=ROOT)
     total = time.monotonic() - start
     if done.returncode != 0:
         raise RuntimeError(f"make run failed: {done.stderr[-2000:]}")
-    timelines = [json.loads((out / name / "timeline.json").read_text()) for name in ("braced", "unbraced")]
+    timelines = [json.loads((out / run.name / "timeline.json").read_text()) for run in RUNS]
     stepping = sum(timeline["stepping_s"] for timeline in timelines)
-    return {"whole_s": total, "stepping_s": stepping, "ratio": total / stepping}
+    return {"whole_s": total, "stepping_s": stepping, "ratio": total / stepping, "runs": [run.name for run in RUNS]}
 
 
 def machine() -> dict[str, Any]:
@@ -258,46 +313,95 @@ def machine() -> dict[str, Any]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
     parser.add_argument("--output", type=Path, default=HERE / "latest.json")
-    parser.add_argument("--quick", action="store_true", help="fewer repeats (for a smoke test)")
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="every figure for about a second or less: checks that every key is produced, not the speed",
+    )
     args = parser.parse_args(argv)
-    repeats = 2 if args.quick else 5
+    try:
+        from mujoco_paper import mujoco_steps_per_s
+    except ImportError as exc:  # a benchmark-only dependency (requirements-bench.lock)
+        if not args.quick:
+            print(f"error: {exc}: pip install -r requirements-bench.lock (make bench does)", file=sys.stderr)
+            return 2
+        mujoco_steps_per_s = None
+        mujoco_missing: str | None = f"mujoco not installed ({exc}): the MuJoCo keys are null"
+        print(f"note: {mujoco_missing}", flush=True)
+    else:
+        mujoco_missing = None
+    global _scratch_root
+    with tempfile.TemporaryDirectory(prefix="bench_") as work:
+        _scratch_root = Path(work)
+        try:
+            result, rows = _measure(args.quick, mujoco_steps_per_s)
+        finally:
+            _scratch_root = None
+    result["mujoco_missing"] = mujoco_missing
+    result["machine"] = machine()
+    args.output.write_text(json.dumps(result, indent=2) + "\n")
+    width = max(len(r[0]) for r in rows)
+    for label, value in rows:
+        print(f"{label:<{width}}  {value}")
+    if args.quick:
+        print("quick mode: every key produced; the numbers are not measurements")
+    print(f"written to {args.output}")
+    return 0
 
+
+def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list[tuple[str, str]]]:
+    """Every figure, side by side; the keys of bench/latest.json and the rows of the table."""
     from dds_bound import dds_round_trips_per_s
-    from mujoco_paper import mujoco_steps_per_s
     from sweep_bench import sweep_throughput
 
-    print("engine and mujoco, alternately ...", flush=True)
-    engine_samples, mujoco_samples = [], []
-    for _ in range(repeats):  # alternating: a drift of the machine's speed hits both alike
-        engine_samples += engine_steps_per_s(repeats=1)[1]
-        mujoco_samples += mujoco_steps_per_s(n_steps=10000, repeats=1)["samples"]
+    started = time.monotonic()
+    repeats = 1 if quick else 5
+    engine_steps, mujoco_steps, rollout_s = (300, 1000, 1.0) if quick else (3000, 10000, 10.0)
+    print("in process, alternately: engine, MuJoCo, closed-loop rollouts, hyper_7link's step ...", flush=True)
+    engine_samples: list[float] = []
+    mujoco_samples: list[float] = []
+    rollout_samples: list[float] = []
+    rollout_hyper_samples: list[float] = []
+    hyper_step_samples: list[float] = []
+    for _ in range(repeats):  # alternating: a drift of the machine's speed hits all alike
+        engine_samples += engine_steps_per_s(steps=engine_steps, repeats=1)[1]
+        if mujoco_steps_per_s is not None:
+            mujoco_samples += mujoco_steps_per_s(n_steps=mujoco_steps, repeats=1)["samples"]
+        rollout_samples.append(rollout_steps_per_s(PAPER, rollout_s))
+        rollout_hyper_samples.append(rollout_steps_per_s(HYPER, rollout_s))
+        hyper_step_samples.append(engine_step_us(HYPER, engine_steps))
     engine = statistics.median(engine_samples)
-    mj = {"steps_per_s": statistics.median(mujoco_samples), "samples": mujoco_samples}
+    mujoco = statistics.median(mujoco_samples) if mujoco_samples else None
+    rollout = statistics.median(rollout_samples)
+    rollout_hyper = statistics.median(rollout_hyper_samples)
+    hyper_step = statistics.median(hyper_step_samples)
     print("controller ...", flush=True)
-    latency = controller_latency_us()
+    latency = controller_latency_us(300 if quick else 3000)
     # The bound is measured right before and right after the pair and averaged: this machine's
     # speed drifts over minutes, and the ratio must compare like with like.
     step = 0.001
     bound_runs: list[dict[str, Any]] = []
     objects_runs: list[dict[str, Any]] = []
+    dds = {"n": 200, "repeats": 1, "warmup": 50} if quick else {"n": 2000, "repeats": 3}
 
     def measure_bounds(label: str) -> None:
         print(label, flush=True)
-        bound_runs.append(dds_round_trips_per_s(n=2000, repeats=3, wire="cdr"))
-        objects_runs.append(dds_round_trips_per_s(n=2000, repeats=3, wire="objects"))
+        bound_runs.append(dds_round_trips_per_s(**dds, wire="cdr"))
+        objects_runs.append(dds_round_trips_per_s(**dds, wire="objects"))
 
     measure_bounds("dds bound ...")
-    duration = 2.0 if args.quick else 10.0
+    duration = TINY_RUN_S if quick else 10.0
     print(f"pair ({duration:g} s of sim time), with and without the recorder, alternately ...", flush=True)
     pair_runs: list[dict[str, Any]] = []
     bare_rtf: list[float] = []
-    for _ in range(1 if args.quick else 2):
+    for _ in range(1 if quick else 2):
         pair_runs.append(pair_run(duration))
         bare_rtf.append(pair_without_recorder(duration))
     measure_bounds("dds bound again ...")
-    print("turnaround: bracing-pair --duration 0.01, and make run ...", flush=True)
-    tiny = [pair_run(0.01) for _ in range(1 if args.quick else 2)]
-    paper = make_run()
+    print(f"turnaround: bracing-pair --duration {TINY_RUN_S:g}, and make run ...", flush=True)
+    # Quick: the pair runs above are already `bracing-pair --duration 0.01` runs.
+    tiny = pair_runs if quick else [pair_run(TINY_RUN_S) for _ in range(2)]
+    paper = make_run(TINY_RUN_S if quick else None)
     pair = {key: statistics.median(run[key] for run in pair_runs) for key in pair_runs[0] if key != "events"}
     pair["stepping"] = pair["stepping_real_time_factor"]
     pair["whole_run"] = duration / pair["whole_run_s"]
@@ -306,21 +410,30 @@ def main(argv: list[str] | None = None) -> int:
     recorder_share = 1.0 - pair["stepping"] / without_recorder
     tiny_command = statistics.median(run["command_s"] for run in tiny)
     print("scaling ...", flush=True)
-    scale = scaling(repeats=2 if args.quick else 3)
+    scale = scaling(repeats=1, steps=200) if quick else scaling(repeats=3)
     print("sweep throughput (1 and 2 local workers, Dask LocalCluster) ...", flush=True)
-    sweep = sweep_throughput(4, 2.0, 1) if args.quick else sweep_throughput()
+    sweep = sweep_throughput(2, 0.1, 1) if quick else sweep_throughput()
     bound = statistics.mean(run["round_trips_per_s"] for run in bound_runs) * step
     bound_objects = statistics.mean(run["round_trips_per_s"] for run in objects_runs) * step
     result = {
+        "quick": quick,
         "engine_steps_per_s": engine,
         "engine_samples": engine_samples,
-        "mujoco_steps_per_s": mj["steps_per_s"],
-        "mujoco_samples": mj["samples"],
-        "engine_vs_mujoco": engine / mj["steps_per_s"],
+        "mujoco_steps_per_s": mujoco,
+        "mujoco_samples": mujoco_samples if mujoco_samples else None,
+        "engine_vs_mujoco": engine / mujoco if mujoco else None,
+        "rollout_steps_per_s": rollout,
+        "rollout_samples": rollout_samples,
+        "rollout_hyper_7link_steps_per_s": rollout_hyper,
+        "rollout_hyper_7link_samples": rollout_hyper_samples,
+        "rollout_sim_time_s": rollout_s,
+        "engine_hyper_7link_step_us": hyper_step,
+        "engine_hyper_7link_step_us_samples": hyper_step_samples,
         "pair_real_time_factor": pair["stepping"],
         "pair_real_time_factor_whole_run": pair["whole_run"],
-        "pair_without_recorder_real_time_factor": without_recorder,
+        "pair_real_time_factor_no_recorder": without_recorder,
         "recorder_share_of_step": recorder_share,
+        "pair_sim_time_s": duration,
         "startup_s": pair["startup_s"],
         "stepping_s": pair["stepping_s"],
         "shutdown_s": pair["shutdown_s"],
@@ -333,6 +446,7 @@ def main(argv: list[str] | None = None) -> int:
         "make_run_s": paper["whole_s"],
         "make_run_stepping_s": paper["stepping_s"],
         "make_run_vs_stepping": paper["ratio"],
+        "make_run_runs": paper["runs"],
         "dds_bound_real_time_factor": bound,
         "dds_round_trip_us": 1e3 / bound,
         "dds_bound_before_after": [run["round_trips_per_s"] * step for run in bound_runs],
@@ -346,13 +460,15 @@ def main(argv: list[str] | None = None) -> int:
         "sweep_runs_per_min": sweep["runs_per_min"],
         "sweep_parallel_efficiency": sweep["parallel_efficiency"],
         "sweep": sweep,
-        "machine": machine(),
+        "bench_wall_time_s": time.monotonic() - started,
     }
-    args.output.write_text(json.dumps(result, indent=2) + "\n")
     rows = [
         ("engine steps/s (paper model, voltage, RK4, 1 ms)", f"{engine:,.0f}"),
-        ("MuJoCo steps/s (equivalent MJCF, RK4, 1 ms)", f"{mj['steps_per_s']:,.0f}"),
-        ("engine / MuJoCo", f"{result['engine_vs_mujoco']:.3f}"),
+        ("MuJoCo steps/s (equivalent MJCF, RK4, 1 ms)", f"{mujoco:,.0f}" if mujoco else "n/a (mujoco not installed)"),
+        ("engine / MuJoCo", f"{engine / mujoco:.3f}" if mujoco else "n/a"),
+        (f"closed-loop rollout steps/s, paper model ({rollout_s:g} s runs)", f"{rollout:,.0f}"),
+        (f"closed-loop rollout steps/s, hyper_7link ({rollout_s:g} s runs)", f"{rollout_hyper:,.0f}"),
+        ("engine step alone, hyper_7link (1 V held) [us]", f"{hyper_step:.1f}"),
         ("pair real-time factor (lockstep stepping)", f"{pair['stepping']:.2f}"),
         ("pair real-time factor (whole run, with start-up)", f"{pair['whole_run']:.2f}"),
         ("the two nodes without the recorder: real-time factor", f"{without_recorder:.2f}"),
@@ -363,9 +479,9 @@ def main(argv: list[str] | None = None) -> int:
         ),
         ("  command to first step (target < 1.5 s)", f"{pair['startup_s']:.2f} s"),
         ("  last step to last file written (target < 1.0 s)", f"{pair['last_step_to_last_file_s']:.2f} s"),
-        ("bracing-pair --duration 0.01, command to exit (target < 2.5 s)", f"{tiny_command:.2f} s"),
+        (f"bracing-pair --duration {TINY_RUN_S:g}, command to exit (target < 2.5 s)", f"{tiny_command:.2f} s"),
         (
-            "make run / the two runs' stepping (target < 1.6)",
+            f"make run / its {len(paper['runs'])} runs' stepping (target < 1.6)",
             f"{paper['ratio']:.2f} ({paper['whole_s']:.1f} s / {paper['stepping_s']:.1f} s)",
         ),
         ("DDS bound real-time factor (round trips/s x 1 ms, CDR bytes)", f"{bound:.2f}"),
@@ -380,11 +496,8 @@ def main(argv: list[str] | None = None) -> int:
     sweep_rates = ", ".join(f"{name}: {rate:.0f}" for name, rate in sweep["runs_per_min"].items())
     rows.append((f"sweep runs/min ({sweep['run_sim_time_s']:g} s runs)", sweep_rates))
     rows.append(("sweep parallel efficiency, 2 workers (target >= 0.9)", f"{sweep['parallel_efficiency']:.3f}"))
-    width = max(len(r[0]) for r in rows)
-    for label, value in rows:
-        print(f"{label:<{width}}  {value}")
-    print(f"written to {args.output}")
-    return 0
+    rows.append(("bench wall time", f"{result['bench_wall_time_s']:.0f} s"))
+    return result, rows
 
 
 if __name__ == "__main__":
