@@ -2,9 +2,11 @@
 in one run on this machine, with medians of repeats. Prints a table, writes bench/latest.json.
 
 - in process, alternately: the engine stepping the paper model (voltage input, RK4, 1 ms, elbow
-  braced) against MuJoCo stepping an equivalent MJCF (bench/mujoco_paper.py); the closed loop
-  (law + engine, ``Simulator.rollout``: no return to Python between steps) on the paper model and
-  on hyper_7link; the engine step alone on hyper_7link (``Simulator.step``, a fixed command);
+  braced; the compiled step through its binding, its report as one array, as mj_step is timed in
+  a Python loop) against MuJoCo stepping an equivalent MJCF (bench/mujoco_paper.py); the closed
+  loop (law + engine, ``Simulator.rollout``: no return to Python between steps) on the paper model
+  and on hyper_7link; the engine step alone on hyper_7link (a fixed command); ``Simulator.step``,
+  the Python face the simulator node calls (the report as Python objects);
 - the ROS pair vs the DDS bound: bracing-pair in lockstep for 10 s of sim time, against the
   round trips/s of two rclpy processes ping-ponging messages of the same size over the
   nodes' own transport, times the step, measured before and after the pair (bench/dds_bound.py);
@@ -69,35 +71,41 @@ def engine_steps_per_s(steps: int = 3000, repeats: int = 5, scenario: Any = None
     def once() -> float:
         sim = (scenario() if scenario else build_scenario(PAPER, with_controller=False)).sim
         command = np.full(sim.n, 1.0)
+        # The compiled step through its binding, its report as one array: the analogue of mj_step
+        # in a Python loop (Simulator.step, which also builds the report's Python objects, is
+        # simulator_step_us).
+        step = sim.engine.step_packed
         for _ in range(50):  # warm-up
-            sim.step(command)
+            step(command)
         start = time.perf_counter()
         for _ in range(steps):
-            sim.step(command)
+            step(command)
         return steps / (time.perf_counter() - start)
 
     return _median_rate(once, repeats)
 
 
-def engine_step_us(config: Path, steps: int = 3000, segment: int = 500) -> float:
-    """Microseconds per ``Simulator.step`` of ``config``'s simulator (no controller), 1.0 V held on
-    every joint; from the initial state again every ``segment`` steps, outside the clock, so every
-    timed step has the scenario's contacts as they start (hyper_7link: both elbows braced, no
-    obstacle touched; 500 steps of 1 V keep it so)."""
+def engine_step_us(config: Path, steps: int = 3000, segment: int = 500, python_face: bool = False) -> float:
+    """Microseconds per step of ``config``'s simulator (no controller), 1.0 V held on every joint:
+    the compiled step through its binding (``python_face``: ``Simulator.step``, with the report's
+    Python objects); from the initial state again every ``segment`` steps, outside the clock, so
+    every timed step has the scenario's contacts as they start (hyper_7link: both elbows braced,
+    no obstacle touched; 500 steps of 1 V keep it so)."""
     from bracing_core.rollout import build_scenario
 
     sim = build_scenario(config, with_controller=False).sim
     command = np.full(sim.n, 1.0)
+    step = sim.step if python_face else sim.engine.step_packed
     start = sim.checkpoint()
     for _ in range(50):  # warm-up
-        sim.step(command)
+        step(command)
     elapsed, done = 0.0, 0
     while done < steps:
         sim.restore(start)
         count = min(segment, steps - done)
         begin = time.perf_counter()
         for _ in range(count):
-            sim.step(command)
+            step(command)
         elapsed += time.perf_counter() - begin
         done += count
     return 1e6 * elapsed / steps
@@ -363,6 +371,7 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
     rollout_samples: list[float] = []
     rollout_hyper_samples: list[float] = []
     hyper_step_samples: list[float] = []
+    python_step_samples: list[float] = []
     for _ in range(repeats):  # alternating: a drift of the machine's speed hits all alike
         engine_samples += engine_steps_per_s(steps=engine_steps, repeats=1)[1]
         if mujoco_steps_per_s is not None:
@@ -370,6 +379,7 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
         rollout_samples.append(rollout_steps_per_s(PAPER, rollout_s))
         rollout_hyper_samples.append(rollout_steps_per_s(HYPER, rollout_s))
         hyper_step_samples.append(engine_step_us(HYPER, engine_steps))
+        python_step_samples.append(engine_step_us(PAPER, engine_steps, python_face=True))
     engine = statistics.median(engine_samples)
     mujoco = statistics.median(mujoco_samples) if mujoco_samples else None
     rollout = statistics.median(rollout_samples)
@@ -429,6 +439,8 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
         "rollout_sim_time_s": rollout_s,
         "engine_hyper_7link_step_us": hyper_step,
         "engine_hyper_7link_step_us_samples": hyper_step_samples,
+        "simulator_step_us": statistics.median(python_step_samples),  # the Python face, paper model
+        "simulator_step_us_samples": python_step_samples,
         "pair_real_time_factor": pair["stepping"],
         "pair_real_time_factor_whole_run": pair["whole_run"],
         "pair_real_time_factor_no_recorder": without_recorder,
@@ -469,6 +481,7 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
         (f"closed-loop rollout steps/s, paper model ({rollout_s:g} s runs)", f"{rollout:,.0f}"),
         (f"closed-loop rollout steps/s, hyper_7link ({rollout_s:g} s runs)", f"{rollout_hyper:,.0f}"),
         ("engine step alone, hyper_7link (1 V held) [us]", f"{hyper_step:.1f}"),
+        ("Simulator.step (the Python face, its report as objects), paper [us]", f"{result['simulator_step_us']:.1f}"),
         ("pair real-time factor (lockstep stepping)", f"{pair['stepping']:.2f}"),
         ("pair real-time factor (whole run, with start-up)", f"{pair['whole_run']:.2f}"),
         ("the two nodes without the recorder: real-time factor", f"{without_recorder:.2f}"),

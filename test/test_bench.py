@@ -46,6 +46,7 @@ SPEC_KEYS = (
     "rollout_steps_per_s",
     "rollout_hyper_7link_steps_per_s",
     "engine_hyper_7link_step_us",
+    "simulator_step_us",
     "pair_real_time_factor_no_recorder",
 )
 # What the bench's table and the README's Performance section report besides.
