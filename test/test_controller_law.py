@@ -136,8 +136,11 @@ TWO_CONTACTS = {
 def test_null_space_projection_leaves_contact_accelerations_alone(
     mode: str, contacts: str, paper_params: Callable
 ) -> None:
-    """B (I - B^+ B) l = 0 and B B^+ = I, B = J_c Mc^-1 from pinocchio; and eq. 38 gives B tau = a - A f_nd."""
+    """B (I - B^+ B) l = 0 and B B^+ = I, B = J_c Mc^-1 from pinocchio; and eq. 38 gives B tau = a - A f_nd
+    (the paper's regularised friction: A's slip direction s / sqrt(|s|^2 + eps^2))."""
     shared = {"input_mode": mode, **(TWO_CONTACTS if contacts == "two_contacts" else {})}
+    for name in shared.get("contacts.names", ["elbow"]):
+        shared[f"contacts.{name}.friction_model"] = "regularized"
     params = paper_params("bracing_controller", shared)
     controller = controller_for(paper_params, shared)
     voltage = mode == "voltage"
@@ -301,8 +304,11 @@ def test_bad_parameters_are_named(name: str, value: object, expected: str, ctl_p
 
 # -- 7. near-singular B ----------------------------------------------------------------------
 def test_zero_contact_jacobian_is_damped_and_bounded(paper_params: Callable) -> None:
-    """A plane x = 0 (normal perpendicular to the motion plane): J_c = 0, so B = 0 and tau = l."""
-    controller = controller_for(paper_params, {"contacts.elbow.normal": [1.0, 0.0, 0.0]})
+    """A plane x = 0 (normal perpendicular to the motion plane): J_c = 0, so B = 0 and tau = l (the
+    regularised law's path: a Coulomb contact at rest would be a point constraint, and J_c = 0 is one a
+    run refuses at the start)."""
+    shared = {"contacts.elbow.normal": [1.0, 0.0, 0.0], "contacts.elbow.friction_model": "regularized"}
+    controller = controller_for(paper_params, shared)
     ref = Reference(rotor_inertia_of(paper_params("bracing_controller")))
     brace_target = ref.at(PAPER_Q0, np.zeros(N)).position("elbow")
     rng = np.random.default_rng(11)

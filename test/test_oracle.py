@@ -49,6 +49,7 @@ from reference_model import (
 from bracing_core.config import SharedConfig
 from bracing_core.contacts import Contact
 from bracing_core.dynamics import ConstrainedDynamics, Derivative
+from bracing_core.params import load_params_file
 from bracing_core.rollout import Scenario, build_scenario
 
 CONFIG = Path(__file__).resolve().parents[1] / "config"
@@ -341,7 +342,10 @@ def compare_state(sc: Scenario, oracle: Oracle, t: float, first_q: np.ndarray, m
 
 def build(name: str, mode: str) -> Scenario:
     file, shared, sim = SCENARIOS[name]
-    return build_scenario(CONFIG / file, shared={**shared, "input_mode": mode}, sim=sim)
+    # The reference has the paper's regularised friction (Coulomb stick and slip: test_friction.py).
+    names = load_params_file(CONFIG / file, "bracing_simulator")["contacts.names"]
+    regularized = {f"contacts.{name}.friction_model": "regularized" for name in names}
+    return build_scenario(CONFIG / file, shared={**regularized, **shared, "input_mode": mode}, sim=sim)
 
 
 # -- the tests -----------------------------------------------------------------------------------

@@ -97,6 +97,7 @@ class ContactConfig:
     frame: str
     surface: Surface
     friction: float  # mu
+    friction_model: str  # coulomb | regularized
     desired_normal_force: float | None  # f_nd [N]; None: an obstacle
     brace_axes: tuple[int, ...]  # world axis indices of the brace task
     kp: tuple[float, ...]  # one per brace axis
@@ -132,6 +133,7 @@ class ContactConfig:
             frame=values["frame"],
             surface=surface_from_values(key, values),
             friction=values["friction"],
+            friction_model=values["friction_model"],
             desired_normal_force=desired,
             brace_axes=brace_axes,
             kp=tuple(values["kp"]) if desired is not None else (),
@@ -143,7 +145,8 @@ class ContactConfig:
 
     def contact(self, enforced: bool = True) -> Contact:
         """The core's contact; not ``enforced``: only watched (free space)."""
-        return Contact(self.name, self.frame, self.surface, self.friction, self.unilateral or not enforced, enforced)
+        unilateral = self.unilateral or not enforced
+        return Contact(self.name, self.frame, self.surface, self.friction, unilateral, enforced, self.friction_model)
 
 
 @dataclass(frozen=True)
@@ -264,7 +267,10 @@ class Plant:
         for frame in self.config.collision_frames:
             for key, owner in surfaces.items():
                 if (frame, key) not in taken:
-                    out.append(Contact(f"{frame}@{owner.name}", frame, owner.surface, owner.friction, True, enforced))
+                    name = f"{frame}@{owner.name}"
+                    out.append(
+                        Contact(name, frame, owner.surface, owner.friction, True, enforced, owner.friction_model)
+                    )
         return out
 
     def frame_id(self, name: str, parameter: str) -> int:

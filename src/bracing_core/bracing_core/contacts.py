@@ -84,6 +84,7 @@ class Cylinder:
 
 
 Surface = Plane | Sphere | Cylinder
+FRICTION_MODELS = ("coulomb", "regularized")
 
 
 @dataclass(frozen=True)
@@ -102,8 +103,16 @@ class Contact:
     friction: float = 0.0
     unilateral: bool = False
     enforced: bool = True
+    # coulomb: stick held as a constraint inside the cone |f_t| <= mu |f_n|, slide with |f_t| = mu |f_n|
+    # against the slip; regularized: the paper's f_t = mu f_n s / sqrt(|s|^2 + eps^2)
+    friction_model: str = "coulomb"
 
     def __post_init__(self) -> None:
+        if self.friction_model not in FRICTION_MODELS:
+            raise ValueError(
+                f"contacts.{self.name}.friction_model: expected one of {', '.join(FRICTION_MODELS)}, "
+                f"got {self.friction_model!r}"
+            )
         if not (np.isfinite(self.friction) and self.friction >= 0.0):
             raise ValueError(f"contacts.{self.name}.friction: must be >= 0, got {self.friction}")
         if not self.enforced and not self.unilateral:

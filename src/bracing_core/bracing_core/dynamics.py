@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import Enum
 
 import numpy as np
@@ -64,11 +64,11 @@ class Derivative:
     effort: Vector  # link-side motor torque tau [N m]
     contacts: ContactTerms
     active: Vector | None = None  # (p,) bool: contacts holding a force; None = all
-
-    @property
-    def friction_force(self) -> Vector:
-        """f_t = mu f_n (p,) [N], opposing the slip."""
-        return self.contacts.friction * self.normal_force
+    # f_t (p,) [N]: a Coulomb contact's |f_t| (sticking: what holds it, <= mu |f_n|; sliding: mu |f_n|),
+    # a regularised contact's mu f_n (the paper's law: the sign of f_n)
+    friction_force: Vector = field(default_factory=lambda: np.zeros(0))
+    tangential_force: Vector = field(default_factory=lambda: np.zeros((0, 3)))  # (p, 3) friction on the robot [N]
+    sticking: Vector = field(default_factory=lambda: np.zeros(0, dtype=bool))  # (p,) Coulomb contacts that stick
 
 
 def engine_robot(robot: RobotModel) -> engine.Robot:
@@ -102,7 +102,15 @@ def engine_contact(contact: Contact) -> engine.Contact:
         shape = engine.Surface.cylinder(surface.point, surface.axis, surface.radius, surface.inside)
     else:  # pragma: no cover - Surface is a closed union
         raise TypeError(f"unknown surface {surface!r}")
-    return engine.Contact(contact.name, contact.frame, shape, contact.friction, contact.unilateral, contact.enforced)
+    return engine.Contact(
+        contact.name,
+        contact.frame,
+        shape,
+        contact.friction,
+        contact.unilateral,
+        contact.enforced,
+        contact.friction_model == "coulomb",
+    )
 
 
 def contact_terms(values: tuple[Vector, ...], contacts: ContactSet) -> ContactTerms:
@@ -126,7 +134,7 @@ def contact_terms(values: tuple[Vector, ...], contacts: ContactSet) -> ContactTe
 @functools.cache
 def _packed_layout(n: int, p: int) -> tuple[slice, ...]:
     """The parts of a packed answer (bindings.cpp ``packed``) for n joints and p contacts."""
-    sizes = (n, n, p, n, 2, 3 * p, 3 * p * n, p * n, p * n, p, p, 3 * p, 3 * p, 3 * p, p)
+    sizes = (n, n, p, n, 2, 3 * p, 3 * p * n, p * n, p * n, p, p, 3 * p, 3 * p, 3 * p, 3 * p, p, p, p)
     ends = np.cumsum(sizes).tolist()
     return tuple(slice(end - size, end) for size, end in zip(sizes, ends, strict=True))
 
@@ -150,7 +158,10 @@ def unpack(values: Vector, n: int, contacts: ContactSet) -> tuple[Derivative, fl
         slip,
         direction,
         normals,
+        tangential,
+        friction,
         held,
+        sticking,
     ) = (values[part] for part in _packed_layout(n, p))
     terms = ContactTerms(
         positions.reshape(p, 3),
@@ -165,7 +176,10 @@ def unpack(values: Vector, n: int, contacts: ContactSet) -> tuple[Derivative, fl
         normals.reshape(p, 3),
     )
     active = None if held.all() else held.astype(bool)
-    return Derivative(ddq, di, force, effort, terms, active), float(powers[0]), float(powers[1])
+    derivative = Derivative(
+        ddq, di, force, effort, terms, active, friction, tangential.reshape(p, 3), sticking.astype(bool)
+    )
+    return derivative, float(powers[0]), float(powers[1])
 
 
 class ConstrainedDynamics:

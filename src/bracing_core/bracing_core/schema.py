@@ -93,7 +93,8 @@ class Param:
         if isinstance(self.default, bool):
             return str(self.default).lower()
         if isinstance(self.default, (list, tuple)):
-            return "[" + ", ".join(str(v) for v in self.default) + "]"
+            # As it is written in a scenario file: a bare y would be read as true (YAML 1.1, rcl).
+            return "[" + ", ".join(f'"{v}"' if isinstance(v, str) else str(v) for v in self.default) + "]"
         return repr(self.default) if isinstance(self.default, str) else f"{self.default:g}"
 
     def bounds_text(self) -> str:
@@ -349,6 +350,15 @@ CONTACT: tuple[Param, ...] = (
     Param("radius", Kind.DOUBLE, 0.0, "sphere or cylinder: radius (> 0 for those surfaces)", "m", minimum=0.0),
     Param("inside", Kind.BOOL, False, "sphere or cylinder: the frame stays inside (C changes sign)"),
     Param("friction", Kind.DOUBLE, 0.0, "Coulomb friction coefficient mu", "", minimum=0.0),
+    Param(
+        "friction_model",
+        Kind.STRING,
+        "coulomb",
+        "coulomb: a sticking contact is held by constraint rows while |f_t| <= mu |f_n|, a sliding one has "
+        "|f_t| = mu |f_n| against the slip (stick and slip are events located inside a step); regularized: the "
+        "paper's f_t = mu f_n s / sqrt(|s|^2 + slip_epsilon^2)",
+        choices=("coulomb", "regularized"),
+    ),
     Param(
         "unilateral",
         Kind.BOOL,

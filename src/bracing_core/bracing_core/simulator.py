@@ -59,14 +59,18 @@ class Energy:
     impact_loss: float = 0.0
 
 
+EVENT_KINDS = ("release", "touchdown", "stick", "slip")  # bracing_engine's event kind codes, in order
+
+
 @dataclass(frozen=True)
 class ContactEvent:
-    """A unilateral contact letting go (``release``) or landing (``touchdown``)."""
+    """A unilateral contact letting go (``release``) or landing (``touchdown``); a Coulomb contact
+    starting to stick (``stick``) or to slide (``slip``), located inside a step."""
 
     time: float  # [s]
     contact: str
-    kind: str  # release | touchdown
-    impact_loss: float = 0.0  # [J], touchdown only
+    kind: str  # release | touchdown | stick | slip
+    impact_loss: float = 0.0  # [J] lost: a touchdown's impact, the tangential impulse that makes a contact stick
 
 
 @dataclass(frozen=True)
@@ -77,6 +81,7 @@ class Checkpoint:
     steps_taken: int
     active: np.ndarray  # which contacts hold a force
     events: int  # length of the event log
+    modes: tuple[list[bool], list[bool], np.ndarray, np.ndarray]  # the engine's contact modes (held, sticking, ...)
 
 
 class Simulator:
@@ -157,6 +162,11 @@ class Simulator:
         """(p,) bool: the contacts holding a force now."""
         return np.array(self.engine.active, dtype=bool)
 
+    @property
+    def sticking(self) -> np.ndarray:
+        """(p,) bool: the Coulomb contacts that stick now (their tangential motion held)."""
+        return np.array(self.engine.modes[1], dtype=bool)
+
     # -- model answers ----------------------------------------------------------------
     def evaluate(self, command: Vector) -> Derivative:
         """The model at the current state under ``command`` (no time passes)."""
@@ -170,7 +180,7 @@ class Simulator:
     def checkpoint(self) -> Checkpoint:
         """The state as it is now, for :meth:`restore` (e.g. to take back a step whose result
         the caller refuses)."""
-        return Checkpoint(self.engine.state, self.steps_taken, self.active, len(self.events))
+        return Checkpoint(self.engine.state, self.steps_taken, self.active, len(self.events), self.engine.modes)
 
     def restore(self, checkpoint: Checkpoint) -> None:
         """Back to ``checkpoint``: state, step count, released contacts and event log."""
@@ -178,7 +188,7 @@ class Simulator:
         self.steps_taken = checkpoint.steps_taken
         del self.events[checkpoint.events :]
         self.engine.truncate_events(checkpoint.events)
-        self.engine.set_active(checkpoint.active.tolist())
+        self.engine.set_modes(*checkpoint.modes)
 
     # -- integration ------------------------------------------------------------------
     def step(self, command: Vector) -> Derivative:
@@ -248,9 +258,9 @@ class Simulator:
 
     def _take_events(self) -> None:
         """The engine's new release and touchdown events into ``events``."""
-        for steps, j, touchdown, loss in self.engine.events_since(len(self.events)):
-            kind = "touchdown" if touchdown else "release"
-            self.events.append(ContactEvent(self.t0 + steps * self.step_size, self._names[j], kind, loss))
+        for steps, offset, j, kind, loss in self.engine.events_since(len(self.events)):
+            time = self.t0 + steps * self.step_size + offset
+            self.events.append(ContactEvent(time, self._names[j], EVENT_KINDS[kind], loss))
 
     # -- unilateral contacts ----------------------------------------------------------
     def set_active(self, active: np.ndarray) -> None:

@@ -26,12 +26,13 @@ nb::tuple contact_terms(const Answer& a) {
 }
 
 // The whole answer in one array (one allocation crossing to Python, sliced there: see
-// bracing_core.dynamics.REPORT_LAYOUT): ddq, di, f_n, effort (n, n, p, n), friction and constraint
+// bracing_core.dynamics._packed_layout): ddq, di, f_n, effort (n, n, p, n), friction and constraint
 // power, then the contact terms (positions 3p, jacobians 3pn, J_c pn, J_t pn, drift p, residual p,
-// slip 3p, direction 3p, normals 3p) and which contacts were held (p, 1/0).
-Vector packed(const Answer& a, const Mask& held) {
+// slip 3p, direction 3p, normals 3p), the friction force on the robot (3p), its size (p), which
+// contacts were held (p, 1/0) and which of those stuck (p, 1/0).
+Vector packed(const Answer& a, const ContactModes& modes) {
   const Eigen::Index n = a.ddq.size(), p = a.force.size();
-  Vector out(4 * n + p + 2 + 3 * p + 3 * p * n + 2 * p * n + 2 * p + 9 * p + p);
+  Vector out(4 * n + p + 2 + 3 * p + 3 * p * n + 2 * p * n + 2 * p + 9 * p + 3 * p + p + p + p);
   Eigen::Index at = 0;
   auto put = [&](const auto& block) {
     const Eigen::Index size = block.size();
@@ -47,8 +48,10 @@ Vector packed(const Answer& a, const Mask& held) {
   for (const RowMatrix* m : {&a.positions, &a.jacobians, &a.normal_jacobian, &a.tangent_jacobian}) put(*m);
   put(a.drift);
   put(a.residual);
-  for (const RowMatrix* m : {&a.slip, &a.direction, &a.normals}) put(*m);
-  for (Eigen::Index j = 0; j < p; ++j) out[at++] = held[j] ? 1.0 : 0.0;
+  for (const RowMatrix* m : {&a.slip, &a.direction, &a.normals, &a.tangential_force}) put(*m);
+  put(a.friction);
+  for (Eigen::Index j = 0; j < p; ++j) out[at++] = modes.held[j] ? 1.0 : 0.0;
+  for (Eigen::Index j = 0; j < p; ++j) out[at++] = modes.sticking[j] ? 1.0 : 0.0;
   return out;
 }
 
@@ -98,10 +101,10 @@ NB_MODULE(_engine, m) {
       .def(
           "__init__",
           [](Contact* c, std::string name, std::string frame, const Surface& surface, double friction,
-             bool unilateral, bool enforced) {
-            new (c) Contact{std::move(name), std::move(frame), surface, friction, unilateral, enforced};
+             bool unilateral, bool enforced, bool coulomb) {
+            new (c) Contact{std::move(name), std::move(frame), surface, friction, unilateral, enforced, coulomb};
           },
-          "name"_a, "frame"_a, "surface"_a, "friction"_a, "unilateral"_a, "enforced"_a);
+          "name"_a, "frame"_a, "surface"_a, "friction"_a, "unilateral"_a, "enforced"_a, "coulomb"_a);
 
   nb::class_<Robot>(m, "Robot")
       .def(
@@ -133,8 +136,10 @@ NB_MODULE(_engine, m) {
           [](const Dynamics& d, const Vector& q, const Vector& dq, const Vector& current, const Vector& u,
              const Mask& held) {
             Answer a;
-            d.evaluate(q, dq, current, u, held, true, a);
-            return packed(a, held);
+            ContactModes modes{held, Mask(held.size(), false), RowMatrix::Zero(held.size(), 3),
+                               Vector::Ones(held.size())};
+            d.evaluate(q, dq, current, u, modes, true, a);
+            return packed(a, modes);
           },
           "q"_a, "dq"_a, "current"_a, "u"_a, "held"_a)
       .def(
@@ -162,7 +167,7 @@ NB_MODULE(_engine, m) {
           "step_packed",
           [](Simulator& s, const Vector& u) {
             const int status = static_cast<int>(s.step(u));
-            return std::make_pair(status, status ? Vector() : packed(s.report, s.report_active()));
+            return std::make_pair(status, status ? Vector() : packed(s.report, s.report_modes()));
           },
           "u"_a, "(0 ok, 1 diverged, 2 joint limit (failed_joint; the state is unchanged unless 0), the packed report at "
           "the step's start)")
@@ -170,14 +175,26 @@ NB_MODULE(_engine, m) {
           "evaluate_packed",
           [](Simulator& s, const Vector& u) {
             s.evaluate(u);
-            return packed(s.report, s.report_active());
+            return packed(s.report, s.report_modes());
           },
           "u"_a)
-      .def_prop_ro("report_active", &Simulator::report_active)
       .def_prop_ro("state", [](const Simulator& s) { return Vector(s.state()); })
       .def("set_state", &Simulator::set_state, "y"_a)
       .def_prop_ro("active", &Simulator::active)
       .def("set_active", &Simulator::set_active, "active"_a)
+      .def_prop_ro(
+          "modes",
+          [](const Simulator& s) {
+            const ContactModes& m = s.modes();
+            return nb::make_tuple(m.held, m.sticking, RowMatrix(m.slide), Vector(m.pushing));
+          },
+          "(held, sticking, slide direction d (p x 3), sign of f_n (p)) per contact")
+      .def(
+          "set_modes",
+          [](Simulator& s, Mask held, Mask sticking, RowMatrix slide, Vector pushing) {
+            s.set_modes(ContactModes{std::move(held), std::move(sticking), std::move(slide), std::move(pushing)});
+          },
+          "held"_a, "sticking"_a, "slide"_a, "pushing"_a)
       .def_rw("steps_taken", &Simulator::steps_taken)
       .def_ro("failed_joint", &Simulator::failed_joint)
       .def_ro("failed_position", &Simulator::failed_position)
@@ -185,14 +202,16 @@ NB_MODULE(_engine, m) {
       .def(
           "events_since",
           [](const Simulator& s, std::size_t first) {
-            std::vector<std::tuple<long, int, bool, double>> out;
+            std::vector<std::tuple<long, double, int, int, double>> out;
             for (std::size_t k = first; k < s.events().size(); ++k) {
               const auto& e = s.events()[k];
-              out.emplace_back(e.step, e.contact, e.touchdown, e.impact_loss);
+              out.emplace_back(e.step, e.offset, e.contact, static_cast<int>(e.kind), e.energy_loss);
             }
             return out;
           },
-          "first"_a, "(step count, contact index, touchdown?, impact loss [J]) of the events from `first` on")
+          "first"_a,
+          "(step count, offset into that step [s], contact index, kind (0 release, 1 touchdown, 2 stick, 3 slip), "
+          "energy lost [J]) of the events from `first` on")
       .def("truncate_events", &Simulator::truncate_events, "count"_a);
 
   nb::class_<Path>(m, "Path")

@@ -13,6 +13,7 @@
 #include <pinocchio/parsers/urdf.hpp>
 
 #include <Eigen/Dense>
+#include <Eigen/SVD>
 
 #include <cmath>
 #include <iomanip>
@@ -64,6 +65,8 @@ struct Dynamics::Impl {
   mutable Vector bias, normal_velocity, rhs, force;
   mutable std::vector<int> index;
   mutable Eigen::PartialPivLU<Eigen::MatrixXd> lu;
+  mutable RowMatrix accelerations, tangents, slide_e;  // p x 3, p x 6 (the sticking rows' t), p x 3
+  mutable std::vector<int> tangent_count;               // per contact: its sticking rows
 
   // One contact's terms after computeAllTerms, into row j of `out`.
   void contact_terms(int j, const Eigen::Ref<const Vector>& dq, Answer& out) const {
@@ -72,6 +75,7 @@ struct Dynamics::Impl {
     pin::getFrameJacobian(model, data, frame, pin::LOCAL_WORLD_ALIGNED, frame_jacobian);
     const auto jacobian = frame_jacobian.topRows<3>();
     const Vector3 acceleration = pin::getFrameClassicalAcceleration(model, data, frame, pin::LOCAL_WORLD_ALIGNED).linear();
+    accelerations.row(j) = acceleration.transpose();
     const Vector3 position = pin::updateFramePlacement(model, data, frame).translation();
     double c;
     Vector3 normal;
@@ -109,6 +113,8 @@ struct Dynamics::Impl {
     out.normals.setZero(p, 3);
     out.drift.setZero(p);
     out.residual.setZero(p);
+    out.tangential_force.setZero(p, 3);
+    out.friction.setZero(p);
   }
 };
 
@@ -155,6 +161,10 @@ Dynamics::Dynamics(const Robot& robot, const Drive& drive, std::vector<Contact> 
   m.contacts = std::move(contacts);
   m.eps2 = slip_epsilon * slip_epsilon;
   m.frame_jacobian.setZero(6, n);
+  m.accelerations.setZero(m.contacts.size(), 3);
+  m.tangents.setZero(m.contacts.size(), 6);
+  m.slide_e.setZero(m.contacts.size(), 3);
+  m.tangent_count.assign(m.contacts.size(), 0);
   m.r.setZero(n);
   m.y_column.setZero(n);
 }
@@ -179,9 +189,34 @@ void Dynamics::terms(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const V
   for (int j = 0; j < contact_count(); ++j) m.contact_terms(j, dq, out);
 }
 
+int Dynamics::tangent_directions(const Vector3& n, const Eigen::Ref<const RowMatrix>& jacobian, Vector3 out[2]) {
+  // A basis of the tangent plane (from the world axis least aligned with n), turned to the principal
+  // directions of the frame's tangential mobility independent of its normal one (joint motions that
+  // do not also move it off the surface); the directions without such mobility are dropped: the
+  // joints cannot slide the frame along them (a planar arm's contact out of its plane; an elbow whose
+  // two links are aligned), and their rows would make the constraints dependent.
+  Eigen::Index axis;
+  n.cwiseAbs().minCoeff(&axis);
+  const Vector3 t1 = Vector3::Unit(axis).cross(n).normalized(), t2 = n.cross(t1);
+  const Eigen::RowVectorXd normal_row = n.transpose() * jacobian;
+  const double normal2 = normal_row.squaredNorm();
+  Eigen::Matrix<double, 2, Eigen::Dynamic> rows(2, jacobian.cols());
+  rows.row(0).noalias() = t1.transpose() * jacobian;
+  rows.row(1).noalias() = t2.transpose() * jacobian;
+  if (normal2 > 0.0)
+    for (int k = 0; k < 2; ++k) rows.row(k) -= (rows.row(k).dot(normal_row) / normal2) * normal_row;
+  const Eigen::JacobiSVD<Eigen::Matrix<double, 2, Eigen::Dynamic>> svd(rows, Eigen::ComputeFullU);
+  const auto& sigma = svd.singularValues();
+  const double scale = std::max(jacobian.norm(), 1e-300);
+  int count = 0;
+  for (int k = 0; k < 2; ++k)
+    if (sigma[k] > 1e-6 * scale) out[count++] = svd.matrixU()(0, k) * t1 + svd.matrixU()(1, k) * t2;
+  return count;
+}
+
 void Dynamics::evaluate(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& dq,
-                        const Eigen::Ref<const Vector>& current, const Eigen::Ref<const Vector>& u, const Mask& held,
-                        bool full, Answer& out) const {
+                        const Eigen::Ref<const Vector>& current, const Eigen::Ref<const Vector>& u,
+                        const ContactModes& modes, bool full, Answer& out) const {
   const Impl& m = *impl_;
   const Drive& d = m.drive;
   const int n = m.model.nv, p = contact_count();
@@ -193,58 +228,135 @@ void Dynamics::evaluate(const Eigen::Ref<const Vector>& q, const Eigen::Ref<cons
     m.r.noalias() = d.torque_constant.cwiseProduct(current) - d.damping.cwiseProduct(dq) - m.data.nle;
   else
     m.r.noalias() = u - d.damping.cwiseProduct(dq) - m.data.nle;
-  int k = 0;
+  // The constraint rows: per held contact its normal row, per sticking one its tangential rows.
+  int rows = 0;
   for (int j = 0; j < p; ++j) {
-    if (held[j]) ++k;
-    if (held[j] || full) m.contact_terms(j, dq, out);
+    if (modes.held[j] || full) m.contact_terms(j, dq, out);
+    if (!modes.held[j]) continue;
+    rows += 1;
+    if (modes.sticking[j]) {
+      Vector3 t[2];
+      const int count = tangent_directions(out.normals.row(j).transpose(), out.jacobians.middleRows<3>(3 * j), t);
+      m.tangent_count[j] = count;
+      for (int k = 0; k < count; ++k) m.tangents.row(j).segment<3>(3 * k) = t[k].transpose();
+      rows += count;
+    }
   }
   out.force.setZero();
+  out.tangential_force.setZero();
+  out.friction.setZero();
   out.friction_power = out.constraint_power = 0.0;
   Vector& ddq = out.ddq;
   ddq = m.r;
-  if (k) {
-    // Per held contact: Y_j = Mc^-1 J_c,j^T and W_j = J_c,j + scale_j slip_j^T J_j, scale_j = -mu / |slip|_eps.
-    m.y.resize(k, n);
-    m.w.resize(k, n);
-    m.bias.resize(k);
-    m.normal_velocity.resize(k);
-    Vector& bias = m.bias;
-    Vector& normal_velocity = m.normal_velocity;
-    std::vector<int>& index = m.index;
+  if (rows) {
+    // Row i: constraint R_i ddq = bias_i, its force acting through W_i (Mc ddq = r + W^T lambda).
+    // A normal row's W carries the sliding friction: W = J_c - mu e^T J (Coulomb: e the unit slide
+    // direction; regularised: s / sqrt(|s|^2 + eps^2)); a sticking contact's friction is its two
+    // tangential rows' force instead.
+    m.y.resize(rows, n);
+    m.w.resize(rows, n);
+    m.bias.resize(rows);
+    m.normal_velocity.resize(rows);
+    std::vector<int>& index = m.index;  // the contact of each row
     index.clear();
     for (int j = 0; j < p; ++j) {
-      if (!held[j]) continue;
+      if (!modes.held[j]) continue;
+      const Contact& contact = m.contacts[j];
+      const auto jacobian = out.jacobians.middleRows<3>(3 * j);
       const int i = static_cast<int>(index.size());
       index.push_back(j);
-      m.y_column = out.normal_jacobian.row(j).transpose();
+      auto row = out.normal_jacobian.row(j);
+      m.w.row(i) = row;
+      const double mu = contact.friction;
+      if (!modes.sticking[j] && mu != 0.0) {
+        Vector3 e;
+        if (!contact.coulomb) {
+          e = out.direction.row(j).transpose();
+        } else {
+          // e = sign(f_n) d: |f_t| = mu |f_n| against the slip direction d, the live one while the slip
+          // has not turned past a right angle from the held d (the interval's start): so past a
+          // reversal (an event, located) the dynamics continue smoothly, with d held
+          const Vector3 slip = out.slip.row(j).transpose(), held = modes.slide.row(j).transpose();
+          const double speed = slip.norm();
+          e = modes.pushing[j] * (speed > kSlipAtRest && slip.dot(held) > 0.0 ? Vector3(slip / speed) : held);
+        }
+        m.w.row(i).noalias() -= mu * (e.transpose() * jacobian);
+        m.slide_e.row(j) = e.transpose();
+      }
+      m.normal_velocity[i] = row.dot(dq);
+      m.bias[i] = -out.drift[j] - 2.0 * baumgarte * m.normal_velocity[i] - baumgarte * baumgarte * out.residual[j];
+      m.y_column = row.transpose();
       pin::cholesky::solve(m.model, m.data, m.y_column);
       m.y.row(i) = m.y_column.transpose();
-      const double slip2 = out.slip.row(j).squaredNorm();
-      const double scale = -m.contacts[j].friction / std::sqrt(slip2 + m.eps2);
-      m.w.row(i) = out.normal_jacobian.row(j);
-      m.w.row(i).noalias() += scale * (out.slip.row(j) * out.jacobians.middleRows<3>(3 * j));
-      normal_velocity[i] = out.normal_jacobian.row(j).dot(dq);
-      bias[i] = -out.drift[j] - 2.0 * baumgarte * normal_velocity[i] - baumgarte * baumgarte * out.residual[j];
     }
-    m.schur.noalias() = m.y * m.w.transpose();  // J_c Mc^-1 W^T
-    m.rhs = bias;
+    for (int j = 0; j < p; ++j) {
+      if (!modes.held[j] || !modes.sticking[j]) continue;
+      const auto jacobian = out.jacobians.middleRows<3>(3 * j);
+      const Vector3 acceleration = m.accelerations.row(j).transpose();
+      for (int k = 0; k < m.tangent_count[j]; ++k) {
+        const Vector3 tangent = m.tangents.row(j).segment<3>(3 * k).transpose();
+        const int i = static_cast<int>(index.size());
+        index.push_back(j);
+        m.w.row(i).noalias() = tangent.transpose() * jacobian;
+        m.normal_velocity[i] = m.w.row(i).dot(dq);
+        m.bias[i] = -tangent.dot(acceleration) - 2.0 * baumgarte * m.normal_velocity[i];
+        m.y_column = m.w.row(i).transpose();
+        pin::cholesky::solve(m.model, m.data, m.y_column);
+        m.y.row(i) = m.y_column.transpose();
+      }
+    }
+    m.schur.noalias() = m.y * m.w.transpose();  // R Mc^-1 W^T (R: the constraint rows)
+    m.rhs = m.bias;
     m.rhs.noalias() -= m.y * m.r;
     m.lu.compute(m.schur);
-    if ((m.lu.matrixLU().diagonal().array() == 0.0).any())
-      throw SingularError("Singular matrix: the contact constraints do not determine the forces");
-    m.force.resize(k);
-    m.force = m.lu.solve(m.rhs);
-    const Vector& force = m.force;
-    ddq.noalias() += m.w.transpose() * force;
-    for (int i = 0; i < k; ++i) {
-      const int j = index[i];
-      out.force[j] = force[i];
-      const double slip2 = out.slip.row(j).squaredNorm();
-      out.friction_power += m.contacts[j].friction * force[i] * slip2 / std::sqrt(slip2 + m.eps2);
-      out.constraint_power += force[i] * normal_velocity[i];
+    m.force.resize(rows);
+    const auto pivots = m.lu.matrixLU().diagonal().cwiseAbs();
+    if (pivots.minCoeff() > 1e-12 * pivots.maxCoeff()) {
+      m.force = m.lu.solve(m.rhs);
+    } else {
+      // Dependent rows (e.g. two sticking contacts the joints cannot move apart): the forces are not
+      // determined; the least-norm ones that satisfy the constraints, if any do.
+      m.force = m.schur.completeOrthogonalDecomposition().solve(m.rhs);
+      if (!m.force.allFinite() || (m.schur * m.force - m.rhs).norm() > 1e-9 * std::max(1.0, m.rhs.norm()))
+        throw SingularError("Singular matrix: the contact constraints do not determine the forces");
+    }
+    const Vector& lambda = m.force;
+    ddq.noalias() += m.w.transpose() * lambda;
+    // forces, friction and powers per contact (the normal rows come first, in contact order)
+    int i = 0;
+    for (int j = 0; j < p; ++j) {
+      if (!modes.held[j]) continue;
+      const Contact& contact = m.contacts[j];
+      const double f = lambda[i];
+      out.force[j] = f;
+      out.constraint_power += f * m.normal_velocity[i];
+      ++i;
+      if (modes.sticking[j] || contact.friction == 0.0) continue;
+      const Vector3 slip = out.slip.row(j).transpose();
+      if (contact.coulomb) {  // -mu f_n e = -mu |f_n| d (with the sign held; see the simulator's start check)
+        const Vector3 e = m.slide_e.row(j).transpose();
+        out.tangential_force.row(j) = (-contact.friction * f * e).transpose();
+        out.friction[j] = contact.friction * f * modes.pushing[j];
+        out.friction_power += contact.friction * f * e.dot(slip);
+      } else {
+        const double slip2 = slip.squaredNorm();
+        out.tangential_force.row(j) = (-contact.friction * f * out.direction.row(j)).eval();
+        out.friction[j] = contact.friction * f;
+        out.friction_power += contact.friction * f * slip2 / std::sqrt(slip2 + m.eps2);
+      }
+    }
+    for (int j = 0; j < p; ++j) {  // the sticking contacts' tangential rows, in contact order
+      if (!modes.held[j] || !modes.sticking[j]) continue;
+      Vector3 force = Vector3::Zero();
+      for (int k = 0; k < m.tangent_count[j]; ++k, ++i) {
+        force += lambda[i] * m.tangents.row(j).segment<3>(3 * k).transpose();
+        out.constraint_power += lambda[i] * m.normal_velocity[i];
+      }
+      out.tangential_force.row(j) = force.transpose();
+      out.friction[j] = force.norm();
     }
   }
-  pin::cholesky::solve(m.model, m.data, ddq);  // Mc^-1 (r + W^T f_n)
+  pin::cholesky::solve(m.model, m.data, ddq);  // Mc^-1 (r + W^T lambda)
   if (d.voltage) {
     out.di.array() = (u - d.resistance.cwiseProduct(current) - d.torque_constant.cwiseProduct(dq)).array() /
                      d.inductance.array();
@@ -254,6 +366,36 @@ void Dynamics::evaluate(const Eigen::Ref<const Vector>& q, const Eigen::Ref<cons
     out.di.setZero(n);
     out.effort = u;
   }
+}
+
+double Dynamics::hold_velocity(const Vector& q, Vector& dq, const ContactModes& modes) const {
+  const Impl& m = *impl_;
+  const int n = m.model.nv, p = contact_count();
+  Answer answer;
+  terms(q, dq, answer);
+  pin::cholesky::decompose(m.model, m.data);
+  std::vector<Vector> rows;
+  for (int j = 0; j < p; ++j) {
+    if (!modes.held[j]) continue;
+    rows.push_back(answer.normal_jacobian.row(j).transpose());
+    if (!modes.sticking[j]) continue;
+    Vector3 t[2];
+    const int count = tangent_directions(answer.normals.row(j).transpose(), answer.jacobians.middleRows<3>(3 * j), t);
+    for (int k = 0; k < count; ++k) rows.push_back((t[k].transpose() * answer.jacobians.middleRows<3>(3 * j)).transpose());
+  }
+  const int k = static_cast<int>(rows.size());
+  if (!k) return 0.0;
+  Eigen::MatrixXd r(k, n), y(n, k);
+  for (int i = 0; i < k; ++i) {
+    r.row(i) = rows[i].transpose();
+    m.y_column = rows[i];
+    pin::cholesky::solve(m.model, m.data, m.y_column);
+    y.col(i) = m.y_column;
+  }
+  const Vector velocity = r * dq;
+  const Vector impulse = -(r * y).completeOrthogonalDecomposition().solve(velocity);
+  dq += y * impulse;
+  return -0.5 * velocity.dot(impulse);
 }
 
 Vector Dynamics::project(const Vector& q0, const std::vector<int>& rows, double tolerance) const {

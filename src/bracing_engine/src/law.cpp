@@ -36,6 +36,25 @@ double floor_div(double t, double step) {
   return floor_value;
 }
 
+// B^+ = B^T (B B^T)^-1, damped (B^T (B B^T + lambda I)^-1, `damped` set) when B's smallest singular
+// value is below kSingularRatio of its largest.
+Eigen::MatrixXd pseudo_inverse(const Eigen::MatrixXd& b, double damping_lambda, bool& damped) {
+  const Eigen::Index p = b.rows();
+  const Eigen::MatrixXd gram = b * b.transpose();
+  double largest, smallest;
+  if (p == 1) {
+    largest = smallest = std::sqrt(gram(0, 0));
+  } else {
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(b);
+    largest = svd.singularValues()[0];
+    smallest = svd.singularValues()[p - 1];
+  }
+  if (smallest > kSingularRatio * std::max(largest, 1e-300)) return gram.partialPivLu().solve(b).transpose();
+  damped = true;
+  const double lambda = damping_lambda * std::max(largest * largest, 1.0);
+  return (gram + lambda * Eigen::MatrixXd::Identity(p, p)).partialPivLu().solve(b).transpose();
+}
+
 }  // namespace
 
 void Path::sample(const Vector3& start, double t, Vector3& position, Vector3& velocity) const {
@@ -177,55 +196,125 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
     out.torque = l;
   } else {
     pin::cholesky::decompose(m.model, m.data);
-    Eigen::MatrixXd jc(p, n), b(p, n), w(p, n);
+    // Per braced contact its normal row J_c and the row its force acts through, W = J_c - mu e^T J
+    // (sliding: e the slip direction, regularised as the paper's or Coulomb's unit one; sticking:
+    // W = J_c, the friction being tangential constraint forces instead, rows t^T J).
+    Eigen::MatrixXd jc(p, n), w(p, n);
     Vector gamma(p), f_nd(p);
+    std::vector<Vector3> accelerations(p), normals(p);
+    std::vector<int> sticking;  // Coulomb contacts at rest: they stick (and the law keeps them stuck)
     for (int j = 0; j < p; ++j) {
       const BracedContact& brace = s.braces[j];
+      const Contact& contact = brace.contact;
       const auto jacobian = brace_jacobians.middleRows<3>(3 * j);
       const Vector3 position = out.brace_actual.row(j).transpose();
-      const Vector3 acceleration =
+      accelerations[j] =
           pin::getFrameClassicalAcceleration(m.model, m.data, m.frames[j + 1], pin::LOCAL_WORLD_ALIGNED).linear();
       double c;
-      Vector3 normal;
       Matrix3 hessian;
-      brace.contact.surface.evaluate(position, c, normal, hessian);
+      contact.surface.evaluate(position, c, normals[j], hessian);
+      const Vector3& normal = normals[j];
       const Vector3 velocity = jacobian * dq;
-      gamma[j] = normal.dot(acceleration);
-      if (brace.contact.surface.kind != SurfaceKind::plane) gamma[j] += velocity.dot(hessian * velocity);
+      gamma[j] = normal.dot(accelerations[j]);
+      if (contact.surface.kind != SurfaceKind::plane) gamma[j] += velocity.dot(hessian * velocity);
       const Vector3 slip = velocity - normal * normal.dot(velocity);
-      const Vector3 direction = slip / std::sqrt(slip.squaredNorm() + s.slip_epsilon * s.slip_epsilon);
-      jc.row(j).noalias() = normal.transpose() * jacobian;
-      w.row(j) = jc.row(j) - brace.contact.friction * (direction.transpose() * jacobian);  // J_c - mu J_t
-      m.y_column = jc.row(j).transpose();
-      pin::cholesky::solve(m.model, m.data, m.y_column);
-      b.row(j) = m.y_column.transpose();  // B = J_c Mc^-1 (Mc symmetric)
+      const double speed = slip.norm();
       f_nd[j] = brace.desired_normal_force;
+      jc.row(j).noalias() = normal.transpose() * jacobian;
+      w.row(j) = jc.row(j);
+      if (contact.friction == 0.0) continue;
+      if (!contact.coulomb) {
+        const Vector3 direction = slip / std::sqrt(speed * speed + s.slip_epsilon * s.slip_epsilon);
+        w.row(j).noalias() -= contact.friction * (direction.transpose() * jacobian);  // J_c - mu J_t
+      } else if (speed > kSlipAtRest) {  // sliding: |f_t| = mu |f_nd| against the slip d
+        const Vector3 e = (f_nd[j] < 0.0 ? -1.0 : 1.0) * slip / speed;
+        w.row(j).noalias() -= contact.friction * (e.transpose() * jacobian);
+      } else {
+        sticking.push_back(j);
+      }
     }
-    const Eigen::MatrixXd a_matrix = b * w.transpose();
-    const Vector a_vector = b * (m.data.nle + s.drive.damping.cwiseProduct(dq)) - gamma;
-    Eigen::MatrixXd b_pinv;  // n x p
-    if (s.dynamically_consistent) {
-      b_pinv = (b * jc.transpose()).partialPivLu().solve(jc).transpose();
+    const Vector bias = m.data.nle + s.drive.damping.cwiseProduct(dq);  // h + g + Dc dq
+    if (sticking.empty()) {
+      Eigen::MatrixXd b(p, n);  // B = J_c Mc^-1 (Mc symmetric)
+      for (int j = 0; j < p; ++j) {
+        m.y_column = jc.row(j).transpose();
+        pin::cholesky::solve(m.model, m.data, m.y_column);
+        b.row(j) = m.y_column.transpose();
+      }
+      const Eigen::MatrixXd a_matrix = b * w.transpose();
+      const Vector a_vector = b * bias - gamma;
+      const Eigen::MatrixXd b_pinv =
+          s.dynamically_consistent ? Eigen::MatrixXd((b * jc.transpose()).partialPivLu().solve(jc).transpose())
+                                   : pseudo_inverse(b, s.damping_lambda, out.damped);
+      // tau = B^+ (a - A f_nd) + (I - B^+ B) l = l + B^+ ((a - A f_nd) - B l)
+      out.torque = l + b_pinv * (a_vector - a_matrix * f_nd - b * l);
     } else {
-      const Eigen::MatrixXd gram = b * b.transpose();
-      double largest, smallest;
-      if (p == 1) {
-        largest = smallest = std::sqrt(gram(0, 0));
-      } else {
-        const Eigen::JacobiSVD<Eigen::MatrixXd> svd(b);
-        largest = svd.singularValues()[0];
-        smallest = svd.singularValues()[p - 1];
+      // A sticking contact is a point constraint (its normal and tangential rows R, forces through
+      // W): lambda = G^-1 (R Mc^-1 (h + g + Dc dq - tau) - gamma_R), G = R Mc^-1 W^T. The law asks
+      // only the normal forces S lambda to be f_nd: C tau = e with C = S G^-1 R Mc^-1 and
+      // e = S G^-1 (R Mc^-1 (h + g + Dc dq) - gamma_R) - f_nd; the null space of C leaves the
+      // tangential forces free (docs/model.md, Control law under stick).
+      std::vector<Vector3> tangents;
+      std::vector<int> owner;
+      for (int j : sticking) {
+        Vector3 t[2];
+        const int count = Dynamics::tangent_directions(normals[j], brace_jacobians.middleRows<3>(3 * j), t);
+        for (int k = 0; k < count; ++k) {
+          tangents.push_back(t[k]);
+          owner.push_back(j);
+        }
       }
-      if (smallest > kSingularRatio * std::max(largest, 1e-300)) {
-        b_pinv = gram.partialPivLu().solve(b).transpose();
-      } else {
-        const double lambda = s.damping_lambda * std::max(largest * largest, 1.0);
-        b_pinv = (gram + lambda * Eigen::MatrixXd::Identity(p, p)).partialPivLu().solve(b).transpose();
-        out.damped = true;
+      const int rows = p + static_cast<int>(tangents.size());
+      Eigen::MatrixXd r(rows, n), wr(rows, n), y(n, rows);
+      Vector gamma_r(rows);
+      r.topRows(p) = jc;
+      wr.topRows(p) = w;
+      gamma_r.head(p) = gamma;
+      for (std::size_t k = 0; k < tangents.size(); ++k) {
+        const int i = p + static_cast<int>(k);
+        r.row(i).noalias() = tangents[k].transpose() * brace_jacobians.middleRows<3>(3 * owner[k]);
+        wr.row(i) = r.row(i);
+        gamma_r[i] = tangents[k].dot(accelerations[owner[k]]);
       }
+      for (int k = 0; k < rows; ++k) {
+        m.y_column = r.row(k).transpose();
+        pin::cholesky::solve(m.model, m.data, m.y_column);
+        y.col(k) = m.y_column;  // Mc^-1 R^T
+      }
+      const Eigen::MatrixXd g = y.transpose() * wr.transpose();  // R Mc^-1 W^T
+      // (least-norm where the rows are dependent, as the simulator solves them)
+      const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> g_lu(g);
+      const Eigen::MatrixXd g_inv_rows = g_lu.solve(y.transpose());  // G^-1 R Mc^-1 (d lambda = -this d tau)
+      const Eigen::MatrixXd c_matrix = g_inv_rows.topRows(p);        // C = S G^-1 R Mc^-1
+      const Vector e = g_inv_rows.topRows(p) * bias - g_lu.solve(gamma_r).head(p) - f_nd;
+      Eigen::MatrixXd c_pinv;
+      if (s.dynamically_consistent) {  // C^# = K^T (K Mc^-1 K^T)^-1 with K = S G^-1 R (C = K Mc^-1)
+        const Eigen::MatrixXd k_rows = g_lu.solve(r).topRows(p);
+        c_pinv = (c_matrix * k_rows.transpose()).partialPivLu().solve(k_rows).transpose();
+      } else {
+        c_pinv = pseudo_inverse(c_matrix, s.damping_lambda, out.damped);
+      }
+      out.torque = l + c_pinv * (e - c_matrix * l);
+      // The tangential forces this torque asks of the sticking contacts; where one leaves the cone
+      // |f_t| <= mu |f_nd|, the least torque in the null space of C (f_n stays f_nd) brings it back
+      // onto the cone's surface (just inside: the simulator then holds the stick, as modelled).
+      const Vector lambda = g_lu.solve(y.transpose() * (bias - out.torque) - gamma_r);
+      Vector change = Vector::Zero(rows);
+      bool outside = false;
+      for (int j : sticking) {
+        Vector3 force = Vector3::Zero();
+        for (std::size_t k = 0; k < tangents.size(); ++k)
+          if (owner[k] == j) force += lambda[p + static_cast<int>(k)] * tangents[k];
+        const double limit = (1.0 - 1e-9) * s.braces[j].contact.friction * std::abs(f_nd[j]);
+        if (force.norm() <= limit) continue;
+        outside = true;
+        const double scale = limit / force.norm() - 1.0;
+        for (std::size_t k = 0; k < tangents.size(); ++k)
+          if (owner[k] == j) change[p + static_cast<int>(k)] = scale * lambda[p + static_cast<int>(k)];
+      }
+      if (outside)  // -G^-1 R Mc^-1 d tau = change (its normal part zero): the least-norm d tau
+        out.torque -= g_inv_rows.completeOrthogonalDecomposition().solve(change);
     }
-    // tau = B^+ (a - A f_nd) + (I - B^+ B) l = l + B^+ ((a - A f_nd) - B l)
-    out.torque = l + b_pinv * (a_vector - a_matrix * f_nd - b * l);
   }
   out.command = s.drive.voltage ? Vector(s.voltage_gain.cwiseProduct(out.torque)) : out.torque;
 }
@@ -243,7 +332,6 @@ void rollout(Law& law, Simulator& simulator, long steps, double t0, double diver
   out.rows = 0;
   out.status = 0;
   LawOutput command;
-  const auto& contacts = simulator.dynamics().contacts();
   for (long k = 0; k < rows; ++k) {
     const double t = t0 + static_cast<double>(simulator.steps_taken) * simulator.step_size();
     const Vector& y = simulator.state();
@@ -276,9 +364,9 @@ void rollout(Law& law, Simulator& simulator, long steps, double t0, double diver
     double residual = 0.0;
     for (int j = 0; j < p; ++j) {
       out.normal_force(k, j) = report.force[j];
-      out.friction_force(k, j) = contacts[j].friction * report.force[j];
+      out.friction_force(k, j) = report.friction[j];
       out.residual(k, j) = report.residual[j];
-      const bool held = simulator.report_active()[j];
+      const bool held = simulator.report_modes().held[j];
       out.active(k, j) = held ? 1.0 : 0.0;
       if (held) residual = std::max(residual, std::abs(report.residual[j]));
     }

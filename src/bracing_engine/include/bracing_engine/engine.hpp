@@ -48,6 +48,24 @@ struct Contact {
   double friction = 0.0;    // mu
   bool unilateral = false;  // only pushes; releases and lands
   bool enforced = true;     // false: only watched, never holds a force
+  // Coulomb friction: stick held by two tangential constraint rows while |f_t| <= mu |f_n|, slide
+  // with |f_t| = mu |f_n| against the slip; false: the paper's regularised law
+  // f_t = mu f_n s / sqrt(|s|^2 + eps^2).
+  bool coulomb = false;
+};
+
+// A slip speed [m/s] below which a Coulomb contact's slip has no direction of its own (it slides
+// along its stored direction).
+constexpr double kSlipAtRest = 1e-10;
+
+// The contacts' modes: which hold a normal force, which of those stick (Coulomb), and for a
+// Coulomb contact sliding: the slip direction d to use while the slip is at rest (right after a
+// breakaway: where the holding force pushed it), and the sign of f_n (+1: pushing), held over a
+// step, so the sliding friction f_t = -mu |f_n| d is linear in f_n.
+struct ContactModes {
+  Mask held, sticking;
+  RowMatrix slide;  // p x 3: d
+  Vector pushing;   // p: +1 or -1
 };
 
 // What builds the pinocchio model: the URDF, gravity and the joints held still.
@@ -85,6 +103,8 @@ struct Answer {
   RowMatrix normals;              // p x 3, n at the point
   Vector drift;                   // gamma = n . (dJ dq) + v^T H v
   Vector residual;                // C
+  RowMatrix tangential_force;     // p x 3, the friction force on the robot [N]
+  Vector friction;                // p: |f_t| of a Coulomb contact, mu f_n of a regularised one [N]
 };
 
 class Dynamics {
@@ -105,8 +125,8 @@ class Dynamics {
   // ddq, di, f_n at (q, dq, i) with input u held, the contacts in `held` holding forces. `full`:
   // also every contact's terms. Throws SingularError.
   void evaluate(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& dq,
-                const Eigen::Ref<const Vector>& current, const Eigen::Ref<const Vector>& u, const Mask& held, bool full,
-                Answer& out) const;
+                const Eigen::Ref<const Vector>& current, const Eigen::Ref<const Vector>& u, const ContactModes& modes,
+                bool full, Answer& out) const;
   // Every contact's terms at (q, dq), no solve (force, ddq and di untouched).
   void terms(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& dq, Answer& out) const;
   // Newton steps in the metric of Mc onto C = 0 for the contacts `rows`; throws std::domain_error
@@ -115,17 +135,28 @@ class Dynamics {
   // Inelastic, frictionless impact of the contacts `rows` at (q, dq): q is put on the surfaces and
   // their normal velocity removed with the impulse Mc^-1 J_c^T lambda. Returns the kinetic energy lost.
   double impact(Vector& q, Vector& dq, const std::vector<int>& rows) const;
+  // The velocity dq projected onto the held constraints of `modes` (normal rows of the held contacts,
+  // tangential rows of the sticking ones) by an impulse Mc^-1 R^T lambda: as a contact starts to stick.
+  // Returns the kinetic energy lost.
+  double hold_velocity(const Vector& q, Vector& dq, const ContactModes& modes) const;
+  // The tangent directions (orthonormal, at most 2, in the plane normal to n) along which a frame
+  // with translational Jacobian `jacobian` can move: a sticking contact's rows are t^T J for these
+  // (a planar arm's contact has one; a direction no joint moves would make the rows singular).
+  static int tangent_directions(const Vector3& n, const Eigen::Ref<const RowMatrix>& jacobian, Vector3 out[2]);
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
 
+enum class EventKind { release = 0, touchdown = 1, stick = 2, slip = 3 };
+
 struct ContactEvent {
-  long step;    // the step count when it happened
-  int contact;  // index in the contact list
-  bool touchdown;
-  double impact_loss;  // [J]
+  long step;       // the step count when it happened
+  double offset;   // [s] into that step (stick and slip are located inside a step)
+  int contact;     // index in the contact list
+  EventKind kind;
+  double energy_loss;  // [J]: a touchdown's impact loss, the impulse that makes a contact stick
 };
 
 enum class StepStatus { ok = 0, diverged = 1, joint_limit = 2 };
@@ -135,18 +166,20 @@ constexpr int kEnergies = 7;
 
 // Classic RK4 with the input held over a step (sub-steps of step / substeps), the energy
 // integrals integrated with the state, unilateral release (at a step's start) and touchdown (at
-// its end), the joint-limit stop and the divergence check.
+// its end), Coulomb stick and slip (events located inside a step), the joint-limit stop and the
+// divergence check.
 class Simulator {
  public:
   Simulator(std::shared_ptr<const Dynamics> dynamics, double step, int substeps, const Vector& q0,
             const Vector& dq0, const Vector& lower_limits, const Vector& upper_limits);
 
   // Advances one step with u held. On ok, `report` is the model at the step's start (every
-  // contact's terms); otherwise the state is unchanged and `failed_joint` names a limit.
+  // contact's terms); otherwise the state and the modes are unchanged and `failed_joint` names a limit.
   StepStatus step(const Vector& u);
   // `report` = the model at the current state under u (no time passes).
   void evaluate(const Vector& u);
   void set_active(const Mask& active);
+  void set_modes(const ContactModes& modes);
   void set_state(const Vector& y);  // [q, dq, i, energies]
   void truncate_events(std::size_t count);
 
@@ -155,18 +188,30 @@ class Simulator {
   double step_size() const { return step_; }
   int substeps() const { return substeps_; }
   const Vector& state() const { return y_; }
-  const Mask& active() const { return active_; }
-  const Mask& report_active() const { return report_active_; }  // the contacts held when `report` was made
+  const Mask& active() const { return modes_.held; }
+  const ContactModes& modes() const { return modes_; }
+  const ContactModes& report_modes() const { return report_modes_; }  // the modes `report` was made in
   bool all_active() const;
   const std::vector<ContactEvent>& events() const { return events_; }
   long steps_taken = 0;
   Answer report;
-  int failed_joint = -1;       // the joint a refused step would have taken past its limit
+  int failed_joint = -1;         // the joint a refused step would have taken past its limit
   double failed_position = 0.0;  // where
 
  private:
-  void release(const Vector& u);
+  // The modes at the step's start under u: unilateral contacts that pull release, Coulomb contacts
+  // whose holding force leaves the cone slide; `report` is the model there.
+  void start(const Vector& u);
+  // Breakaways at the current state (report evaluated there); true if a contact changed mode.
+  bool break_away(double offset);
+  // One sub-step of size h from y with events located inside it; `first`: `report` is its first stage.
+  void advance(Vector& y, double h, const Vector& u, bool first, double offset);
+  // One RK4 step of size h from y0 into y1; stage 1's rates are in k_[0], e_[0].
+  void rk4(const Vector& y0, double h, const Vector& u, Vector& y1);
+  // The event functions of the held Coulomb contacts from an answer at a state (>= 0: no event).
+  void event_functions(const Answer& answer, Vector& g) const;
   void touchdown();
+  void hold_sticking();
   // The rates [dq, ddq, di] and the energy rates at stage state x (`evaluated`: `answer` is already
   // the model there).
   void rates(const Eigen::Ref<const Vector>& x, const Vector& u, bool evaluated, Answer& answer, Vector& k,
@@ -178,11 +223,14 @@ class Simulator {
   int substeps_;
   Vector lower_, upper_;
   Vector y_, y_next_;  // q, dq, i, energies (a step writes the next into y_next_ and swaps)
-  Mask active_, report_active_, unilateral_, enforced_;
-  bool any_unilateral_ = false;
+  ContactModes modes_, report_modes_;
+  Mask unilateral_, enforced_, coulomb_;
+  bool any_unilateral_ = false, any_coulomb_ = false;
   std::vector<ContactEvent> events_;
-  Answer stage_;  // the later stages' answers
-  Vector x_, k_[4], e_[4];
+  Answer stage_, located_;  // the later stages' answers; the model at a step's end or a trial event time
+  Vector x_, y0_, y1_, k_[4], e_[4], k_end_, e_end_, k_first_, e_first_;
+  Vector g_start_, g_end_, g_trial_;  // event functions per contact
+  RowMatrix start_direction_;  // p x 3: the Coulomb contacts' slip directions at an interval's start
 };
 
 }  // namespace bracing_engine
