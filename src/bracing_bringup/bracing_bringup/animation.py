@@ -3,7 +3,10 @@
 Each frame shows the links (pinocchio kinematics of the bag's ``robot_description`` at the
 recorded joint positions), the contact surfaces, the contact points with their force
 arrows (``contact_wrench``, ``ARROW_M_PER_N`` metres per newton), the hand's target path
-and the hand's trail so far, with the time and the normal forces written on it.
+and the hand's trail so far, with the time and the normal forces written on it. A plane is drawn
+as its line in the drawing plane, the solid side shaded; a sphere or a cylinder whose geometry the
+bag holds (``surfaces``) as its outline seen along the third axis: a sphere a disc, a cylinder a
+band (or a disc, its axis along the view); one that the frame stays inside, as its outline only.
 
 Frames are taken every ``interval`` seconds of sim time (frame k shows the recorded state
 nearest to t = k * interval) and play in real time. The drawing plane is the pair of world
@@ -22,6 +25,7 @@ from numpy.typing import NDArray
 
 from bracing_bringup.scene import LinkPoses
 from bracing_bringup.summary import BagSeries
+from bracing_bringup.surfaces import Shape, shape_of
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -352,7 +356,15 @@ class ArmAnimation:
         ax.set_ylabel(f"{AXIS_NAMES[b]} [m]")
         ax.grid(True, alpha=0.3)
         art: dict[str, Any] = {}
+        size = max(x1 - x0, y1 - y0)
+        solids: set[Shape] = set()
         for c in self.contacts:
+            shape = shape_of(self.series.surfaces, c.name)
+            if shape is not None and shape.curved and shape.radius > 0.0:
+                if shape not in solids:  # a collision frame's contact is on its owner's surface
+                    solids.add(shape)
+                    self._draw_solid(ax, shape, 10.0 * size)
+                continue
             ok = np.isfinite(c.normal).all(axis=1)
             if not ok.any():
                 continue
@@ -364,8 +376,8 @@ class ArmAnimation:
             n2 = n2 / np.linalg.norm(n2)
             along = np.array([-n2[1], n2[0]])
             centre = self._2d(p3)
-            span = 10.0 * max(x1 - x0, y1 - y0)
-            depth = 0.04 * max(x1 - x0, y1 - y0)
+            span = 10.0 * size
+            depth = 0.04 * size
             corners = [
                 centre - span * along,
                 centre + span * along,
@@ -409,6 +421,32 @@ class ArmAnimation:
         self._hand_xy = self._2d(self.series.hand_actual)
         self._target_xy = self._2d(self.series.hand_desired)
         return fig
+
+    def _draw_solid(self, ax: Axes, shape: Shape, span: float) -> None:
+        """A sphere or a cylinder as seen along the axis normal to the drawing plane (its outline):
+        filled, unless the frame stays inside it (then the solid is all around: its outline only)."""
+        from matplotlib.patches import Circle, Polygon
+
+        fill = dict(color=SURFACE_COLOR, alpha=0.5, lw=0)
+        edge = dict(color=SURFACE_COLOR, lw=2)
+        axis = self._2d(np.array(shape.axis))
+        if shape.kind == "sphere" or float(np.linalg.norm(axis)) < 1e-9:  # a disc (a cylinder seen end on)
+            centre = self._2d(np.array(shape.center if shape.kind == "sphere" else shape.point))
+            if not shape.inside:
+                ax.add_patch(Circle(tuple(centre), shape.radius, **fill))  # type: ignore[arg-type]
+            ax.add_patch(Circle(tuple(centre), shape.radius, fill=False, **edge))  # type: ignore[arg-type]
+            return
+        # A cylinder whose axis shows in the plane: a band of half-width r about the axis's projection
+        # (the orthographic outline of a cylinder, whatever the axis's tilt out of the plane).
+        along = axis / np.linalg.norm(axis)
+        across = np.array([-along[1], along[0]]) * shape.radius
+        centre = self._2d(np.array(shape.point))
+        if not shape.inside:
+            corners = [centre - span * along + across, centre + span * along + across]
+            corners += [centre + span * along - across, centre - span * along - across]
+            ax.add_patch(Polygon(np.array(corners), closed=True, **fill))  # type: ignore[arg-type]
+        for side in (across, -across):
+            ax.axline(tuple(centre + side), tuple(centre + side + along), **edge)  # type: ignore[arg-type]
 
     def pixel(self, point: Sequence[float] | FloatArray) -> tuple[int, int]:
         """(column, row) of a world point's projection in a frame image (row 0 at the top)."""

@@ -1,9 +1,15 @@
-"""Several recorded runs side by side: ``bracing-report BAG1 BAG2 ... --compare [--output DIR]``.
+"""Several recorded runs side by side: ``bracing-report BAG1 BAG2 ... --compare [--baseline NAME] [--output DIR]``.
 
 Writes ``compare_hand_error.png``, ``compare_brace_error.png``, ``compare_normal_force.png``,
 ``compare_energy.png`` (one line per run over time) and ``compare.md`` (the summary table
-in Markdown, one column per run). A run is named after its directory (``out/braced/bag``
--> ``braced``). A figure that no run has data for is not written.
+in Markdown, one column per run, then each other run divided by the baseline run). A run is
+named after its directory (``out/braced/bag`` -> ``braced``); the baseline is ``--baseline NAME``,
+by default the first run. A figure that no run has data for is not written; a run that a figure's
+metric does not apply to is listed in its legend as n/a.
+
+A ratio is n/a where it would mislead (``ratios``): energies of runs with different input modes
+(voltage input books electrical joules, torque input the joints' mechanical work), and any metric
+whose baseline value is ~0 (a torque-input force error of 5e-14 N is 0).
 """
 
 from __future__ import annotations
@@ -13,11 +19,15 @@ import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from bracing_bringup.ratios import RATIO_FLOOR, ratio_text
 from bracing_bringup.summary import SUMMARY_KEYS, BagSeries, compute_summary, read_series, resolve_bag
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 COMPARE_MD = "compare.md"
 
@@ -38,6 +48,13 @@ ROWS: dict[str, tuple[str, str]] = {
 }
 TABLE_KEYS = (*SUMMARY_KEYS, "max_penetration_m", "input_mode", "bracing")
 """compare.md's rows: summary.json's single values (each run's summary.json has the per-contact ones)."""
+
+TEXT_KEYS = frozenset({"input_mode", "bracing"})
+"""Rows of names, not numbers: no ratio."""
+
+
+class BaselineError(ValueError):
+    """--baseline names no run of the comparison."""
 
 
 def run_labels(bags: Sequence[str | Path]) -> list[str]:
@@ -65,26 +82,27 @@ def _cell(value: Any) -> str:
     return f"{value:.4g}" if isinstance(value, float) else str(value)
 
 
-def _number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
+def baseline_index(labels: Sequence[str], baseline: str | None) -> int:
+    """Where the run named ``baseline`` is (None: the first run)."""
+    if baseline is None:
+        return 0
+    if baseline not in labels:
+        raise BaselineError(f"--baseline {baseline!r}: no such run (the runs: {', '.join(labels)})")
+    return list(labels).index(baseline)
 
 
-def markdown_table(labels: Sequence[str], summaries: Sequence[dict[str, Any]]) -> str:
-    """The summaries as a Markdown table: a row per metric, a column per run, and ratios to the last run."""
+def markdown_table(labels: Sequence[str], summaries: Sequence[dict[str, Any]], baseline: int = 0) -> str:
+    """The summaries as a Markdown table: a row per metric, a column per run, and each other run's
+    ratio to the run ``baseline`` (an index of ``labels``)."""
     head = ["metric", *labels]
-    ratio = len(labels) > 1
-    if ratio:
-        head += [f"{label} / {labels[-1]}" for label in labels[:-1]]
+    others = [k for k in range(len(labels)) if k != baseline]
+    head += [f"{labels[k]} / {labels[baseline]}" for k in others]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for key in TABLE_KEYS:
         label, unit = ROWS.get(key, (key, ""))
         cells = [f"{label} [{unit}]" if unit else label] + [_cell(s.get(key)) for s in summaries]
-        if ratio:
-            last = summaries[-1].get(key)
-            for s in summaries[:-1]:
-                value = s.get(key)
-                ok = _number(value) and _number(last) and last
-                cells.append(f"{value / last:.3f}" if ok else "n/a")  # type: ignore[operator]
+        for k in others:  # a ratio of names (input mode, bracing) means nothing: left empty
+            cells.append("" if key in TEXT_KEYS else ratio_text(key, summaries[k], summaries[baseline]))
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
@@ -94,48 +112,99 @@ def hand_error(series: BagSeries) -> np.ndarray:
     return np.linalg.norm(series.hand_desired - series.hand_actual, axis=1)
 
 
-def plot_comparison(runs: Sequence[tuple[str, BagSeries]], out: Path) -> list[Path]:
-    """The comparison figures the data allows; the files written."""
-    from bracing_bringup.report import figure, save_figure  # matplotlib: only when drawing
+def _scenarios(runs: Sequence[tuple[str, BagSeries]]) -> str:
+    from bracing_bringup.report import scenario_name
 
-    written: list[Path] = []
+    return ", ".join(dict.fromkeys(scenario_name(s) for _, s in runs))
+
+
+def _not_applicable(ax: Any, label: str, why: str) -> None:
+    """A legend entry (and no line) for a run that the figure's metric does not apply to."""
+    ax.plot([], [], " ", label=f"{label}: n/a ({why})")
+
+
+def comparison_figures(runs: Sequence[tuple[str, BagSeries]]) -> dict[str, Figure]:
+    """The comparison figures the data allows, by file name (without .png)."""
+    from bracing_bringup.report import figure  # matplotlib: only when drawing
+
+    figures: dict[str, Figure] = {}
+    scenarios = _scenarios(runs)
     if any(s.t.size for _, s in runs):
-        fig, ax = figure("Hand tracking error", "|r_dh - r_h| [m]")
+        fig, ax = figure(f"{scenarios}: hand tracking error", "|r_dh - r_h| [m]")
         for label, s in runs:
             if s.t.size:
                 ax.plot(s.t, hand_error(s), label=label)
-        written.append(save_figure(fig, ax, out / "compare_hand_error.png"))
+            else:
+                _not_applicable(ax, label, "no controller state")
+        figures["compare_hand_error"] = fig
     if any(cs.t_ctrl.size for _, s in runs for cs in s.contacts.values()):
-        fig, ax = figure("Brace point error", "|r_dj - r_j| [m]")
+        fig, ax = figure(f"{scenarios}: brace point error", "|r_dj - r_j| [m]")
         for label, s in runs:
-            for cs in s.contacts.values():
-                if cs.t_ctrl.size:
-                    error = np.linalg.norm(cs.brace_desired - cs.brace_actual, axis=1)
-                    ax.plot(cs.t_ctrl, error, label=f"{label}: {cs.name}")
-        written.append(save_figure(fig, ax, out / "compare_brace_error.png"))
+            braced = [cs for cs in s.contacts.values() if cs.t_ctrl.size]
+            for cs in braced:
+                error = np.linalg.norm(cs.brace_desired - cs.brace_actual, axis=1)
+                ax.plot(cs.t_ctrl, error, label=f"{label}: {cs.name}")
+            if not braced:
+                _not_applicable(ax, label, "no brace task")
+        figures["compare_brace_error"] = fig
     if any(cs.t.size for _, s in runs for cs in s.contacts.values()):
-        fig, ax = figure("Normal (reaction) force at the braces", "f_n [N]")
+        fig, ax = figure(f"{scenarios}: normal (reaction) forces at the contacts", "f_n [N]")
         for label, s in runs:
-            for cs in s.contacts.values():
-                if cs.t.size:
-                    (line,) = ax.plot(cs.t, cs.normal_force, label=f"{label}: {cs.name} f_n")
-                    if cs.t_ctrl.size:
-                        ax.plot(
-                            cs.t_ctrl,
-                            cs.normal_force_desired,
-                            "--",
-                            color=line.get_color(),
-                            lw=1.0,
-                            label=f"{label}: {cs.name} f_nd",
-                        )
-        written.append(save_figure(fig, ax, out / "compare_normal_force.png"))
+            touching = [cs for cs in s.contacts.values() if cs.t.size]
+            for cs in touching:
+                (line,) = ax.plot(cs.t, cs.normal_force, label=f"{label}: {cs.name} f_n")
+                if cs.t_ctrl.size:
+                    ax.plot(
+                        cs.t_ctrl,
+                        cs.normal_force_desired,
+                        "--",
+                        color=line.get_color(),
+                        lw=1.0,
+                        label=f"{label}: {cs.name} f_nd",
+                    )
+            if not touching:
+                _not_applicable(ax, label, "no contacts")
+        figures["compare_normal_force"] = fig
     if any(s.motor_t.size for _, s in runs):
-        fig, ax = figure("Electrical energy consumed by the motors", "∫ Σ|v i| dt [J]")
-        for label, s in runs:
-            if s.motor_t.size:
-                ax.plot(s.motor_t, s.energy_consumed, label=label)
-        written.append(save_figure(fig, ax, out / "compare_energy.png"))
+        figures["compare_energy"] = _energy_figure(runs, scenarios)
+    for fig in figures.values():
+        for ax in fig.axes:
+            if ax.get_legend_handles_labels()[0]:
+                ax.legend(loc="best")
+    return figures
+
+
+def plot_comparison(runs: Sequence[tuple[str, BagSeries]], out: Path) -> list[Path]:
+    """The comparison figures the data allows (``comparison_figures``); the files written."""
+    written = []
+    for name, fig in comparison_figures(runs).items():
+        fig.savefig(out / f"{name}.png", dpi=120)
+        written.append(out / f"{name}.png")
     return written
+
+
+ENERGY_KINDS = {
+    "voltage": ("electrical energy consumed by the motors", "∫ Σ|v i| dt [J]"),
+    "torque": ("mechanical energy of the joint drives (torque input)", "∫ Σ|τ dq| dt [J]"),
+}
+
+
+def _energy_figure(runs: Sequence[tuple[str, BagSeries]], scenarios: str) -> Figure:
+    """Energy over time, one axes per input mode: electrical and mechanical joules are not one quantity."""
+    from matplotlib.figure import Figure
+
+    modes = list(dict.fromkeys(s.input_mode or "unknown" for _, s in runs if s.motor_t.size))
+    fig = Figure(figsize=(7.0, 4.2 * len(modes)), layout="constrained")
+    for ax, mode in zip(np.atleast_1d(fig.subplots(len(modes), 1)), modes, strict=True):
+        what, unit = ENERGY_KINDS.get(mode, ("energy consumed", "[J]"))
+        ax.set_title(f"{scenarios}: {what}")
+        ax.set_xlabel("time t [s]")
+        ax.set_ylabel(unit)
+        ax.grid(True, alpha=0.4)
+        for label, s in runs:
+            if s.motor_t.size and (s.input_mode or "unknown") == mode:
+                ax.plot(s.motor_t, s.energy_consumed, label=label)
+    return fig
 
 
 def default_compare_dir(bags: Sequence[str | Path]) -> Path:
@@ -144,13 +213,18 @@ def default_compare_dir(bags: Sequence[str | Path]) -> Path:
 
 
 def write_comparison(
-    bags: Sequence[str | Path], output_dir: str | Path | None = None, labels: Sequence[str] | None = None
+    bags: Sequence[str | Path],
+    output_dir: str | Path | None = None,
+    labels: Sequence[str] | None = None,
+    baseline: str | None = None,
 ) -> list[Path]:
     """Read every bag, write the comparison figures and compare.md; the files written.
 
-    Raises summary.BagReadError for an unreadable bag.
+    ``baseline``: the run (by label) the others are divided by; default the first. Raises
+    summary.BagReadError for an unreadable bag, BaselineError for a baseline that is no run.
     """
     names = list(labels) if labels is not None else run_labels(bags)
+    base = baseline_index(names, baseline)
     out = Path(output_dir) if output_dir is not None else default_compare_dir(bags)
     out.mkdir(parents=True, exist_ok=True)
     runs = [(name, read_series(bag)) for name, bag in zip(names, bags, strict=True)]
@@ -161,8 +235,10 @@ def write_comparison(
     md.write_text(
         "# Runs compared\n\n"
         + sources
-        + "\n\n"
-        + markdown_table(names, summaries)
+        + f"\n\nRatios: each run / `{names[base]}` (the baseline; `--baseline NAME` chooses it). Energies only "
+        "between runs of one input mode (voltage input: electrical joules; torque input: the joints' mechanical "
+        f"work); n/a where the baseline is ~0 (below {RATIO_FLOOR:g}) or a metric does not apply.\n\n"
+        + markdown_table(names, summaries, base)
         + "\nFigures: "
         + ", ".join(f"`{p.name}`" for p in written)
         + "\n",

@@ -17,7 +17,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from functools import partial
 from pathlib import Path
@@ -78,14 +78,16 @@ def report_series(
     urdf: str | None = None,
     mark: Mark | None = None,
     parallel: bool = True,
+    warnings: Sequence[str] = (),
 ) -> dict[str, Any]:
     """Write summary.json, the plots and (unless ``animation_interval_s`` is None) the animation of
     ``series`` into ``out``; the summary.
 
     With ``parallel`` (and a second core) ``drawing_pool`` draws the files, else this process.
-    ``mark(what, wall time)`` is called for each file written."""
+    ``mark(what, wall time)`` is called for each file written. ``warnings``: the run's that the
+    bag cannot show (``compute_summary``)."""
     out.mkdir(parents=True, exist_ok=True)
-    summary = compute_summary(series, wall_time_s=wall_time_s)
+    summary = compute_summary(series, wall_time_s=wall_time_s, warnings=warnings)
     (out / SUMMARY_FILE).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     if mark is not None:
         mark(SUMMARY_FILE)

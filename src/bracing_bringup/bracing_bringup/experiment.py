@@ -11,11 +11,13 @@ from __future__ import annotations
 
 import hashlib
 import io
+import json
 import os
 import socket
 import tempfile
 import time
 import traceback
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from bracing_bringup.summary import BagSeries, ContactSeries, compute_summary, flat_summary
+from bracing_core.checks import reach_warnings
 from bracing_core.rollout import Recording, build_scenario_from_params, run_recorded
 
 STATUS_OK = "ok"
@@ -85,11 +88,11 @@ def series_from_recording(rec: Recording) -> BagSeries:
     return series
 
 
-def summarize(rec: Recording, wall_time_s: float) -> dict[str, Any]:
-    """summary.json of an in-process run: summary.compute_summary on the recorded series, plus the
-    largest force error (not in summary.json, which has the RMS)."""
+def summarize(rec: Recording, wall_time_s: float, warnings: Sequence[str] = ()) -> dict[str, Any]:
+    """summary.json of an in-process run: summary.compute_summary on the recorded series (``warnings``:
+    those found before the run), plus the largest force error (not in summary.json, which has the RMS)."""
     series = series_from_recording(rec)
-    summary = compute_summary(series, wall_time_s=wall_time_s)
+    summary = compute_summary(series, wall_time_s=wall_time_s, warnings=warnings)
     if FORCE_MAX_ERROR_KEY not in summary:
         errors = [np.abs(c.normal_force_error) for c in series.contacts.values() if c.normal_force_error.size]
         summary[FORCE_MAX_ERROR_KEY] = float(np.max(np.concatenate(errors))) if errors else None
@@ -122,9 +125,11 @@ def execute_run(spec: RunSpec) -> RunOutcome:
         urdf = _local_urdf(str(sim_params.get("robot.urdf", "")), spec.urdf_text)
         sim_params["robot.urdf"] = ctl_params["robot.urdf"] = urdf
         scenario = build_scenario_from_params(sim_params, ctl_params)
+        assert scenario.controller is not None  # built with the controller's parameters
+        warnings = reach_warnings(scenario.controller.config, scenario.controller.plant)  # as the node says
         recording = run_recorded(scenario, spec.duration)
         wall = time.perf_counter() - start
-        summary = summarize(recording, wall)
+        summary = summarize(recording, wall, warnings)
         buffer = io.BytesIO()
         np.savez_compressed(buffer, allow_pickle=False, **recording.arrays())
     except Exception as exc:  # the run's failure, whatever it is, belongs to its row
@@ -133,6 +138,7 @@ def execute_run(spec: RunSpec) -> RunOutcome:
         return RunOutcome(row)
     for key, value in flat_summary(summary).items():
         if not isinstance(value, dict):  # an empty contacts: {} has no column
-            row.setdefault(key, value)  # a varied value keeps its column
+            # A list (the warnings) as the table holds it: JSON text, "[]" for none.
+            row.setdefault(key, json.dumps(value) if isinstance(value, list) else value)  # a varied value keeps its own
     row.update(status=STATUS_OK, error=None, wall_time_s=wall)
     return RunOutcome(row, summary, buffer.getvalue())

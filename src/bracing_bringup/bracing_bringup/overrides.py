@@ -3,7 +3,8 @@
 KEY is a flat parameter name as in the scenario YAML (``input_mode``, ``hand.kp``,
 ``contacts.elbow.desired_normal_force``, ``duration`` ...). A key of the ``/**`` section
 (robot, motors, contacts, input mode) goes to both nodes, a simulator or controller key to
-that node only. VALUE is YAML: ``torque``, ``300``, ``true``, ``[300, 300]``, ``[]``.
+that node only. VALUE is YAML, read as the nodes' rcl reads ``-p KEY:=VALUE``: ``torque``, ``300``,
+``true``, ``1e-3``, ``[300, 300]``, ``[y, z]`` (axis names), ``[]``.
 
 A sweep gives several values separated by commas: ``--set hand.kp=[300,300],[150,150]``.
 Commas inside brackets or quotes belong to the value, so a list is one value.
@@ -12,15 +13,12 @@ Commas inside brackets or quotes belong to the value, so a list is one value.
 from __future__ import annotations
 
 import difflib
-import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import yaml
-
-from bracing_core import schema
+from bracing_core import rcl_yaml, schema
 from bracing_core.params import ConfigError, load_params_file
 
 if TYPE_CHECKING:
@@ -28,8 +26,6 @@ if TYPE_CHECKING:
 
 SIMULATOR = "bracing_simulator"
 CONTROLLER = "bracing_controller"
-# PyYAML (YAML 1.1) reads 1e-3 as a string; a user typing it on a command line means a number.
-_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
 
 
 @dataclass
@@ -72,25 +68,13 @@ def split_values(text: str) -> list[str]:
     return parts
 
 
-def _numbers(value: Any) -> Any:
-    if isinstance(value, str) and _NUMBER.match(value):
-        return float(value) if any(c in value for c in ".eE") else int(value)
-    if isinstance(value, list):
-        return [_numbers(v) for v in value]
-    return value
-
-
 def parse_value(key: str, text: str) -> Any:
-    """One YAML value (a scalar or a flow list)."""
+    """One value (a scalar or a flow list), read as the nodes' rcl reads ``-p key:=VALUE`` and given
+    the meaning the user wrote (``bracing_core.rcl_yaml``): ``1e-3`` is a number, ``[y,z]`` axis names,
+    ``[0,2.0]`` two floats."""
     if not text.strip():
         raise ConfigError(f"--set {key}: empty value")
-    try:
-        value = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"--set {key}: {text!r} is not a YAML value ({exc.__class__.__name__})") from None
-    if isinstance(value, Mapping):
-        raise ConfigError(f"--set {key}: expected a value or a list, got a mapping {text!r}")
-    return _numbers(value)
+    return rcl_yaml.conform(key, rcl_yaml.read_value(key, text, f"--set {key}"))
 
 
 def parse_assignment(text: str) -> tuple[str, list[Any]]:

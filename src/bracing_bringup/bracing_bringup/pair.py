@@ -2,18 +2,18 @@
 
     bracing-pair --config F [--duration S] [--output DIR] [--mode voltage|torque]
                  [--no-bracing | --free-space] [--real-time] [--domain-id N] [--set KEY=VALUE ...]
-                 [--no-animation] [--timeline]
+                 [--no-animation] [--timeline] [--network]
 
-Writes DIR/bag/ (mcap), DIR/logs/*.log, DIR/summary.json, the report's PNGs and animation,
-and DIR/timeline.json (where the wall time went: see ``timeline``).
-Exit 0 on success; non-zero with the failing process's log tail otherwise. Ctrl-C stops
-the nodes and still leaves a readable bag.
+Writes DIR/params.yaml (every parameter the nodes ran with), DIR/bag/ (mcap), DIR/logs/*.log,
+DIR/summary.json, the report's PNGs and animation, and DIR/timeline.json (where the wall time
+went: see ``timeline``). Exit 0 on success; non-zero with the failing process's log tail
+otherwise. Ctrl-C stops the nodes and still leaves a readable bag. A run that fails (or is
+stopped) before its first step keeps only its logs, so the same --output works again.
 """
 
 from __future__ import annotations
 
 import argparse
-import copy
 import os
 import re
 import shutil
@@ -27,27 +27,30 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from bracing_bringup.domains import hold_domain
-from bracing_bringup.overrides import parse_single, route
+from bracing_bringup.overrides import CONTROLLER, SIMULATOR, parse_single, route
 from bracing_bringup.timeline import (
     BAG_CLOSED,
     FIRST_STEP,
     LAST_FILE,
     LAST_STEP,
+    TIMELINE_FILE,
     Timeline,
     node_events,
     process_start_time,
     recorder_events,
 )
 from bracing_bringup.topics import missing_from_counts
-from bracing_core import schema
+from bracing_core import rcl_yaml, schema
 from bracing_core.params import ConfigError, load_params_file, resolve_file
+from bracing_ros.fastdds import NETWORK_ENV
 from bracing_ros.lifetime import STOP_WITH_PARENT
 
 EXIT_FAILED = 1
 EXIT_CONFIG = 2
+PARAMS_FILE = "params.yaml"
+"""DIR/params.yaml: every parameter each node ran with (``bracing-simulator --ros-args --params-file``
+runs it again)."""
 PROGRESS = re.compile(r"progress t=([0-9.eE+-]+)")
 
 
@@ -67,6 +70,7 @@ class RunOptions:
     animation: bool = True  # draw animation.gif / .mp4 with the report
     show_timeline: bool = False  # print the timeline at the end (bracing-pair --timeline)
     free_space: bool = False  # --free-space: the surfaces removed (only watched), the paper's comparison
+    network: bool = False  # --network: DDS sockets on every interface (default: loopback and shared memory)
 
 
 @dataclass
@@ -101,7 +105,7 @@ def effective_params(options: RunOptions, node: str) -> dict[str, Any]:
 
 
 def overrides(options: RunOptions, urdf: Path) -> dict[str, dict[str, Any]]:
-    """Per-node parameters that win over the scenario file (passed as a second params file).
+    """Per-node parameters that win over the scenario file.
 
     The nodes resolve a relative URDF from their working directory, so it is pinned to the
     file found now (``urdf``).
@@ -118,15 +122,32 @@ def overrides(options: RunOptions, urdf: Path) -> dict[str, dict[str, Any]]:
     node_sets = route(options.parameters)
     for own, sets in ((sim, node_sets.simulator), (controller, node_sets.controller)):
         own.update({key: value for key, value in sets.items() if key not in own})  # what the pair needs wins
-    return {"bracing_simulator": sim, "bracing_controller": controller}
+    return {SIMULATOR: sim, CONTROLLER: controller}
 
 
-def write_overrides(path: Path, node_overrides: dict[str, dict[str, Any]]) -> None:
-    document = {}
-    for node, params in node_overrides.items():
-        # rcl reads `[]` as NOT_SET, which the configuration reads as an empty list.
-        document[node] = {"ros__parameters": copy.deepcopy(params)}  # no shared objects: rcl refuses YAML aliases
-    path.write_text(yaml.safe_dump(document, sort_keys=False))
+def node_parameters(given: dict[str, dict[str, Any]], options: RunOptions, urdf: Path) -> dict[str, dict[str, Any]]:
+    """Every parameter each node runs with: ``given`` (``effective_params``: the scenario file and the
+    command line, read once the way rcl reads them) and what the pair needs."""
+    return {node: {**given[node], **own} for node, own in overrides(options, urdf).items()}
+
+
+def write_params(path: Path, node_params: dict[str, dict[str, Any]]) -> None:
+    """The nodes' one params file, written so that rcl reads exactly these values back (every string
+    quoted: a y stays an axis name, a float list stays floats; no aliases)."""
+    path.write_text(rcl_yaml.dump({node: {"ros__parameters": params} for node, params in node_params.items()}))
+
+
+def _environment(options: RunOptions, domain: int) -> dict[str, str]:
+    """The processes' environment: the run's domain, discovery on this machine and, unless
+    ``--network``, the loopback-only Fast DDS profile (``bracing_ros.fastdds``)."""
+    env = dict(os.environ)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = env.get("BRACING_DISCOVERY_RANGE", "LOCALHOST")
+    env["ROS_DOMAIN_ID"] = str(domain)
+    env["PYTHONUNBUFFERED"] = "1"
+    env[STOP_WITH_PARENT] = str(os.getpid())  # they stop should this process be killed
+    if options.network:
+        env[NETWORK_ENV] = "1"
+    return env
 
 
 class Pair:
@@ -274,8 +295,9 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
     # What starting the processes needs, checked against the schemas (names, types, bounds); the
     # configurations' own checks (pinocchio's imports, ~0.25 s) follow while the processes import.
     search = [options.config.parent]
-    sim_values = schema.read("simulator", effective_params(options, "bracing_simulator"))
-    controller_values = schema.read("controller", effective_params(options, "bracing_controller"))
+    given = {node: effective_params(options, node) for node in (SIMULATOR, CONTROLLER)}
+    sim_values = schema.read("simulator", given[SIMULATOR])
+    controller_values = schema.read("controller", given[CONTROLLER])
     urdf = resolve_file(sim_values["robot.urdf"], "robot.urdf", search)
     duration = options.duration if options.duration is not None else float(sim_values["duration"])
     step = float(sim_values["step"])
@@ -284,15 +306,10 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
         raise ConfigError(f"--output: {bag} exists already; choose a new output directory")
     created = not out.exists()
     (out / "logs").mkdir(parents=True, exist_ok=True)
-    override_file = out / "overrides.yaml"
-    write_overrides(override_file, overrides(options, urdf))
-
-    env = dict(os.environ)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = env.get("BRACING_DISCOVERY_RANGE", "LOCALHOST")
-    env["ROS_DOMAIN_ID"] = str(domain)
-    env["PYTHONUNBUFFERED"] = "1"
-    env[STOP_WITH_PARENT] = str(os.getpid())  # they stop should this process be killed
-    ros_args = ["--ros-args", "--params-file", str(options.config.resolve()), "--params-file", str(override_file)]
+    params_file = out / PARAMS_FILE
+    write_params(params_file, node_parameters(given, options, urdf))  # the nodes read only this file
+    env = _environment(options, domain)
+    ros_args = ["--ros-args", "--params-file", str(params_file)]
     contacts = list(sim_values.contacts)
     lockstep = sim_values["stepping"] == "lockstep" and not options.real_time and duration > 0
     expected_states = round(duration / step) + 1 if lockstep else 0
@@ -307,6 +324,7 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
     for sig in previous:
         signal.signal(sig, on_signal)
     message, code, finished = "", 0, False
+    warnings: list[str] = []  # what the run's summary says and the bag cannot show (see _check_configs)
     try:
         pair.say(f"bracing-pair: ROS_DOMAIN_ID={domain}, output {out}")
         # All three at once: each imports and discovers the others while the rest start. No state
@@ -316,6 +334,7 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
         recorder = [sys.executable, "-m", "bracing_bringup.recorder", "--output", str(bag)]
         recorder += ["--contacts", ",".join(contacts), "--niceness", "10"]  # the lockstep loop comes first
         recorder += ["--drain-idle", "0.05"]  # stopped only after the nodes' last messages are acknowledged
+        recorder += ["--params-file", str(params_file), "--scenario", options.config.stem]  # surfaces, name
         if expected_states:
             recorder += ["--expect-states", str(expected_states)]  # it closes the bag once it has them all
         pair.start("recorder", recorder, env)
@@ -323,13 +342,10 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
         pair.start("simulator", [sys.executable, "-m", "bracing_sim.node", *ros_args], env)
         timeline.mark("processes started")
         try:
-            _check_configs(sim_values, controller_values, search)
-        except ConfigError:
+            warnings = _check_configs(sim_values, controller_values, search)
+        except Exception:  # a ConfigError (or a fault of the checks themselves): the run never starts
             pair.kill_all()  # they would stop on the same error; nothing of the run is kept
-            if created:
-                shutil.rmtree(out, ignore_errors=True)
-            else:
-                shutil.rmtree(bag, ignore_errors=True)
+            _discard(out, created, keep_logs=False)
             raise
         timeline.mark("configuration checked")
         last_progress, last_time, last_shown = time.monotonic(), -1.0, 0.0
@@ -385,12 +401,20 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
     if code == 0:
         timeline.mark(BAG_CLOSED, timeline.at("recorder closed the bag"))
         # The report is drawn while the processes finish exiting (their exit codes are checked after).
-        summary, code, message = _report(bag, out, contacts, wall, options, expected_states, timeline)
+        warnings += _real_time_warnings(pair.logs["simulator"], float(sim_values["real_time_factor"]))
+        summary, code, message = _report(bag, out, contacts, wall, options, expected_states, timeline, warnings)
         for name, process_code in pair.stop_all(ask=False).items():
             if process_code != 0 and code == 0:
                 code, message = EXIT_FAILED, f"error: the {name} exited with code {process_code}\n{pair.tail(name)}"
     for name in ("simulator", "controller"):
         timeline.add(node_events(pair.logs[name], name))
+    if code != 0 and timeline.at("simulator stepping") is None:
+        # Nothing to keep from a run that never stepped: the same --output works again.
+        _discard(out, created, keep_logs=True)
+        if pair.interrupted:
+            message = f"interrupted ({signal.Signals(pair.interrupted).name}) before the first step"
+        message += f"\n(the run never stepped: nothing of it was kept but its logs, {out / 'logs'})"
+        return RunResult(code, out, wall, None, message, pair.logs, timeline)
     for phase, event in ((FIRST_STEP, "simulator stepping"), (LAST_STEP, "simulator finished")):
         stamp = timeline.at(event)
         if stamp is not None:
@@ -399,15 +423,40 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
     return RunResult(code, out, wall, summary, message, pair.logs, timeline)
 
 
-def _check_configs(sim_values: schema.Values, controller_values: schema.Values, search: list[Path]) -> None:
+def _discard(out: Path, created: bool, keep_logs: bool) -> None:
+    """Remove what a run that never stepped wrote (its empty bag, its params file), and its logs unless
+    ``keep_logs``; the directory too if the run made it and it is left empty."""
+    shutil.rmtree(out / "bag", ignore_errors=True)
+    (out / PARAMS_FILE).unlink(missing_ok=True)
+    (out / TIMELINE_FILE).unlink(missing_ok=True)
+    if not keep_logs:
+        shutil.rmtree(out / "logs", ignore_errors=True)
+    if created and out.is_dir() and not any(out.iterdir()):
+        out.rmdir()
+
+
+def _check_configs(sim_values: schema.Values, controller_values: schema.Values, search: list[Path]) -> list[str]:
     """The nodes' configuration checks (they would stop on the same error), the start posture's
-    feasibility and the task's rank there: ConfigError, before the run leaves a bag behind."""
+    feasibility and the task's rank there: ConfigError, before the run leaves a bag behind. The
+    targets out of the arm's reach: warnings, as the controller logs them (the summary's)."""
+    from bracing_core.checks import reach_warnings
     from bracing_core.config import SimulatorConfig, build_simulator
     from bracing_core.controller_config import ControllerConfig
     from bracing_core.law import check_task_rank
 
     plant, simulator = build_simulator(SimulatorConfig.from_values(sim_values, search))  # a feasible start
-    check_task_rank(ControllerConfig.from_values(controller_values, search), plant, simulator.position)
+    controller = ControllerConfig.from_values(controller_values, search)
+    check_task_rank(controller, plant, simulator.position)
+    return reach_warnings(controller, plant)
+
+
+def _real_time_warnings(log: Path, requested: float) -> list[str]:
+    """Real-time stepping slower than asked, from the factor the simulator logged (none in lockstep)."""
+    from bracing_core.checks import REAL_TIME_ACHIEVED, slow_real_time_warning
+
+    found = re.search(re.escape(REAL_TIME_ACHIEVED) + r"([0-9.eE+-]+|inf)x", log.read_text(errors="replace"))
+    warning = slow_real_time_warning(float(found.group(1)), requested) if found else None
+    return [warning] if warning is not None else []
 
 
 FINISHED = "finished at t = "
@@ -424,9 +473,10 @@ def _report(
     options: RunOptions,
     expected_states: int,
     timeline: Timeline,
+    warnings: list[str],
 ) -> tuple[dict[str, Any] | None, int, str]:
-    """Read the bag once: check it (a lockstep run promises every step), then write the summary,
-    the figures and the animation from what was read. (summary, exit code, message)."""
+    """Read the bag once: check it (a lockstep run promises every step), then write the summary
+    (with ``warnings``), the figures and the animation from what was read. (summary, exit code, message)."""
     from bracing_bringup.animation import DEFAULT_INTERVAL_S
     from bracing_bringup.drawing import report_series
     from bracing_bringup.summary import BagReadError, read_series
@@ -442,7 +492,9 @@ def _report(
         if problems:
             return None, EXIT_FAILED, "error: the bag is incomplete (lost messages): " + "; ".join(problems)
     interval = DEFAULT_INTERVAL_S if options.animation else None
-    summary = report_series(series, out, wall_time_s=wall, animation_interval_s=interval, mark=timeline.mark)
+    summary = report_series(
+        series, out, wall_time_s=wall, animation_interval_s=interval, mark=timeline.mark, warnings=warnings
+    )
     timeline.mark(LAST_FILE)
     return summary, 0, ""
 
@@ -488,6 +540,12 @@ def parse_args(argv: Sequence[str] | None) -> RunOptions:
         "--timeline", action="store_true", help="print where the run's wall time went (also in DIR/timeline.json)"
     )
     parser.add_argument(
+        "--network",
+        action="store_true",
+        help=f"DDS sockets on every interface, reachable from other machines (default: loopback and shared "
+        f"memory only; {NETWORK_ENV}=1 does the same for nodes started by hand). Use SROS2 to do it securely",
+    )
+    parser.add_argument(
         "--set", dest="sets", action="append", default=[], metavar="KEY=VALUE", help="override a scenario parameter"
     )
     args = parser.parse_args(argv)
@@ -513,6 +571,7 @@ def parse_args(argv: Sequence[str] | None) -> RunOptions:
         animation=not args.no_animation,
         show_timeline=args.timeline,
         free_space=args.free_space,
+        network=args.network,
     )
 
 

@@ -6,7 +6,6 @@ paper's comparison). Then a side-by-side table and the comparison figures (compa
 from __future__ import annotations
 
 import argparse
-import math
 import shutil
 import sys
 from collections.abc import Sequence
@@ -15,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from bracing_bringup.pair import RunOptions, run_pair
+from bracing_bringup.ratios import ratio_text
 from bracing_bringup.summary import BagReadError
 from bracing_core.params import ConfigError
 
@@ -41,6 +41,8 @@ RUNS = (
 )
 RATIOS = (("braced", "free_space"), ("braced", "passive"))
 """The ratios printed, the paper's headline (braced against free space) first."""
+BASELINE = "free_space"
+"""compare.md divides by this run: its ratios are the paper's headline (braced / free space)."""
 
 ROWS: list[tuple[str, str, str]] = [
     ("hand_rms_error_m", "hand RMS error (t >= 2 s)", "m"),
@@ -59,10 +61,6 @@ def _number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
-def _ratio(a: dict[str, Any], b: dict[str, Any], key: str) -> float:
-    return a[key] / b[key] if _number(a.get(key)) and _number(b.get(key)) and b[key] else math.nan
-
-
 def table(summaries: dict[str, dict[str, Any]]) -> str:
     """The runs' summaries (by run name, RUNS) side by side, then RATIOS of energy and hand error."""
     runs = [run for run in RUNS if run.name in summaries]
@@ -77,7 +75,7 @@ def table(summaries: dict[str, dict[str, Any]]) -> str:
     for a, b in RATIOS:
         if a in summaries and b in summaries:
             for key, what in (("energy_consumed_j", "energy ratio"), ("hand_rms_error_m", "hand RMS error ratio")):
-                lines.append(f"{what} {column[a]} / {column[b]}: {_ratio(summaries[a], summaries[b], key):.3f}")
+                lines.append(f"{what} {column[a]} / {column[b]}: {ratio_text(key, summaries[a], summaries[b])}")
     return "\n".join(lines)
 
 
@@ -117,7 +115,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         movies = [args.output / name / f for f in ANIMATION_FILES if (args.output / name / f).exists()]
         print(f"animation of the {name} run: " + (", ".join(map(str, movies)) or "none (see the report's message)"))
     try:
-        compared = write_comparison([args.output / name / "bag" for name in summaries], args.output)
+        baseline = BASELINE if BASELINE in summaries else None
+        compared = write_comparison([args.output / name / "bag" for name in summaries], args.output, baseline=baseline)
     except BagReadError as exc:
         print(f"error: comparison: {exc}", file=sys.stderr)
         return 1

@@ -3,7 +3,7 @@
 Usage::
 
     python -m bracing_bringup.recorder --output DIR/bag [--namespace NS] \
-        [--contacts elbow,...] [--ros-args ...]
+        [--contacts elbow,...] [--params-file FILE ...] [--scenario NAME] [--ros-args ...]
 
 The bag embeds the message definitions (bracing_msgs included), so any rosbag2 reader
 decodes it. Messages are received already serialised (CDR, ``raw=True``) and written as
@@ -15,7 +15,14 @@ recorded messages (``bracing_bringup.scene``): ``/tf_static`` once and ``/tf`` p
 ``joint_states`` (every link's pose, pinocchio kinematics of the URDF received on
 ``robot_description``), and ``contact_markers`` per state (surface, contact point, force
 arrow from ``contact_wrench/<name>``). It derives them when idle and on stop (after the
-drain), so a lockstep run is not slowed; ``--no-scene`` leaves them out.
+drain), so a lockstep run is not slowed; ``--no-scene`` leaves them out. ``--params-file`` names the
+params files the nodes run with (as many as they got, in order): the bag's metadata then holds the
+contact surfaces (``surfaces``), and the markers draw a sphere or a cylinder as one. ``--scenario``
+names the scenario in the bag's metadata (default: the first params file's name), for the report.
+
+The controller's parameter changes while it runs (``ros2 param set``) are recorded from rclpy's
+``/parameter_events``: the events of the run's controller that change a value, stamped by it with the
+sim time of the last state it answered with the old values (see bracing_controller.node).
 
 Prints ``recorder ready`` on stdout once every subscription exists. SIGINT or SIGTERM
 stops it: pending messages are drained (until nothing arrives for ``--drain-idle``
@@ -36,10 +43,11 @@ from collections import deque
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import FrameType
-from typing import Literal
+from typing import Any, Literal
 
 import rclpy
 from geometry_msgs.msg import WrenchStamped
+from rcl_interfaces.msg import ParameterEvent
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
@@ -53,8 +61,18 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
+from bracing_bringup import surfaces
 from bracing_bringup.scene import Derived, DescriptionError, SceneBuilder
-from bracing_bringup.topics import DESCRIPTION_TOPIC, SCENE_TOPICS, STRING_TYPE, missing_from_counts, recorded_topics
+from bracing_bringup.topics import (
+    CONTROLLER_NODE,
+    DESCRIPTION_TOPIC,
+    PARAMETER_EVENTS_TOPIC,
+    PARAMETER_EVENTS_TYPE,
+    SCENE_TOPICS,
+    STRING_TYPE,
+    missing_from_counts,
+    recorded_topics,
+)
 from bracing_bringup.topics import expected_counts as expected_counts  # re-exported: the check lives in topics
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState
 from bracing_ros.common import SubscriptionWaiter, use_fastdds_profile
@@ -94,6 +112,15 @@ RECORD_QOS = QoSProfile(
 """Reliable, deep and transient-local, so that nothing is lost in lockstep runs: a publisher
 that starts before the recorder has discovered it still delivers its first messages.
 (It matches the nodes' transient-local publishers; a volatile publisher is not recorded.)"""
+
+PARAMETER_EVENTS_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+"""rclpy's own for /parameter_events: its publishers are volatile, which a transient-local
+subscription would not match."""
 
 
 _RCLPY_TYPES: dict[str, type] = {
@@ -145,9 +172,11 @@ class Recorder(Node):
         namespace: str = "",
         contacts: Sequence[str] = (),
         scene: bool = True,
+        shapes: Mapping[str, surfaces.Shape] | None = None,
     ) -> None:
         super().__init__("bracing_recorder", namespace=namespace)
         self.writer = writer
+        self.typestore = typestore
         self.counts: dict[str, int] = {}
         self.received = 0
         self.derived = 0
@@ -168,8 +197,16 @@ class Recorder(Node):
             )
             self._roles[sub] = role
             self.counts[resolved] = 0
-        self._waiter = SubscriptionWaiter(self, list(self._connections))
-        self.scene = SceneBuilder(typestore, contacts) if scene else None
+        # The controller's parameter changes, on rclpy's volatile topic (see ``_record_event``); the bag
+        # gets the topic with the first change (a run without any has none).
+        self._events = self.create_subscription(
+            ParameterEvent, PARAMETER_EVENTS_TOPIC, _never_called, PARAMETER_EVENTS_QOS, raw=True
+        )
+        self._events_connection: Connection | None = None
+        self._roles[self._events] = "parameter_events"
+        self._controller = self.resolve_topic_name(CONTROLLER_NODE)  # its fully qualified name
+        self._waiter = SubscriptionWaiter(self, [*self._connections, self._events])
+        self.scene = SceneBuilder(typestore, contacts, shapes) if scene else None
         self._scene_inputs: deque[tuple[str, bytes]] = deque()
         self._scene_roles = {"joint_states", "contacts", "description", *(f"contact_wrench/{c}" for c in contacts)}
         self._scene_connections: dict[str, Connection] = {}
@@ -188,18 +225,40 @@ class Recorder(Node):
         """Write every message available now, waiting up to ``timeout_sec``; the count written."""
         taken = self._waiter.take_all(timeout_sec)
         write, connections, counts = self.writer.write, self._connections, self.counts
+        skipped = 0
         for sub, data in taken:
+            if sub is self._events:
+                skipped += not self._record_event(data)
+                continue
             connection = connections[sub]
             stamp = 0 if self._roles[sub] == "description" else cdr_stamp_ns(data)
             write(connection, stamp, data)
             counts[connection.topic] += 1
         if taken:
-            self.received += len(taken)
+            self.received += len(taken) - skipped
             self.last_receive = time.monotonic()
             if self.scene is not None:
                 roles = self._roles
                 self._scene_inputs.extend((roles[sub], data) for sub, data in taken if roles[sub] in self._scene_roles)
         return len(taken)
+
+    def _record_event(self, data: bytes) -> bool:
+        """Write a /parameter_events message if it is worth the bag: the run's controller changing a value.
+        (Every node announces its parameters there when it starts, stamped with the wall clock; the
+        controller stamps its changes with the sim time, the bag's time axis.) Whether it was written."""
+        try:
+            event: Any = self.typestore.deserialize_cdr(data, PARAMETER_EVENTS_TYPE)
+        except (SerdeError, ValueError, IndexError, KeyError):
+            return False
+        if event.node != self._controller or not (len(event.changed_parameters) or len(event.deleted_parameters)):
+            return False
+        if self._events_connection is None:
+            topic = self._events.topic_name
+            self._events_connection = self.writer.add_connection(topic, PARAMETER_EVENTS_TYPE, typestore=self.typestore)
+            self.counts[topic] = 0
+        self.writer.write(self._events_connection, cdr_stamp_ns(data), data)
+        self.counts[self._events_connection.topic] += 1
+        return True
 
     def has_every_message(self, wanted: Mapping[str, int]) -> bool:
         """Whether every subscribed topic has ``wanted[topic]`` messages (``topics.expected_counts``)."""
@@ -256,6 +315,18 @@ def _never_called(_: object) -> None:
     raise AssertionError("the recorder takes its messages itself")
 
 
+def _scenario_surfaces(files: Sequence[str]) -> dict[str, surfaces.Shape]:
+    """The contact surfaces of the scenario files (none given or unreadable: none, said so; the
+    markers then draw each surface as its tangent plane)."""
+    if not files:
+        return {}
+    try:
+        return surfaces.read_scenario(files)
+    except ValueError as exc:  # ConfigError: the nodes will say the same, more loudly
+        print(f"recorder: warning: no contact surfaces from {', '.join(files)}: {exc}", file=sys.stderr, flush=True)
+        return {}
+
+
 def _parse(argv: Sequence[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog="bracing-recorder",
@@ -264,6 +335,21 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
     parser.add_argument("--output", required=True, help="bag directory to create (must not exist)")
     parser.add_argument("--namespace", default="", help="namespace of the recorded nodes")
     parser.add_argument("--contacts", default="", help="comma-separated contact names (contact_wrench/<name>)")
+    parser.add_argument(
+        "--params-file",
+        dest="params_files",
+        action="append",
+        default=[],
+        metavar="FILE",
+        help="a params file the nodes run with (repeat for each, in order): its contact surfaces go into the bag's "
+        "metadata, and the markers draw spheres and cylinders as such",
+    )
+    parser.add_argument(
+        "--scenario",
+        default=None,
+        metavar="NAME",
+        help="the scenario's name, kept in the bag's metadata for the report (default: the first params file's name)",
+    )
     parser.add_argument(
         "--batch",
         type=float,
@@ -327,16 +413,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (FileNotFoundError, OSError) as exc:
         print(f"recorder: error: {exc}", file=sys.stderr)
         return 2
+    shapes = _scenario_surfaces(args.params_files)
+    scenario = args.scenario or (Path(args.params_files[0]).stem if args.params_files else None)
 
     if args.niceness:
         os.nice(args.niceness)
     use_fastdds_profile()  # the nodes' discovery settings: matched at once when started together
     rclpy.init(args=["recorder", *full], signal_handler_options=SignalHandlerOptions.NO)
     writer = Writer(output, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
+    if scenario:
+        writer.set_custom_data(surfaces.SCENARIO_KEY, scenario)
+    if shapes:
+        writer.set_custom_data(surfaces.SURFACES_KEY, surfaces.to_json(shapes))
     writer.open()
     node: Recorder | None = None
     try:
-        node = Recorder(writer, typestore, namespace=args.namespace, contacts=contacts, scene=not args.no_scene)
+        node = Recorder(
+            writer, typestore, namespace=args.namespace, contacts=contacts, scene=not args.no_scene, shapes=shapes
+        )
         print(f"recorder subscribed at {time.time():.6f}", flush=True)  # wall time: for the run's timeline
         print("recorder ready", flush=True)
         idle, complete = False, False

@@ -10,6 +10,8 @@ Jazzy typestore.
   link), ``/tf_static`` (world -> the links fixed to the world, once) and
   ``contact_markers`` (per contact: its surface, the contact point and the contact force
   as an arrow of ``FORCE_ARROW_M_PER_N`` metres per newton, from ``contact_wrench/<name>``).
+  A plane is drawn as a square patch of it (CUBE); a sphere or a cylinder whose geometry is known
+  (``surfaces``: from the scenario) as a SPHERE or a CYLINDER marker, else as its tangent plane.
 
 The messages of one run have one layout (the same frame ids, links, contact names, marker
 strings), so bytes are made and read with :mod:`bracing_ros.wire`'s byte templates: the
@@ -23,7 +25,7 @@ from __future__ import annotations
 
 import struct
 from collections import Counter
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, NamedTuple
 
@@ -33,6 +35,7 @@ from numpy.typing import NDArray
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
+from bracing_bringup.surfaces import Shape, shape_of
 from bracing_ros import wire
 
 FloatArray = NDArray[np.float64]
@@ -44,7 +47,7 @@ FORCE_ARROW_M_PER_N = 0.01
 """Length of a force arrow marker per newton of force [m/N] (10 N -> 10 cm)."""
 
 SURFACE_PATCH_M = 2.0
-"""Side of the square drawn for a surface [m] (a patch of the tangent plane)."""
+"""Side of the square drawn for a surface [m] (a patch of the tangent plane); a cylinder's drawn length."""
 
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 MARKERS_TYPE = "visualization_msgs/msg/MarkerArray"
@@ -182,7 +185,9 @@ class SceneBuilder:
     each, and every one of a layout other than the first's.
     """
 
-    def __init__(self, typestore: Typestore, wrench_contacts: Sequence[str] = ()) -> None:
+    def __init__(
+        self, typestore: Typestore, wrench_contacts: Sequence[str] = (), surfaces: Mapping[str, Shape] | None = None
+    ) -> None:
         self.store = typestore
         self.wrench_contacts = list(wrench_contacts)
         self._wrench_set = frozenset(self.wrench_contacts)
@@ -193,7 +198,7 @@ class SceneBuilder:
         self._tf: Any = None
         self._tf_header: Any = None
         self._tf_bytes = _Layout(typestore, TF_TYPE, TF_VARIES)
-        self._markers = _MarkerTemplates(typestore)
+        self._markers = _MarkerTemplates(typestore, surfaces or {})
         self._marker_bytes = _Layout(typestore, MARKERS_TYPE, MARKERS_VARIES)
         self._states: wire.JointStateDecoder | None = None  # for the first JointState's names
         self._contacts_reader: _ContactsReader | None = None  # for the first Contacts' layout
@@ -372,7 +377,8 @@ _IDENTITY_POSE = [0.0, 0.0, 0.0, *_IDENTITY_ROTATION]
 
 
 class _MarkerTemplates:
-    """Per contact: surface patch (CUBE), contact point (SPHERE) and force (ARROW), reused per state."""
+    """Per contact: surface (a plane's patch: CUBE; a sphere: SPHERE; a cylinder: CYLINDER), contact
+    point (SPHERE) and force (ARROW), reused per state."""
 
     COLORS: ClassVar[dict[int, tuple[float, float, float, float]]] = {  # RGBA
         SURFACE_ID: (0.55, 0.55, 0.6, 0.6),
@@ -381,11 +387,14 @@ class _MarkerTemplates:
     }
     INACTIVE = (0.5, 0.5, 0.5, 1.0)
 
-    def __init__(self, store: Typestore) -> None:
+    def __init__(self, store: Typestore, surfaces: Mapping[str, Shape]) -> None:
         self.t = store.types
+        self._surfaces = surfaces
         self._per_contact: dict[str, list[Any]] = {}
         self._anchor: dict[str, tuple[float, float, float]] = {}  # first contact point on its surface [m]
         self._turn: dict[str, tuple[Sequence[float], list[float]]] = {}  # last normal and its z_to
+        self._solid: dict[str, list[float]] = {}  # a sphere's or cylinder's marker pose
+        self._shapes: dict[str, Shape | None] = {}  # _curved's answers
 
     def _marker(self, ns: str, marker_id: int, kind: int, scale: tuple[float, float, float]) -> Any:
         t = self.t
@@ -424,7 +433,16 @@ class _MarkerTemplates:
         markers = self._per_contact.get(name)
         if markers is None:
             marker_types: Any = self.t["visualization_msgs/msg/Marker"]
-            surface = self._marker(name, SURFACE_ID, marker_types.CUBE, (SURFACE_PATCH_M, SURFACE_PATCH_M, 0.002))
+            shape = self._curved(name)
+            if shape is None:
+                surface = self._marker(name, SURFACE_ID, marker_types.CUBE, (SURFACE_PATCH_M, SURFACE_PATCH_M, 0.002))
+            else:  # SPHERE and CYLINDER take their diameter as x and y scale (a cylinder's length as z)
+                diameter = 2.0 * shape.radius
+                if shape.kind == "sphere":
+                    surface = self._marker(name, SURFACE_ID, marker_types.SPHERE, (diameter, diameter, diameter))
+                else:
+                    scale = (diameter, diameter, SURFACE_PATCH_M)
+                    surface = self._marker(name, SURFACE_ID, marker_types.CYLINDER, scale)
             point = self._marker(name, POINT_ID, marker_types.SPHERE, (0.04, 0.04, 0.04))
             # ARROW with two points: shaft diameter, head diameter, head length [m].
             arrow = self._marker(name, FORCE_ID, marker_types.ARROW, (0.012, 0.03, 0.03))
@@ -443,16 +461,20 @@ class _MarkerTemplates:
         nx, ny, nz = c.normal
         residual = float(c.residual)
         sx, sy, sz = on_surface = (px - residual * nx, py - residual * ny, pz - residual * nz)  # onto its surface
-        # The patch is the tangent plane, centred where the contact first was: a fixed floor for a plane.
-        ax, ay, az = self._anchor.setdefault(c.name, on_surface)
-        height = (ax - sx) * nx + (ay - sy) * ny + (az - sz) * nz
-        centre = [ax - height * nx, ay - height * ny, az - height * nz]
-        last = self._turn.get(c.name)
-        if last is None or last[0] != c.normal:  # z_to of a new normal (a plane's stays)
-            last = self._turn[c.name] = (c.normal, z_to(np.array(c.normal)).tolist())
-        turn = last[1]
+        shape = self._curved(c.name)
+        if shape is not None:  # the whole surface, where it is: its pose never changes
+            surface = self._solid_pose(c.name, shape, on_surface)
+        else:
+            # The patch is the tangent plane, centred where the contact first was: a fixed floor for a plane.
+            ax, ay, az = self._anchor.setdefault(c.name, on_surface)
+            height = (ax - sx) * nx + (ay - sy) * ny + (az - sz) * nz
+            centre = [ax - height * nx, ay - height * ny, az - height * nz]
+            last = self._turn.get(c.name)
+            if last is None or last[0] != c.normal:  # z_to of a new normal (a plane's stays)
+                last = self._turn[c.name] = (c.normal, z_to(np.array(c.normal)).tolist())
+            surface = centre + last[1]
         markers: list[_Drawn] = [
-            (centre + turn, self.COLORS[SURFACE_ID], []),
+            (surface, self.COLORS[SURFACE_ID], []),
             (position + _IDENTITY_ROTATION, self.COLORS[POINT_ID] if c.active else self.INACTIVE, []),
         ]
         if force is not None:
@@ -460,6 +482,28 @@ class _MarkerTemplates:
             k = FORCE_ARROW_M_PER_N
             markers.append((_IDENTITY_POSE, self.COLORS[FORCE_ID], [px, py, pz, px + k * fx, py + k * fy, pz + k * fz]))
         return markers
+
+    def _curved(self, name: str) -> Shape | None:
+        """The sphere or cylinder ``name`` is on, if its geometry is known (None: a plane, or unknown)."""
+        if name not in self._shapes:  # asked per state: looked up once
+            shape = shape_of(self._surfaces, name)
+            self._shapes[name] = shape if shape is not None and shape.curved and shape.radius > 0.0 else None
+        return self._shapes[name]
+
+    def _solid_pose(self, name: str, shape: Shape, on_surface: Sequence[float]) -> list[float]:
+        """Pose (x, y, z, qx, qy, qz, qw) of a sphere's marker (at its centre) or a cylinder's (its
+        axis along the marker's z, centred where the axis passes nearest the contact's first point):
+        made at the first state, the same ever after."""
+        pose = self._solid.get(name)
+        if pose is None:
+            if shape.kind == "sphere":
+                pose = [*shape.center, *_IDENTITY_ROTATION]
+            else:
+                point, axis = np.array(shape.point), np.array(shape.axis)
+                centre = point + float(np.dot(np.asarray(on_surface) - point, axis)) * axis
+                pose = [*centre.tolist(), *z_to(axis).tolist()]
+            self._solid[name] = pose
+        return pose
 
     def message(self, stamp: tuple[int, int], contacts: Sequence[_Contact], drawn: Sequence[list[_Drawn]]) -> Any:
         """The MarkerArray of the contacts' markers (``drawn``: ``draw`` of each) as message objects."""

@@ -12,6 +12,8 @@
 
 Writes DIR/report.md with its figures (bracing.png, gains.png, placement.png), and the sweep's
 DIR/results.parquet, DIR/results.csv and DIR/runs/ (the same command again reuses finished runs).
+Exit 0 when every run is ok, 1 when one failed (the report is still written, its cells say which),
+2 on a configuration error before any run (every run's configuration and task rank are checked first).
 """
 
 from __future__ import annotations
@@ -28,16 +30,20 @@ from typing import Any
 import numpy as np
 
 from bracing_bringup.executors import make_executor
-from bracing_bringup.experiment import FORCE_MAX_ERROR_KEY, STATUS_OK, RunSpec
+from bracing_bringup.experiment import FORCE_MAX_ERROR_KEY, STATUS_FAILED, STATUS_OK, RunSpec
 from bracing_bringup.overrides import CONTROLLER, parse_single, route
+from bracing_bringup.ratios import ratio
 from bracing_bringup.summary import HAND_ERROR_T_MIN_S
 from bracing_bringup.sweep import (
     ARRAYS_FILE,
     EXIT_CONFIG,
+    EXIT_FAILED,
     EXIT_INTERRUPTED,
     ResultsStore,
+    any_failed,
     handle_stop_signals,
     make_spec,
+    row_warnings,
     run_sweep,
 )
 from bracing_core import schema
@@ -45,6 +51,8 @@ from bracing_core.config import SharedConfig
 from bracing_core.params import ConfigError, load_params_file, resolve_file
 
 SCENARIO_ALIASES = {"paper": "paper_4link.yaml"}
+PAPER_SCENARIO = "paper_4link"
+"""The scenario whose figures the paper has: only its report cites them."""
 GAIN_SCALES = (1.0, 0.5, 0.2, 0.1)
 FORCE_SCALES = (0.5, 1.0, 2.0)  # x the file's desired normal force
 REPORT = "report.md"
@@ -65,6 +73,14 @@ class Study:
     @property
     def specs(self) -> list[RunSpec]:
         return [*self.bracing, *self.gains, *self.placement]
+
+    @property
+    def scenario(self) -> str:
+        return self.config.stem
+
+    def paper(self, text: str) -> str:
+        """``text`` (a citation of the paper's figures) for the paper's scenario, else nothing."""
+        return text if self.scenario == PAPER_SCENARIO else ""
 
 
 def resolve_scenario(name: str) -> Path:
@@ -188,10 +204,6 @@ def _ok(row: dict[str, Any] | None) -> bool:
     return row is not None and row.get("status") == STATUS_OK
 
 
-def _ratio(a: Any, b: Any) -> float | None:
-    return a / b if isinstance(a, (int, float)) and isinstance(b, (int, float)) and b else None
-
-
 def _bracing_section(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any]]) -> list[str]:
     header = ["bracing", "input", "gravity comp.", "hand RMS [m]", "hand max [m]", "energy [J]", "copper loss [J]"]
     table, lookup = [], {}
@@ -213,8 +225,8 @@ def _bracing_section(study: Study, store: ResultsStore, rows: dict[str, dict[str
             if not (_ok(braced) and _ok(free)):
                 continue
             assert braced is not None and free is not None
-            energy = _ratio(braced["energy_consumed_j"], free["energy_consumed_j"])
-            hand = _ratio(braced["hand_rms_error_m"], free["hand_rms_error_m"])
+            energy = ratio("energy_consumed_j", braced, free)[0]
+            hand = ratio("hand_rms_error_m", braced, free)[0]
             ratios.append([mode, compensation, energy, hand])
             if hand is not None and energy is not None:
                 better = "more precise" if hand < 1 else "less precise"
@@ -245,6 +257,7 @@ def _draw_bracing(study: Study, store: ResultsStore, rows: dict[str, dict[str, A
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(11, 4.2), layout="constrained")
+    fig.suptitle(f"{study.scenario}: braced vs free")
     error_ax, energy_ax = fig.subplots(1, 2)
     colours = {
         ("voltage", False): "tab:blue",
@@ -320,7 +333,9 @@ def _gains_section(study: Study, store: ResultsStore, rows: dict[str, dict[str, 
     lines = [
         "## 2. Gains: position and force are decoupled",
         "",
-        "All PD gains (hand and brace, Kp and Kd) scaled together, braced, paper Sec. 4 / Figs. 9-16.",
+        "All PD gains (hand and brace, Kp and Kd) scaled together, braced"
+        + study.paper(", paper Sec. 4 / Figs. 9-16")
+        + ".",
         "",
         _table(header, table),
         "",
@@ -353,6 +368,7 @@ def _draw_gains(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(14, 4.2), layout="constrained")
+    fig.suptitle(f"{study.scenario}: gains scaled together")
     force_ax, position_ax, series_ax = fig.subplots(1, 3)
     colours = {"torque": "tab:red", "voltage": "tab:blue"}
     for mode in ("torque", "voltage"):
@@ -390,7 +406,7 @@ def _draw_gains(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any
         yscale="log",
     )
     position_ax.set(title="position errors", xlabel="gain scale", ylabel="[m]", xscale="log")
-    series_ax.set(title="normal force, voltage input (Fig. 16)", xlabel="time [s]", ylabel="f_n [N]")
+    series_ax.set(title="normal force, voltage input" + study.paper(" (Fig. 16)"), xlabel="time [s]", ylabel="f_n [N]")
     for ax in (force_ax, position_ax, series_ax):
         ax.grid(True, alpha=0.4)
         ax.legend(fontsize=7)
@@ -443,6 +459,7 @@ def _draw_placement(study: Study, store: ResultsStore, grids: dict[str, np.ndarr
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(11, 4.0), layout="constrained")
+    fig.suptitle(f"{study.scenario}: brace placement and force")
     axes = fig.subplots(1, 2)
     for ax, (key, title) in zip(
         axes, (("energy_consumed_j", "energy consumed [J]"), ("hand_rms_error_m", "hand RMS error [m]")), strict=True
@@ -461,6 +478,19 @@ def _draw_placement(study: Study, store: ResultsStore, grids: dict[str, np.ndarr
             i, j = (int(x) for x in np.unravel_index(np.nanargmin(grid), grid.shape))
             ax.plot(j, i, marker="*", markersize=22, markerfacecolor="none", markeredgecolor="red", markeredgewidth=2)
     fig.savefig(store.output / "placement.png", dpi=110)
+
+
+def _warnings_section(rows: dict[str, dict[str, Any]]) -> list[str]:
+    """The runs' warnings (summary.json's), each once with the number of runs that had it."""
+    counts = row_warnings(list(rows.values()))
+    if not counts:
+        return []
+    return [
+        "## Warnings",
+        "",
+        *[f"- {text} ({runs} run{'s' if runs > 1 else ''})" for text, runs in counts.items()],
+        "",
+    ]
 
 
 def write_report(study: Study, output: Path, wall_time_s: float, executor: str, reused: int = 0) -> Path:
@@ -483,6 +513,7 @@ def write_report(study: Study, output: Path, wall_time_s: float, executor: str, 
         *_bracing_section(study, store, rows),
         *_gains_section(study, store, rows),
         *_placement_section(study, store, rows),
+        *_warnings_section(rows),
     ]
     path = output / REPORT
     path.write_text("\n".join(lines))
@@ -537,7 +568,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_INTERRUPTED
     report = write_report(study, args.output, time.perf_counter() - start, where, result.skipped)
     print(f"bracing-study: {result.ran} run now, {result.skipped} reused; report: {report}")
-    return 1 if result.lost else 0
+    failed = sum(1 for row in result.rows if row.get("status") == STATUS_FAILED)
+    if failed or result.lost:
+        print(
+            f"bracing-study: {failed} run(s) failed, {len(result.lost)} lost: see the report's cells and "
+            f"{args.output / 'results.csv'}",
+            file=sys.stderr,
+        )
+    return EXIT_FAILED if result.lost or any_failed(result.rows) else 0
 
 
 if __name__ == "__main__":

@@ -6,7 +6,9 @@ URDF of ``robot_description``, if the bag has it, for drawing the arm). It decod
 topic's messages column-wise (``columns``); ``columnar=False`` is the plain per-message path.
 ``compute_summary(series, wall_time_s)`` returns the ``summary.json`` dict (keys: README, Topics and messages):
 SUMMARY_KEYS, then SUMMARY_EXTRA_KEYS (per-contact metrics ``contact_metrics``, the input mode, whether
-the controller braced).
+the controller braced, the run's ``warnings``). A metric that does not apply to the run is None (null):
+the brace and force errors of a run with no braced contact, the copper loss of a torque-input run
+(no motor circuit), the constraint residual of a run where no contact ever held.
 
 Times are in seconds relative to ``t0``, the first ``joint_states`` stamp (the first
 stamp of any recorded message if there is no ``joint_states``).
@@ -15,15 +17,19 @@ stamp of any recorded message if there is no ``joint_states``).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 from numpy.typing import NDArray
 from rosbags.highlevel import AnyReader
 
 from bracing_bringup.columns import Layout, column, decode
+from bracing_bringup.surfaces import SCENARIO_KEY, SURFACES_KEY, Shape, from_json
+from bracing_core import checks
 
 FloatArray = NDArray[np.float64]
 _Xyz = tuple[float, ...]
@@ -43,7 +49,7 @@ SUMMARY_KEYS = (
     "wall_time_s",
     "real_time_factor",
 )
-SUMMARY_EXTRA_KEYS = ("contacts", "max_penetration_m", "input_mode", "bracing")
+SUMMARY_EXTRA_KEYS = ("contacts", "max_penetration_m", "input_mode", "bracing", "warnings")
 """summary.json's keys after SUMMARY_KEYS (added later: tools that read SUMMARY_KEYS by position keep working)."""
 
 CONTACT_KEYS = (
@@ -69,6 +75,7 @@ _MOTOR_STATE = "bracing_msgs/msg/MotorState"
 _MOTOR_COMMAND = "bracing_msgs/msg/MotorCommand"
 _WRENCH = "geometry_msgs/msg/WrenchStamped"
 _STRING = "std_msgs/msg/String"
+_PARAMETER_EVENT = "rcl_interfaces/msg/ParameterEvent"
 _WRENCH_TOPIC = "contact_wrench/"
 _DESCRIPTION_TOPIC = "robot_description"
 
@@ -108,6 +115,19 @@ class ContactSeries:
     normal_force_error: FloatArray = field(default_factory=_empty)  # f_n - f_nd [N]
 
 
+@dataclass(frozen=True)
+class ParameterChange:
+    """A node's parameters changed while it ran (recorded from /parameter_events)."""
+
+    t: float  # [s], the run's time base
+    node: str  # fully qualified (/bracing_controller)
+    values: dict[str, Any]  # name -> new value (None: deleted)
+
+    def text(self) -> str:
+        """``hand.kp = [150.0, 150.0]``, one per changed parameter."""
+        return ", ".join(f"{name} = {value}" for name, value in self.values.items())
+
+
 @dataclass
 class BagSeries:
     """Time series of one run (see the module docstring for the time base)."""
@@ -127,6 +147,9 @@ class BagSeries:
     copper_loss: FloatArray = field(default_factory=_empty)  # [J]
     topic_counts: dict[str, int] = field(default_factory=dict)  # messages per topic
     input_mode: str | None = None  # motor_command's mode ("voltage", "torque"); None if none was recorded
+    scenario: str | None = None  # the scenario's name (bag metadata, the recorder's --scenario); None: unknown
+    surfaces: dict[str, Shape] = field(default_factory=dict)  # each contact's surface (bag metadata)
+    parameter_changes: list[ParameterChange] = field(default_factory=list)  # the controller's, in time order
 
 
 def _stamp_ns(msg: Any) -> int:
@@ -185,6 +208,63 @@ def _input_mode(reader: AnyReader) -> str | None:
     return None
 
 
+def _custom_data(path: Path) -> dict[str, str]:
+    """The bag's metadata ``custom_data`` (what the recorder noted: scenario, surfaces); {} if none."""
+    try:
+        document = yaml.safe_load((path / "metadata.yaml").read_text(encoding="utf-8"))
+        data = document["rosbag2_bagfile_information"].get("custom_data") or {}
+    except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError):
+        return {}
+    return {str(k): str(v) for k, v in data.items()} if isinstance(data, dict) else {}
+
+
+def _describe(series: BagSeries, path: Path) -> None:
+    """The run's scenario and surfaces from the bag's metadata, into ``series``."""
+    data = _custom_data(path)
+    series.scenario = data.get(SCENARIO_KEY) or None
+    series.surfaces = from_json(data.get(SURFACES_KEY, "{}"))
+
+
+_VALUE_FIELDS = {
+    1: "bool_value",
+    2: "integer_value",
+    3: "double_value",
+    4: "string_value",
+    5: "byte_array_value",
+    6: "bool_array_value",
+    7: "integer_array_value",
+    8: "double_array_value",
+    9: "string_array_value",
+}
+"""rcl_interfaces/ParameterType -> the ParameterValue field that holds it."""
+
+
+def _parameter_value(value: Any) -> Any:
+    held = getattr(value, _VALUE_FIELDS.get(int(value.type), ""), None)
+    return held.tolist() if isinstance(held, np.ndarray) else list(held) if isinstance(held, list) else held
+
+
+def _parameter_events(reader: AnyReader) -> list[tuple[int, str, dict[str, Any]]]:
+    """(stamp [ns], node, {name: new value}) of each recorded /parameter_events message that changes
+    or deletes a value, decoded by rosbags (a few per run); both read paths call this."""
+    connections = [c for c in reader.connections if c.msgtype == _PARAMETER_EVENT]
+    if not connections:  # (an empty list would make reader.messages read every topic)
+        return []
+    out = []
+    for conn, _, raw in reader.messages(connections=connections):
+        event: Any = reader.deserialize(raw, conn.msgtype)
+        values = {str(p.name): _parameter_value(p.value) for p in event.changed_parameters}
+        values.update({str(p.name): None for p in event.deleted_parameters})
+        if values:
+            stamp = int(event.stamp.sec) * 1_000_000_000 + int(event.stamp.nanosec)
+            out.append((stamp, str(event.node), values))
+    return sorted(out, key=lambda e: e[0])
+
+
+def _changes(events: list[tuple[int, str, dict[str, Any]]], t0: int) -> list[ParameterChange]:
+    return [ParameterChange((stamp - t0) * 1e-9, node, values) for stamp, node, values in events]
+
+
 def _read_general(path: Path) -> BagSeries:
     joint: list[tuple[int, Any]] = []
     wrenches: dict[str, list[tuple[int, tuple[float, float, float]]]] = {}
@@ -197,6 +277,7 @@ def _read_general(path: Path) -> BagSeries:
         with AnyReader([path]) as reader:
             wanted = _wanted(reader, counts)
             mode = _input_mode(reader)
+            events = _parameter_events(reader)
             for conn, _, raw in reader.messages(connections=wanted):
                 msg: Any = reader.deserialize(raw, conn.msgtype)
                 if conn.msgtype == _STRING:
@@ -234,6 +315,8 @@ def _read_general(path: Path) -> BagSeries:
         return (ns - t0) * 1e-9
 
     series = BagSeries(t0_ns=t0, topic_counts=counts, robot_description=description, input_mode=mode)
+    series.parameter_changes = _changes(events, t0)
+    _describe(series, path)
     series.joint_t = np.array([sec(s) for s, _ in joint], dtype=float)
     if joint:
         series.joint_names = [str(n) for n in joint[0][1].name]
@@ -418,6 +501,7 @@ def _read_columnar(path: Path) -> BagSeries:
         with AnyReader([path]) as reader:
             wanted = _wanted(reader, counts)
             mode = _input_mode(reader)
+            events = _parameter_events(reader)
             for conn, _, raw in reader.messages(connections=wanted):
                 raws.setdefault(_kind(conn), []).append(raw)
             store = reader.typestore
@@ -444,6 +528,8 @@ def _read_columnar(path: Path) -> BagSeries:
     filled = sorted((int(layout.index[0]), layout.strings["data"]) for layout in texts if layout.strings["data"])
     description = filled[0][1] if filled else "" if texts else None
     series = BagSeries(t0_ns=t0, topic_counts=counts, robot_description=description, input_mode=mode)
+    series.parameter_changes = _changes(events, t0)
+    _describe(series, path)
     series.joint_t = sec(joint.stamp[joint.order])
     if joint.count:
         first = next(layout for layout in joint.layouts if np.any(layout.index == joint.order[0]))
@@ -560,13 +646,18 @@ def contact_metrics(cs: ContactSeries) -> dict[str, Any]:
     }
 
 
-def compute_summary(series: BagSeries, wall_time_s: float | None = None) -> dict[str, Any]:
+def compute_summary(
+    series: BagSeries, wall_time_s: float | None = None, warnings: Sequence[str] = ()
+) -> dict[str, Any]:
     """The summary.json dict (keys: SUMMARY_KEYS, then SUMMARY_EXTRA_KEYS, in that order).
 
     A value that the recorded data cannot give (e.g. no controller_state after 2 s, no
-    motor_state) is None. The brace and force errors count the braced contacts only (0.0 for a
-    run without any), the constraint residual every contact while active (0.0 if none is).
-    ``contacts`` has every contact of the ``contacts`` topic (``contact_metrics``).
+    motor_state) or that does not apply is None. The brace and force errors count the braced
+    contacts only (None for a run without any), the constraint residual every contact while
+    active (None if none ever is); a torque-input run has no copper loss (None).
+    ``contacts`` has every contact of the ``contacts`` topic (``contact_metrics``). ``warnings``:
+    the given ones (what the data cannot show: a target out of reach, slow real-time stepping),
+    then ``data_warnings``, each once.
     """
     out: dict[str, Any] = dict.fromkeys(SUMMARY_KEYS + SUMMARY_EXTRA_KEYS)
 
@@ -578,15 +669,16 @@ def compute_summary(series: BagSeries, wall_time_s: float | None = None) -> dict
 
     contacts = list(series.contacts.values())
     braced = [c for c in contacts if _braced(c)]
-    # Over every sample of every braced contact (an unbraced one has no target); 0.0 without any.
+    # Over every sample of every braced contact (an unbraced one has no target); None without any.
     for key, errors in (("brace_rms_error_m", _brace_errors), ("normal_force_rms_error_n", _force_errors)):
-        out[key] = _rms_or_none(np.concatenate([errors(c) for c in braced])) if braced else 0.0
+        out[key] = _rms_or_none(np.concatenate([np.zeros(0), *(errors(c) for c in braced)]))
     residual = np.concatenate([np.zeros(0), *(c.residual[_active(c)] for c in contacts)])
-    out["constraint_residual_max_m"] = float(np.max(np.abs(residual))) if residual.size else 0.0
+    out["constraint_residual_max_m"] = float(np.max(np.abs(residual))) if residual.size else None
 
     if series.motor_t.size:
         out["energy_consumed_j"] = float(series.energy_consumed[-1])
-        out["copper_loss_j"] = float(series.copper_loss[-1])
+        # Torque input drives the joints directly: no motor circuit, so no copper loss to speak of.
+        out["copper_loss_j"] = None if series.input_mode == "torque" else float(series.copper_loss[-1])
 
     if series.joint_t.size:
         out["sim_time_s"] = float(series.joint_t[-1] - series.joint_t[0])
@@ -600,6 +692,32 @@ def compute_summary(series: BagSeries, wall_time_s: float | None = None) -> dict
     out["max_penetration_m"] = max(penetrations) if penetrations else None
     out["input_mode"] = series.input_mode
     out["bracing"] = bool(braced) if series.t.size else None
+    out["warnings"] = list(dict.fromkeys([*warnings, *data_warnings(series)]))
+    return out
+
+
+def data_warnings(series: BagSeries) -> list[str]:
+    """What the recorded data shows to be amiss, once per contact (the texts of ``bracing_core.checks``,
+    as the nodes log them): a braced contact's desired force <= 0, a braced contact that lets go of its
+    surface or never touches it."""
+    out = []
+    for cs in series.contacts.values():
+        if not _braced(cs):
+            continue  # an obstacle is pushed or left as the arm goes
+        desired = cs.normal_force_desired
+        low = np.flatnonzero(np.isfinite(desired) & (desired <= 0.0))
+        if low.size:
+            k = int(low[0])
+            out.append(str(checks.desired_force_warning(cs.name, float(desired[k]), float(cs.t_ctrl[k]))))
+        active = _active(cs)
+        if not active.size:
+            continue
+        if not active.any():
+            out.append(checks.never_reached_warning(cs.name))
+            continue
+        released = np.flatnonzero(~active[int(np.argmax(active)) :])  # after it first held
+        if released.size:
+            out.append(checks.let_go_warning(cs.name, float(cs.t[int(np.argmax(active)) + int(released[0])])))
     return out
 
 
@@ -615,11 +733,14 @@ def flat_summary(summary: dict[str, Any], prefix: str = "") -> dict[str, Any]:
 
 
 def format_summary(summary: dict[str, Any]) -> str:
-    """The summary as an aligned two-column table, a line per value (per contact metric too)."""
+    """The summary as an aligned two-column table, a line per value (per contact metric too), then
+    a line per warning."""
     flat = flat_summary(summary)
+    warnings = flat.pop("warnings", None) or []
     width = max((len(k) for k in flat), default=0)
     lines = []
     for key, value in flat.items():
         text = "n/a" if value is None else f"{value:.6g}" if isinstance(value, float) else str(value)
         lines.append(f"{key:<{width}}  {text}")
+    lines += [f"warning: {warning}" for warning in warnings]
     return "\n".join(lines)

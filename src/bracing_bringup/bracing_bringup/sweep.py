@@ -9,7 +9,9 @@ worker processes, or on a Dask cluster with --scheduler tcp://HOST:PORT (``local
 LocalCluster on this machine). Writes DIR/runs/<run id>/{row.json,summary.json,arrays.npz}
 as each run finishes and DIR/results.parquet + DIR/results.csv, one row per run. A failing
 run is a row with its error; Ctrl-C keeps every finished row; the same command again skips
-the runs already done.
+the runs already done. Every run's configuration is checked before the first starts, the task's
+rank at the start posture too (as a run checks it). Exit 0 when every run is ok, 1 when one failed
+(the table is still written), 2 on a configuration error before any run, 130 when interrupted.
 """
 
 from __future__ import annotations
@@ -27,11 +29,12 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bracing_bringup.executors import Executor, make_executor
 from bracing_bringup.experiment import STATUS_FAILED, STATUS_OK, RunOutcome, RunSpec, execute_run
 from bracing_bringup.overrides import (
+    CONTROLLER,
     NodeOverrides,
     format_value,
     node_params,
@@ -40,6 +43,9 @@ from bracing_bringup.overrides import (
     validate,
 )
 from bracing_core.params import ConfigError
+
+if TYPE_CHECKING:
+    from bracing_core.config import SimulatorConfig
 
 EXIT_FAILED = 1
 EXIT_CONFIG = 2
@@ -90,6 +96,7 @@ def make_spec(
     if run_duration <= 0:
         raise ConfigError("duration: a sweep run needs a duration > 0 (set it in the file, --set or --duration)")
     params = node_params(config, node_overrides)
+    check_task_rank_at_start(sim_config, params[CONTROLLER], config, node_overrides)
     urdf = sim_config.shared.urdf  # resolved now, against the config's directory
     for node in params.values():
         node["robot.urdf"] = str(urdf)
@@ -102,6 +109,32 @@ def make_spec(
         urdf_text=urdf.read_text(),
         labels=dict(labels or {}),
     )
+
+
+def check_task_rank_at_start(
+    sim_config: SimulatorConfig, ctl_params: dict[str, Any], config: Path, node_overrides: NodeOverrides
+) -> None:
+    """A run's task-rank check (``bracing_core.law.check_task_rank``, at the start posture, as
+    ``rollout.build_scenario_from_params`` runs it) before any run: a task direction the arm cannot
+    move along is the scenario's error, not one run's. ConfigError names it and the overrides. A start
+    the projection cannot make feasible is left to the run (a failed row, as before)."""
+    from bracing_core.config import Plant, project_initial_position
+    from bracing_core.controller_config import ControllerConfig
+    from bracing_core.law import check_task_rank
+
+    try:
+        plant = Plant(sim_config.shared, sim_config.slip_epsilon)
+        controller = ControllerConfig.from_params(ctl_params, [config.resolve().parent])
+        start = plant.to_model_order(sim_config.initial_position)
+        if sim_config.project_initial_position:
+            try:
+                start = project_initial_position(plant, start)
+            except ConfigError:
+                return  # the run says so itself
+        check_task_rank(controller, plant, start)
+    except ConfigError as exc:
+        given = ", ".join(f"{k}={format_value(v)}" for k, v in node_overrides.flat().items())
+        raise ConfigError(f"{exc}" + (f" (with --set {given})" if given else "")) from None
 
 
 def table_value(value: Any) -> Any:
@@ -322,7 +355,21 @@ def report(result: SweepResult, output: Path, total: int) -> str:
         lines.append(f"{len(result.lost)} run(s) lost by the executor; the same command again retries them")
     if result.interrupted:
         lines.append("interrupted: the same command again runs the rest")
+    lines += [f"warning ({runs} run(s)): {text}" for text, runs in row_warnings(result.rows).items()]
     return "\n".join(lines)
+
+
+def row_warnings(rows: Sequence[dict[str, Any]]) -> dict[str, int]:
+    """Each distinct warning of the rows' summaries (their ``warnings`` column: JSON), and in how many runs."""
+    counts: dict[str, int] = {}
+    for row in rows:
+        try:
+            warnings = json.loads(row.get("warnings") or "[]")
+        except (TypeError, ValueError):
+            continue
+        for text in dict.fromkeys(warnings if isinstance(warnings, list) else []):
+            counts[str(text)] = counts.get(str(text), 0) + 1
+    return counts
 
 
 def handle_stop_signals() -> None:
@@ -358,7 +405,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:  # before the first run was submitted
         return EXIT_INTERRUPTED
     print(report(result, args.output, len(specs)))
-    return EXIT_FAILED if result.lost else 0
+    return EXIT_FAILED if result.lost or any_failed(result.rows) else 0
+
+
+def any_failed(rows: Sequence[dict[str, Any]]) -> bool:
+    """Whether a row of the table is a failed run (its error is in the row)."""
+    return any(row.get("status") == STATUS_FAILED for row in rows)
 
 
 if __name__ == "__main__":

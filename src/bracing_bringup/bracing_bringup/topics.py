@@ -9,6 +9,10 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 DESCRIPTION_TOPIC = "robot_description"
+PARAMETER_EVENTS_TOPIC = "/parameter_events"
+PARAMETER_EVENTS_TYPE = "rcl_interfaces/msg/ParameterEvent"
+"""rclpy's parameter events: the recorder keeps the controller's changes (as many as there are)."""
+CONTROLLER_NODE = "bracing_controller"
 STRING_TYPE = "std_msgs/msg/String"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 MARKERS_TYPE = "visualization_msgs/msg/MarkerArray"

@@ -11,13 +11,16 @@ import time
 
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import ClockType, ROSClock
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.subscription import Subscription
+from rclpy.time import Time
 from sensor_msgs.msg import JointState
 
 from bracing_core import schema
+from bracing_core.checks import configuration_warnings, desired_force_warning
 from bracing_core.controller_config import ControllerConfig
 from bracing_core.law import DecoupledController
 from bracing_core.params import ConfigError
@@ -73,6 +76,15 @@ class ControllerNode(Node):
         values = schema.read("controller", parameters.given_parameters(self))
         self.config = ControllerConfig.from_values(values)
         self.law = DecoupledController(self.config)
+        # This node's clock is the sim time of the last state answered (``sync_clock``): rclpy stamps
+        # the /parameter_events of a change with it, so a recorded change sits on the run's time axis
+        # (the wall clock's stamp could not be placed on it). As a TimeSource does for use_sim_time,
+        # without a /clock subscription on the lockstep path.
+        self.answered_ns = 0  # [ns] the stamp of the last state answered
+        clock = self.get_clock()
+        assert isinstance(clock, ROSClock)  # a node's clock is
+        self.clock = clock
+        self.clock._set_ros_time_is_active(True)
         parameters.declare(self, "controller", values)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.retuned: ControllerConfig | None = None  # applied at the next update
@@ -93,6 +105,12 @@ class ControllerNode(Node):
             f"{self.config.shared.input_mode.value} output, contacts {self.contact_names or 'none'}, "
             f"task dimension {self.config.task_dimension}"
         )
+        for warning in configuration_warnings(self.config, self.law.plant):  # before the run, once
+            self.get_logger().warning(warning)
+
+    def sync_clock(self) -> None:
+        """Set this node's clock to the sim time of the last state answered (see ``__init__``)."""
+        self.clock.set_ros_time_override(Time(nanoseconds=self.answered_ns, clock_type=ClockType.ROS_TIME))
 
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         """A set of tunable parameters (rclpy refuses read-only ones before this): validated as a
@@ -111,6 +129,14 @@ class ControllerNode(Node):
         self.retuned = config
         listed = ", ".join(f"{c.name} = {parameters.plain(c.value)}" for c in changes)
         self.get_logger().info(f"retuned (from the next update): {listed}")
+        changed = {change.name for change in changes}
+        for contact in config.shared.braced_contacts:
+            if f"contacts.{contact.name}.desired_normal_force" in changed:
+                warning = desired_force_warning(
+                    contact.name, contact.desired_normal_force or 0.0, self.answered_ns * 1e-9
+                )
+                if warning is not None:
+                    self.get_logger().warning(warning)
         return SetParametersResult(successful=True)
 
     def listen(self) -> Subscription:
@@ -170,6 +196,7 @@ class ControllerNode(Node):
                 compute_time,
             )
         )
+        self.answered_ns = msg.stamp_ns
         self.flow.sent()
 
 
@@ -199,6 +226,7 @@ def spin(node: ControllerNode) -> int:
             answered += len(messages)
             if not messages or answered >= 100:
                 answered = 0
+                node.sync_clock()  # a parameter change is stamped with it
                 executor.spin_once(timeout_sec=0.0)  # parameter services and the like
     except KeyboardInterrupt:
         # Stopped (bracing-pair stops the controller once the simulator is done): the last

@@ -14,8 +14,6 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 Params = Mapping[str, Any]
 
 
@@ -23,39 +21,17 @@ class ConfigError(ValueError):
     """An invalid or unknown parameter, or a missing file; the message names it."""
 
 
-def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for key, value in tree.items():
-        name = f"{prefix}{key}"
-        if isinstance(value, Mapping):
-            out.update(flatten(value, name + "."))
-        else:
-            out[name] = value
-    return out
-
-
 def load_params_file(path: str | Path, node_name: str) -> dict[str, Any]:
     """The flat parameters a node named ``node_name`` gets from a ROS 2 params file.
 
     Sections ``/**`` and ``<node_name>`` (also ``/<node_name>``) are merged in file
-    order, as rcl does.
+    order, as rcl does. Values are read as the node's rcl reads them and given the meaning the
+    user wrote (``rcl_yaml``): every reader of a scenario file sees what the nodes will.
     """
+    from bracing_core import rcl_yaml  # it reads the schema, which imports this module
+
     path = Path(path)
-    try:
-        document = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise ConfigError(f"params file not found: {path}") from None
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f"params file {path} is not readable YAML: {exc}") from None
-    if not isinstance(document, Mapping):
-        raise ConfigError(f"params file {path}: expected a mapping of node sections")
-    params: dict[str, Any] = {}
-    for section, body in document.items():
-        if section in ("/**", node_name, "/" + node_name):
-            if not isinstance(body, Mapping) or not isinstance(body.get("ros__parameters"), Mapping):
-                raise ConfigError(f"params file {path}: section {section!r} needs a ros__parameters mapping")
-            params.update(flatten(body["ros__parameters"]))
-    return params
+    return rcl_yaml.conform_all(rcl_yaml.node_sections(path, node_name), str(path))
 
 
 def check_known(
@@ -150,10 +126,16 @@ def get_strs(params: Params, name: str, default: Sequence[str] = ()) -> tuple[st
     if value is None:
         return ()
     if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) and v for v in value):
-        raise ConfigError(f"{name}: expected a list of non-empty strings, got {value!r}")
+        # A node started by hand reads a bare y as true (rcl, YAML 1.1); bracing's own readers mend it.
+        hint = ' (YAML 1.1 reads a bare y or n as true/false: quote it, "y")' if _has_bool(value) else ""
+        raise ConfigError(f"{name}: expected a list of non-empty strings, got {value!r}{hint}")
     if len(set(value)) != len(value):
         raise ConfigError(f"{name}: duplicate entries in {list(value)}")
     return tuple(value)
+
+
+def _has_bool(value: Any) -> bool:
+    return isinstance(value, (list, tuple)) and any(isinstance(v, bool) for v in value)
 
 
 def resolve_file(name: str, parameter: str, search_dirs: Sequence[Path] = ()) -> Path:

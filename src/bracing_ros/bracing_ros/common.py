@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import faulthandler
-import os
 import signal
 import sys
 import time
 from collections.abc import Callable, Sequence
-from pathlib import Path
 from typing import Any
 
 import rclpy
@@ -26,9 +24,11 @@ from rclpy.signals import SignalHandlerGuardCondition, SignalHandlerOptions
 from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 
+from bracing_core import rcl_yaml
 from bracing_core.params import ConfigError
 from bracing_msgs.msg import MotorCommand
 from bracing_ros import wire
+from bracing_ros.fastdds import use_fastdds_profile as use_fastdds_profile  # re-exported: the profiles live there
 from bracing_ros.lifetime import stop_with_parent
 
 # Reliable, transient-local and deep: a subscriber that discovers a publisher late (the recorder
@@ -49,10 +49,6 @@ SUBSCRIBE_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
-
-FASTDDS_PROFILE = Path(__file__).with_name("fastdds_profile.xml")
-"""Fast DDS defaults of the nodes (a 50 ms heartbeat: see the file); a user's own
-FASTRTPS_DEFAULT_PROFILES_FILE wins."""
 
 EXIT_CONFIG = 2
 EXIT_DIVERGED = 3
@@ -97,12 +93,6 @@ def create_waking_publisher(node: Node, msg_type: type, topic: str, qos: QoSProf
 
 def _matched(_: object) -> None:
     pass
-
-
-def use_fastdds_profile() -> None:
-    """Give this process the project's Fast DDS defaults (``FASTDDS_PROFILE``) unless the user
-    chose a profile file. Call before ``rclpy.init``."""
-    os.environ.setdefault("FASTRTPS_DEFAULT_PROFILES_FILE", str(FASTDDS_PROFILE))
 
 
 def wait_until(node: Node, executor: Executor, ready: Callable[[], bool], message: str) -> None:
@@ -250,8 +240,9 @@ def run(node_factory: Callable[[], Node], spin: Callable[[Node], int], args: lis
             stop_with_parent()
             use_fastdds_profile()
             rclpy.init(args=args if args is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
-        except RCLError as exc:  # e.g. a params file rcl cannot parse
-            raise ConfigError(str(exc).split(", at /")[0]) from None
+        except RCLError as exc:  # e.g. a params file rcl cannot parse: say which parameter, and the fix
+            argv = args if args is not None else sys.argv
+            raise ConfigError(rcl_yaml.explain(argv) or str(exc).split(", at /")[0]) from None
         node = node_factory()
         code = spin(node)
     except (ConfigError, ParameterException) as exc:

@@ -21,6 +21,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
 from bracing_core import schema
+from bracing_core.checks import REAL_TIME_ACHIEVED, let_go_warning, never_reached_warning, slow_real_time_warning
 from bracing_core.config import SimulatorConfig, build_simulator, check_step
 from bracing_core.dynamics import Derivative, InputMode
 from bracing_core.simulator import DivergenceError, Energy
@@ -111,6 +112,12 @@ class SimulatorNode(Node):
         self._next_progress = 0.0  # wall time of the next progress line
         self.max_residual = 0.0  # [m], over the run so far (contacts holding a force)
         self._events_logged = 0
+        # Braced contacts (the controller keeps a force on them) should hold: letting go, or never
+        # touching down, is warned about once each (an obstacle does either as it likes).
+        braced = {c.name for c in self.config.shared.braced_contacts}
+        names = [c.name for c in self.plant.contact_set.contacts]
+        self.braced_unreached = {n for n, on in zip(names, self.sim.active, strict=True) if n in braced and not on}
+        self.braced_held = braced - self.braced_unreached  # touching, not let go yet
         self.refusal = ""  # why the last refused step was refused
         self.get_logger().info(
             f"{self.mode.value} input, {len(self.plant.contact_set)} contact(s), step {self.config.step} s, "
@@ -175,7 +182,7 @@ class SimulatorNode(Node):
             normal, friction = terms.normals[j], float(d.friction_force[j])
             normal_force = float(d.normal_force[j])
             if j < len(wrench_pubs):
-                force = normal_force * normal - friction * terms.slip_direction[j]
+                force = normal_force * normal + d.tangential_force[j]
                 wrench_pubs[j].publish(self.wrench_wire.encode(t_ns, force))  # at the contact point: no moment
             reports.append(
                 wire.ContactReport(
@@ -231,13 +238,25 @@ class SimulatorNode(Node):
         self.flow.sent()
         for event in self.sim.events[self._events_logged :]:
             extra = f", {event.impact_loss:.4g} J lost in the impact" if event.kind == "touchdown" else ""
+            if event.kind in ("stick", "slip"):  # Coulomb friction: frequent, and not news
+                continue
             self.get_logger().info(f"contact {event.contact!r}: {event.kind} at t = {event.time:.6f} s{extra}")
+            self.warn_braced(event.contact, event.kind, event.time)
         self._events_logged = len(self.sim.events)
         now = time.monotonic()
         if now >= self._next_progress:  # bracing-pair follows these lines
             self._next_progress = now + 0.5
             self.get_logger().info(f"progress t={self.sim.time:.3f} max_residual={self.max_residual:.3e}")
         return True
+
+    def warn_braced(self, contact: str, kind: str, t: float) -> None:
+        """Warn when a braced contact lets go (once per contact); a first touchdown reaches it."""
+        if kind == "touchdown" and contact in self.braced_unreached:
+            self.braced_unreached.discard(contact)
+            self.braced_held.add(contact)
+        elif kind == "release" and contact in self.braced_held:
+            self.braced_held.discard(contact)  # for good: said once, whatever it does next
+            self.get_logger().warning(let_go_warning(contact, t))
 
     def refuse(self, command: Vector) -> None:
         """Say that ``command`` was refused because its step is not finite, naming its largest value."""
@@ -274,6 +293,8 @@ class SimulatorNode(Node):
         else:
             self.command = command  # type: ignore[assignment]  # not None here
         self.publish_step(t_ns, self.command, d, self.sim.current, self.sim.energy)
+        for contact in sorted(self.braced_unreached):
+            self.get_logger().warning(never_reached_warning(contact))
         self.flow.wait()  # every subscriber has every message before this process ends
         self.get_logger().info(f"progress t={self.sim.time:.3f} max_residual={self.max_residual:.3e}")
         self.get_logger().info(f"finished at t = {self.sim.time:.6f} s")
@@ -378,10 +399,23 @@ def spin_real_time(node: SimulatorNode, executor: SingleThreadedExecutor) -> Non
 
     node.get_logger().info("real-time: stepping")
     node.publish_state(node.state_effort())
+    started = time.monotonic()
     node.create_timer(period, tick)
     while not node.done():
         executor.spin_once(timeout_sec=0.1)
+    report_real_time(node, time.monotonic() - started)
     node.finish()
+
+
+def report_real_time(node: SimulatorNode, wall_s: float) -> None:
+    """Say how fast real-time stepping went (bracing-pair reads ``REAL_TIME_ACHIEVED``), and warn if
+    it fell behind: a timer whose ticks run late skips them, so the sim time lags the wall clock."""
+    achieved = node.sim.time / wall_s if wall_s > 0.0 else float("inf")
+    asked = node.config.real_time_factor
+    node.get_logger().info(f"{REAL_TIME_ACHIEVED}{achieved:.4f}x real time (asked {asked:g}x)")
+    warning = slow_real_time_warning(achieved, asked)
+    if warning is not None:
+        node.get_logger().warning(warning)
 
 
 def _finite(*arrays: Vector) -> bool:

@@ -1,0 +1,180 @@
+"""Warnings about a run that will work but not as the user likely means (no ROS).
+
+A configuration can pass every check and still ask for nonsense: a braced contact pushed with
+f_nd <= 0 N, a target the arm cannot reach, a real-time run the machine cannot keep up with, a
+braced contact that lets go. Each is said once, in the node's log and in summary.json's
+``warnings``; the texts are made here, so that both say the same.
+
+The reach check is cheap and sound (it never warns about a point the arm can reach): a frame
+moved by a chain of joints is never further from the first joint's origin than the sum of the
+distances between successive joint origins along the chain, plus the frame's offset from its
+joint, plus the travel of each prismatic joint (``frame_reach``). A target point further than that
+from the first joint, counted along the task's axes only (the others are free), cannot be reached.
+The target path is sampled where it can be furthest: 720 points of a circle's turn, every waypoint
+(the path between two waypoints is a straight segment, furthest at an end), a held point.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from bracing_core.types import Vector
+
+if TYPE_CHECKING:  # pinocchio and the engine: only where a configuration is checked
+    import pinocchio as pin
+
+    from bracing_core.config import Plant
+    from bracing_core.controller_config import ControllerConfig
+    from bracing_core.trajectory import TrajectoryConfig
+
+CIRCLE_SAMPLES = 720
+"""Points of a circular target path checked per turn (half a degree apart)."""
+
+REAL_TIME_SLACK = 0.95
+"""Real-time stepping is said to be too slow below this share of the requested factor (a timer's
+jitter costs a percent or two on an idle machine)."""
+
+REAL_TIME_ACHIEVED = "real-time stepping achieved "
+"""How the simulator's log gives real-time stepping's achieved factor (``{factor}x real time``):
+bracing-pair reads it there."""
+
+UNBOUNDED_TRAVEL_M = 1e6
+"""A prismatic joint whose limits reach further than this [m] is taken as unbounded: no reach bound."""
+
+
+def desired_force_warning(name: str, force: float, t: float | None = None) -> str | None:
+    """The warning for a braced contact whose desired normal force ``force`` [N] is not positive
+    (None if it is); ``t``: the time it was set at, if not from the start."""
+    if force > 0.0:
+        return None
+    when = f" from t = {t:.3f} s" if t is not None and t > 0.0 else ""
+    return (
+        f"contacts.{name}.desired_normal_force is {force:g} N{when}: a braced contact is pushed on with f_nd > 0; "
+        "with f_nd <= 0 a bilateral surface pulls the frame towards it and a unilateral one lets it go"
+    )
+
+
+def let_go_warning(name: str, t: float) -> str:
+    """A braced contact released from its surface at ``t`` [s]."""
+    return (
+        f"contact {name!r} let go of its surface at t = {t:.3f} s although the controller braces it: from then on "
+        "its force law acts on a contact that is not there (a unilateral contact releases when the force would pull)"
+    )
+
+
+def never_reached_warning(name: str) -> str:
+    """A braced contact that never touched its surface during the run."""
+    return (
+        f"contact {name!r} never touched its surface although the controller braces it: the run had no brace "
+        "(a unilateral contact that starts above its surface must be brought down onto it)"
+    )
+
+
+def slow_real_time_warning(achieved: float, requested: float) -> str | None:
+    """The warning for real-time stepping that ran at ``achieved`` x real time when ``requested``
+    was asked (None if it kept up, within ``REAL_TIME_SLACK``)."""
+    if not math.isfinite(achieved) or achieved >= REAL_TIME_SLACK * requested:
+        return None
+    return (
+        f"real-time stepping ran at {achieved:.3g}x real time instead of the requested {requested:g}x: the steps "
+        "took longer than their wall-clock period, so the commands lag the state by more than the loop assumes; "
+        "use lockstep stepping (the default) on a machine that cannot keep up"
+    )
+
+
+# -- reach ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Reach:
+    """Where a frame can be: within ``radius`` [m] of ``anchor`` (the first joint's origin, world)."""
+
+    anchor: Vector  # (3,) [m]
+    radius: float  # [m]
+    joint: str  # the first joint of the chain (its name, for messages)
+
+
+def frame_reach(model: pin.Model, frame: int) -> Reach | None:
+    """The bound on where ``frame`` can be (see the module docstring), or None if a prismatic joint
+    of its chain has no finite limits. The first joint's origin does not move: its parent is the world."""
+    joint = int(model.frames[frame].parentJoint)
+    radius = float(np.linalg.norm(model.frames[frame].placement.translation))
+    chain = []
+    while joint != 0:
+        chain.append(joint)
+        joint = int(model.parents[joint])
+    if not chain:  # fixed to the world: it is where it is
+        return Reach(np.array(model.frames[frame].placement.translation, dtype=float), 0.0, "world")
+    first = chain[-1]
+    for joint in chain:
+        if joint != first:
+            radius += float(np.linalg.norm(model.jointPlacements[joint].translation))
+        if model.joints[joint].shortname().startswith("JointModelP"):  # prismatic: its travel too
+            index = int(model.idx_qs[joint])
+            travel = max(abs(float(model.lowerPositionLimit[index])), abs(float(model.upperPositionLimit[index])))
+            if not travel < UNBOUNDED_TRAVEL_M:
+                return None
+            radius += travel
+    anchor = np.array(model.jointPlacements[first].translation, dtype=float)
+    return Reach(anchor, radius, str(model.names[first]))
+
+
+def path_samples(trajectory: TrajectoryConfig, start: Vector) -> Iterator[tuple[float, Vector]]:
+    """(t [s], desired point [m]) where the path can be furthest out (see the module docstring);
+    nothing for a hold of the first measured position, which the arm is at."""
+    path = trajectory.path()
+    if trajectory.kind == "circle":
+        times: Sequence[float] = [trajectory.period * k / CIRCLE_SAMPLES for k in range(CIRCLE_SAMPLES)]
+    elif trajectory.kind == "waypoints":  # each segment ends at rest on its waypoint
+        times = [trajectory.segment_time * (k + 1) for k in range(len(trajectory.waypoints))]
+    else:
+        times = [0.0] if trajectory.point is not None else []
+    for t in times:
+        point, _ = path.sample(start, t)
+        yield t, np.asarray(point, dtype=float)
+
+
+def out_of_reach(
+    what: str, parameter: str, frame: str, axes: Sequence[int], trajectory: TrajectoryConfig, reach: Reach
+) -> str | None:
+    """The warning for the first sampled point of ``trajectory`` that ``frame`` cannot reach along
+    ``axes`` (None if there is none)."""
+    names = ", ".join("xyz"[a] for a in axes)
+    for t, point in path_samples(trajectory, reach.anchor):
+        distance = float(np.linalg.norm((point - reach.anchor)[list(axes)]))
+        if distance > reach.radius + 1e-9:
+            where = ", ".join(f"{v:.3g}" for v in point)
+            at = f" at t = {t:.3g} s" if trajectory.kind != "hold" else ""
+            return (
+                f"{what} target out of reach: {parameter} ({trajectory.kind}) asks for [{where}]{at}, "
+                f"{distance:.3f} m from {reach.joint} along {names}, but frame {frame!r} is never more than "
+                f"{reach.radius:.3f} m from it (the lengths along its chain); the task cannot be met there"
+            )
+    return None
+
+
+def reach_warnings(config: ControllerConfig, plant: Plant) -> list[str]:
+    """A warning for the hand's and each brace's target path where it leaves the reach of its frame."""
+    tasks = [("hand", "hand.trajectory", config.hand.frame, config.hand.axes, config.hand.trajectory)]
+    for c in config.shared.braced_contacts:
+        parameter = f"contacts.{c.name}.target" if c.trajectory.kind == "hold" else f"contacts.{c.name}.trajectory"
+        tasks.append((f"brace point {c.name!r}", parameter, c.frame, c.brace_axes, c.trajectory))
+    out = []
+    for what, parameter, frame, axes, trajectory in tasks:
+        if not axes:
+            continue  # no task along any axis: nothing to reach
+        reach = frame_reach(plant.robot.model, plant.frame_id(frame, parameter))
+        warning = None if reach is None else out_of_reach(what, parameter, frame, axes, trajectory, reach)
+        if warning is not None:
+            out.append(warning)
+    return out
+
+
+def configuration_warnings(config: ControllerConfig, plant: Plant) -> list[str]:
+    """What a controller configuration asks for that will not work as meant: desired forces <= 0 on
+    braced contacts, targets out of reach (checked before the run, from the kinematics)."""
+    forces = [desired_force_warning(c.name, c.desired_normal_force or 0.0) for c in config.shared.braced_contacts]
+    return [w for w in forces if w is not None] + reach_warnings(config, plant)
