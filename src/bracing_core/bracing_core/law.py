@@ -22,8 +22,9 @@ import bracing_engine as engine
 from bracing_core import schema
 from bracing_core.config import Plant
 from bracing_core.controller_config import ControllerConfig
-from bracing_core.dynamics import ConstrainedDynamics, InputMode, engine_contact, engine_drive, engine_robot
+from bracing_core.dynamics import engine_contact, engine_drive, engine_robot
 from bracing_core.params import ConfigError
+from bracing_core.trajectory import TrajectoryConfig
 from bracing_core.types import Vector
 
 
@@ -47,6 +48,13 @@ def axis_gains(axes: tuple[int, ...], gains: tuple[float, ...]) -> Vector:
     return out
 
 
+def task(
+    frame: str, axes: tuple[int, ...], kp: tuple[float, ...], kd: tuple[float, ...], path: TrajectoryConfig
+) -> engine.Task:
+    """A PD task as the engine takes it: gains per world axis, the configured axes, the path."""
+    return engine.Task(frame, axis_gains(axes, kp), axis_gains(axes, kd), path.path(), list(axes))
+
+
 class DecoupledController:
     """One control update per measured state; the same object runs in the node and in tests."""
 
@@ -67,9 +75,7 @@ class DecoupledController:
             engine.BracedContact(
                 engine_contact(contact),
                 c.desired_normal_force,
-                engine.Task(
-                    c.frame, axis_gains(c.brace_axes, c.kp), axis_gains(c.brace_axes, c.kd), c.trajectory.path()
-                ),
+                task(c.frame, c.brace_axes, c.kp, c.kd, c.trajectory),
             )
             for contact, c in zip(self.contact_set.contacts, contacts, strict=True)
         ]
@@ -77,9 +83,7 @@ class DecoupledController:
             engine_robot(robot),
             engine_drive(robot, self.plant.motors, self.mode),
             self.plant.to_model_order(config.voltage_gain),
-            engine.Task(
-                hand.frame, axis_gains(hand.axes, hand.kp), axis_gains(hand.axes, hand.kd), hand.trajectory.path()
-            ),
+            task(hand.frame, hand.axes, hand.kp, hand.kd, hand.trajectory),
             braces,
             config.gravity_compensation,
             config.damping_lambda,
@@ -125,24 +129,17 @@ class DecoupledController:
 def check_task_rank(config: ControllerConfig, plant: Plant, q0: Vector) -> None:
     """Refuse a task direction the arm cannot move along at the start ``q0`` (model order): each
     configured axis (hand axes, then each brace's) must add a rank to the stacked task Jacobian
-    within the motions the braced contacts allow (the null space of J_c). ConfigError names the
-    first axis that adds none."""
-    robot = plant.robot
-    robot.compute(np.asarray(q0, dtype=float), np.zeros(robot.nv))
-    braced = ConstrainedDynamics(robot, plant.motors, plant.braced_set, InputMode.TORQUE)
-    jc = braced.terms(q0, np.zeros(robot.nv)).normal_jacobian
-    allowed = np.eye(robot.nv) - np.linalg.pinv(jc) @ jc if jc.size else np.eye(robot.nv)
-    tasks = [("hand.axes", config.hand.frame, config.hand.axes)]
-    tasks += [(f"contacts.{c.name}.brace_axes", c.frame, c.brace_axes) for c in config.shared.braced_contacts]
-    rows: list[Vector] = []
-    for parameter, frame, axes in tasks:
-        jacobian = robot.frame_jacobian(plant.frame_id(frame, parameter))
-        for axis in axes:
-            candidate = np.array([*rows, jacobian[axis] @ allowed])
-            singular = np.linalg.svd(candidate, compute_uv=False)
-            if singular[-1] <= 1e-6 * max(singular[0], 1.0):
-                raise ConfigError(
-                    f"{parameter}: frame {frame!r} cannot move along {'xyz'[axis]} at the start (that direction adds "
-                    "no rank to the task Jacobian, within the motions the braced contacts allow); remove the axis"
-                )
-            rows.append(candidate[-1])
+    within the motions the braced contacts allow (the null space of J_c; the engine's
+    ``Law.first_rankless_axis``). ConfigError names the first axis that adds none."""
+    task, axis = DecoupledController(config, plant).engine.first_rankless_axis(np.asarray(q0, dtype=float))
+    if task < 0:
+        return
+    if task == 0:
+        parameter, frame = "hand.axes", config.hand.frame
+    else:
+        contact = config.shared.braced_contacts[task - 1]
+        parameter, frame = f"contacts.{contact.name}.brace_axes", contact.frame
+    raise ConfigError(
+        f"{parameter}: frame {frame!r} cannot move along {'xyz'[axis]} at the start (that direction adds "
+        "no rank to the task Jacobian, within the motions the braced contacts allow); remove the axis"
+    )

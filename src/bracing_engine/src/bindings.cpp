@@ -235,10 +235,10 @@ NB_MODULE(_engine, m) {
 
   nb::class_<Task>(m, "Task").def(
       "__init__",
-      [](Task* task, std::string frame, const Vector3& kp, const Vector3& kd, const Path& path) {
-        new (task) Task{std::move(frame), kp, kd, path};
-      },
-      "frame"_a, "kp"_a, "kd"_a, "path"_a, "gains per world axis (zero: an axis the task does not use)");
+      [](Task* task, std::string frame, const Vector3& kp, const Vector3& kd, const Path& path,
+         std::vector<int> axes) { new (task) Task{std::move(frame), kp, kd, path, std::move(axes)}; },
+      "frame"_a, "kp"_a, "kd"_a, "path"_a, "axes"_a,
+      "gains per world axis (zero: an axis the task does not use); the world axes it uses");
 
   nb::class_<BracedContact>(m, "BracedContact")
       .def(
@@ -275,6 +275,8 @@ NB_MODULE(_engine, m) {
           "update's answer in one array: command, torque (n each), hand desired, hand actual (3 each), brace desired, "
           "brace actual (3b each, row-major), damped (1/0)")
       .def("reset", &Law::reset)
+      .def("first_rankless_axis", &Law::first_rankless_axis, "q0"_a,
+           "(task: 0 the hand, 1 + j brace j; world axis) of the first axis adding no rank at q0, or (-1, -1)")
       .def("retune", &Law::retune, "hand_kp"_a, "hand_kd"_a, "brace_kp"_a, "brace_kd"_a, "desired_normal_force"_a,
            "voltage_gain"_a)
       .def_prop_ro("desired_normal_force", &Law::desired_normal_force);

@@ -138,6 +138,46 @@ Vector Law::desired_normal_force() const {
 
 void Law::reset() { impl_->started = false; }
 
+std::pair<int, int> Law::first_rankless_axis(const Vector& q0) {
+  Impl& m = *impl_;
+  const int n = m.model.nv, p = braces();
+  const Vector zero = Vector::Zero(n);
+  pin::computeAllTerms(m.model, m.data, q0, zero);
+  auto translational = [&](std::size_t k) {
+    m.frame_jacobian.setZero();
+    pin::getFrameJacobian(m.model, m.data, m.frames[k], pin::LOCAL_WORLD_ALIGNED, m.frame_jacobian);
+    return Eigen::MatrixXd(m.frame_jacobian.topRows<3>());
+  };
+  // the motions the braced contacts allow: I - J_c^+ J_c
+  Eigen::MatrixXd allowed = Eigen::MatrixXd::Identity(n, n);
+  if (p) {
+    Eigen::MatrixXd jc(p, n);
+    for (int j = 0; j < p; ++j) {
+      const Vector3 position = pin::updateFramePlacement(m.model, m.data, m.frames[j + 1]).translation();
+      double c;
+      Vector3 normal;
+      Matrix3 hessian;
+      m.spec.braces[j].contact.surface.evaluate(position, c, normal, hessian);
+      jc.row(j) = normal.transpose() * translational(j + 1);
+    }
+    allowed -= jc.completeOrthogonalDecomposition().pseudoInverse() * jc;
+  }
+  Eigen::MatrixXd rows(0, n);
+  for (std::size_t k = 0; k < m.frames.size(); ++k) {
+    const Task& task = k ? m.spec.braces[k - 1].task : m.spec.hand;
+    const Eigen::MatrixXd jacobian = translational(k);
+    for (int axis : task.axes) {
+      Eigen::MatrixXd candidate(rows.rows() + 1, n);
+      candidate << rows, jacobian.row(axis) * allowed;
+      const Eigen::JacobiSVD<Eigen::MatrixXd> svd(candidate);
+      const auto& sigma = svd.singularValues();
+      if (sigma[sigma.size() - 1] <= 1e-6 * std::max(sigma[0], 1.0)) return {static_cast<int>(k), axis};
+      rows = candidate;
+    }
+  }
+  return {-1, -1};
+}
+
 void Law::retune(const Vector3& hand_kp, const Vector3& hand_kd, const std::vector<Vector3>& brace_kp,
                  const std::vector<Vector3>& brace_kd, const Vector& desired_normal_force, const Vector& voltage_gain) {
   LawSpec& s = impl_->spec;

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bracing_engine/engine.hpp"
@@ -31,6 +32,7 @@ struct Task {
   std::string frame;
   Vector3 kp = Vector3::Zero(), kd = Vector3::Zero();
   Path path;
+  std::vector<int> axes;  // the world axes it uses, as configured (the rank check names them)
 };
 
 struct BracedContact {
@@ -73,6 +75,10 @@ class Law {
   // The tunable values: task gains (per world axis), f_nd and K_V.
   void retune(const Vector3& hand_kp, const Vector3& hand_kd, const std::vector<Vector3>& brace_kp,
               const std::vector<Vector3>& brace_kd, const Vector& desired_normal_force, const Vector& voltage_gain);
+  // The first configured task axis (hand axes, then each brace's) that adds no rank to the stacked
+  // task Jacobian at q0 within the motions the braced contacts allow (the null space of J_c):
+  // (task index: 0 the hand, 1 + j brace j; world axis), or (-1, -1) if every axis adds one.
+  std::pair<int, int> first_rankless_axis(const Vector& q0);
   int nv() const;
   int braces() const;
   Vector desired_normal_force() const;
