@@ -7,7 +7,6 @@ controller alike. Everything is validated here, once, with errors naming the par
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,13 +16,13 @@ import numpy as np
 
 from bracing_core import schema
 from bracing_core.contacts import Contact, ContactSet, Cylinder, Plane, Sphere, Surface
-from bracing_core.dynamics import ConstrainedDynamics, Derivative, InputMode
+from bracing_core.dynamics import ConstrainedDynamics, InputMode
 from bracing_core.model import ModelError, RobotModel
 from bracing_core.motors import FIELDS as MOTOR_FIELDS
 from bracing_core.motors import MotorParams
 from bracing_core.params import ConfigError, Params, resolve_file
 from bracing_core.schema import Values
-from bracing_core.simulator import DivergenceError, Simulator
+from bracing_core.simulator import Simulator
 from bracing_core.trajectory import TrajectoryConfig
 from bracing_core.types import Vector
 
@@ -322,34 +321,6 @@ class SimulatorConfig:
     def from_values(cls, values: Values, search_dirs: Sequence[Path] = ()) -> SimulatorConfig:
         own = {p.name: values[p.name] for p in schema.SIMULATOR}
         return cls(shared=SharedConfig.from_values(values, search_dirs), **own)
-
-
-def _finite(a: np.ndarray) -> bool:
-    # A finite a . a means every entry is finite (0.7 us); else check exactly (a . a may overflow).
-    return math.isfinite(np.vdot(a, a)) or bool(np.isfinite(a).all())
-
-
-def check_step(config: SimulatorConfig, d: Derivative, velocity: Vector, *also_finite: Vector) -> float:
-    """The largest |C| of a held contact after a step (``d``: the step's answer, ``velocity``: the
-    new dq), or DivergenceError saying why the step must not stand: non-finite forces (or any of
-    ``also_finite``), a joint faster than divergence_speed, a held contact further than
-    divergence_residual off its surface. The simulator node refuses such a step; an in-process
-    run stops there."""
-    forces = (d.normal_force, d.friction_force, d.contacts.slip_velocity)
-    if not all(_finite(a) for a in (*forces, *also_finite)):
-        raise DivergenceError("non-finite forces or effort")
-    speed = float(np.max(np.abs(velocity)))
-    if speed > config.divergence_speed:
-        # Finite, but a state no arm reaches: from here RK4 overflows a few steps later under any
-        # input (a single 1e150 V step does that).
-        raise DivergenceError(f"joint speed exceeds divergence_speed {config.divergence_speed}: {speed:.3g}")
-    held = d.contacts.residual if d.active is None else d.contacts.residual[d.active]
-    residual = float(np.max(np.abs(held))) if held.size else 0.0
-    if residual > config.divergence_residual:
-        raise DivergenceError(
-            f"constraint residual {residual:.3g} m exceeds divergence_residual {config.divergence_residual} m"
-        )
-    return residual
 
 
 def build_simulator(config: SimulatorConfig) -> tuple[Plant, Simulator]:

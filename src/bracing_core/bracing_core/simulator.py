@@ -26,9 +26,17 @@ from bracing_core.types import Vector
 ENERGY_KEYS = ("consumed", "net", "copper_loss", "viscous_loss", "friction_loss", "constraint_work", "impact_loss")
 # Status codes of bracing_engine.Simulator.step and of bracing_engine.rollout (0: ok): the step
 # diverged or hit a joint limit (state kept); after a step (rollout only), where the simulator
-# node refuses to go on (bracing_core.config.check_step): non-finite forces, too fast, a held
+# node refuses to go on (Simulator.check): non-finite forces, too fast, a held
 # contact too far off its surface.
 _DIVERGED, _JOINT_LIMIT, _NON_FINITE_FORCES, _TOO_FAST, _OFF_SURFACE = 1, 2, 3, 4, 5
+
+
+def _refusal_reason(code: int, measured: float, divergence_speed: float, divergence_residual: float) -> str:
+    if code == _TOO_FAST:
+        return f"joint speed exceeds divergence_speed {divergence_speed}: {measured:.3g}"
+    if code == _OFF_SURFACE:
+        return f"constraint residual {measured:.3g} m exceeds divergence_residual {divergence_residual} m"
+    return "non-finite forces or effort"
 
 
 class DivergenceError(RuntimeError):
@@ -230,18 +238,20 @@ class Simulator:
         status = int(out["status"])
         self._raise_for(status, self.time)  # a step refused: the state is the one it started from
         if status:  # a step taken whose result the node refuses: the last row's
-            if status == _NON_FINITE_FORCES:
-                reason = "non-finite forces or effort"
-            elif status == _TOO_FAST:
-                reason = f"joint speed exceeds divergence_speed {divergence_speed}: {out['measured']:.3g}"
-            elif status == _OFF_SURFACE:
-                reason = (
-                    f"constraint residual {out['measured']:.3g} m exceeds divergence_residual {divergence_residual} m"
-                )
-            else:
-                reason = f"status {status}"
+            reason = _refusal_reason(status, float(out["measured"]), divergence_speed, divergence_residual)
             raise DivergenceError(f"{reason} after the step at t = {out['time'][-1]:.3f} s")
         return out
+
+    def check(self, divergence_speed: float, divergence_residual: float) -> float:
+        """The largest |C| of a held contact after the step just taken, or DivergenceError saying why
+        the simulator node must not let it stand (the engine's ``refusal``, which the rollout asks
+        too): non-finite forces, a joint faster than ``divergence_speed`` [rad/s] (finite, but a
+        state no arm reaches: RK4 overflows a few steps later under any input), a held contact
+        further than ``divergence_residual`` [m] off its surface."""
+        code, measured = self.engine.refusal(divergence_speed, divergence_residual)
+        if code:
+            raise DivergenceError(_refusal_reason(code, measured, divergence_speed, divergence_residual))
+        return float(measured)
 
     def _raise_for(self, status: int, time: float) -> None:
         """The error of a step from ``time`` that the engine refused (status 1 or 2), if any."""

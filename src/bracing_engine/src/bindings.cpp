@@ -178,6 +178,16 @@ NB_MODULE(_engine, m) {
             return packed(s.report, s.report_modes());
           },
           "u"_a)
+      .def(
+          "refusal",
+          [](const Simulator& s, double speed_limit, double residual_limit) {
+            double measured = 0.0;
+            const int code = s.refusal(speed_limit, residual_limit, measured);
+            return std::make_pair(code, measured);
+          },
+          "speed_limit"_a, "residual_limit"_a,
+          "(0 accepted, 3 non-finite forces, 4 too fast, 5 a held contact too far off; the speed or largest held |C|) "
+          "of the step just taken")
       .def_prop_ro("state", [](const Simulator& s) { return Vector(s.state()); })
       .def("set_state", &Simulator::set_state, "y"_a)
       .def_prop_ro("active", &Simulator::active)

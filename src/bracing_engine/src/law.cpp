@@ -401,33 +401,16 @@ void rollout(Law& law, Simulator& simulator, long steps, double t0, double diver
     const Answer& report = simulator.report;
     out.contact_position.row(k) = Eigen::Map<const Vector>(report.positions.data(), 3 * p).transpose();
     out.slip_velocity.row(k) = Eigen::Map<const Vector>(report.slip.data(), 3 * p).transpose();
-    double residual = 0.0;
     for (int j = 0; j < p; ++j) {
       out.normal_force(k, j) = report.force[j];
       out.friction_force(k, j) = report.friction[j];
       out.residual(k, j) = report.residual[j];
-      const bool held = simulator.report_modes().held[j];
-      out.active(k, j) = held ? 1.0 : 0.0;
-      if (held) residual = std::max(residual, std::abs(report.residual[j]));
+      out.active(k, j) = simulator.report_modes().held[j] ? 1.0 : 0.0;
     }
     out.rows = k + 1;
-    // where the simulator node refuses a step (bracing_core.config.check_step)
-    if (!out.normal_force.row(k).allFinite() || !out.friction_force.row(k).allFinite() ||
-        !out.slip_velocity.row(k).allFinite()) {
-      out.status = 3;
-      return;
-    }
-    const double speed = simulator.state().segment(n, n).cwiseAbs().maxCoeff();
-    if (speed > divergence_speed) {
-      out.status = 4;
-      out.measured = speed;
-      return;
-    }
-    if (residual > divergence_residual) {
-      out.status = 5;
-      out.measured = residual;
-      return;
-    }
+    // where the simulator node refuses a step (the node asks the same function)
+    out.status = simulator.refusal(divergence_speed, divergence_residual, out.measured);
+    if (out.status) return;
   }
 }
 

@@ -134,6 +134,19 @@ void Simulator::evaluate(const Vector& u) {
   report_modes_ = modes_;
 }
 
+int Simulator::refusal(double speed_limit, double residual_limit, double& measured) const {
+  if (!report.force.allFinite() || !report.friction.allFinite() || !report.slip.allFinite()) return 3;
+  const double speed = y_.segment(n_, n_).cwiseAbs().maxCoeff();
+  if (speed > speed_limit) {  // finite, but a state no arm reaches: RK4 overflows a few steps on
+    measured = speed;
+    return 4;
+  }
+  measured = 0.0;
+  for (int j = 0; j < p_; ++j)
+    if (report_modes_.held[j]) measured = std::max(measured, std::abs(report.residual[j]));
+  return measured > residual_limit ? 5 : 0;
+}
+
 bool Simulator::break_away(double offset) {
   // The sticking contact whose holding force leaves the cone |f_t| <= mu |f_n| the most slides,
   // along where that force was holding it back from: d = -f_t / |f_t|.

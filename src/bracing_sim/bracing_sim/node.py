@@ -22,7 +22,7 @@ from std_msgs.msg import String
 
 from bracing_core import schema
 from bracing_core.checks import REAL_TIME_ACHIEVED, let_go_warning, never_reached_warning, slow_real_time_warning
-from bracing_core.config import SimulatorConfig, build_simulator, check_step
+from bracing_core.config import SimulatorConfig, build_simulator
 from bracing_core.dynamics import Derivative, InputMode
 from bracing_core.simulator import DivergenceError, Energy
 from bracing_core.types import Vector
@@ -220,8 +220,10 @@ class SimulatorNode(Node):
         try:
             with np.errstate(over="ignore", invalid="ignore"):  # an overflow is reported as a refusal
                 d = self.sim.step(command)
+                residual = self.sim.check(self.config.divergence_speed, self.config.divergence_residual)
                 effort = self.state_effort(command)
-            residual = check_step(self.config, d, self.sim.velocity, effort)
+            if not _finite(effort):
+                raise DivergenceError("non-finite forces or effort")
         except DivergenceError as exc:
             self.sim.restore(checkpoint)
             self.refusal = str(exc)

@@ -178,6 +178,11 @@ class Simulator {
   StepStatus step(const Vector& u);
   // `report` = the model at the current state under u (no time passes).
   void evaluate(const Vector& u);
+  // Whether the simulator node refuses the step just taken (`report` its answer at the step's
+  // start, the state the new one): 0 no; 3 non-finite forces or slip; 4 a joint faster than
+  // speed_limit; 5 a held contact further than residual_limit off its surface. `measured`: the
+  // speed (4) or the largest held |C| (otherwise).
+  int refusal(double speed_limit, double residual_limit, double& measured) const;
   void set_active(const Mask& active);
   void set_modes(const ContactModes& modes);
   void set_state(const Vector& y);  // [q, dq, i, energies]
