@@ -113,24 +113,6 @@ def engine_contact(contact: Contact) -> engine.Contact:
     )
 
 
-def contact_terms(values: tuple[Vector, ...], contacts: ContactSet) -> ContactTerms:
-    """ContactTerms from the engine's tuple (positions, jacobians as 3p x n, J_c, J_t, gamma, C,
-    slip, direction, normals)."""
-    positions, jacobians, normal, tangent, drift, residual, slip, direction, normals = values
-    return ContactTerms(
-        positions,
-        jacobians.reshape(len(contacts), 3, jacobians.shape[1]),
-        normal,
-        tangent,
-        drift,
-        residual,
-        slip,
-        direction,
-        contacts.friction,
-        normals,
-    )
-
-
 @functools.cache
 def _packed_layout(n: int, p: int) -> tuple[slice, ...]:
     """The parts of a packed answer (bindings.cpp ``packed``) for n joints and p contacts."""
@@ -246,7 +228,8 @@ class ConstrainedDynamics:
 
     def terms(self, q: Vector, dq: Vector) -> ContactTerms:
         """Every contact's terms at (q, dq) (positions, Jacobians, residuals, slip)."""
-        return contact_terms(self.engine.terms(np.asarray(q, dtype=float), np.asarray(dq, dtype=float)), self.contacts)
+        values = self.engine.terms_packed(np.asarray(q, dtype=float), np.asarray(dq, dtype=float))
+        return unpack(values, self.n, self.contacts)[0].contacts
 
     def project(self, q: Vector, rows: Sequence[int], tolerance: float = 1e-13) -> Vector:
         """The posture near ``q`` where the contacts at ``rows`` hold (C = 0), by Newton steps in the

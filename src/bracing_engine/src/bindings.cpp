@@ -18,13 +18,6 @@ using namespace bracing_engine;
 
 namespace {
 
-// positions, jacobians (3p x n), normal_jacobian, tangent_jacobian, drift, residual, slip, direction, normals
-nb::tuple contact_terms(const Answer& a) {
-  return nb::make_tuple(RowMatrix(a.positions), RowMatrix(a.jacobians), RowMatrix(a.normal_jacobian),
-                        RowMatrix(a.tangent_jacobian), Vector(a.drift), Vector(a.residual), RowMatrix(a.slip),
-                        RowMatrix(a.direction), RowMatrix(a.normals));
-}
-
 // The whole answer in one array (one allocation crossing to Python, sliced there: see
 // bracing_core.dynamics._packed_layout): ddq, di, f_n, effort (n, n, p, n), friction and constraint
 // power, then the contact terms (positions 3p, jacobians 3pn, J_c pn, J_t pn, drift p, residual p,
@@ -143,13 +136,14 @@ NB_MODULE(_engine, m) {
           },
           "q"_a, "dq"_a, "current"_a, "u"_a, "held"_a)
       .def(
-          "terms",
+          "terms_packed",
           [](const Dynamics& d, const Vector& q, const Vector& dq) {
             Answer a;
             d.terms(q, dq, a);
-            return contact_terms(a);
+            const auto p = static_cast<std::size_t>(d.contact_count());
+            return packed(a, ContactModes{Mask(p, false), Mask(p, false), RowMatrix::Zero(p, 3), Vector::Ones(p)});
           },
-          "q"_a, "dq"_a)
+          "q"_a, "dq"_a, "every contact's terms at (q, dq), packed as an answer with no force (no solve)")
       .def("project", &Dynamics::project, "q"_a, "rows"_a, "tolerance"_a = 1e-13)
       .def(
           "impact",
