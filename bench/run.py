@@ -18,7 +18,8 @@ in one run on this machine, with medians of repeats. Prints a table, writes benc
 - engine steps/s for generated chains of n links with p = 1 and 2 contacts, and the
   fitted growth exponent of cost with n.
 - sweep throughput: in-process runs per minute with 1 and 2 local worker processes and a
-  Dask LocalCluster, and the parallel efficiency (bench/sweep_bench.py).
+  Dask LocalCluster, and the parallel efficiency (bench/sweep_bench.py);
+- optimiser throughput: bracing-optimize's trials per minute on the paper arm (2 local workers).
 
 ``--quick`` cuts every figure to about a second or less (runs of 0.01 s of sim time, few
 steps, one repeat): it checks that every key is produced (``make test`` runs it,
@@ -301,6 +302,26 @@ def make_run(duration: float | None = None) -> dict[str, Any]:
     return {"whole_s": total, "stepping_s": stepping, "ratio": total / stepping, "runs": [run.name for run in RUNS]}
 
 
+def optimize_trials_per_min(trials: int = 40, duration: float = 10.0) -> float:
+    """bracing-optimize's throughput: trials per minute of the issue's problem on the paper arm (energy
+    subject to hand RMS <= 30 mm over f_nd and the brace target's y), 2 local workers, warmed up first
+    (the search alone: no reference runs, a fresh study)."""
+    from bracing_bringup.executors import make_executor
+    from bracing_bringup.optimize import build_problem, open_study, search
+
+    problem = build_problem(
+        PAPER,
+        ["contacts.elbow.desired_normal_force=0:40", "contacts.elbow.target[1]=0.35:0.85"],
+        ["energy_consumed_j"],
+        ["hand_rms_error_m<=0.03"],
+        duration,
+    )
+    with make_executor(2) as executor:
+        search(problem, open_study(problem, scratch("bench_optimize_warm_")), executor, 2, progress=False)
+        result = search(problem, open_study(problem, scratch("bench_optimize_")), executor, trials, progress=False)
+    return 60.0 * result.ran / result.wall_time_s
+
+
 def machine() -> dict[str, Any]:
     versions = {}
     for dist in ("numpy", "pin", "mujoco", "ros-jazzy-rclpy", "rosbags"):
@@ -423,6 +444,8 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
     scale = scaling(repeats=1, steps=200) if quick else scaling(repeats=3)
     print("sweep throughput (1 and 2 local workers, Dask LocalCluster) ...", flush=True)
     sweep = sweep_throughput(2, 0.1, 1) if quick else sweep_throughput()
+    print("optimiser throughput (2 local workers) ...", flush=True)
+    optimize_rate = optimize_trials_per_min(4, 0.01) if quick else optimize_trials_per_min()
     bound = statistics.mean(run["round_trips_per_s"] for run in bound_runs) * step
     bound_objects = statistics.mean(run["round_trips_per_s"] for run in objects_runs) * step
     result = {
@@ -471,6 +494,7 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
         "scaling": scale,
         "sweep_runs_per_min": sweep["runs_per_min"],
         "sweep_parallel_efficiency": sweep["parallel_efficiency"],
+        "optimize_trials_per_min": optimize_rate,
         "sweep": sweep,
         "bench_wall_time_s": time.monotonic() - started,
     }
@@ -509,6 +533,7 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
     sweep_rates = ", ".join(f"{name}: {rate:.0f}" for name, rate in sweep["runs_per_min"].items())
     rows.append((f"sweep runs/min ({sweep['run_sim_time_s']:g} s runs)", sweep_rates))
     rows.append(("sweep parallel efficiency, 2 workers (target >= 0.9)", f"{sweep['parallel_efficiency']:.3f}"))
+    rows.append(("optimiser trials/min (paper arm, 10 s runs, 2 workers)", f"{optimize_rate:.0f}"))
     rows.append(("bench wall time", f"{result['bench_wall_time_s']:.0f} s"))
     return result, rows
 

@@ -186,34 +186,41 @@ class ResultsStore:
     def write_table(self, run_ids: Sequence[str], leading: Sequence[str] = ()) -> list[dict[str, Any]]:
         """results.parquet and results.csv from the finished rows of ``run_ids`` (in that order);
         columns: run_id, status, error, ``leading`` (the varied values), the metrics, wall time."""
-        import pyarrow as pa
-        import pyarrow.csv as pa_csv
-        import pyarrow.parquet as pq
-
         rows = [row for row in (self.row(i) for i in run_ids) if row is not None]
-        columns: list[str] = []
-        for row in rows:
-            columns += [key for key in row if key not in columns]
-        first = [c for c in (*ORDER_FIRST, *leading) if c in columns]
-        columns = (
-            list(dict.fromkeys(first))
-            + [c for c in columns if c not in first and c not in ORDER_LAST]
-            + [c for c in ORDER_LAST if c in columns]
-        )
-        data: dict[str, list[Any]] = {c: [table_value(row.get(c)) for row in rows] for c in columns}
-        arrays = {}
-        for name, values in data.items():
-            try:
-                arrays[name] = pa.array(values)
-            except (pa.ArrowInvalid, pa.ArrowTypeError):  # mixed kinds in one column: as text
-                arrays[name] = pa.array([None if v is None else str(v) for v in values], pa.string())
-        table = pa.table(arrays) if arrays else pa.table({"run_id": pa.array([], pa.string())})
-        self.output.mkdir(parents=True, exist_ok=True)
-        for name, write in ((RESULTS_PARQUET, pq.write_table), (RESULTS_CSV, pa_csv.write_csv)):
-            temporary = self.output / f".{name}.tmp"
-            write(table, str(temporary))
-            os.replace(temporary, self.output / name)
+        write_tables(self.output, rows, leading, RESULTS_PARQUET, RESULTS_CSV)
         return rows
+
+
+def write_tables(output: Path, rows: Sequence[dict[str, Any]], leading: Sequence[str], parquet: str, csv: str) -> None:
+    """``rows`` as ``output/parquet`` and ``output/csv`` (each replaced atomically); columns: run_id,
+    status, error, ``leading``, the rest in first-seen order, wall time and worker last. A column
+    mixing kinds (numbers and text) is written as text. Shared by sweeps and the optimiser."""
+    import pyarrow as pa
+    import pyarrow.csv as pa_csv
+    import pyarrow.parquet as pq
+
+    columns: list[str] = []
+    for row in rows:
+        columns += [key for key in row if key not in columns]
+    first = [c for c in (*ORDER_FIRST, *leading) if c in columns]
+    columns = (
+        list(dict.fromkeys(first))
+        + [c for c in columns if c not in first and c not in ORDER_LAST]
+        + [c for c in ORDER_LAST if c in columns]
+    )
+    data: dict[str, list[Any]] = {c: [table_value(row.get(c)) for row in rows] for c in columns}
+    arrays = {}
+    for name, values in data.items():
+        try:
+            arrays[name] = pa.array(values)
+        except (pa.ArrowInvalid, pa.ArrowTypeError):  # mixed kinds in one column: as text
+            arrays[name] = pa.array([None if v is None else str(v) for v in values], pa.string())
+    table = pa.table(arrays) if arrays else pa.table({"run_id": pa.array([], pa.string())})
+    output.mkdir(parents=True, exist_ok=True)
+    for name, write in ((parquet, pq.write_table), (csv, pa_csv.write_csv)):
+        temporary = output / f".{name}.tmp"
+        write(table, str(temporary))
+        os.replace(temporary, output / name)
 
 
 def _write_atomic(path: Path, content: str | bytes) -> None:
