@@ -31,6 +31,10 @@ setup(
             "bracing-sweep=bracing_bringup.sweep:main",
             "study=bracing_bringup.study:main",
             "bracing-study=bracing_bringup.study:main",
+            "view=bracing_bringup.view:main",
+            "bracing-view=bracing_bringup.view:main",
+            "optimize=bracing_bringup.optimize:main",
+            "bracing-optimize=bracing_bringup.optimize:main",
         ],
     },
 )

@@ -41,6 +41,7 @@ from bracing_bringup.timeline import (
     recorder_events,
 )
 from bracing_bringup.topics import missing_from_counts
+from bracing_bringup.viewurl import view_url
 from bracing_core import rcl_yaml, schema
 from bracing_core.params import ConfigError, load_params_file, resolve_file
 from bracing_ros.fastdds import NETWORK_ENV
@@ -71,6 +72,8 @@ class RunOptions:
     show_timeline: bool = False  # print the timeline at the end (bracing-pair --timeline)
     free_space: bool = False  # --free-space: the surfaces removed (only watched), the paper's comparison
     network: bool = False  # --network: DDS sockets on every interface (default: loopback and shared memory)
+    view: bool = False  # --view: bracing-view beside the nodes (a process of its own, best-effort subscriber)
+    rrd: bool = False  # --rrd: DIR/run.rrd, the run for rerun's viewer, written from the bag
 
 
 @dataclass
@@ -260,8 +263,9 @@ class Pair:
         """Stop the processes in order (each after a SIGINT unless ``ask`` is False); their exit codes."""
         # Generous grace: the controller flushes its last answers to the recorder (<= 10 s), and a
         # recorder that fell behind on a busy machine drains its queues (<= 60 s) before closing.
-        graces = (("simulator", 10.0), ("controller", 15.0), ("recorder", 75.0))
-        return {name: self.stop(name, grace, ask) for name, grace in graces}
+        graces: tuple[tuple[str, float], ...] = (("simulator", 10.0), ("controller", 15.0), ("recorder", 75.0))
+        graces += (("viewer", 5.0),) if "viewer" in self.procs else ()  # --view: it stops with the run
+        return {name: self.stop(name, grace, ask or name == "viewer") for name, grace in graces}
 
     def tail(self, name: str, lines: int = 20) -> str:
         try:
@@ -340,6 +344,10 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
         pair.start("recorder", recorder, env)
         pair.start("controller", [sys.executable, "-m", "bracing_controller.node", *ros_args], env)
         pair.start("simulator", [sys.executable, "-m", "bracing_sim.node", *ros_args], env)
+        if options.view:  # not waited for: it subscribes best-effort, so it never holds the loop back
+            viewer = [sys.executable, "-m", "bracing_bringup.view", "--ros-args", "-p", f"contacts:={contacts!r}"]
+            pair.start("viewer", viewer, env)
+            pair.say(f"bracing-pair: watch it at {view_url()}  (log: {out / 'logs' / 'viewer.log'})")
         timeline.mark("processes started")
         try:
             warnings = _check_configs(sim_values, controller_values, search)
@@ -404,7 +412,7 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
         warnings += _real_time_warnings(pair.logs["simulator"], float(sim_values["real_time_factor"]))
         summary, code, message = _report(bag, out, contacts, wall, options, expected_states, timeline, warnings)
         for name, process_code in pair.stop_all(ask=False).items():
-            if process_code != 0 and code == 0:
+            if process_code != 0 and code == 0 and name != "viewer":  # a viewer's end is no run's failure
                 code, message = EXIT_FAILED, f"error: the {name} exited with code {process_code}\n{pair.tail(name)}"
     for name in ("simulator", "controller"):
         timeline.add(node_events(pair.logs[name], name))
@@ -545,6 +553,8 @@ def parse_args(argv: Sequence[str] | None) -> RunOptions:
         help=f"DDS sockets on every interface, reachable from other machines (default: loopback and shared "
         f"memory only; {NETWORK_ENV}=1 does the same for nodes started by hand). Use SROS2 to do it securely",
     )
+    parser.add_argument("--view", action="store_true", help="watch the run in a browser (bracing-view, 127.0.0.1)")
+    parser.add_argument("--rrd", action="store_true", help="also write DIR/run.rrd (open with bracing-view or rerun)")
     parser.add_argument(
         "--set", dest="sets", action="append", default=[], metavar="KEY=VALUE", help="override a scenario parameter"
     )
@@ -572,6 +582,8 @@ def parse_args(argv: Sequence[str] | None) -> RunOptions:
         show_timeline=args.timeline,
         free_space=args.free_space,
         network=args.network,
+        view=args.view,
+        rrd=args.rrd,
     )
 
 
@@ -590,6 +602,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     print(format_summary(result.summary or {}))
     print(f"bag: {result.output / 'bag'}  report and summary.json: {result.output}")
+    if options.rrd:
+        from bracing_bringup.view import write_rrd
+
+        write_rrd(result.output / "bag", result.output / "run.rrd")
+        print(f"rerun recording: {result.output / 'run.rrd'}  (bracing-view {result.output / 'bag'} to watch it)")
     if options.show_timeline and result.timeline is not None:
         print(result.timeline.format())
         phases = result.timeline.phases()

@@ -1,0 +1,431 @@
+"""``bracing-view [BAG]``: the run in a browser (rerun's web viewer, served on 127.0.0.1 only).
+
+Live (no BAG): a node like RViz subscribes to what the simulator and controller publish and
+logs it to rerun with sim time on the ``sim_time`` timeline. With BAG: the recorded run, through
+the same ``Feed``, so a replay looks like the live view. ``--rrd FILE`` writes the recording.
+
+Every message is reduced to numbers by the project's readers (``bracing_ros.wire``'s typestore)
+and every link pose comes from the project's kinematics (``scene.LinkPoses``, pinocchio).
+A state is drawn at most every ``--period`` of sim time (default 10 ms): the browser cannot
+draw 1 kHz anyway, and the live viewer must not take the CPU the lockstep loop needs.
+
+No usage data leaves the machine: rerun's analytics are turned off (``RERUN_ANALYTICS``) before
+rerun is imported, and both servers (gRPC data, web viewer) listen on localhost.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ctypes
+import os
+import shutil
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import time
+import xml.etree.ElementTree as ET
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+os.environ["RERUN_ANALYTICS"] = "0"  # before rerun's import: no usage data sent anywhere
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from bracing_bringup.scene import LinkPoses
+from bracing_bringup.viewurl import GRPC_PORT, WEB_PORT, view_url
+
+DEFAULT_PERIOD_S = 0.01
+FORCE_M_PER_N = 0.01  # arrow length per newton [m/N], as the recorder's markers
+TIMELINE = "sim_time"
+
+_TYPES = {
+    "robot_description": "std_msgs/msg/String",
+    "joint_states": "sensor_msgs/msg/JointState",
+    "contacts": "bracing_msgs/msg/Contacts",
+    "controller_state": "bracing_msgs/msg/ControllerState",
+    "motor_state": "bracing_msgs/msg/MotorState",
+}
+WRENCH_TYPE = "geometry_msgs/msg/WrenchStamped"
+
+
+def blueprint() -> rrb.Blueprint:
+    """The 3D view on the left, the plots stacked on the right: one laptop screen."""
+    plots = rrb.Vertical(
+        rrb.TimeSeriesView(origin="/plots/hand_error", name="hand error [mm] vs sim time [s]"),
+        rrb.TimeSeriesView(origin="/plots/normal_force", name="normal force f_n, f_nd [N] vs sim time [s]"),
+        rrb.TimeSeriesView(origin="/plots/current", name="motor current [A] vs sim time [s]"),
+        rrb.TimeSeriesView(origin="/plots/energy", name="energy [J] vs sim time [s]"),
+        rrb.TimeSeriesView(origin="/plots/temperature", name="motor temperature [degC] vs sim time [s]"),
+    )
+    view3d = rrb.Spatial3DView(origin="/world", name="arm, surfaces and contact forces (world, m; 1 cm/N)")
+    return rrb.Blueprint(
+        rrb.Horizontal(view3d, plots, column_shares=[3, 2]), rrb.TimePanel(expanded=False), collapse_panels=True
+    )
+
+
+def _raw_stamp_s(data: bytes) -> float:
+    """The header stamp of a message's CDR bytes (4 bytes of encapsulation, then sec, nanosec)."""
+    sec, nanosec = struct.unpack_from("<iI", data, 4)
+    return sec + 1e-9 * nanosec
+
+
+def _stamp_s(msg: Any) -> float:
+    return float(msg.header.stamp.sec) + 1e-9 * float(msg.header.stamp.nanosec)
+
+
+class Feed:
+    """Logs the run's messages (already decoded, rosbags' or rclpy's objects) to a rerun recording."""
+
+    def __init__(self, recording: rr.RecordingStream, period_s: float = DEFAULT_PERIOD_S) -> None:
+        self.rec = recording
+        self.period = period_s
+        self.poses: LinkPoses | None = None
+        self.counts: dict[str, int] = {}
+        self._last: dict[str, float] = {}
+        self._forces: dict[str, np.ndarray] = {}
+        self._surfaces: set[str] = set()
+
+    period_kinds = frozenset({"joint_states", "contacts", "controller_state", "motor_state"})
+
+    def wanted(self, kind: str, t: float) -> bool:
+        """Whether ``_due`` would draw a message of ``kind`` at ``t`` (without marking it drawn)."""
+        last = self._last.get(kind)
+        return last is None or t - last >= self.period - 1e-9
+
+    def _due(self, kind: str, t: float) -> bool:
+        """Whether a message of ``kind`` at ``t`` is drawn (one per period of sim time)."""
+        last = self._last.get(kind)
+        if last is not None and t - last < self.period - 1e-9:
+            return False
+        self._last[kind] = t
+        self.rec.set_time(TIMELINE, duration=t)
+        return True
+
+    def _log(self, path: str, item: Any, static: bool = False) -> None:
+        self.rec.log(path, item, static=static)
+        self.counts[path] = self.counts.get(path, 0) + 1
+
+    def message(self, topic: str, msg: Any) -> None:
+        """One message of a resolved or relative topic name (namespace ignored)."""
+        name = topic.lstrip("/")
+        if "contact_wrench/" in name:
+            self.wrench(name.rsplit("/", 1)[-1], msg)
+            return
+        name = name.rsplit("/", 1)[-1]
+        handler = getattr(self, name, None)
+        if name in _TYPES and handler is not None:
+            handler(msg)
+
+    def robot_description(self, msg: Any) -> None:
+        if self.poses is not None or not str(msg.data):
+            return
+        self.poses = LinkPoses(str(msg.data))
+        for link, shapes in _urdf_visuals(str(msg.data)).items():
+            for k, (item, origin) in enumerate(shapes):
+                self._log(
+                    f"world/robot/{link}/visual_{k}",
+                    rr.Transform3D(translation=origin[:3], quaternion=rr.Quaternion(xyzw=origin[3:])),
+                    True,
+                )
+                self._log(f"world/robot/{link}/visual_{k}/shape", item, True)
+
+    def joint_states(self, msg: Any) -> None:
+        if self.poses is None or not self._due("joint_states", _stamp_s(msg)):
+            return
+        poses = self.poses
+        poses.update(poses.configuration(list(msg.name), np.asarray(msg.position, dtype=float)))
+        rows = poses.xyzquat(poses.body_ids)
+        for link, row in zip(poses.body_names, rows, strict=True):
+            self._log(f"world/robot/{link}", rr.Transform3D(translation=row[:3], quaternion=row[3:]))
+        strips = [[rows[a, :3], rows[b, :3]] for a, b in poses.segments()]
+        self._log("world/skeleton", rr.LineStrips3D(strips, radii=0.012, colors=[70, 110, 200]))
+        self._log("world/joints", rr.Points3D(rows[:, :3], radii=0.018, colors=[30, 30, 30]))
+
+    def wrench(self, contact: str, msg: Any) -> None:
+        f = msg.wrench.force
+        self._forces[contact] = np.array([f.x, f.y, f.z], dtype=float)
+
+    def contacts(self, msg: Any) -> None:
+        if not self._due("contacts", _stamp_s(msg)):
+            return
+        for c in msg.contacts:
+            point = np.array([c.position.x, c.position.y, c.position.z])
+            normal = np.array([c.normal.x, c.normal.y, c.normal.z])
+            if c.name not in self._surfaces:  # the surface where the contact first is (a plane: a fixed patch)
+                self._surfaces.add(c.name)
+                on_surface = point - float(c.residual) * normal
+                patch = rr.Boxes3D(centers=[on_surface - 0.001 * normal], half_sizes=[_patch_half_sizes(normal)])
+                self._log(f"world/surfaces/{c.name}", patch, True)
+            base = f"world/contacts/{c.name}"
+            color = [220, 30, 30] if c.active else [128, 128, 128]
+            self._log(f"{base}/point", rr.Points3D([point], radii=0.02, colors=[color]))
+            fn = float(c.normal_force) * normal
+            force = self._forces.get(c.name, fn)
+            friction = force - float(np.dot(force, normal)) * normal
+            self._log(
+                f"{base}/normal_force", rr.Arrows3D(origins=[point], vectors=[FORCE_M_PER_N * fn], colors=[255, 140, 0])
+            )
+            self._log(
+                f"{base}/friction_force",
+                rr.Arrows3D(origins=[point], vectors=[FORCE_M_PER_N * friction], colors=[0, 170, 80]),
+            )
+            self._log(f"plots/normal_force/{c.name}/f_n", rr.Scalars(float(c.normal_force)))
+
+    def controller_state(self, msg: Any) -> None:
+        if not self._due("controller_state", _stamp_s(msg)):
+            return
+        desired = np.array([msg.hand_desired.x, msg.hand_desired.y, msg.hand_desired.z])
+        actual = np.array([msg.hand_actual.x, msg.hand_actual.y, msg.hand_actual.z])
+        self._log("world/hand/desired", rr.Points3D([desired], radii=0.01, colors=[0, 120, 255]))
+        self._log("world/hand/actual", rr.Points3D([actual], radii=0.01, colors=[200, 0, 200]))
+        for axis, value in zip("xyz", 1000.0 * (actual - desired), strict=True):
+            self._log(f"plots/hand_error/{axis}", rr.Scalars(float(value)))
+        for name, fnd in zip(msg.contact_name, msg.desired_normal_force, strict=False):
+            self._log(f"plots/normal_force/{name}/f_nd", rr.Scalars(float(fnd)))
+
+    def motor_state(self, msg: Any) -> None:
+        if not self._due("motor_state", _stamp_s(msg)):
+            return
+        for name, current in zip(msg.name, msg.current, strict=False):
+            self._log(f"plots/current/{name}", rr.Scalars(float(current)))
+        self._log("plots/energy/consumed", rr.Scalars(float(msg.energy_consumed)))
+        self._log("plots/energy/copper_loss", rr.Scalars(float(msg.copper_loss)))
+        for name, temperature in zip(msg.name, getattr(msg, "temperature", []), strict=False):
+            self._log(f"plots/temperature/{name}", rr.Scalars(float(temperature)))
+
+    def paths(self, desired: np.ndarray, actual: np.ndarray) -> None:
+        """The hand's whole desired and actual paths (a bag's: known at once)."""
+        self._log("world/hand/desired_path", rr.LineStrips3D([desired], radii=0.003, colors=[0, 120, 255]), True)
+        self._log("world/hand/actual_path", rr.LineStrips3D([actual], radii=0.003, colors=[200, 0, 200]), True)
+
+
+def _patch_half_sizes(normal: np.ndarray) -> list[float]:
+    """A 1 m square patch, thin along the normal's main axis."""
+    half = [0.5, 0.5, 0.5]
+    half[int(np.argmax(np.abs(normal)))] = 0.001
+    return half
+
+
+def _urdf_visuals(urdf: str) -> dict[str, list[tuple[Any, list[float]]]]:
+    """Per link, its URDF visuals (box, cylinder, sphere) as rerun shapes with their origin (xyz, quat)."""
+    out: dict[str, list[tuple[Any, list[float]]]] = {}
+    for link in ET.fromstring(urdf).iter("link"):
+        for visual in link.iter("visual"):
+            geometry = visual.find("geometry")
+            if geometry is None:
+                continue
+            origin = visual.find("origin")
+            xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
+            rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
+            shape = _shape(geometry)
+            if shape is not None:
+                out.setdefault(link.get("name", ""), []).append((shape, [*xyz, *_quat(rpy)]))
+    return out
+
+
+def _shape(geometry: ET.Element) -> Any:
+    color = [150, 170, 210]
+    box, cylinder, sphere = geometry.find("box"), geometry.find("cylinder"), geometry.find("sphere")
+    if box is not None:
+        size = [float(v) / 2 for v in box.get("size", "0 0 0").split()]
+        return rr.Boxes3D(half_sizes=[size], colors=[color])
+    if cylinder is not None:
+        return rr.Cylinders3D(
+            lengths=[float(cylinder.get("length", 0))], radii=[float(cylinder.get("radius", 0))], colors=[color]
+        )
+    if sphere is not None:
+        return rr.Ellipsoids3D(half_sizes=[[float(sphere.get("radius", 0))] * 3], colors=[color], fill_mode="solid")
+    return None
+
+
+def _quat(rpy: Sequence[float]) -> list[float]:
+    """URDF roll-pitch-yaw as a quaternion x, y, z, w."""
+    r, p, y = (v / 2 for v in rpy)
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    return [
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+        cr * cp * cy + sr * sp * sy,
+    ]
+
+
+def new_recording(name: str = "bracing") -> rr.RecordingStream:
+    recording = rr.RecordingStream(name, make_default=False, make_thread_default=False)
+    return recording
+
+
+def replay_bag(bag: Path, recording: rr.RecordingStream, period_s: float = DEFAULT_PERIOD_S) -> Feed:
+    """Every message of a recorded run through a ``Feed`` (the project's typestore; robot first)."""
+    from rosbags.highlevel import AnyReader
+
+    from bracing_bringup.summary import read_series, resolve_bag
+
+    path = resolve_bag(Path(bag))
+    feed = Feed(recording, period_s)
+    recording.send_blueprint(blueprint())
+    with AnyReader([path]) as reader:
+        wanted = [c for c in reader.connections if c.msgtype in (*_TYPES.values(), WRENCH_TYPE)]
+        described = [c for c in wanted if c.topic.endswith("robot_description")]
+        for conn, _, raw in reader.messages(connections=described):
+            feed.message(conn.topic, reader.deserialize(raw, conn.msgtype))
+        for conn, _, raw in reader.messages(connections=[c for c in wanted if c not in described]):
+            feed.message(conn.topic, reader.deserialize(raw, conn.msgtype))
+    series = read_series(path)
+    if len(series.hand_desired):
+        feed.paths(series.hand_desired, series.hand_actual)
+    return feed
+
+
+def write_rrd(bag: Path, rrd: Path, period_s: float = DEFAULT_PERIOD_S) -> dict[str, int]:
+    """``run.rrd`` of a recorded run (``bracing-pair --rrd``): the entities' log counts."""
+    recording = new_recording()
+    recording.save(str(rrd))
+    feed = replay_bag(bag, recording, period_s)
+    recording.flush()
+    recording.disconnect()
+    return feed.counts
+
+
+def serve(recording: rr.RecordingStream, web_port: int, grpc_port: int) -> tuple[str, subprocess.Popen[bytes]]:
+    """The web viewer and its gRPC proxy on 127.0.0.1 only, and the recording streamed to it; the URL.
+
+    The SDK's own ``serve_grpc`` / ``serve_web_viewer`` listen on every interface (0.0.0.0) with no
+    way to say otherwise, so the wheel's ``rerun`` CLI serves them with ``--bind 127.0.0.1``.
+    """
+    import rerun_cli  # the wheel's binary itself: its Python launcher would outlive a SIGTERM's target
+
+    binary = Path(rerun_cli.__file__).parent / "rerun"
+    rerun_cli_path = str(binary) if binary.is_file() else shutil.which("rerun") or "rerun"
+    argv = [rerun_cli_path, "--serve-web", "--bind", "127.0.0.1", "--port", str(grpc_port)]
+    argv += ["--web-viewer-port", str(web_port), "--server-memory-limit", "25%", "--hide-welcome-screen"]
+    env = dict(os.environ, RERUN_ANALYTICS="0")
+    # It gets a SIGTERM from the kernel when this process dies, however it dies: no server outlives the viewer.
+    proxy = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, preexec_fn=_term_with_parent)
+    uri = f"rerun+http://127.0.0.1:{grpc_port}/proxy"
+    url = view_url(web_port, grpc_port)
+    _wait_for_port(grpc_port, proxy)
+    recording.connect_grpc(uri, default_blueprint=blueprint())
+    return url, proxy
+
+
+def _term_with_parent() -> None:
+    pr_set_pdeathsig = 1  # <sys/prctl.h>
+    ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, int(signal.SIGTERM), 0, 0, 0)
+
+
+def _wait_for_port(port: int, proxy: subprocess.Popen[bytes], timeout: float = 20.0) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if proxy.poll() is not None:
+            raise RuntimeError(f"rerun exited with code {proxy.returncode} (is port {port} taken?)")
+        with socket.socket() as probe:
+            if probe.connect_ex(("127.0.0.1", port)) == 0:
+                return
+        time.sleep(0.1)
+    raise RuntimeError(f"rerun did not listen on 127.0.0.1:{port} within {timeout:g} s")
+
+
+def live(feed: Feed, stop_after: float | None) -> None:
+    """Subscribe to the run's topics (best effort: the viewer never holds the lockstep loop back)."""
+    import rclpy
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    from bracing_ros.lifetime import stop_with_parent
+    from bracing_ros.typestore import bracing_typestore
+
+    stop_with_parent()  # under bracing-pair: a SIGTERM should the pair die
+    os.nice(10)  # the lockstep loop comes first (as the recorder)
+    store = bracing_typestore()
+    rclpy.init()
+    node = rclpy.create_node("bracing_view")
+    fast = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    contacts = [str(c) for c in node.declare_parameter("contacts", ["elbow"]).value or []]
+    topics = [(t, ty) for t, ty in _TYPES.items()] + [(f"contact_wrench/{c}", WRENCH_TYPE) for c in contacts]
+    module_types = _rclpy_types()
+    for topic, typename in topics:
+
+        def callback(data: bytes, topic: str = topic, typename: str = typename) -> None:
+            # Most states are not drawn: their header stamp (right after the CDR header) says so
+            # before any decoding. Wrenches are kept for the next drawn contacts.
+            if topic in feed.period_kinds and not feed.wanted(topic, _raw_stamp_s(data)):
+                return
+            feed.message(topic, store.deserialize_cdr(data, typename))
+
+        qos = latched if topic == "robot_description" else fast
+        node.create_subscription(module_types[typename], topic, callback, qos, raw=True)
+    deadline = None if stop_after is None else time.monotonic() + stop_after
+    try:
+        while rclpy.ok() and (deadline is None or time.monotonic() < deadline):
+            rclpy.spin_once(node, timeout_sec=0.1)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def _rclpy_types() -> dict[str, Any]:
+    from geometry_msgs.msg import WrenchStamped
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import String
+
+    from bracing_msgs.msg import Contacts, ControllerState, MotorState
+
+    return {
+        "std_msgs/msg/String": String,
+        "sensor_msgs/msg/JointState": JointState,
+        "bracing_msgs/msg/Contacts": Contacts,
+        "bracing_msgs/msg/ControllerState": ControllerState,
+        "bracing_msgs/msg/MotorState": MotorState,
+        WRENCH_TYPE: WrenchStamped,
+    }
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="bracing-view", description=__doc__.splitlines()[0])
+    parser.add_argument("bag", nargs="?", type=Path, help="a recorded run (bag or run directory); none: live")
+    parser.add_argument("--rrd", type=Path, default=None, help="also save the recording to this .rrd file")
+    parser.add_argument("--web-port", type=int, default=WEB_PORT)
+    parser.add_argument("--grpc-port", type=int, default=GRPC_PORT)
+    parser.add_argument("--period", type=float, default=DEFAULT_PERIOD_S, help="sim time between drawn states [s]")
+    parser.add_argument("--no-serve", action="store_true", help="only --rrd, no web viewer")
+    parser.add_argument("--exit-after", type=float, default=None, help="stop after this many seconds of wall time")
+    argv = list(sys.argv[1:] if argv is None else argv)
+    ours = argv[: argv.index("--ros-args")] if "--ros-args" in argv else argv  # rclpy reads the rest
+    args = parser.parse_args(ours)
+    if args.bag is not None and args.no_serve:
+        counts = write_rrd(args.bag, args.rrd or Path("run.rrd"), args.period)
+        print(f"bracing-view: {sum(counts.values())} logs to {args.rrd or 'run.rrd'}")
+        return 0
+    recording = new_recording()
+    url, proxy = serve(recording, args.web_port, args.grpc_port)
+    print(f"bracing-view: open {url}", flush=True)
+    try:
+        if args.bag is not None:
+            replay_bag(args.bag, recording, args.period)
+            recording.flush()
+            print(f"bracing-view: {args.bag} loaded; Ctrl-C to stop", flush=True)
+            end = None if args.exit_after is None else time.monotonic() + args.exit_after
+            while (end is None or time.monotonic() < end) and proxy.poll() is None:
+                time.sleep(0.2)
+        else:
+            recording.send_blueprint(blueprint())
+            live(Feed(recording, args.period), args.exit_after)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        recording.flush()
+        proxy.terminate()
+        proxy.wait(10)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,15 @@
+"""Where ``bracing-view`` serves (no rerun import: ``bracing-pair`` prints it without loading rerun)."""
+
+from __future__ import annotations
+
+from urllib.parse import quote
+
+WEB_PORT = 9090
+"""The web viewer's HTTP port on 127.0.0.1 (rerun's default)."""
+GRPC_PORT = 9876
+"""The gRPC proxy the recording streams to, on 127.0.0.1 (rerun's default)."""
+
+
+def view_url(web_port: int = WEB_PORT, grpc_port: int = GRPC_PORT) -> str:
+    """The page to open: the web viewer, told where its data is."""
+    return f"http://127.0.0.1:{web_port}/?url={quote(f'rerun+http://127.0.0.1:{grpc_port}/proxy', safe='')}"
