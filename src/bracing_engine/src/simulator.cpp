@@ -237,6 +237,7 @@ void Simulator::event_functions(const Answer& answer, Vector& g) const {
 void Simulator::advance(Vector& y, double h, const Vector& u, bool first, double offset) {
   const int n = n_, m = 3 * n_;
   double done = 0.0;
+  end_evaluated_ = false;
   for (int events = 0;; ++events) {
     const double span = h - done;
     y0_ = y;
@@ -274,6 +275,7 @@ void Simulator::advance(Vector& y, double h, const Vector& u, bool first, double
     event_functions(located_, g_end_);
     if ((g_end_.array() >= 0.0).all()) {
       y = y1_;
+      end_evaluated_ = true;  // located_ is the model at the step's end
       return;
     }
     rates(y1_.head(m), u, true, located_, k_end_, e_end_);
@@ -383,9 +385,14 @@ void Simulator::hold_sticking() {
   // lets it drift (1e-10 m/s in a step seen with two contacts); projected back to zero at each step's
   // end (an impulse, its tiny loss booked as friction's), a stuck contact is at rest to rounding for
   // whoever reads the state, as the law does to tell stick from slip.
-  bool any = false;
-  for (int j = 0; j < p_; ++j) any = any || (modes_.held[j] && modes_.sticking[j]);
-  if (!any) return;
+  bool any = false, drifted = !end_evaluated_;
+  for (int j = 0; j < p_; ++j) {
+    if (!modes_.held[j] || !modes_.sticking[j]) continue;
+    any = true;
+    // the step's end evaluation has the slip already: nothing to project below 1e-13 m/s (a pass saved)
+    drifted = drifted || located_.slip.row(j).norm() > 1e-13;
+  }
+  if (!any || !drifted) return;
   const int n = n_;
   Vector q = y_.head(n), dq = y_.segment(n, n);
   y_[3 * n + 4] += dynamics_->hold_velocity(q, dq, modes_);
@@ -405,6 +412,7 @@ void Simulator::touchdown() {
     if (lands || modes_.held[j]) held.push_back(j);
   }
   if (landing.empty()) return;
+  end_evaluated_ = false;  // the state moves
   Vector q = y_.head(n), dq = y_.segment(n, n);
   const double loss = dynamics_->impact(q, dq, held);
   y_.head(n) = q;

@@ -231,6 +231,7 @@ class Simulator {
   ContactModes modes_, report_modes_;
   Mask unilateral_, enforced_, coulomb_;
   bool any_unilateral_ = false, any_coulomb_ = false;
+  bool end_evaluated_ = false;  // located_ holds the model at the state the last step ended in
   std::vector<ContactEvent> events_;
   Answer stage_, located_;  // the later stages' answers; the model at a step's end or a trial event time
   Vector x_, y0_, y1_, k_[4], e_[4], k_end_, e_end_, k_first_, e_first_;
