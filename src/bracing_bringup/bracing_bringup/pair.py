@@ -41,7 +41,7 @@ from bracing_bringup.timeline import (
     recorder_events,
 )
 from bracing_bringup.topics import missing_from_counts
-from bracing_bringup.viewurl import view_url
+from bracing_bringup.viewurl import free_ports, view_url
 from bracing_core import rcl_yaml, schema
 from bracing_core.params import ConfigError, load_params_file, resolve_file
 from bracing_ros.fastdds import NETWORK_ENV
@@ -345,9 +345,13 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
         pair.start("controller", [sys.executable, "-m", "bracing_controller.node", *ros_args], env)
         pair.start("simulator", [sys.executable, "-m", "bracing_sim.node", *ros_args], env)
         if options.view:  # not waited for: it subscribes best-effort, so it never holds the loop back
-            viewer = [sys.executable, "-m", "bracing_bringup.view", "--ros-args", "-p", f"contacts:={contacts!r}"]
+            web_port, grpc_port = free_ports(2)
+            ports = ["--web-port", str(web_port), "--grpc-port", str(grpc_port)]
+            viewer = [sys.executable, "-m", "bracing_bringup.view", *ports]
+            viewer += ["--ros-args", "-p", f"contacts:={contacts!r}"]
             pair.start("viewer", viewer, env)
-            pair.say(f"bracing-pair: watch it at {view_url()}  (log: {out / 'logs' / 'viewer.log'})")
+            url = view_url(web_port, grpc_port)
+            pair.say(f"bracing-pair: watch it at {url}  (log: {out / 'logs' / 'viewer.log'})")
         timeline.mark("processes started")
         try:
             warnings = _check_configs(sim_values, controller_values, search)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import socket
 from urllib.parse import quote
 
 WEB_PORT = 9090
@@ -13,3 +14,16 @@ GRPC_PORT = 9876
 def view_url(web_port: int = WEB_PORT, grpc_port: int = GRPC_PORT) -> str:
     """The page to open: the web viewer, told where its data is."""
     return f"http://127.0.0.1:{web_port}/?url={quote(f'rerun+http://127.0.0.1:{grpc_port}/proxy', safe='')}"
+
+
+def free_ports(count: int = 2) -> list[int]:
+    """``count`` ports free on 127.0.0.1 now (the kernel's choice), for a viewer of its own: two
+    runs with --view on one machine must not meet on the default ports."""
+    sockets = [socket.socket(socket.AF_INET, socket.SOCK_STREAM) for _ in range(count)]
+    try:
+        for sock in sockets:
+            sock.bind(("127.0.0.1", 0))
+        return [int(sock.getsockname()[1]) for sock in sockets]
+    finally:
+        for sock in sockets:
+            sock.close()
