@@ -110,6 +110,24 @@ class DecoupledController:
         """Forget the targets taken from the first state (a new run starts)."""
         self.engine.reset()
 
+    def check_task_rank(self, q0: Vector) -> None:
+        """Refuse a task direction the arm cannot move along at the start ``q0`` (model order): each
+        configured axis (hand axes, then each brace's) must add a rank to the stacked task Jacobian
+        within the motions the braced contacts allow (the null space of J_c; the engine's
+        ``Law.first_rankless_axis``). ConfigError names the first axis that adds none."""
+        task, axis = self.engine.first_rankless_axis(np.asarray(q0, dtype=float))
+        if task < 0:
+            return
+        if task == 0:
+            parameter, frame = "hand.axes", self.config.hand.frame
+        else:
+            contact = self.config.shared.braced_contacts[task - 1]
+            parameter, frame = f"contacts.{contact.name}.brace_axes", contact.frame
+        raise ConfigError(
+            f"{parameter}: frame {frame!r} cannot move along {'xyz'[axis]} at the start (that direction adds "
+            "no rank to the task Jacobian, within the motions the braced contacts allow); remove the axis"
+        )
+
     def update(self, t: float, q: Vector, dq: Vector) -> ControlOutput:
         """The command for the measured state (q, dq) at time t [s] (model joint order)."""
         values = self.engine.update_packed(float(t), np.asarray(q, dtype=float), np.asarray(dq, dtype=float))
@@ -127,19 +145,5 @@ class DecoupledController:
 
 
 def check_task_rank(config: ControllerConfig, plant: Plant, q0: Vector) -> None:
-    """Refuse a task direction the arm cannot move along at the start ``q0`` (model order): each
-    configured axis (hand axes, then each brace's) must add a rank to the stacked task Jacobian
-    within the motions the braced contacts allow (the null space of J_c; the engine's
-    ``Law.first_rankless_axis``). ConfigError names the first axis that adds none."""
-    task, axis = DecoupledController(config, plant).engine.first_rankless_axis(np.asarray(q0, dtype=float))
-    if task < 0:
-        return
-    if task == 0:
-        parameter, frame = "hand.axes", config.hand.frame
-    else:
-        contact = config.shared.braced_contacts[task - 1]
-        parameter, frame = f"contacts.{contact.name}.brace_axes", contact.frame
-    raise ConfigError(
-        f"{parameter}: frame {frame!r} cannot move along {'xyz'[axis]} at the start (that direction adds "
-        "no rank to the task Jacobian, within the motions the braced contacts allow); remove the axis"
-    )
+    """``DecoupledController.check_task_rank`` for a configuration with no controller built yet."""
+    DecoupledController(config, plant).check_task_rank(q0)

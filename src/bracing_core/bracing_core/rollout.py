@@ -22,7 +22,7 @@ import numpy as np
 
 from bracing_core.config import Plant, SimulatorConfig, build_simulator
 from bracing_core.controller_config import ControllerConfig
-from bracing_core.law import DecoupledController, check_task_rank
+from bracing_core.law import DecoupledController
 from bracing_core.params import load_params_file
 from bracing_core.simulator import Energy, Simulator
 
@@ -68,9 +68,8 @@ def build_scenario_from_params(
     plant, simulator = build_simulator(sim_config)
     controller = None
     if ctl_params is not None:
-        controller_config = ControllerConfig.from_params(ctl_params, search or [])
-        check_task_rank(controller_config, plant, simulator.position)
-        controller = DecoupledController(controller_config)
+        controller = DecoupledController(ControllerConfig.from_params(ctl_params, search or []))
+        controller.check_task_rank(simulator.position)  # its own law's: one model built, not two
     return Scenario(plant, simulator, controller, sim_config)
 
 
