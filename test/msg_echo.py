@@ -39,6 +39,7 @@ def samples() -> dict[str, object]:
         energy_consumed=1.25,
         energy_net=-0.5,
         copper_loss=0.125,
+        temperature=[31.5],
     )
     state.header.frame_id = "motors"
     contact = ContactState(

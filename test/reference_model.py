@@ -52,8 +52,9 @@ class ContactSpec:
 
 @dataclass(frozen=True)
 class Motors:
-    """Per joint, model order: K [V s/rad], R [ohm], L [H], I_m [kg m^2], gear ratio k, gear
-    damping d_m (motor side), transmission radius rho [m] (0: revolute)."""
+    """Per joint, model order: K [V s/rad], R [ohm] (at 20 degC), L [H], I_m [kg m^2], gear ratio k, gear
+    damping d_m (motor side), transmission radius rho [m] (0: revolute). Thermal (voltage mode): winding
+    to ambient R_th [K/W], capacity C_th [J/K], ambient T_a [degC], copper's alpha [1/K]."""
 
     K: np.ndarray
     R: np.ndarray
@@ -62,6 +63,21 @@ class Motors:
     k: np.ndarray
     d_m: np.ndarray
     rho: np.ndarray
+    R_th: np.ndarray
+    C_th: np.ndarray
+    thermal: bool = False
+    T_a: float = 20.0
+    alpha: float = 0.0
+
+    def resistance(self, T: np.ndarray) -> np.ndarray:
+        """R(T) = R_20 (1 + alpha (T - 20 degC)); R_20 without the thermal model."""
+        return self.R * (1.0 + self.alpha * (T - 20.0)) if self.thermal else self.R
+
+    def heating(self, i: np.ndarray, T: np.ndarray) -> np.ndarray:
+        """dT/dt = (R(T) i^2 - (T - T_a) / R_th) / C_th; 0 without the thermal model."""
+        if not self.thermal:
+            return np.zeros_like(T)
+        return (self.resistance(T) * i * i - (T - self.T_a) / self.R_th) / self.C_th
 
 
 @dataclass(frozen=True)
@@ -192,8 +208,10 @@ def reference_derivative(
     damping: np.ndarray,
     baumgarte: float,
     slip_epsilon: float,
+    T: np.ndarray | None = None,
 ) -> Answer:
-    """ddq, di, f_n (and the effort) at state (q, dq, i) under input u (v or tau), every contact held:
+    """ddq, di, f_n (and the effort) at state (q, dq, i, T) under input u (v or tau), every contact
+    held (T: the windings' temperatures, default ambient):
 
     [ Mc   -W^T ] [ ddq ]   [ drive - (h + g) - Dc dq             ]
     [ J_c    0  ] [ f_n ] = [ -gamma - 2 a J_c dq - a^2 C         ],   W = J_c - mu J_t
@@ -224,7 +242,8 @@ def reference_derivative(
     solution = np.linalg.solve(kkt, rhs)
     answer.ddq, answer.f_n = solution[:n], solution[n:]
     if mode == "voltage":
-        answer.di = (u - motors.R * i - K_m * dq) / motors.L
+        T = np.full(n, motors.T_a) if T is None else T
+        answer.di = (u - motors.resistance(T) * i - K_m * dq) / motors.L
         answer.effort = K_m * i - D_m * dq - J_m * answer.ddq
     else:
         answer.di = np.zeros(n)
@@ -245,11 +264,12 @@ def energy_rates(
     motors: Motors,
     damping: np.ndarray,
     eps: float,
+    T: np.ndarray,
 ) -> np.ndarray:
     """d/dt of ENERGY_NAMES (docs/model.md, Integrator and energy) from an answer of reference_derivative."""
     _, _, D_m = reflected(motors)
     if mode == "voltage":
-        power, copper, Dc = u * i, float(motors.R @ (i * i)), damping + D_m
+        power, copper, Dc = u * i, float(motors.resistance(T) @ (i * i)), damping + D_m
     else:
         power, copper, Dc = u * dq, 0.0, damping
     friction = sum(
@@ -275,18 +295,21 @@ def reference_rk4_step(
     slip_epsilon: float,
     step: float,
     substeps: int = 1,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(q, dq, i, energy increments) after one step of ``step`` seconds with u held: ``substeps``
-    classic RK4 steps of x = (q, dq, i, E)."""
+    T: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(q, dq, i, T, energy increments) after one step of ``step`` seconds with u held: ``substeps``
+    classic RK4 steps of x = (q, dq, i, T, E) (T: the windings' temperatures, default ambient)."""
     n = model.nv
 
     def f(x: np.ndarray) -> np.ndarray:
-        q, dq, i = x[:n], x[n : 2 * n], x[2 * n : 3 * n]
-        d = reference_derivative(model, data, contacts, q, dq, i, u, mode, motors, damping, baumgarte, slip_epsilon)
-        rates = energy_rates(d, contacts, dq, i, u, mode, motors, damping, slip_epsilon)
-        return np.concatenate([dq, d.ddq, d.di, rates])
+        q, dq, i, T = x[:n], x[n : 2 * n], x[2 * n : 3 * n], x[3 * n : 4 * n]
+        d = reference_derivative(model, data, contacts, q, dq, i, u, mode, motors, damping, baumgarte, slip_epsilon, T)
+        rates = energy_rates(d, contacts, dq, i, u, mode, motors, damping, slip_epsilon, T)
+        heating = motors.heating(i, T) if mode == "voltage" else np.zeros(n)
+        return np.concatenate([dq, d.ddq, d.di, heating, rates])
 
-    x = np.concatenate([q, dq, i, np.zeros(len(ENERGY_NAMES))])
+    T0 = np.full(n, motors.T_a) if T is None else T
+    x = np.concatenate([q, dq, i, T0, np.zeros(len(ENERGY_NAMES))])
     h = step / substeps
     for _ in range(substeps):
         k1 = f(x)
@@ -294,7 +317,7 @@ def reference_rk4_step(
         k3 = f(x + h / 2 * k2)
         k4 = f(x + h * k3)
         x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return x[:n], x[n : 2 * n], x[2 * n : 3 * n], x[3 * n :]
+    return x[:n], x[n : 2 * n], x[2 * n : 3 * n], x[3 * n : 4 * n], x[4 * n :]
 
 
 # -- the law -----------------------------------------------------------------------------------

@@ -287,7 +287,15 @@ class BagBuilder:
     def motor(self, ns: int, frame: str, little: bool = True) -> None:
         f = self.v
         msg = self.store.types["bracing_msgs/msg/MotorState"](
-            self.header(ns, frame), JOINTS, np.ones(4), np.ones(4) * f, np.ones(4), 2.0 * f, 1.5 * f, 0.5 * f
+            self.header(ns, frame),
+            JOINTS,
+            np.ones(4),
+            np.ones(4) * f,
+            np.ones(4),
+            25.0 + 1e-3 * f * np.arange(1, 5),  # a winding temperature per joint [degC]
+            2.0 * f,
+            1.5 * f,
+            0.5 * f,
         )
         self.add("/motor_state", "bracing_msgs/msg/MotorState", msg, little)
 

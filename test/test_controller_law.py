@@ -190,18 +190,24 @@ def test_null_space_projection_leaves_contact_accelerations_alone(
 
 # -- 3. voltage input: transient force error -----------------------------------------------
 def test_voltage_input_force_error_decays(closed_loop: Callable) -> None:
-    run = closed_loop()
+    """The paper's motors (R fixed: ``motors.thermal: false``): the circuit's lag leaves a start-up
+    force error that decays. With the windings heating (the default), R(T) grows, the same v drives
+    less current than the law's fixed K_V assumes, and the late error is larger."""
+    run, warm = closed_loop({"motors.thermal": False}), closed_loop()
     error = np.abs(run.normal_force[:, 0] - run.desired_normal_force[0])
     early, late = error[run.window(0.0, 0.5)], error[run.window(5.0)]
     rms = float(np.sqrt(np.mean(error**2)))
+    late_warm = np.abs(warm.normal_force[:, 0] - warm.desired_normal_force[0])[warm.window(5.0)]
     print(
         f"\nvoltage input |f_n - f_nd|: peak {error.max():.3g} N at t = {run.time[int(np.argmax(error))]:.3f} s; "
         f"max {early.max():.3g} N (t < 0.5 s), max {late.max():.3g} N (t >= 5 s); "
-        f"RMS {rms:.3g} N over 10 s, {float(np.sqrt(np.mean(late**2))):.3g} N over t >= 5 s"
+        f"RMS {rms:.3g} N over 10 s, {float(np.sqrt(np.mean(late**2))):.3g} N over t >= 5 s; "
+        f"with the thermal model {float(np.sqrt(np.mean(late_warm**2))):.3g} N over t >= 5 s"
     )
-    assert early.max() > 5.0 * late.max()  # measured 14.9 N vs 1.24 N
+    assert early.max() > 5.0 * late.max()  # measured 13.8 N vs 1.72 N
     assert run.time[int(np.argmax(error))] < 0.5  # the worst is in the start-up transient (L/R = 0.28 s)
-    assert float(np.sqrt(np.mean(late**2))) < 1.0
+    assert float(np.sqrt(np.mean(late**2))) < 1.0  # measured 0.87 N
+    assert np.sqrt(np.mean(late_warm**2)) > 1.5 * np.sqrt(np.mean(late**2))  # measured 1.52 N
 
 
 # -- 4. no bracing: tau = l ---------------------------------------------------------------

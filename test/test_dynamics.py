@@ -162,6 +162,11 @@ def test_electrical_energy_balance_braced_voltage(case: str, scenario: Callable,
     params = paper_params("bracing_simulator", shared, sim_overrides)
     assert plant.joint_names == tuple(params["robot.joint_names"])  # so config order = model order
     resistance, inductance = np.array(params["motors.resistance"]), np.array(params["motors.inductance"])
+    alpha = params["motors.temperature_coefficient"]  # R(T) = R_20 (1 + alpha (T - 20 degC)), the windings warm
+
+    def copper_power(current: np.ndarray, temperature: np.ndarray) -> float:
+        return float((resistance * (1.0 + alpha * (temperature - 20.0))) @ (current * current))
+
     _, rotor_inertia, gear_damping = reflected_motor_terms(params)
     viscous = LINK_DAMPING + gear_damping
     mu = params["contacts.elbow.friction"]
@@ -195,22 +200,22 @@ def test_electrical_energy_balance_braced_voltage(case: str, scenario: Callable,
             return mu * abs(fn) * math.sqrt(float(slip @ slip))
         return mu * fn * float(slip @ slip) / math.sqrt(float(slip @ slip) + eps**2)
 
-    q, dq, i = sim.position, sim.velocity, sim.current
+    q, dq, i, temperature = sim.position, sim.velocity, sim.current, sim.temperature
     start = stored(q, dq, i)
     quad = dict.fromkeys(("net", "consumed", "copper", "viscous", "friction"), 0.0)
     h = sim.step_size
     for _ in range(2000):  # 2 s
         v = command_fn(sim.time, q, dq)
         fn = float(sim.step(v).normal_force[0])  # voltage mode: f_n depends on the state only
-        q1, dq1, i1 = sim.position, sim.velocity, sim.current
+        q1, dq1, i1, temperature1 = sim.position, sim.velocity, sim.current, sim.temperature
         mid_current = 0.5 * (i + i1)
         quad["net"] += h * float(v @ mid_current)
         quad["consumed"] += h * float(np.abs(v) @ np.abs(mid_current))
-        quad["copper"] += 0.5 * h * float(resistance @ (i * i + i1 * i1))
+        quad["copper"] += 0.5 * h * (copper_power(i, temperature) + copper_power(i1, temperature1))
         quad["viscous"] += 0.5 * h * float(dq @ (viscous * dq) + dq1 @ (viscous * dq1))
         fn_end = float(sim.evaluate(v).normal_force[0])
         quad["friction"] += 0.5 * h * (friction_power(q, dq, fn) + friction_power(q1, dq1, fn_end))
-        q, dq, i = q1, dq1, i1
+        q, dq, i, temperature = q1, dq1, i1, temperature1
     end = stored(q, dq, i)
     e = sim.energy
     d_mech, d_rotor, d_magnetic = (b - a for a, b in zip(start, end, strict=True))

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
+import sqlalchemy
 from ros_helpers import PAPER_YAML, isolated_env, pair_argv, run
 
 from bracing_bringup.executors import LocalExecutor
@@ -106,9 +107,13 @@ def test_ctrl_c_keeps_finished_trials_and_the_same_command_resumes(tmp_path: Pat
             assert proc.poll() is None, proc.communicate()
             assert time.monotonic() < deadline, "no trial finished"
             if (tmp_path / "study.db").is_file():
-                study = open_study(
-                    build_problem(PAPER_YAML, [f"{FORCE}=0:40"], ["energy_consumed_j"], duration=0.5), tmp_path
-                )
+                try:
+                    study = open_study(
+                        build_problem(PAPER_YAML, [f"{FORCE}=0:40"], ["energy_consumed_j"], duration=0.5), tmp_path
+                    )
+                except sqlalchemy.exc.SQLAlchemyError:  # the command is still writing the new file's schema
+                    time.sleep(0.2)
+                    continue
                 if sum(1 for t in study.trials if "status" in t.user_attrs) >= 3:
                     break
             time.sleep(0.2)

@@ -141,9 +141,21 @@ def model_order(model: pin.Model, shared: SharedConfig, values: Any) -> np.ndarr
 
 def reference_motors(model: pin.Model, shared: SharedConfig) -> Motors:
     m = shared.motors
-    fields = (m.torque_constant, m.resistance, m.inductance, m.rotor_inertia, m.gear_ratio, m.gear_damping)
-    radius = m.transmission_radius
-    return Motors(*(model_order(model, shared, f) for f in fields), model_order(model, shared, radius))
+    fields = (
+        m.torque_constant,
+        m.resistance,
+        m.inductance,
+        m.rotor_inertia,
+        m.gear_ratio,
+        m.gear_damping,
+        m.transmission_radius,
+        m.thermal_resistance,
+        m.heat_capacity,
+    )
+    thermal = m.thermal and shared.input_mode.value == "voltage"
+    return Motors(
+        *(model_order(model, shared, f) for f in fields), thermal, m.ambient_temperature, m.temperature_coefficient
+    )
 
 
 def reference_contact(contact: Contact) -> ContactSpec:
@@ -174,12 +186,12 @@ class Oracle:
     step: float
     substeps: int
 
-    def derivative(self, q: Any, dq: Any, i: Any, u: Any, held: Any = None) -> Answer:
-        """The reference at (q, dq, i) under u with the contacts ``held`` (default all) holding a force."""
+    def derivative(self, q: Any, dq: Any, i: Any, u: Any, held: Any = None, T: Any = None) -> Answer:
+        """The reference at (q, dq, i, T) under u with the contacts ``held`` (default all) holding a force."""
         held = np.ones(len(self.contacts), dtype=bool) if held is None else np.asarray(held, dtype=bool)
         contacts = [c for c, h in zip(self.contacts, held, strict=True) if h]
         args = (self.mode, self.motors, self.damping, self.baumgarte, self.slip_epsilon)
-        answer = reference_derivative(self.model, self.data, contacts, q, dq, i, u, *args)
+        answer = reference_derivative(self.model, self.data, contacts, q, dq, i, u, *args, T)
         force = np.zeros(len(self.contacts))
         force[held] = answer.f_n
         answer.f_n = force
@@ -291,7 +303,7 @@ def compare_state(sc: Scenario, oracle: Oracle, t: float, first_q: np.ndarray, m
     ``moving``: the state is one of a running arm, where each compared quantity must be non-trivial."""
     sim, controller = sc.sim, sc.controller
     assert controller is not None
-    q, dq, i = sim.position, sim.velocity, sim.current
+    q, dq, i, T = sim.position, sim.velocity, sim.current, sim.temperature
     energy = np.array([getattr(sim.energy, name) for name in ENERGY_NAMES])
 
     out = controller.update(t, q, dq)
@@ -303,7 +315,7 @@ def compare_state(sc: Scenario, oracle: Oracle, t: float, first_q: np.ndarray, m
 
     geometry = oracle.geometry(q, dq)
     active = sim.active
-    ref_active = oracle.derivative(q, dq, i, u, active)
+    ref_active = oracle.derivative(q, dq, i, u, active, T)
     compare_derivative("Simulator.evaluate", sim.evaluate(u), ref_active, geometry, case)
     # ConstrainedDynamics.evaluate holds every contact it has: the simulator's held ones, and all of them
     # (collision frames too) where that system is well-posed (p <= n and J_c of full rank; wall_7link's
@@ -311,24 +323,25 @@ def compare_state(sc: Scenario, oracle: Oracle, t: float, first_q: np.ndarray, m
     held = np.flatnonzero(active)
     dynamics = sim.dynamics.with_contacts(sc.plant.contact_set.subset(held))
     subset = rows(geometry, held)
-    compare_derivative("evaluate.held", dynamics.evaluate(q, dq, i, u), rows(ref_active, held), subset, case)
+    compare_derivative("evaluate.held", dynamics.evaluate(q, dq, i, u, T), rows(ref_active, held), subset, case)
     if len(oracle.contacts) <= sim.n and np.linalg.matrix_rank(geometry.J_c) == len(oracle.contacts):
-        all_held = oracle.derivative(q, dq, i, u)
-        compare_derivative("evaluate.all", sim.dynamics.evaluate(q, dq, i, u), all_held, geometry, case)
+        all_held = oracle.derivative(q, dq, i, u, T=T)
+        compare_derivative("evaluate.all", sim.dynamics.evaluate(q, dq, i, u, T), all_held, geometry, case)
 
     events = len(sim.events)
     d = sim.step(u)
     assert all(e.kind == "release" for e in sim.events[events:]), "a touchdown in the compared step"
     held = sim.active  # after a release at the step's start: the set the step integrated with
-    compare_derivative("Simulator.step.answer", d, oracle.derivative(q, dq, i, u, held), geometry, case)
+    compare_derivative("Simulator.step.answer", d, oracle.derivative(q, dq, i, u, held, T), geometry, case)
     args = (oracle.mode, oracle.motors, oracle.damping, oracle.baumgarte, oracle.slip_epsilon)
     contacts = [c for c, h in zip(oracle.contacts, held, strict=True) if h]
-    q1, dq1, i1, e1 = reference_rk4_step(
-        oracle.model, oracle.data, contacts, q, dq, i, u, *args, oracle.step, oracle.substeps
+    q1, dq1, i1, T1, e1 = reference_rk4_step(
+        oracle.model, oracle.data, contacts, q, dq, i, u, *args, oracle.step, oracle.substeps, T
     )
     close("Simulator.step.q", sim.position, q1, case)
     close("Simulator.step.dq", sim.velocity, dq1, case)
     close("Simulator.step.i", sim.current, i1, case)
+    close("Simulator.step.T", sim.temperature, T1, case)
     close("Simulator.step.energy", np.array([getattr(sim.energy, name) for name in ENERGY_NAMES]) - energy, e1, case)
 
     if moving:  # the numbers compared are real ones, not zeros
@@ -400,7 +413,7 @@ def fuzzed() -> dict[tuple[str, str], tuple[ConstrainedDynamics, Oracle, np.ndar
 @given(
     name=st.sampled_from(["paper_4link", "paper_sphere"]),
     mode=st.sampled_from(MODES),
-    values=st.lists(UNIT, min_size=4 * N_PAPER, max_size=4 * N_PAPER),
+    values=st.lists(UNIT, min_size=5 * N_PAPER, max_size=5 * N_PAPER),
 )
 def test_random_states_equal_the_reference(
     fuzzed: dict[tuple[str, str], tuple[ConstrainedDynamics, Oracle, np.ndarray]],
@@ -409,14 +422,14 @@ def test_random_states_equal_the_reference(
     values: list[float],
 ) -> None:
     """q within 0.5 rad of the start (off the surface: C and, on the sphere, a^2 C at work),
-    |dq| <= 3 rad/s, |i| <= 5 A, |u| <= 20 V or N m."""
+    |dq| <= 3 rad/s, |i| <= 5 A, |u| <= 20 V or N m, windings between 0 and 200 degC."""
     dynamics, oracle, q0 = fuzzed[name, mode]
-    x = np.array(values).reshape(4, N_PAPER)
-    q, dq, i, u = q0 + 0.5 * x[0], 3.0 * x[1], 5.0 * x[2], 20.0 * x[3]
+    x = np.array(values).reshape(5, N_PAPER)
+    q, dq, i, u, T = q0 + 0.5 * x[0], 3.0 * x[1], 5.0 * x[2], 20.0 * x[3], 100.0 * (1.0 + x[4])
     if mode == "torque":
         i = np.zeros(N_PAPER)  # no circuit
-    expected, geometry = oracle.derivative(q, dq, i, u), oracle.geometry(q, dq)
-    compare_derivative(f"random.{name}", dynamics.evaluate(q, dq, i, u), expected, geometry, f"{name}/{mode}")
+    expected, geometry = oracle.derivative(q, dq, i, u, T=T), oracle.geometry(q, dq)
+    compare_derivative(f"random.{name}", dynamics.evaluate(q, dq, i, u, T), expected, geometry, f"{name}/{mode}")
 
 
 def test_the_reference_tells_a_different_model_apart(
@@ -450,6 +463,14 @@ def test_the_reference_tells_a_different_model_apart(
     for what, variant in variants.items():
         wrong = variant.derivative(q, dq, i, u)
         assert np.max(np.abs(wrong.ddq - d.acceleration)) > 1e3 * RELATIVE * np.max(np.abs(right.ddq)), what
+    # Warm windings: R(T) moves di, and a reference with another copper coefficient tells it apart.
+    T = np.full(4, 60.0)
+    warm, reference = dynamics.evaluate(q, dq, i, u, T).current_rate, oracle.derivative(q, dq, i, u, T=T).di
+    np.testing.assert_allclose(warm, reference, rtol=0, atol=RELATIVE * np.max(np.abs(reference)))
+    other = Oracle(
+        **{**vars(oracle), "motors": Motors(**{**vars(oracle.motors), "alpha": 1.001 * oracle.motors.alpha})}
+    )
+    assert np.max(np.abs(other.derivative(q, dq, i, u, T=T).di - warm)) > 1e3 * RELATIVE * np.max(np.abs(reference))
 
 
 def test_the_reference_tells_a_different_law_apart() -> None:

@@ -89,7 +89,7 @@ def test_summary_agrees_with_the_bag(paper_run: Path) -> None:
             assert summary[key] == pytest.approx(value, rel=1e-12, abs=1e-15), key
     assert summary["sim_time_s"] == pytest.approx(1.0)
     assert summary["constraint_residual_max_m"] < 1e-9
-    for png in ("hand_y.png", "hand_z.png", "brace_y.png", "normal_force.png", "energy.png"):
+    for png in ("hand_y.png", "hand_z.png", "brace_y.png", "normal_force.png", "energy.png", "motor_temperature.png"):
         assert (paper_run / png).stat().st_size > 10_000
 
 
@@ -114,7 +114,7 @@ def test_timeline_accounts_for_the_whole_run(paper_run: Path) -> None:
     for what in ("simulator configured", "controller configured", "controller answering", "recorder ready"):
         assert 0 < at[what] <= at["first step"] + 0.05, what  # the recorder may print after the match
     drawn = {what for what in at if what.startswith("plot ") or what == "animation"}
-    pngs = ("hand_y.png", "hand_z.png", "brace_y.png", "normal_force.png", "energy.png")
+    pngs = ("hand_y.png", "hand_z.png", "brace_y.png", "normal_force.png", "energy.png", "motor_temperature.png")
     assert drawn == {f"plot {png}" for png in pngs} | {"animation"}
     assert all(at["summary.json"] <= at[what] <= at["last file written"] for what in drawn)
     assert timeline["stepping_s"] == pytest.approx(at["last step"] - at["first step"], abs=1e-3)

@@ -1,5 +1,6 @@
 """bracing-study: the paper's three comparisons in one report (short runs: the claims that hold from
-the first seconds on; the full 10 s study is in the README)."""
+the first seconds on; the full 10 s study is in the README): braced / passive / free, the gains, the
+placement grid and the optimiser's answer beside it."""
 
 from __future__ import annotations
 
@@ -10,10 +11,21 @@ import pyarrow.parquet as pq
 import pytest
 
 from bracing_bringup.executors import LocalExecutor
-from bracing_bringup.experiment import FORCE_MAX_ERROR_KEY, STATUS_OK
-from bracing_bringup.study import build_study, resolve_scenario, write_report
-from bracing_bringup.sweep import RESULTS_PARQUET, run_sweep
+from bracing_bringup.experiment import FORCE_MAX_ERROR_KEY, STATUS_OK, summarize
+from bracing_bringup.optimize import open_study
+from bracing_bringup.pair import RunOptions, shared_overrides
+from bracing_bringup.paper_run import RUNS
+from bracing_bringup.study import (
+    PAPER_HAND_RMS_BOUND,
+    build_study,
+    placement_search,
+    resolve_scenario,
+    run_placement_search,
+    write_report,
+)
+from bracing_bringup.sweep import RESULTS_PARQUET, ResultsStore, run_sweep
 from bracing_core.params import ConfigError
+from bracing_core.rollout import build_scenario, run_recorded
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PAPER_YAML = REPO_ROOT / "config" / "paper_4link.yaml"
@@ -29,14 +41,17 @@ def test_paper_names_the_paper_scenario(monkeypatch: pytest.MonkeyPatch) -> None
 
 def test_the_study_reproduces_the_papers_comparisons(tmp_path: Path) -> None:
     study = build_study(PAPER_YAML, duration=2.5, positions=2, span=0.1, force_scales=(1.0, 2.0))
-    assert (len(study.bracing), len(study.gains), len(study.placement)) == (8, 8, 4)
+    assert (len(study.bracing), len(study.passive), len(study.gains), len(study.placement)) == (8, 4, 8, 4)
     assert study.contact == "elbow" and study.axis == "y"
     assert study.targets == pytest.approx([0.5878 - 0.1, 0.5878 + 0.1], abs=1e-4)  # the elbow starts at y = 0.5878
     assert study.forces == [10.0, 20.0]
     with LocalExecutor(2) as executor:
         result = run_sweep(study.specs, tmp_path, executor, progress=False)
-    assert result.ran == 20 and result.failed == 0
-    report = write_report(study, tmp_path, result.wall_time_s, "test").read_text()
+        assert result.ran == 24 and result.failed == 0
+        store = ResultsStore(tmp_path)
+        stored = {spec.run_id: row for spec in study.specs if (row := store.row(spec.run_id)) is not None}
+        search = run_placement_search(placement_search(study, stored, tmp_path), executor, trials=6, progress=False)
+    report = write_report(study, tmp_path, result.wall_time_s, "test", search=search).read_text()
     for figure in ("bracing.png", "gains.png", "placement.png"):
         assert f"]({figure})" in report
         assert (tmp_path / figure).stat().st_size > 10_000
@@ -76,10 +91,55 @@ def test_the_study_reproduces_the_papers_comparisons(tmp_path: Path) -> None:
     braced = by_case[(True, "voltage", False)]
     assert f"| yes | voltage | no | {braced['hand_rms_error_m']:.4g} | {braced['hand_max_error_m']:.4g} |" in report
 
-    # The same study again reuses every run.
+    # Passive (make run's: bracing-pair --no-bracing, the floor an obstacle) beside braced and free,
+    # each number that of a direct in-process run of make run's passive parameters on the same engine.
+    passive = {(s.varied["input_mode"], s.varied["gravity_compensation"]): rows[s.run_id] for s in study.passive}
+    assert set(passive) == {(m, c) for m in ("voltage", "torque") for c in (False, True)}
+    make_run = next(run for run in RUNS if run.name == "passive")
+    shared = shared_overrides(RunOptions(PAPER_YAML, tmp_path / "unused", mode="voltage", bracing=make_run.bracing))
+    assert shared == {"input_mode": "voltage", "bracing": False}
+    direct = summarize(run_recorded(build_scenario(PAPER_YAML, shared=shared), 2.5), wall_time_s=0.0)
+    row = passive[("voltage", False)]
+    assert row["bracing"] is False and row["contacts.elbow.normal_force_mean_n"] > 1.0  # the elbow rests on the floor
+    for key in ("energy_consumed_j", "copper_loss_j", "hand_rms_error_m", "hand_max_error_m"):
+        assert row[key] == pytest.approx(direct[key], rel=1e-9, abs=1e-12), key
+    assert f"| passive | voltage | no | {row['hand_rms_error_m']:.4g} | {row['hand_max_error_m']:.4g} |" in report
+
+    # The optimiser over the grid's two axes: its optimum meets the bound and uses no more energy than
+    # the grid's best cell within it (its first trial is that cell: the same run, to 1e-9).
+    assert search.found is not None and search.found.trials == 6 and search.found.search.failed == 0
+    assert search.bound == PAPER_HAND_RMS_BOUND
+    assert [(v.low, v.high) for v in search.problem.varies] == [(0.0, 40.0), (0.35, 0.85)]
+    optimum = search.optimum
+    assert optimum is not None and optimum["hand_rms_error_m"] <= PAPER_HAND_RMS_BOUND
+    cells = [rows[s.run_id] for s in study.placement]
+    within = [c for c in cells if c["hand_rms_error_m"] <= PAPER_HAND_RMS_BOUND]
+    assert within
+    best_cell = min(within, key=lambda c: c["energy_consumed_j"])
+    assert optimum["energy_consumed_j"] <= best_cell["energy_consumed_j"]
+    trials = open_study(search.problem, search.output).trials
+    first = trials[0]
+    assert first.params["contacts.elbow.desired_normal_force"] == best_cell["desired_normal_force"]
+    assert first.params["contacts.elbow.target[1]"] == pytest.approx(best_cell["brace_target"], abs=1e-6)
+    for key in ("energy_consumed_j", "hand_rms_error_m", "hand_max_error_m"):
+        assert first.user_attrs["row"][key] == pytest.approx(best_cell[key], rel=1e-9, abs=1e-12), key
+    best = search.found.best
+    assert best is not None and f"| **optimum** (trial {best.number}) | {best.params[search.force]:.4g} |" in report
+    assert f"{optimum['energy_consumed_j']:.4g} | {optimum['hand_rms_error_m']:.4g} |" in report
+    setting, resting = by_case[(True, "voltage", False)], passive[("voltage", False)]
+    cheaper = "less" if resting["energy_consumed_j"] < setting["energy_consumed_j"] else "more"
+    said = f"**What the numbers say**: Resting passively uses {cheaper} energy than bracing at the paper's 10 N"
+    assert said in report and report.count("**What the numbers say**") == 1
+    assert "### The optimiser's answer" in report and "![energy and hand error" in report
+
+    # The same study again reuses every run, and the optimiser's study: no new trial.
     with LocalExecutor(1) as executor:
         again = run_sweep(study.specs, tmp_path, executor, progress=False)
-    assert again.ran == 0 and again.skipped == 20
+        assert again.ran == 0 and again.skipped == 24
+        rerun = run_placement_search(placement_search(study, stored, tmp_path), executor, trials=6, progress=False)
+    assert rerun.found is not None and rerun.found.search.ran == 0 and rerun.found.trials == 6
+    assert rerun.found.best is not None and rerun.found.best.number == best.number
+    assert len(open_study(search.problem, search.output).trials) == 6
 
 
 def test_study_overrides_apply_to_every_run_of_each_node() -> None:

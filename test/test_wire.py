@@ -28,6 +28,8 @@ from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState
 from bracing_ros import wire
 from bracing_ros.typestore import bracing_msgs_dir, bracing_typestore
 
+MOTOR_STATE = "bracing_msgs/msg/MotorState"
+
 RNG = np.random.default_rng(7)
 NAME_SETS = [[], ["j"], ["joint1", "joint2", "joint3", "joint4"], [f"link_{k}_joint" for k in range(7)], ["ß", "关节"]]
 
@@ -109,16 +111,29 @@ def test_contacts(count: int) -> None:
         assert _xyz(got.slip_velocity) == want.slip_velocity.tolist()
 
 
+@pytest.mark.parametrize("thermal", [True, False], ids=["thermal", "no-thermal"])
 @pytest.mark.parametrize("names", NAME_SETS)
-def test_motor_state(names: list[str]) -> None:
+def test_motor_state(names: list[str], thermal: bool) -> None:
+    """Both rclpy and rosbags read what the encoder writes, with the temperatures and without; and
+    rosbags reads rclpy's message without them. (rclpy's CDR pads to 8 after an empty float64[]'s
+    length, rosbags' does not: as the last field it would make every torque-mode MotorState
+    unreadable to rosbags, hence temperature's place before the float64 integrals.)"""
     n = len(names)
     v, i, p = RNG.normal(size=n), RNG.normal(size=n), RNG.normal(size=n)
     energies = (1.5, -2.25, 3.0e-7)
     stamp = _stamp_ns()
-    msg = deserialize_message(wire.MotorStateEncoder(names).encode(stamp, v, i, p, energies), MotorState)
-    assert _ns(msg.header.stamp) == stamp and list(msg.name) == names
-    assert list(msg.voltage) == v.tolist() and list(msg.current) == i.tolist() and list(msg.power) == p.tolist()
-    assert (msg.energy_consumed, msg.energy_net, msg.copper_loss) == energies
+    temperature = 25.0 + RNG.random(size=n) if thermal else np.zeros(0)
+    raw = wire.MotorStateEncoder(names).encode(stamp, v, i, p, energies, temperature)
+    for msg in (deserialize_message(raw, MotorState), bracing_typestore().deserialize_cdr(raw, MOTOR_STATE)):
+        assert list(msg.name) == names
+        assert list(msg.voltage) == v.tolist() and list(msg.current) == i.tolist() and list(msg.power) == p.tolist()
+        assert (msg.energy_consumed, msg.energy_net, msg.copper_loss) == energies
+        assert list(msg.temperature) == temperature.tolist()
+    assert _ns(deserialize_message(raw, MotorState).header.stamp) == stamp
+    if not names:  # a robot without joints: rclpy's padding of four empty float64[] is not rosbags'
+        return
+    empty = MotorState(name=names, voltage=v.tolist(), current=i.tolist(), power=p.tolist())
+    assert list(bracing_typestore().deserialize_cdr(serialize_message(empty), MOTOR_STATE).temperature) == []
 
 
 @pytest.mark.parametrize("names", NAME_SETS)

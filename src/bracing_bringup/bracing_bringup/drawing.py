@@ -133,6 +133,8 @@ def file_names(series: BagSeries, animation: bool) -> list[str]:
         names.append("normal_force")
     if series.motor_t.size:
         names.append("energy")
+    if series.motor_temperature.shape[1] and np.isfinite(series.motor_temperature).any():  # the thermal model's
+        names.append("motor_temperature")
     return names
 
 

@@ -63,6 +63,8 @@ def series_from_recording(rec: Recording) -> BagSeries:
         energy_consumed=rec.energy_consumed,
         energy_net=rec.energy_net,
         copper_loss=rec.copper_loss,
+        motor_names=list(rec.joint_names),
+        motor_temperature=rec.temperature,
         input_mode=rec.input_mode,
     )
     braced = {name: b for b, name in enumerate(rec.braced_names)}

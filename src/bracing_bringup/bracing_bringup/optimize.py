@@ -41,6 +41,7 @@ from bracing_bringup.experiment import STATUS_OK, RunSpec, execute_run
 from bracing_bringup.overrides import CONTROLLER, SIMULATOR, destination, format_value, parse_single
 from bracing_bringup.sweep import EXIT_CONFIG, EXIT_FAILED, EXIT_INTERRUPTED, handle_stop_signals, make_spec
 from bracing_bringup.sweep import write_tables as write_sweep_tables
+from bracing_bringup.variants import BRACED, FREE_SPACE, PASSIVE
 from bracing_core import rcl_yaml
 from bracing_core.params import ConfigError, load_params_file
 from bracing_core.schema import Kind
@@ -52,10 +53,10 @@ STUDY_DB, STUDY_NAME, MANIFEST = "study.db", "bracing-optimize", "optimize.json"
 TRIALS_PARQUET, TRIALS_CSV, BEST_YAML, REPORT = "trials.parquet", "trials.csv", "best.yaml", "report.md"
 REFERENCES_FILE = "references.json"
 STATUS_INFEASIBLE, STATUS_FAILED, STATUS_INTERRUPTED = "infeasible", "failed", "interrupted"
-REFERENCES = {  # the file's setting and make run's two other runs (paper_run.RUNS), marked on the figures
-    "file's setting": {},
-    "passive": {"bracing": False},
-    "free space": {"bracing": False, "free_space": True},
+REFERENCES = {  # the file's setting and make run's two other runs (variants.RUNS), marked on the figures
+    "file's setting": BRACED.overrides(),
+    "passive": PASSIVE.overrides(),
+    "free space": FREE_SPACE.overrides(),
 }
 _VARY = re.compile(r"^\s*([A-Za-z_][\w.]*)(?:\[(\d+)\])?\s*=\s*([^:]+):([^:]+)$")
 _CONSTRAINT = re.compile(r"^\s*([A-Za-z_][\w.]*)\s*(<=|>=)\s*(\S+)\s*$")
@@ -134,6 +135,11 @@ class Problem:
             "duration": self.duration,
             "set": {key: format_value(value) for key, value in self.base.items()},
         }
+
+    @property
+    def key(self) -> str:
+        """A short name of the problem (its manifest's digest): a directory per problem (the study's)."""
+        return hashlib.sha1(json.dumps(self.manifest(), sort_keys=True).encode()).hexdigest()[:10]
 
 
 def parse_vary(text: str) -> Vary:
@@ -217,9 +223,11 @@ def build_problem(
     subject_to: Sequence[str] = (),
     duration: float | None = None,
     sets: Sequence[str] = (),
+    base: dict[str, Any] | None = None,
 ) -> Problem:
     """The problem, checked before any trial: every key, range and list index; each bound of each
-    range runs through the scenario's checks (make_spec: types, bounds, the task rank at the start)."""
+    range runs through the scenario's checks (make_spec: types, bounds, the task rank at the start).
+    ``base``: fixed overrides already parsed (after ``sets``)."""
     if not config.is_file():
         raise ConfigError(f"--config: file not found: {config}")
     if not vary:
@@ -230,7 +238,7 @@ def build_problem(
     names = [v.name for v in varies]
     if len(set(names)) != len(names):
         raise ConfigError(f"--vary: a parameter given twice ({', '.join(n for n in names if names.count(n) > 1)})")
-    base = parse_single(sets)
+    base = {**parse_single(sets), **(base or {})}
     problem = Problem(config, varies, list(minimize), [parse_constraint(c) for c in subject_to], duration, base)
     for v in varies:
         if v.index is not None and v.key not in problem.lists:
@@ -375,10 +383,12 @@ def search(
     trials: int,
     progress: bool = True,
     on_trial: Callable[[int, str], None] | None = None,
+    first: Sequence[dict[str, float]] = (),
 ) -> SearchResult:
     """Run trials until the study has ``trials`` that came back: ``executor.workers`` at a time (asked
     together, told as each run returns). Ctrl-C cancels the running ones (recorded as interrupted, not
-    counted) and re-raises KeyboardInterrupt with the finished ones in the study."""
+    counted) and re-raises KeyboardInterrupt with the finished ones in the study. ``first``: points
+    (varied name -> value) a new study tries first, before its sampler's own (a known good setting)."""
     from optuna.trial import TrialState
     from tqdm import tqdm
 
@@ -387,6 +397,9 @@ def search(
     for stale in study.get_trials(deepcopy=False, states=(TrialState.RUNNING, TrialState.WAITING)):
         study.tell(stale.number, state=TrialState.FAIL)  # a run killed before it came back: not counted
     done = sum(1 for t in study.get_trials(deepcopy=False) if counted(t))
+    if done == 0:
+        for point in first:
+            study.enqueue_trial(dict(point), skip_if_exists=True)
     distributions = {vary.name: _distribution(vary) for vary in problem.varies}
     bar = tqdm(
         total=trials, initial=min(done, trials), unit="trial", desc="optimize", disable=not progress, dynamic_ncols=True
@@ -688,14 +701,15 @@ def optimize(
     progress: bool = True,
     seed: int | None = 0,
     references: bool = True,
+    first: Sequence[dict[str, float]] = (),
 ) -> Optimum:
     """Resume or start the study in ``output``, run it to ``trials``, write every output (after Ctrl-C
-    too, then re-raising KeyboardInterrupt)."""
+    too, then re-raising KeyboardInterrupt). ``first``: points a new study tries first (``search``)."""
     check_manifest(problem, output)
     study = open_study(problem, output, seed)
     refs = reference_rows(problem, output, executor) if references else {}
     try:
-        result = search(problem, study, executor, trials, progress)
+        result = search(problem, study, executor, trials, progress, first=first)
     except KeyboardInterrupt:
         write_outputs(problem, study, output, refs, "Interrupted: the same command again resumes.")
         raise

@@ -41,7 +41,8 @@ from bracing_bringup.timeline import (
     recorder_events,
 )
 from bracing_bringup.topics import missing_from_counts
-from bracing_bringup.viewurl import free_ports, view_url
+from bracing_bringup.variants import variant_overrides
+from bracing_bringup.viewurl import free_ports, view_url, wait_for_port
 from bracing_core import rcl_yaml, schema
 from bracing_core.params import ConfigError, load_params_file, resolve_file
 from bracing_ros.fastdds import NETWORK_ENV
@@ -52,6 +53,7 @@ EXIT_CONFIG = 2
 PARAMS_FILE = "params.yaml"
 """DIR/params.yaml: every parameter each node ran with (``bracing-simulator --ros-args --params-file``
 runs it again)."""
+VIEWER_START_S = 60.0  # [s] --view: how long the viewer may take to serve its page before the run goes on without
 PROGRESS = re.compile(r"progress t=([0-9.eE+-]+)")
 
 
@@ -92,10 +94,7 @@ def shared_overrides(options: RunOptions) -> dict[str, Any]:
     common: dict[str, Any] = dict(route(options.parameters).shared)  # --set first: the flags below win
     if options.mode is not None:
         common["input_mode"] = options.mode
-    if not options.bracing:
-        common["bracing"] = False
-    if options.free_space:
-        common["free_space"] = True
+    common.update(variant_overrides(options.bracing, options.free_space))
     return common
 
 
@@ -335,6 +334,21 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
         # goes out before the recorder is there: the simulator steps only once the recorder (and
         # the controller) subscribe to every topic it publishes, and the controller answers only
         # once the recorder subscribes to its outputs (the nodes' wait_for_recorder).
+        if options.view:
+            # First, and waited for until its page is up (it subscribes before it serves): its imports
+            # then do not compete with the stepping, and it sees the run from the first state. It
+            # subscribes best effort, so once running it never holds the loop back.
+            web_port, grpc_port = free_ports(2)
+            ports = ["--web-port", str(web_port), "--grpc-port", str(grpc_port)]
+            viewer = [sys.executable, "-m", "bracing_bringup.view", *ports]
+            viewer += ["--ros-args", "-p", f"contacts:={contacts!r}"]
+            pair.start("viewer", viewer, env)
+            url = view_url(web_port, grpc_port)
+            if wait_for_port(web_port, lambda: pair.exit_code("viewer") is None, VIEWER_START_S):
+                pair.say(f"bracing-pair: watch it at {url}  (log: {out / 'logs' / 'viewer.log'})")
+            else:
+                pair.say(f"bracing-pair: the viewer did not start (see {out / 'logs' / 'viewer.log'}); running without")
+            timeline.mark("viewer started")
         recorder = [sys.executable, "-m", "bracing_bringup.recorder", "--output", str(bag)]
         recorder += ["--contacts", ",".join(contacts), "--niceness", "10"]  # the lockstep loop comes first
         recorder += ["--drain-idle", "0.05"]  # stopped only after the nodes' last messages are acknowledged
@@ -344,14 +358,6 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
         pair.start("recorder", recorder, env)
         pair.start("controller", [sys.executable, "-m", "bracing_controller.node", *ros_args], env)
         pair.start("simulator", [sys.executable, "-m", "bracing_sim.node", *ros_args], env)
-        if options.view:  # not waited for: it subscribes best-effort, so it never holds the loop back
-            web_port, grpc_port = free_ports(2)
-            ports = ["--web-port", str(web_port), "--grpc-port", str(grpc_port)]
-            viewer = [sys.executable, "-m", "bracing_bringup.view", *ports]
-            viewer += ["--ros-args", "-p", f"contacts:={contacts!r}"]
-            pair.start("viewer", viewer, env)
-            url = view_url(web_port, grpc_port)
-            pair.say(f"bracing-pair: watch it at {url}  (log: {out / 'logs' / 'viewer.log'})")
         timeline.mark("processes started")
         try:
             warnings = _check_configs(sim_values, controller_values, search)

@@ -9,36 +9,15 @@ import argparse
 import shutil
 import sys
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from bracing_bringup.pair import RunOptions, run_pair
-from bracing_bringup.ratios import ratio_text
+from bracing_bringup.ratios import ratio_text, temperature_saving_text
 from bracing_bringup.summary import BagReadError
+from bracing_bringup.variants import RUNS
 from bracing_core.params import ConfigError
 
-
-@dataclass(frozen=True)
-class Run:
-    """One run of the comparison."""
-
-    name: str  # its directory under --output
-    column: str  # its column in the table
-    label: str  # what it is
-    bracing: bool = True
-    free_space: bool = False
-
-    def flags(self) -> str:
-        """The bracing-pair options that make this run."""
-        return ("" if self.bracing else " --no-bracing") + (" --free-space" if self.free_space else "")
-
-
-RUNS = (
-    Run("braced", "braced", "braced"),
-    Run("passive", "passive", "passive (no brace task, the floor an obstacle)", bracing=False),
-    Run("free_space", "free space", "free space (the paper's comparison)", bracing=False, free_space=True),
-)
 RATIOS = (("braced", "free_space"), ("braced", "passive"))
 """The ratios printed, the paper's headline (braced against free space) first."""
 BASELINE = "free_space"
@@ -51,6 +30,7 @@ ROWS: list[tuple[str, str, str]] = [
     ("normal_force_rms_error_n", "normal force RMS error", "N"),
     ("energy_consumed_j", "energy consumed", "J"),
     ("copper_loss_j", "copper loss", "J"),
+    ("motor_temperature_max_c", "hottest motor max temp", "degC"),
     ("constraint_residual_max_m", "max constraint residual", "m"),
     ("max_penetration_m", "max penetration", "m"),
     ("real_time_factor", "real-time factor", ""),
@@ -76,6 +56,8 @@ def table(summaries: dict[str, dict[str, Any]]) -> str:
         if a in summaries and b in summaries:
             for key, what in (("energy_consumed_j", "energy ratio"), ("hand_rms_error_m", "hand RMS error ratio")):
                 lines.append(f"{what} {column[a]} / {column[b]}: {ratio_text(key, summaries[a], summaries[b])}")
+            saving = temperature_saving_text(summaries[a], summaries[b])
+            lines.append(f"hottest motor {column[a]} vs {column[b]}: {saving}")
     return "\n".join(lines)
 
 

@@ -9,7 +9,7 @@ torque-input force error of 5e-14 N is 0, and dividing by it gives nonsense such
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, TypeGuard
 
 ENERGY_KEYS = frozenset({"energy_consumed_j", "copper_loss_j"})
 """Joules of a kind that depends on the input mode: compared only between runs of one mode."""
@@ -20,7 +20,7 @@ above numerical noise (a torque-input force error is ~1e-14 N, a held floor's re
 well below anything a run measures on purpose."""
 
 
-def number(value: Any) -> bool:
+def number(value: Any) -> TypeGuard[float]:
     """A finite int or float (not a bool)."""
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
@@ -42,3 +42,22 @@ def ratio_text(key: str, run: dict[str, Any], baseline: dict[str, Any], digits: 
     """``ratio`` as a table cell: the ratio, or why there is none."""
     value, why = ratio(key, run, baseline)
     return f"{value:.{digits}f}" if value is not None else why
+
+
+TEMPERATURE_KEY = "motor_temperature_max_c"
+
+
+def temperature_saving(run: dict[str, Any], baseline: dict[str, Any]) -> float | None:
+    """How many degrees cooler the hottest motor stays in ``run`` than in ``baseline`` [K] (negative:
+    hotter); None without the thermal model in either (torque input, motors.thermal false). A
+    difference, not a ratio: temperatures in degC have no meaningful zero."""
+    value, base = run.get(TEMPERATURE_KEY), baseline.get(TEMPERATURE_KEY)
+    return float(base) - float(value) if number(value) and number(base) else None
+
+
+def temperature_saving_text(run: dict[str, Any], baseline: dict[str, Any]) -> str:
+    """``temperature_saving`` as a table cell."""
+    saved = temperature_saving(run, baseline)
+    if saved is None:
+        return "n/a (no thermal model)"
+    return f"{saved:.3g} degC cooler" if saved >= 0 else f"{-saved:.3g} degC hotter"

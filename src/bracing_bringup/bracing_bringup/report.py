@@ -3,6 +3,7 @@
 Writes into the output directory (default: the bag's parent directory):
 ``hand_y.png``, ``hand_z.png`` (the paper's Figs. 6/7, 9/10, 13/14), ``brace_x.png``, ``brace_y.png``
 (Figs. 11/15), ``brace_z.png``, ``normal_force.png`` (Figs. 12/16), ``energy.png`` (Fig. 8),
+``motor_temperature.png`` (each motor's winding temperature; runs with the thermal model only),
 ``summary.json`` and ``animation.gif`` / ``animation.mp4`` (the arm moving, see ``animation``).
 Each title names the scenario (the bag's note of it, else the robot's name) and cites the paper's
 figures only for the paper's scenario; a dotted vertical line marks each parameter the controller
@@ -132,7 +133,14 @@ def _plot_energy(series: BagSeries) -> tuple[Figure, Axes]:
     else:
         fig, ax = figure(title(series, "electrical energy of the motors", "Fig. 8"), "energy [J]")
         ax.plot(series.motor_t, series.energy_consumed, label="consumed  ∫ Σ|v i| dt")
-        ax.plot(series.motor_t, series.copper_loss, label="copper loss  ∫ Σ R i² dt")
+        ax.plot(series.motor_t, series.copper_loss, label="copper loss  ∫ Σ R(T) i² dt")
+    return fig, ax
+
+
+def _plot_temperature(series: BagSeries) -> tuple[Figure, Axes]:
+    fig, ax = figure(title(series, "motor winding temperatures (thermal model)"), "winding temperature T [°C]")
+    for name, values in zip(series.motor_names, series.motor_temperature.T, strict=True):
+        ax.plot(series.motor_t, values, label=name)
     return fig, ax
 
 
@@ -144,6 +152,7 @@ PLOTS: dict[str, Callable[[BagSeries], tuple[Figure, Axes]]] = {
     "brace_z": lambda series: _plot_brace(series, 2, "z"),
     "normal_force": _plot_force,
     "energy": _plot_energy,
+    "motor_temperature": _plot_temperature,
 }
 """Each plot by name, its file ``<name>.png`` (``drawing.file_names`` says which a run gets)."""
 

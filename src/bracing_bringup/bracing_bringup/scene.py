@@ -4,8 +4,11 @@ No rclpy: the recorder feeds it the CDR bytes it records, and it answers CDR byt
 ``tf2_msgs/msg/TFMessage`` and ``visualization_msgs/msg/MarkerArray`` built with rosbags'
 Jazzy typestore.
 
-- ``LinkPoses``: a pinocchio model built from the URDF text (``/robot_description``) and
-  the world pose of every link (every BODY frame) for a JointState.
+- ``LinkPoses``: the core's robot model (``bracing_core.model.RobotModel``) of the URDF text
+  (``/robot_description``) and the world pose of every link (every BODY frame) for a
+  JointState. The simulator publishes the robot as simulated (``simulated_urdf``: a locked
+  joint is a fixed joint at its locked position), so its JointStates name every joint that
+  moves and the poses are the simulator's.
 - ``SceneBuilder``: the messages of one recorded state: ``/tf`` (world -> every moving
   link), ``/tf_static`` (world -> the links fixed to the world, once) and
   ``contact_markers`` (per contact: its surface, the contact point and the contact force
@@ -36,6 +39,7 @@ from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
 from bracing_bringup.surfaces import Shape, shape_of
+from bracing_core.model import ModelError, RobotModel
 from bracing_ros import wire
 
 FloatArray = NDArray[np.float64]
@@ -68,19 +72,25 @@ MARKERS_VARIES = frozenset({"markers.header.stamp", "markers.pose", "markers.col
 
 
 class DescriptionError(ValueError):
-    """The robot description is not a URDF pinocchio can read."""
+    """The robot description is not a URDF the core's robot model takes."""
 
 
 class LinkPoses:
-    """World poses of the links of a URDF for named joint positions (pinocchio kinematics)."""
+    """World poses of the links of a URDF for named joint positions: the core's ``RobotModel``
+    (the simulator's and the controller's model) of the text, read with pinocchio's frame kinematics.
+
+    Hand it the text the simulator publishes (``robot_description``: its locked joints are
+    fixed joints there); a joint a JointState does not name is at its neutral position.
+    """
 
     def __init__(self, urdf_xml: str) -> None:
         try:
-            self.model = pin.buildModelFromXML(urdf_xml)
-        except (RuntimeError, ValueError) as exc:
-            msg = f"robot_description is not a readable URDF: {exc}"
+            self.robot = RobotModel.from_xml(urdf_xml, "robot_description")
+        except ModelError as exc:
+            msg = f"robot_description is not a usable URDF: {exc}"
             raise DescriptionError(msg) from exc
-        self.data = self.model.createData()
+        self.model = self.robot.model
+        self.data = self.robot.data
         model = self.model
         bodies = [i for i, f in enumerate(model.frames) if f.type == pin.FrameType.BODY and f.name != WORLD_FRAME]
         self.body_ids = bodies
@@ -91,31 +101,24 @@ class LinkPoses:
         self.static_names = [model.frames[i].name for i in self.static_ids]
         self.moving_names = [model.frames[i].name for i in self.moving_ids]
         self._neutral = pin.neutral(model)
-        self._slots: dict[str, tuple[int, int]] = {}  # joint name -> (idx_q, nq)
-        for jid in range(1, model.njoints):
-            self._slots[model.names[jid]] = (model.joints[jid].idx_q, model.joints[jid].nq)
-        # The last names whose joints are distinct and of one coordinate each: their q indices.
+        # RobotModel holds 1-dof joints only (nq == nv): a joint's position is one entry of q.
+        self._slots = {name: int(model.joints[jid].idx_q) for jid, name in enumerate(model.names) if jid}
+        # The last names whose joints are distinct: their q indices.
         self._direct: tuple[tuple[str, ...], NDArray[np.intp]] = ((), np.zeros(0, dtype=np.intp))
 
     def configuration(self, names: Sequence[str], positions: Sequence[float] | FloatArray) -> FloatArray:
-        """pinocchio's q for JointState-style names and positions (others at neutral)."""
+        """pinocchio's q for JointState-style names and positions (others at neutral, unknown names ignored)."""
         q = self._neutral.copy()
         key = tuple(names)
         if key == self._direct[0] and len(positions) == len(key):  # a state like the last: one assignment
             q[self._direct[1]] = positions
             return q
         slots = [self._slots.get(name) for name in key]
-        if key and all(slot is not None and slot[1] == 1 for slot in slots) and len(set(key)) == len(key):
-            self._direct = key, np.array([slot[0] for slot in slots if slot is not None], dtype=np.intp)
-        for name, value in zip(names, positions, strict=False):
-            slot = self._slots.get(name)
-            if slot is None:
-                continue
-            idx, nq = slot
-            if nq == 1:
-                q[idx] = value
-            elif nq == 2:  # continuous joint: (cos, sin) of the angle
-                q[idx], q[idx + 1] = np.cos(value), np.sin(value)
+        if key and None not in slots and len(set(key)) == len(key):
+            self._direct = key, np.array(slots, dtype=np.intp)
+        for slot, value in zip(slots, positions, strict=False):
+            if slot is not None:
+                q[slot] = value
         return q
 
     def update(self, q: FloatArray) -> None:

@@ -1,17 +1,23 @@
 """bracing-study: the paper's comparisons as one report, from in-process runs in parallel.
 
     bracing-study paper --output DIR [--duration S] [--workers N] [--scheduler ADDRESS] [--set KEY=VALUE ...]
+                        [--positions N] [--span M] [--trials N]
     bracing-study config/hyper_7link.yaml --output DIR
 
-1. bracing: braced vs free (no contacts), voltage and torque input, with and without
-   null-space gravity compensation: hand RMS / max error, energy consumed, copper loss;
+1. bracing: braced vs passive (make run's: no brace task, the surfaces kept as obstacles the arm can
+   rest on) vs free (no contacts), voltage and torque input, with and without null-space gravity
+   compensation: hand RMS / max error, energy consumed, copper loss, the hottest motor;
 2. gains: every PD gain (hand and brace, Kp and Kd) scaled by 1, 0.5, 0.2, 0.1, torque and
    voltage input: force error (max, RMS) against the position errors (paper Sec. 4, Figs. 9-16);
 3. placement: energy and hand error over a grid of brace targets along the first brace axis of
-   the first contact and of desired normal forces, the best cell marked.
+   the first contact and of desired normal forces, the best cell marked; then bracing-optimize's
+   search over the same two axes (least energy subject to a hand RMS bound; ``--trials N``), its
+   optimum beside the grid's best cell, the file's setting and the passive run.
 
 Writes DIR/report.md with its figures (bracing.png, gains.png, placement.png), and the sweep's
-DIR/results.parquet, DIR/results.csv and DIR/runs/ (the same command again reuses finished runs).
+DIR/results.parquet, DIR/results.csv and DIR/runs/ (the same command again reuses finished runs), and
+the optimiser's study in DIR/optimize/<problem>/ (study.db, trials.csv, best.yaml, report.md: the same
+command again reuses its trials, and runs only those a larger --trials asks for).
 Exit 0 when every run is ok, 1 when one failed (the report is still written, its cells say which),
 2 on a configuration error before any run (every run's configuration and task rank are checked first).
 """
@@ -23,16 +29,17 @@ import math
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from bracing_bringup.executors import make_executor
+from bracing_bringup.executors import Executor, make_executor
 from bracing_bringup.experiment import FORCE_MAX_ERROR_KEY, STATUS_FAILED, STATUS_OK, RunSpec
+from bracing_bringup.optimize import Optimum, Problem, build_problem, changes, optimize
 from bracing_bringup.overrides import CONTROLLER, parse_single, route
-from bracing_bringup.ratios import ratio
+from bracing_bringup.ratios import TEMPERATURE_KEY, number, ratio, temperature_saving, temperature_saving_text
 from bracing_bringup.summary import HAND_ERROR_T_MIN_S
 from bracing_bringup.sweep import (
     ARRAYS_FILE,
@@ -46,6 +53,7 @@ from bracing_bringup.sweep import (
     row_warnings,
     run_sweep,
 )
+from bracing_bringup.variants import PASSIVE
 from bracing_core import schema
 from bracing_core.config import SharedConfig
 from bracing_core.params import ConfigError, load_params_file, resolve_file
@@ -56,6 +64,19 @@ PAPER_SCENARIO = "paper_4link"
 GAIN_SCALES = (1.0, 0.5, 0.2, 0.1)
 FORCE_SCALES = (0.5, 1.0, 2.0)  # x the file's desired normal force
 REPORT = "report.md"
+ENERGY, HAND_RMS, HAND_MAX = "energy_consumed_j", "hand_rms_error_m", "hand_max_error_m"
+PAPER_SEARCH = ((0.0, 40.0), (0.35, 0.85))
+"""The paper arm's search (issue 28): f_nd [N] and the elbow target's y [m]."""
+PAPER_HAND_RMS_BOUND = 0.03
+"""[m] the paper arm's precision bound on the optimum (issue 28): hand RMS <= 30 mm."""
+SEARCH_WIDEN = 5 / 3
+"""Other scenarios: the target's search range is the grid's (start +- span) widened by this (the
+paper's 0.35-0.85 m is its start 0.588 m +- 0.25 m, 5/3 of the grid's 0.15 m), the force's 0 to
+twice the grid's largest (the paper's 0-40 N)."""
+SEARCH_DIR = "optimize"
+SEARCH_TRIALS = 40
+"""--trials' default: the paper study's search beats the grid's best in it (README: what it finds)."""
+SEARCH_SEED = 0
 
 
 @dataclass
@@ -69,10 +90,20 @@ class Study:
     axis: str  # ... and the brace axis its targets move along
     targets: list[float]  # [m] along that axis
     forces: list[float]  # [N]
+    passive: list[RunSpec] = field(default_factory=list)  # variants.PASSIVE beside each case of `bracing`
+    base: dict[str, Any] = field(default_factory=dict)  # the --set overrides of every run
+    setting: tuple[str, bool] = ("voltage", False)  # the file's input mode and gravity compensation (the grid's)
+    origin: float = 0.0  # the contact's target along the axis, as the file has it [m]
+    desired: float = 0.0  # its desired normal force, as the file has it [N]
+    span: float = 0.0  # the grid's targets: origin +- span [m]
 
     @property
     def specs(self) -> list[RunSpec]:
-        return [*self.bracing, *self.gains, *self.placement]
+        return [*self.bracing, *self.passive, *self.gains, *self.placement]
+
+    @property
+    def axis_index(self) -> int:
+        return "xyz".index(self.axis)
 
     @property
     def scenario(self) -> str:
@@ -133,6 +164,15 @@ def build_study(
         for mode in ("voltage", "torque")
         for compensation in (False, True)
     ]
+    passive = [
+        spec(
+            "passive",
+            {"input_mode": mode, "gravity_compensation": compensation},
+            {"input_mode": mode, "gravity_compensation": compensation, **PASSIVE.overrides()},
+        )
+        for mode in ("voltage", "torque")
+        for compensation in (False, True)
+    ]
     gains = []
     for mode in ("torque", "voltage"):
         for scale in gain_scales:
@@ -172,7 +212,163 @@ def build_study(
                     },
                 )
             )
-    return Study(config, duration, bracing, gains, placement, contact.name, "xyz"[axis], targets, forces)
+    values = schema.read("controller", ctl)
+    return Study(
+        config,
+        duration,
+        bracing,
+        gains,
+        placement,
+        contact.name,
+        "xyz"[axis],
+        targets,
+        forces,
+        passive=passive,
+        base=base,
+        setting=(str(values["input_mode"]), bool(values["gravity_compensation"])),
+        origin=float(origin[axis]),
+        desired=float(desired),
+        span=float(span) if positions > 1 else 0.0,
+    )
+
+
+# -- the optimiser over the grid's axes -----------------------------------------------------------------
+@dataclass
+class PlacementSearch:
+    """bracing-optimize over the placement grid's two axes: the problem, where its study lives, what it found."""
+
+    problem: Problem
+    output: Path  # its study's directory (DIR/optimize/<problem key>)
+    force: str  # the varied parameters' names (Vary.name)
+    target: str | None  # None: the grid has one target, only the force varies
+    bound: float  # [m] hand RMS bound
+    why: str  # where the ranges and the bound come from
+    start: dict[str, float] | None = None  # the grid's cell it tries first
+    found: Optimum | None = None
+
+    @property
+    def optimum(self) -> dict[str, Any] | None:
+        """The optimum trial's row (every metric of its run), or None."""
+        best = self.found.best if self.found is not None else None
+        return dict(best.user_attrs["row"]) if best is not None else None
+
+
+def _braced_row(study: Study, rows: dict[str, dict[str, Any]], braced: bool = True) -> dict[str, Any] | None:
+    """Comparison 1's braced (or free) run at the file's setting: the grid's input mode and compensation."""
+    for spec in study.bracing:
+        v = spec.varied
+        if (v["bracing"], v["input_mode"], v["gravity_compensation"]) == (braced, *study.setting):
+            return rows.get(spec.run_id)
+    return None
+
+
+def _passive_row(study: Study, rows: dict[str, dict[str, Any]]) -> dict[str, Any] | None:
+    """The passive run at the file's setting."""
+    for spec in study.passive:
+        if (spec.varied["input_mode"], spec.varied["gravity_compensation"]) == study.setting:
+            return rows.get(spec.run_id)
+    return None
+
+
+def _grid_cells(study: Study, rows: dict[str, dict[str, Any]]) -> list[tuple[float, float, dict[str, Any]]]:
+    """(target, force, row) of every placement run that came back ok with an energy and a hand error."""
+    cells = []
+    for k, spec in enumerate(study.placement):
+        i, j = divmod(k, len(study.targets))
+        row = rows.get(spec.run_id)
+        if row is not None and _ok(row) and number(row.get(ENERGY)) and number(row.get(HAND_RMS)):
+            cells.append((study.targets[j], study.forces[i], row))
+    return cells
+
+
+def placement_search(study: Study, rows: dict[str, dict[str, Any]], output: Path) -> PlacementSearch:
+    """The optimiser's problem over the grid's axes (least energy subject to a hand RMS bound), checked;
+    ConfigError when there is none (no bound: the file's braced run failed; a range the scenario refuses).
+
+    The paper arm: f_nd in [0, 40] N, the elbow target's y in [0.35, 0.85] m, hand RMS <= 30 mm. Other
+    scenarios: f_nd in [0, 2 x the grid's largest], the target in the grid's range widened by
+    SEARCH_WIDEN (the grid's own if the scenario refuses that), hand RMS no worse than the file's
+    braced run (rounded up to 0.1 mm). The search starts at the grid's best feasible cell."""
+    if not _grid_cells(study, rows):
+        raise ConfigError("no placement run came back with an energy and a hand error (hand errors start at t = 2 s)")
+    contact, axis = study.contact, study.axis_index
+    force = f"contacts.{contact}.desired_normal_force"
+    target = f"contacts.{contact}.target[{axis}]"
+    paper = study.scenario == PAPER_SCENARIO and study.axis == "y"
+    ranges: list[tuple[tuple[float, float], tuple[float, float] | None]]  # (force, target) ranges, first that works
+    if paper:
+        bound = PAPER_HAND_RMS_BOUND
+        ranges = [(PAPER_SEARCH[0], PAPER_SEARCH[1])]
+        why = "the paper arm's problem"
+    else:
+        braced = _braced_row(study, rows)
+        if braced is None or not _ok(braced) or not number(braced.get(HAND_RMS)):
+            raise ConfigError("no hand RMS bound: the file's braced run (comparison 1) did not come back ok")
+        bound = math.ceil(float(braced[HAND_RMS]) * 1e4) / 1e4
+        forces = (0.0, 2.0 * max(study.forces))
+        if study.span > 0:
+            wide = SEARCH_WIDEN * study.span
+            ranges = [
+                (forces, (study.origin - wide, study.origin + wide)),
+                (forces, (min(study.targets), max(study.targets))),
+            ]
+        else:
+            ranges = [(forces, None)]  # one target: only the force varies
+        why = (
+            f"f_nd from 0 to twice the grid's largest, the target over the grid's span widened x "
+            f"{SEARCH_WIDEN:.3g} (the grid's own when the scenario refuses that), hand RMS no worse than the "
+            f"file's braced run ({float(braced[HAND_RMS]) * 1e3:.3g} mm, rounded up to {bound * 1e3:g} mm)"
+        )
+    problem: Problem | None = None
+    refused: list[str] = []
+    for force_range, target_range in ranges:
+        vary = [f"{force}={force_range[0]:g}:{force_range[1]:g}"]
+        if target_range is not None:
+            vary.append(f"{target}={target_range[0]:.6g}:{target_range[1]:.6g}")
+        try:
+            problem = build_problem(
+                study.config, vary, [ENERGY], [f"{HAND_RMS}<={bound:g}"], study.duration, base=study.base
+            )
+            break
+        except ConfigError as exc:
+            refused.append(str(exc))
+    if problem is None:
+        raise ConfigError("the optimiser's ranges are refused: " + "; ".join(refused))
+    if refused:
+        why += f" (the widened target range was refused: {refused[0]}; the grid's own used)"
+    search = PlacementSearch(
+        problem,
+        output / SEARCH_DIR / problem.key,
+        force,
+        target if len(problem.varies) > 1 else None,
+        bound,
+        why,
+    )
+    feasible = [cell for cell in _grid_cells(study, rows) if float(cell[2][HAND_RMS]) <= bound]
+    if feasible:
+        cell_target, cell_force, _ = min(feasible, key=lambda cell: float(cell[2][ENERGY]))
+        point = {force: cell_force, **({target: cell_target} if search.target else {})}
+        inside = all(v.low <= point[v.name] <= v.high for v in problem.varies)
+        search.start = point if inside else None
+    return search
+
+
+def run_placement_search(
+    search: PlacementSearch, executor: Executor, trials: int, progress: bool = True, seed: int = SEARCH_SEED
+) -> PlacementSearch:
+    """Resume or start the search's study (bracing-optimize's, in ``search.output``) up to ``trials``
+    on ``executor``; a finished study runs nothing again."""
+    search.found = optimize(
+        search.problem,
+        search.output,
+        executor,
+        trials,
+        progress=progress,
+        seed=seed,
+        references=False,  # the study has the file's setting, passive and free runs itself
+        first=[search.start] if search.start else [],
+    )
+    return search
 
 
 # -- the report ------------------------------------------------------------------------------------
@@ -205,48 +401,86 @@ def _ok(row: dict[str, Any] | None) -> bool:
 
 
 def _bracing_section(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any]]) -> list[str]:
-    header = ["bracing", "input", "gravity comp.", "hand RMS [m]", "hand max [m]", "energy [J]", "copper loss [J]"]
+    header = [
+        "bracing",
+        "input",
+        "gravity comp.",
+        "hand RMS [m]",
+        "hand max [m]",
+        "energy [J]",
+        "copper loss [J]",
+        "hottest motor [degC]",
+    ]
+    keys = (HAND_RMS, HAND_MAX, ENERGY, "copper_loss_j", TEMPERATURE_KEY)
     table, lookup = [], {}
-    for spec in study.bracing:
+    cases = [(spec, spec.varied["bracing"]) for spec in study.bracing if spec.varied["bracing"]]
+    cases += [(spec, "passive") for spec in study.passive]
+    cases += [(spec, spec.varied["bracing"]) for spec in study.bracing if not spec.varied["bracing"]]
+    for spec, kind in cases:
         row = rows.get(spec.run_id)
         v = spec.varied
-        lookup[(v["bracing"], v["input_mode"], v["gravity_compensation"])] = row
-        labels = [v["bracing"], v["input_mode"], v["gravity_compensation"]]
+        lookup[(kind, v["input_mode"], v["gravity_compensation"])] = row
+        labels = [kind, v["input_mode"], v["gravity_compensation"]]
         if row is not None and _ok(row):
-            keys = ("hand_rms_error_m", "hand_max_error_m", "energy_consumed_j", "copper_loss_j")
             table.append([*labels, *(row.get(k) for k in keys)])
         else:
-            table.append([*labels, f"failed: {row.get('error') if row else 'not run'}", "", "", ""])
+            table.append([*labels, f"failed: {row.get('error') if row else 'not run'}", "", "", "", ""])
     ratios = []
     findings = []
     for mode in ("voltage", "torque"):
         for compensation in (False, True):
             braced, free = lookup.get((True, mode, compensation)), lookup.get((False, mode, compensation))
+            passive = lookup.get(("passive", mode, compensation))
+            case = f"{mode} input, {'with' if compensation else 'without'} gravity compensation"
             if not (_ok(braced) and _ok(free)):
                 continue
             assert braced is not None and free is not None
-            energy = ratio("energy_consumed_j", braced, free)[0]
-            hand = ratio("hand_rms_error_m", braced, free)[0]
-            ratios.append([mode, compensation, energy, hand])
+            energy = ratio(ENERGY, braced, free)[0]
+            hand = ratio(HAND_RMS, braced, free)[0]
+            resting = [ratio(k, braced, passive)[0] if passive and _ok(passive) else None for k in (ENERGY, HAND_RMS)]
+            ratios.append([mode, compensation, energy, hand, *resting, temperature_saving_text(braced, free)])
             if hand is not None and energy is not None:
                 better = "more precise" if hand < 1 else "less precise"
                 findings.append(
-                    f"{mode} input, {'with' if compensation else 'without'} gravity compensation: bracing uses "
-                    f"{energy:.3g} x the energy and the hand is {better} (RMS error x {hand:.3g})."
+                    f"{case}: bracing uses {energy:.3g} x the energy and the hand is {better} (RMS error x {hand:.3g})."
+                )
+            if passive is not None and resting[0] is not None and resting[1] is not None:
+                findings.append(
+                    f"{case}: bracing uses {resting[0]:.3g} x the energy of resting passively, its hand RMS error "
+                    f"x {resting[1]:.3g} of the passive one's."
+                )
+            saved = temperature_saving(braced, free)
+            if saved is not None:
+                findings.append(
+                    f"{case}: bracing keeps the hottest motor {abs(saved):.3g} degC "
+                    f"{'cooler' if saved >= 0 else 'hotter'} than free."
                 )
     lines = [
-        "## 1. Braced vs free",
+        "## 1. Braced, passive and free",
         "",
-        "The same hand task with the contact (braced) and without any (free), for both input modes,",
-        f"with and without gravity compensation in the null space. Hand errors over t >= {HAND_ERROR_T_MIN_S:g} s.",
+        "The same hand task with the contact braced, resting passively (`passive`, make run's: no brace task,",
+        "the surfaces kept as obstacles the arm may rest on) and without any contact (free), for both input",
+        "modes, with and without gravity compensation in the null space. Hand errors over "
+        f"t >= {HAND_ERROR_T_MIN_S:g} s.",
         "",
         _table(header, table),
         "",
-        _table(["input", "gravity comp.", "energy braced / free", "hand RMS braced / free"], ratios),
+        _table(
+            [
+                "input",
+                "gravity comp.",
+                "energy braced / free",
+                "hand RMS braced / free",
+                "energy braced / passive",
+                "hand RMS braced / passive",
+                "hottest motor, braced",
+            ],
+            ratios,
+        ),
         "",
         *[f"- {line}" for line in findings],
         "",
-        "![hand error and energy over time, braced and free](bracing.png)",
+        "![hand error and energy over time, braced, passive and free](bracing.png)",
         "",
     ]
     _draw_bracing(study, store, rows)
@@ -257,7 +491,7 @@ def _draw_bracing(study: Study, store: ResultsStore, rows: dict[str, dict[str, A
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(11, 4.2), layout="constrained")
-    fig.suptitle(f"{study.scenario}: braced vs free")
+    fig.suptitle(f"{study.scenario}: braced, passive and free")
     error_ax, energy_ax = fig.subplots(1, 2)
     colours = {
         ("voltage", False): "tab:blue",
@@ -265,7 +499,9 @@ def _draw_bracing(study: Study, store: ResultsStore, rows: dict[str, dict[str, A
         ("torque", False): "tab:red",
         ("torque", True): "tab:orange",
     }
-    for spec in study.bracing:
+    runs = [(spec, "braced" if spec.varied["bracing"] else "free") for spec in study.bracing]
+    runs += [(spec, "passive") for spec in study.passive]
+    for spec, kind in runs:
         if not _ok(rows.get(spec.run_id)):
             continue
         data = _arrays(store, spec.run_id)
@@ -273,8 +509,11 @@ def _draw_bracing(study: Study, store: ResultsStore, rows: dict[str, dict[str, A
             continue
         v = spec.varied
         gravity = "g comp." if v["gravity_compensation"] else "no g comp."
-        label = f"{'braced' if v['bracing'] else 'free'}, {v['input_mode']}, {gravity}"
-        style = dict(color=colours[(v["input_mode"], v["gravity_compensation"])], ls="-" if v["bracing"] else "--")
+        label = f"{kind}, {v['input_mode']}, {gravity}"
+        style = dict(
+            color=colours[(v["input_mode"], v["gravity_compensation"])],
+            ls={"braced": "-", "free": "--", "passive": ":"}[kind],
+        )
         error = np.linalg.norm(data["hand_desired"] - data["hand_actual"], axis=1)
         error_ax.plot(data["time"], error, label=label, lw=1.2, **style)
         energy_ax.plot(data["time"], data["energy_consumed"], label=label, lw=1.2, **style)
@@ -282,7 +521,7 @@ def _draw_bracing(study: Study, store: ResultsStore, rows: dict[str, dict[str, A
     energy_ax.set(title="energy consumed (torque input: mechanical)", xlabel="time [s]", ylabel="[J]", yscale="log")
     for ax in (error_ax, energy_ax):
         ax.grid(True, alpha=0.4)
-    energy_ax.legend(fontsize=7, loc="upper left")
+    energy_ax.legend(fontsize=6, loc="lower right", ncol=2)
     fig.savefig(store.output / "bracing.png", dpi=110)
 
 
@@ -355,13 +594,19 @@ def _voltage_force_errors(study: Study, store: ResultsStore, rows: dict[str, dic
         if spec.varied["input_mode"] != "voltage" or not _ok(rows.get(spec.run_id)):
             continue
         data = _arrays(store, spec.run_id)
-        if data is None or not data["normal_force"].size:
+        if data is None or not data["desired_normal_force"].size:
             continue
-        error = np.max(np.abs(data["normal_force"] - data["desired_normal_force"]), axis=1)
+        error = np.max(np.abs(_braced_forces(data) - data["desired_normal_force"]), axis=1)
         after = data["time"] >= HAND_ERROR_T_MIN_S - 1e-9
         early = max(early, float(np.max(error[~after], initial=0.0)))
         late = max(late, float(np.max(error[after], initial=0.0)))
     return early, late
+
+
+def _braced_forces(data: dict[str, np.ndarray]) -> np.ndarray:
+    """f_n of the braced contacts (the columns of desired_normal_force), without the obstacle contacts'."""
+    names = [str(name) for name in data["contact_names"]]
+    return data["normal_force"][:, [names.index(str(name)) for name in data["braced_names"]]]
 
 
 def _draw_gains(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any]]) -> None:
@@ -390,9 +635,9 @@ def _draw_gains(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any
         if spec.varied["input_mode"] != "voltage" or not _ok(rows.get(spec.run_id)):
             continue
         data = _arrays(store, spec.run_id)
-        if data is not None and data["normal_force"].size:
+        if data is not None and data["desired_normal_force"].size:
             series_ax.plot(
-                data["time"], data["normal_force"][:, 0], lw=1.0, label=f"voltage, x{spec.varied['gain_scale']:g}"
+                data["time"], _braced_forces(data)[:, 0], lw=1.0, label=f"voltage, x{spec.varied['gain_scale']:g}"
             )
             desired = float(data["desired_normal_force"][0])
     if series_ax.lines:
@@ -413,11 +658,10 @@ def _draw_gains(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any
     fig.savefig(store.output / "gains.png", dpi=110)
 
 
-def _placement_section(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any]]) -> list[str]:
-    grids = {
-        key: np.full((len(study.forces), len(study.targets)), np.nan)
-        for key in ("energy_consumed_j", "hand_rms_error_m", "brace_rms_error_m")
-    }
+def _placement_section(
+    study: Study, store: ResultsStore, rows: dict[str, dict[str, Any]], search: PlacementSearch | None, note: str
+) -> list[str]:
+    grids = {key: np.full((len(study.forces), len(study.targets)), np.nan) for key in (ENERGY, HAND_RMS, HAND_MAX)}
     failed = []
     for k, spec in enumerate(study.placement):
         i, j = divmod(k, len(study.targets))
@@ -439,7 +683,7 @@ def _placement_section(study: Study, store: ResultsStore, rows: dict[str, dict[s
         "",
     ]
     header = ["f_nd [N] \\ target " + study.axis + " [m]", *[f"{t:.3f}" for t in study.targets]]
-    for key, title in (("energy_consumed_j", "energy consumed [J]"), ("hand_rms_error_m", "hand RMS error [m]")):
+    for key, title in ((ENERGY, "energy consumed [J]"), (HAND_RMS, "hand RMS error [m]")):
         grid = grids[key]
         lines += [f"**{title}**", "", _table(header, [[f, *grid[i]] for i, f in enumerate(study.forces)]), ""]
         if np.isfinite(grid).any():
@@ -450,20 +694,179 @@ def _placement_section(study: Study, store: ResultsStore, rows: dict[str, dict[s
                 "",
             ]
     lines += [f"- failed: {f}" for f in failed]
-    lines += ["", "![energy and hand error over brace target and force](placement.png)", ""]
-    _draw_placement(study, store, grids)
+    optimum = search.optimum if search is not None else None
+    lines += ["", *_search_lines(study, rows, search, note)]
+    lines += ["![energy and hand error over brace target and force](placement.png)", ""]
+    point = None
+    if search is not None and optimum is not None and search.found is not None and search.found.best is not None:
+        params = search.found.best.params
+        point = (params[search.target] if search.target else study.origin, params[search.force])
+    _draw_placement(study, store, grids, point)
     return lines
 
 
-def _draw_placement(study: Study, store: ResultsStore, grids: dict[str, np.ndarray]) -> None:
+def _search_lines(
+    study: Study, rows: dict[str, dict[str, Any]], search: PlacementSearch | None, note: str
+) -> list[str]:
+    """The optimiser's answer beside the grid's best cell, the file's setting, passive and free; what it
+    changed; one sentence on what the numbers say."""
+    lines = ["### The optimiser's answer", ""]
+    if search is None:
+        return [*lines, f"Not searched{f': {note}' if note else ''}.", ""]
+    found, optimum = search.found, search.optimum
+    unit = f"target {study.axis} [m]"
+    bound = search.bound
+    header = ["run", "f_nd [N]", unit, "energy [J]", "hand RMS [m]", "hand max [m]", f"hand RMS <= {bound:g} m"]
+    cells = _grid_cells(study, rows)
+    best_cell = min(cells, key=lambda c: float(c[2][ENERGY])) if cells else None
+    feasible = [c for c in cells if float(c[2][HAND_RMS]) <= bound]
+    best_feasible = min(feasible, key=lambda c: float(c[2][ENERGY])) if feasible else None
+    setting = _braced_row(study, rows)
+    passive = _passive_row(study, rows)
+    free = _braced_row(study, rows, braced=False)
+    where = "the paper's" if study.scenario == PAPER_SCENARIO else "the file's"
+
+    def line(name: str, force: Any, target: Any, row: dict[str, Any] | None) -> list[Any]:
+        if row is None or not _ok(row):
+            return [name, force, target, f"failed: {row.get('error') if row else 'not run'}", "", "", ""]
+        rms = row.get(HAND_RMS)
+        return [name, force, target, row.get(ENERGY), rms, row.get(HAND_MAX), number(rms) and float(rms) <= bound]
+
+    table = [
+        line(f"braced, {where} setting", study.desired, study.origin, setting),
+        line(f"passive, {where} setting (no brace task)", "n/a", "n/a", passive),
+        line(f"free, {where} setting (no contact)", "n/a", "n/a", free),
+    ]
+    if best_cell is not None:
+        table.append(line("grid's best (least energy)", best_cell[1], best_cell[0], best_cell[2]))
+    if best_feasible is not None and best_feasible is not best_cell:
+        table.append(line("grid's best within the bound", best_feasible[1], best_feasible[0], best_feasible[2]))
+    best = found.best if found is not None else None
+    if best is not None and optimum is not None:
+        target = best.params[search.target] if search.target else study.origin
+        table.append(line(f"**optimum** (trial {best.number})", best.params[search.force], target, optimum))
+    trials = found.trials if found is not None else 0
+    ran = found.search.ran if found is not None else 0
+    varies = " and ".join(f"`{v.name}` in [{v.low:.4g}, {v.high:.4g}]" for v in search.problem.varies)
+    lines += [
+        f"Least energy subject to hand RMS <= {bound:g} m over {varies} ({search.why}), searched by "
+        f"bracing-optimize (Optuna's TPE, seed {SEARCH_SEED}) with the grid's runs on the same executor: {trials} "
+        f"trials ({ran} run by this invocation), the first at the grid's best cell within the bound. Its study and "
+        f"trials: `{SEARCH_DIR}/{search.output.name}/` (the same command again reuses them; its `best.yaml` runs "
+        "the optimum with `bracing-pair --config`).",
+        "",
+        _table(header, table),
+        "",
+    ]
+    if best is None or optimum is None:
+        return [*lines, "No trial met the bound: no optimum.", ""]
+    changed = {name: after for name, _, after in changes(search.problem, best)}
+    # The grid's cell to beat: its least energy within the bound (the optimum's own constraint).
+    grid_name = "the grid's best cell" + ("" if best_feasible is best_cell else " within the bound")
+    started = search.start is not None and best.params == search.start
+    against = [(f"{where} setting", study.desired, study.origin, setting)]
+    if best_feasible is not None and not started:
+        against.append((grid_name, best_feasible[1], best_feasible[0], best_feasible[2]))
+    for name, force, target, row in against:
+        if row is None or not _ok(row):
+            continue
+        moves = [_move("f_nd", force, changed[search.force], "N", ".3g")]
+        if search.target:
+            moves.append(_move(f"target {study.axis}", target, changed[search.target], "m", ".3f"))
+        energy, hand = ratio(ENERGY, optimum, row)[0], ratio(HAND_RMS, optimum, row)[0]
+        lines.append(
+            f"- Against {name}, the optimum {_joined(moves)}: energy x {_fmt(energy, 3)}, hand RMS x {_fmt(hand, 3)}."
+        )
+    if started:
+        lines.append(f"- The optimum is the grid's cell the search started from: {trials} trials found nothing better.")
+    grid_row = best_feasible[2] if best_feasible is not None else None
+    sentence = _what_it_says(study, where, setting, passive, optimum, grid_row, grid_name)
+    if sentence:
+        lines += ["", f"**What the numbers say**: {sentence}"]
+    return [*lines, ""]
+
+
+def _what_it_says(
+    study: Study,
+    where: str,
+    setting: dict[str, Any] | None,
+    passive: dict[str, Any] | None,
+    optimum: dict[str, Any],
+    grid_best: dict[str, Any] | None,
+    grid_name: str,
+) -> str:
+    """One sentence: does resting passively beat bracing at the file's force, does the optimum beat both."""
+
+    def usable(row: dict[str, Any] | None) -> bool:
+        return row is not None and _ok(row) and number(row.get(ENERGY)) and number(row.get(HAND_RMS))
+
+    def mm(row: dict[str, Any]) -> str:
+        return f"{float(row[HAND_RMS]) * 1e3:.3g} mm"
+
+    parts = []
+    braced = f"bracing at {where} {study.desired:g} N"
+    if usable(setting) and usable(passive):
+        assert setting is not None and passive is not None
+        cheaper = float(passive[ENERGY]) < float(setting[ENERGY])
+        precise = float(passive[HAND_RMS]) < float(setting[HAND_RMS])
+        parts.append(
+            f"resting passively uses {'less' if cheaper else 'more'} energy than {braced} "
+            f"({float(passive[ENERGY]):.4g} J against {float(setting[ENERGY]):.4g} J) and is "
+            f"{'more' if precise else 'less'} precise ({mm(passive)} against {mm(setting)})"
+        )
+    others = [(braced, setting), ("resting passively", passive)]
+    beaten = [name for name, row in others if usable(row) and float(optimum[ENERGY]) < float(row[ENERGY])]  # type: ignore[index]
+    compared = [name for name, row in others if usable(row)]
+    if compared:
+        if len(beaten) == len(compared):
+            verdict = "uses less energy than " + ("both" if len(compared) == 2 else compared[0])
+        elif beaten:
+            verdict = f"uses less energy than {beaten[0]} but not than {next(n for n in compared if n not in beaten)}"
+        else:
+            verdict = "uses less energy than neither"
+        grid = ""
+        if usable(grid_best):
+            assert grid_best is not None
+            share = float(optimum[ENERGY]) / float(grid_best[ENERGY])
+            grid = f", {share:.2f} x the energy of {grid_name} ({float(grid_best[ENERGY]):.4g} J)"
+        parts.append(f"the optimum ({float(optimum[ENERGY]):.4g} J at {mm(optimum)}) {verdict}{grid}")
+    if not parts:
+        return ""
+    text = "; ".join(parts) + "."
+    return text[0].upper() + text[1:]
+
+
+def _move(what: str, before: float, after: float, unit: str, spec: str) -> tuple[str, str]:
+    """(verb, what): ``what`` from ``before`` to ``after`` (or kept), for the optimum's changes."""
+    if f"{before:{spec}}" == f"{after:{spec}}":
+        return "keeps", f"{what} at {after:{spec}} {unit}"
+    return "moves", f"{what} {before:{spec}} -> {after:{spec}} {unit}"
+
+
+def _joined(moves: Sequence[tuple[str, str]]) -> str:
+    """``moves`` as a clause, a verb said once for a run of changes that share it."""
+    parts = [f"{verb} {what}" if k == 0 or moves[k - 1][0] != verb else what for k, (verb, what) in enumerate(moves)]
+    return " and ".join(parts)
+
+
+def _grid_position(value: float, ticks: Sequence[float]) -> float:
+    """``value`` on an image axis whose ticks sit at 0, 1, ...: piecewise linear between them,
+    extended past the ends by the end intervals (an optimum outside the grid lands outside it)."""
+    if len(ticks) < 2:
+        return 0.0
+    k = int(np.clip(np.searchsorted(ticks, value) - 1, 0, len(ticks) - 2))
+    return k + (value - ticks[k]) / (ticks[k + 1] - ticks[k])
+
+
+def _draw_placement(
+    study: Study, store: ResultsStore, grids: dict[str, np.ndarray], optimum: tuple[float, float] | None
+) -> None:
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(11, 4.0), layout="constrained")
     fig.suptitle(f"{study.scenario}: brace placement and force")
     axes = fig.subplots(1, 2)
-    for ax, (key, title) in zip(
-        axes, (("energy_consumed_j", "energy consumed [J]"), ("hand_rms_error_m", "hand RMS error [m]")), strict=True
-    ):
+    for ax, (key, title) in zip(axes, ((ENERGY, "energy consumed [J]"), (HAND_RMS, "hand RMS error [m]")), strict=True):
         grid = grids[key]
         image = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis")
         fig.colorbar(image, ax=ax)
@@ -476,7 +879,32 @@ def _draw_placement(study: Study, store: ResultsStore, grids: dict[str, np.ndarr
                 ax.text(j, i, text, ha="center", va="center", fontsize=7, color="white")
         if np.isfinite(grid).any():
             i, j = (int(x) for x in np.unravel_index(np.nanargmin(grid), grid.shape))
-            ax.plot(j, i, marker="*", markersize=22, markerfacecolor="none", markeredgecolor="red", markeredgewidth=2)
+            ax.plot(
+                j,
+                i,
+                marker="*",
+                markersize=22,
+                markerfacecolor="none",
+                markeredgecolor="red",
+                markeredgewidth=2,
+                ls="none",
+                label="grid's least",
+            )
+        if optimum is not None:
+            x, y = _grid_position(optimum[0], study.targets), _grid_position(optimum[1], study.forces)
+            ax.plot(
+                x,
+                y,
+                marker="X",
+                markersize=13,
+                color="magenta",
+                markeredgecolor="white",
+                ls="none",
+                label=f"optimum ({study.axis} {optimum[0]:.3f} m, {optimum[1]:.3g} N)",
+            )
+            ax.set_xlim(min(-0.5, x - 0.4), max(len(study.targets) - 0.5, x + 0.4))
+            ax.set_ylim(min(-0.5, y - 0.4), max(len(study.forces) - 0.5, y + 0.4))
+        ax.legend(fontsize=7, loc="lower left", framealpha=0.8, markerscale=0.6)
     fig.savefig(store.output / "placement.png", dpi=110)
 
 
@@ -493,7 +921,17 @@ def _warnings_section(rows: dict[str, dict[str, Any]]) -> list[str]:
     ]
 
 
-def write_report(study: Study, output: Path, wall_time_s: float, executor: str, reused: int = 0) -> Path:
+def write_report(
+    study: Study,
+    output: Path,
+    wall_time_s: float,
+    executor: str,
+    reused: int = 0,
+    search: PlacementSearch | None = None,
+    search_note: str = "",
+) -> Path:
+    """DIR/report.md and its figures from the runs in DIR (and the optimiser's ``search``, when it ran;
+    ``search_note``: why it did not)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -507,17 +945,24 @@ def write_report(study: Study, output: Path, wall_time_s: float, executor: str, 
         "",
         f"{len(study.specs)} in-process runs of {duration:g} s (the nodes' simulator and controller cores, "
         f"lockstep); {ok} ok, {len(rows) - ok} failed. {compute:.0f} s of run time in all; this report's "
-        f"invocation took {wall_time_s:.0f} s on {executor}{f' ({reused} runs reused)' if reused else ''}. "
+        f"invocation took {wall_time_s:.0f} s on {executor}{f' ({reused} runs reused)' if reused else ''}"
+        f"{_search_count(search)}. "
         "Every run's row: `results.csv` / `results.parquet`; its summary and arrays: `runs/<run id>/`.",
         "",
         *_bracing_section(study, store, rows),
         *_gains_section(study, store, rows),
-        *_placement_section(study, store, rows),
+        *_placement_section(study, store, rows, search, search_note),
         *_warnings_section(rows),
     ]
     path = output / REPORT
     path.write_text("\n".join(lines))
     return path
+
+
+def _search_count(search: PlacementSearch | None) -> str:
+    if search is None or search.found is None:
+        return ""
+    return f", the optimiser's {search.found.trials} trials included ({search.found.search.ran} run now)"
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
@@ -537,8 +982,16 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     )
     parser.add_argument("--positions", type=int, default=5, help="brace targets in the placement grid")
     parser.add_argument("--span", type=float, default=0.15, help="placement targets: start position +- span [m]")
+    parser.add_argument(
+        "--trials",
+        type=int,
+        default=SEARCH_TRIALS,
+        help=f"the optimiser's trials over the placement axes (default {SEARCH_TRIALS}; 0: no search)",
+    )
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
+    if args.trials < 0:
+        parser.error("--trials must be >= 0")
     if args.duration is not None and args.duration <= 0:
         parser.error("--duration must be > 0")
     if args.positions < 1 or args.span < 0:
@@ -563,11 +1016,24 @@ def main(argv: Sequence[str] | None = None) -> int:
             where = executor.description
             print(f"bracing-study: {len(study.specs)} runs of {config} on {where}", file=sys.stderr)
             result = run_sweep(study.specs, args.output, executor, progress=not args.no_progress)
+            search, note = None, "--trials 0" if args.trials == 0 else ""
+            if args.trials > 0:
+                store = ResultsStore(args.output)
+                rows = {spec.run_id: row for spec in study.specs if (row := store.row(spec.run_id)) is not None}
+                try:
+                    search = placement_search(study, rows, args.output)
+                except ConfigError as exc:
+                    note = str(exc)
+                    print(f"bracing-study: no optimisation: {note}", file=sys.stderr)
+                if search is not None:
+                    run_placement_search(search, executor, args.trials, progress=not args.no_progress)
     except KeyboardInterrupt:
         print("bracing-study: interrupted; the same command again runs the rest", file=sys.stderr)
         return EXIT_INTERRUPTED
-    report = write_report(study, args.output, time.perf_counter() - start, where, result.skipped)
-    print(f"bracing-study: {result.ran} run now, {result.skipped} reused; report: {report}")
+    report = write_report(study, args.output, time.perf_counter() - start, where, result.skipped, search, note)
+    found = search.found if search is not None else None
+    trials = f"; optimiser: {found.trials} trials ({found.search.ran} now)" if found is not None else ""
+    print(f"bracing-study: {result.ran} run now, {result.skipped} reused{trials}; report: {report}")
     failed = sum(1 for row in result.rows if row.get("status") == STATUS_FAILED)
     if failed or result.lost:
         print(
@@ -575,7 +1041,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{args.output / 'results.csv'}",
             file=sys.stderr,
         )
-    return EXIT_FAILED if result.lost or any_failed(result.rows) else 0
+    searched = found is not None and found.search.failed
+    return EXIT_FAILED if result.lost or any_failed(result.rows) or searched else 0
 
 
 if __name__ == "__main__":

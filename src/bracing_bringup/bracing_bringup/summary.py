@@ -49,7 +49,15 @@ SUMMARY_KEYS = (
     "wall_time_s",
     "real_time_factor",
 )
-SUMMARY_EXTRA_KEYS = ("contacts", "max_penetration_m", "input_mode", "bracing", "warnings")
+SUMMARY_EXTRA_KEYS = (
+    "contacts",
+    "max_penetration_m",
+    "input_mode",
+    "bracing",
+    "warnings",
+    "motor_temperature_max_c",
+    "motor_temperature_max_c_by_joint",
+)
 """summary.json's keys after SUMMARY_KEYS (added later: tools that read SUMMARY_KEYS by position keep working)."""
 
 CONTACT_KEYS = (
@@ -145,6 +153,10 @@ class BagSeries:
     energy_consumed: FloatArray = field(default_factory=_empty)  # [J]
     energy_net: FloatArray = field(default_factory=_empty)  # [J]
     copper_loss: FloatArray = field(default_factory=_empty)  # [J]
+    motor_names: list[str] = field(default_factory=list)  # motor_state's joint names
+    # (motor_state messages, motors) winding temperatures [degC]; NaN rows where a message has none (torque
+    # input, the thermal model off, a bag from before it), so no columns at all when none has any
+    motor_temperature: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
     topic_counts: dict[str, int] = field(default_factory=dict)  # messages per topic
     input_mode: str | None = None  # motor_command's mode ("voltage", "torque"); None if none was recorded
     scenario: str | None = None  # the scenario's name (bag metadata, the recorder's --scenario); None: unknown
@@ -272,6 +284,7 @@ def _read_general(path: Path) -> BagSeries:
     ctrl: list[tuple[int, Any]] = []
     contacts: list[tuple[int, Any]] = []
     motor: list[tuple[int, float, float, float]] = []
+    motor_msgs: list[tuple[int, Any]] = []
     counts: dict[str, int] = {}
     try:
         with AnyReader([path]) as reader:
@@ -295,6 +308,7 @@ def _read_general(path: Path) -> BagSeries:
                     contacts.append((stamp, msg))
                 else:
                     motor.append((stamp, float(msg.energy_consumed), float(msg.energy_net), float(msg.copper_loss)))
+                    motor_msgs.append((stamp, msg))
     except BagReadError:
         raise
     except Exception as exc:  # rosbags raises many kinds on a damaged bag
@@ -305,6 +319,7 @@ def _read_general(path: Path) -> BagSeries:
     ctrl.sort(key=lambda x: x[0])
     contacts.sort(key=lambda x: x[0])
     motor.sort(key=lambda x: x[0])
+    motor_msgs.sort(key=lambda x: x[0])
     if joint:
         t0 = joint[0][0]
     else:
@@ -332,6 +347,13 @@ def _read_general(path: Path) -> BagSeries:
         series.energy_consumed = arr[:, 1]
         series.energy_net = arr[:, 2]
         series.copper_loss = arr[:, 3]
+        series.motor_names = [str(n) for n in motor_msgs[0][1].name]
+        width = len(series.motor_names)
+        temperatures = [list(getattr(m, "temperature", ())) for _, m in motor_msgs]
+        if any(len(row) == width > 0 for row in temperatures):
+            series.motor_temperature = np.array(
+                [row if len(row) == width else [math.nan] * width for row in temperatures], dtype=float
+            )
 
     # Per contact, from the simulator.
     sim_rows: dict[str, list[tuple[int, float, float, float, bool, _Xyz, _Xyz, _Xyz]]] = {}
@@ -483,6 +505,22 @@ def _joint_positions(joint: _Messages, names: list[str]) -> FloatArray:
     return out[joint.order]
 
 
+def _motor_temperatures(motor: _Messages) -> tuple[list[str], FloatArray]:
+    """The general path's motor names and temperatures, column-wise: the first message's names (in stamp
+    order), each message's temperatures where it has one per name, NaN where not."""
+    first = next(layout for layout in motor.layouts if np.any(layout.index == motor.order[0]))
+    names = first.texts("name")
+    width = len(names)
+    out = np.full((motor.count, width), math.nan)
+    filled = False
+    for layout in motor.layouts:
+        if width and layout.lengths.get("temperature", 0) == width:
+            filled = True
+            for k in range(width):
+                out[layout.index, k] = layout.values[f"temperature[{k}]"]
+    return names, out[motor.order] if filled else np.zeros((0, 0))
+
+
 def _match(rows: _Rows, crow: _Rows) -> tuple[NDArray[np.int64], FloatArray]:
     """Stamps and f_n - f_nd of the contacts rows whose stamp a controller_state row has (its last such row)."""
     stamps, desired = crow.stamp, crow.take("desired_normal_force[{j}]").astype(float)
@@ -543,6 +581,7 @@ def _read_columnar(path: Path) -> BagSeries:
         series.energy_consumed = motor.by_stamp("energy_consumed").astype(float)
         series.energy_net = motor.by_stamp("energy_net").astype(float)
         series.copper_loss = motor.by_stamp("copper_loss").astype(float)
+        series.motor_names, series.motor_temperature = _motor_temperatures(motor)
 
     sim_rows = _per_contact(sim, "contacts", "contacts[{j}].name")
     ctrl_rows = _per_contact(ctrl, "contact_name", "contact_name[{j}]")
@@ -679,6 +718,15 @@ def compute_summary(
         out["energy_consumed_j"] = float(series.energy_consumed[-1])
         # Torque input drives the joints directly: no motor circuit, so no copper loss to speak of.
         out["copper_loss_j"] = None if series.input_mode == "torque" else float(series.copper_loss[-1])
+    # The hottest each winding got, and the hottest of all; None where no temperature was recorded.
+    temperature = series.motor_temperature
+    if temperature.shape[1] and np.isfinite(temperature).any():
+        hottest = np.max(np.where(np.isfinite(temperature), temperature, -np.inf), axis=0)
+        out["motor_temperature_max_c_by_joint"] = {
+            name: float(value) if np.isfinite(value) else None
+            for name, value in zip(series.motor_names, hottest, strict=True)
+        }
+        out["motor_temperature_max_c"] = float(np.max(hottest))
 
     if series.joint_t.size:
         out["sim_time_s"] = float(series.joint_t[-1] - series.joint_t[0])

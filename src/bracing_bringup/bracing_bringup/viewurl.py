@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import socket
+import time
+from collections.abc import Callable
 from urllib.parse import quote
 
 WEB_PORT = 9090
@@ -27,3 +29,17 @@ def free_ports(count: int = 2) -> list[int]:
     finally:
         for sock in sockets:
             sock.close()
+
+
+def wait_for_port(port: int, alive: Callable[[], bool], timeout: float) -> bool:
+    """Whether something listens on 127.0.0.1:``port`` within ``timeout`` seconds (False at once
+    when ``alive()`` says the process that should open it has ended)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if not alive():
+            return False
+        with socket.socket() as probe:
+            if probe.connect_ex(("127.0.0.1", port)) == 0:
+                return True
+        time.sleep(0.1)
+    return False

@@ -16,7 +16,7 @@ import numpy as np
 
 from bracing_core import schema
 from bracing_core.contacts import Contact, ContactSet, Cylinder, Plane, Sphere, Surface
-from bracing_core.dynamics import ConstrainedDynamics, InputMode
+from bracing_core.dynamics import ConstrainedDynamics, InputMode, thermal_applies
 from bracing_core.model import ModelError, RobotModel
 from bracing_core.motors import FIELDS as MOTOR_FIELDS
 from bracing_core.motors import MotorParams
@@ -178,6 +178,9 @@ class SharedConfig:
                 **{f: np.array(values[f"motors.{f}"]) for f in MOTOR_FIELDS},
                 voltage_limit=values["motors.voltage_limit"],
                 torque_limit=values["motors.torque_limit"],
+                thermal=values["motors.thermal"],
+                ambient_temperature=values["motors.ambient_temperature"],
+                temperature_coefficient=values["motors.temperature_coefficient"],
             )
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
@@ -278,6 +281,11 @@ class Plant:
             return self.robot.frame_id(name)
         except ModelError as exc:
             raise ConfigError(f"{parameter}: {exc}") from None
+
+    @property
+    def thermal(self) -> bool:
+        """The windings' temperatures are modelled (voltage input and motors.thermal)."""
+        return thermal_applies(self.motors, self.mode)
 
     def to_model_order(self, values: Sequence[float]) -> np.ndarray:
         """Per-joint values in robot.joint_names order -> model order (locked joints dropped)."""

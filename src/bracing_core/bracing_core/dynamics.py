@@ -76,6 +76,12 @@ def engine_robot(robot: RobotModel) -> engine.Robot:
     return engine.Robot(str(robot.urdf_path), robot.gravity, list(robot.locked_joints), list(robot.locked_positions))
 
 
+def thermal_applies(motors: MotorParams, mode: InputMode) -> bool:
+    """The windings' temperatures are modelled: motors.thermal, and a motor circuit to heat them
+    (voltage input; torque input drives the joints directly)."""
+    return motors.thermal and mode is InputMode.VOLTAGE
+
+
 def engine_drive(robot: RobotModel, motors: MotorParams, mode: InputMode) -> engine.Drive:
     """The joints' drive as the engine takes it: motors in the loop (voltage) or direct drive (torque)."""
     voltage = mode is InputMode.VOLTAGE
@@ -88,6 +94,11 @@ def engine_drive(robot: RobotModel, motors: MotorParams, mode: InputMode) -> eng
         motors.resistance,
         motors.inductance,
         motors.reflected_damping if voltage else np.zeros(robot.nv),
+        thermal_applies(motors, mode),
+        motors.thermal_resistance,
+        motors.heat_capacity,
+        motors.ambient_temperature,
+        motors.temperature_coefficient,
     )
 
 
@@ -198,6 +209,11 @@ class ConstrainedDynamics:
         return self.robot.nv
 
     @property
+    def thermal(self) -> bool:
+        """The windings' temperatures are modelled (``thermal_applies``)."""
+        return thermal_applies(self.motors, self.mode)
+
+    @property
     def baumgarte(self) -> float:
         """a [1/s]: J_c ddq = -gamma - 2 a J_c dq - a^2 C (0: the paper)."""
         return float(self.engine.baumgarte)
@@ -210,15 +226,21 @@ class ConstrainedDynamics:
         """The same robot, motors, mode and Baumgarte gain with another set of contacts."""
         return ConstrainedDynamics(self.robot, self.motors, contacts, self.mode, self.baumgarte)
 
-    def evaluate(self, q: Vector, dq: Vector, current: Vector, command: Vector) -> Derivative:
-        """ddq, di, f_n at state (q, dq, i) under the held input (v or tau), every contact held."""
+    def evaluate(
+        self, q: Vector, dq: Vector, current: Vector, command: Vector, temperature: Vector | None = None
+    ) -> Derivative:
+        """ddq, di, f_n at state (q, dq, i, T) under the held input (v or tau), every contact held
+        (``temperature``: the windings' T [degC], R(T) in the circuit; None: ambient)."""
         n = self.n
         current = np.asarray(current, dtype=float) if self.mode is InputMode.VOLTAGE else np.zeros(n)
+        if temperature is None:
+            temperature = np.full(n, self.motors.ambient_temperature)
         try:
             values = self.engine.evaluate_packed(
                 np.asarray(q, dtype=float),
                 np.asarray(dq, dtype=float),
                 current,
+                np.asarray(temperature, dtype=float),
                 np.asarray(command, dtype=float),
                 self._all,
             )

@@ -9,10 +9,19 @@ whose ``model.armature`` holds a diagonal rotor inertia, so that pinocchio's ``c
 ``computeAllTerms`` return M + J_m directly and ``pinocchio.cholesky`` factorises it; the
 simulator's dynamics and the controller each keep such a copy, so their passes do not
 disturb the shared model's Data.
+
+Locked joints (``robot.locked_joints``) leave the model through pinocchio's
+``buildReducedModel``; ``simulated_urdf`` writes the same robot back as URDF text (each locked
+joint a fixed joint at its locked position): what the simulator publishes on
+``robot_description``, so that every viewer (robot_state_publisher, RViz, Foxglove, the
+recorder's /tf, bracing-view, the animation) poses the robot that was simulated from that
+description and the JointStates, which carry the moving joints only.
+``RobotModel.from_xml`` loads such a text (the viewers' kinematics).
 """
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -92,13 +101,44 @@ class RobotModel:
             model = pin.buildModelFromUrdf(str(path))
         except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError on bad XML
             raise ModelError(f"robot.urdf: pinocchio cannot load {path}: {exc}") from exc
+        return cls._built(model, str(path), gravity, locked_joints, locked_positions)
+
+    @classmethod
+    def from_xml(
+        cls,
+        urdf_xml: str,
+        source: str = "robot_description",
+        gravity: Sequence[float] = (0.0, 0.0, -9.81),
+        locked_joints: Sequence[str] = (),
+        locked_positions: Sequence[float] = (),
+    ) -> RobotModel:
+        """``from_urdf`` of URDF text (e.g. a recorded ``robot_description``); ``source`` names it in errors.
+
+        The model's ``urdf_path`` is then ``source``, not a file: such a model is for kinematics
+        (the viewers'), not for rebuilding in the engine.
+        """
+        try:
+            model = pin.buildModelFromXML(urdf_xml)
+        except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError on bad XML
+            raise ModelError(f"{source}: pinocchio cannot read the URDF: {exc}") from exc
+        return cls._built(model, source, gravity, locked_joints, locked_positions)
+
+    @classmethod
+    def _built(
+        cls,
+        model: pin.Model,
+        source: str,
+        gravity: Sequence[float],
+        locked_joints: Sequence[str],
+        locked_positions: Sequence[float],
+    ) -> RobotModel:
         gravity_vector = np.asarray(gravity, dtype=float)
         if gravity_vector.shape != (3,) or not np.all(np.isfinite(gravity_vector)):
             raise ModelError(f"robot.gravity: expected 3 finite numbers, got {list(gravity)}")
         model.gravity.linear = gravity_vector
         if locked_joints:
-            model = _reduced(model, locked_joints, locked_positions, str(path))
-        return cls(model, str(path), locked_joints, locked_positions)
+            model = _reduced(model, locked_joints, locked_positions, source)
+        return cls(model, source, locked_joints, locked_positions)
 
     def with_armature(self, armature: Vector) -> RobotModel:
         """A copy (own pinocchio Model and Data) whose joint-space inertia is M + diag(armature).
@@ -112,6 +152,15 @@ class RobotModel:
         model = self.model.copy()
         model.armature[:] = model.armature + values
         return RobotModel(model, self.source, self.locked_joints, self.locked_positions)
+
+    def description(self) -> str:
+        """The URDF text of this robot as simulated (``simulated_urdf`` of its file and locked joints):
+        what the simulator publishes on ``robot_description``."""
+        try:
+            text = Path(self.urdf_path).read_text(encoding="utf-8")
+        except OSError as exc:
+            raise ModelError(f"robot.urdf: cannot read {self.urdf_path}: {exc}") from exc
+        return simulated_urdf(text, self.locked_joints, self.locked_positions)
 
     @property
     def nv(self) -> int:
@@ -152,8 +201,68 @@ class RobotModel:
         return float(pin.computePotentialEnergy(self.model, self.data, q))
 
 
-def _reduced(model: pin.Model, locked: Sequence[str], positions: Sequence[float], source: str) -> pin.Model:
-    """``model`` with the joints ``locked`` fixed at ``positions`` (0 each if empty)."""
+def simulated_urdf(urdf_xml: str, locked_joints: Sequence[str] = (), locked_positions: Sequence[float] = ()) -> str:
+    """The URDF text of the robot as simulated: each locked joint a fixed joint at its locked position.
+
+    ``urdf_xml`` unchanged when nothing is locked. A locked joint's ``<origin>`` becomes its
+    origin composed with the joint's own motion at its position (``locked_positions``, 0 each
+    if empty: the engine's ``buildReducedModel`` reference), computed by pinocchio's joint
+    model, so the text's kinematics are the reduced model's; its ``<axis>``, ``<limit>``,
+    ``<dynamics>``, ``<mimic>``, ``<calibration>`` and ``<safety_controller>`` go (a fixed
+    joint has none). Links, visuals, inertias and every other joint stay as written.
+    """
+    if not locked_joints:
+        return urdf_xml
+    source = "robot.urdf"
+    try:
+        model = pin.buildModelFromXML(urdf_xml)
+        root = ET.fromstring(urdf_xml, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
+    except Exception as exc:  # pinocchio: RuntimeError/ValueError; ElementTree: ParseError
+        raise ModelError(f"{source}: cannot read the URDF: {exc}") from exc
+    ids, reference = _locked_reference(model, locked_joints, locked_positions, source)
+    elements = {element.get("name"): element for element in root.findall("joint")}
+    for name, joint in zip(locked_joints, ids, strict=True):
+        element = elements.get(name)
+        if element is None:  # pinocchio found it, so only a joint outside <robot>'s children
+            raise ModelError(f"robot.locked_joints: no <joint name={name!r}> directly under <robot> in {source}")
+        jmodel = model.joints[joint]
+        jdata = jmodel.createData()
+        jmodel.calc(jdata, reference)
+        placed = _origin(element) * jdata.M  # parent link -> child link at the locked position
+        kind, value = element.get("type"), float(reference[model.idx_qs[joint]])
+        element.set("type", "fixed")
+        closing = element[-1].tail if len(element) else None  # the whitespace before </joint>
+        for child in list(element):
+            if child.tag in {"origin", "axis", "limit", "dynamics", "mimic", "calibration", "safety_controller"}:
+                element.remove(child)
+        note = ET.Comment(f" locked (robot.locked_joints): a {kind} joint held at {value!r} ")
+        origin = ET.Element(
+            "origin", xyz=_numbers(placed.translation), rpy=_numbers(pin.rpy.matrixToRpy(placed.rotation))
+        )
+        note.tail = origin.tail = element.text or "\n"
+        element[:0] = [note, origin]
+        element[-1].tail = closing or element[-1].tail
+    return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def _origin(joint: ET.Element) -> pin.SE3:
+    """A URDF joint's ``<origin xyz rpy>`` (identity parts where absent), as urdfdom reads it."""
+    origin = joint.find("origin")
+    xyz = (origin.get("xyz") if origin is not None else None) or "0 0 0"
+    rpy = (origin.get("rpy") if origin is not None else None) or "0 0 0"
+    rotation = pin.rpy.rpyToMatrix(np.array([float(v) for v in rpy.split()]))
+    return pin.SE3(rotation, np.array([float(v) for v in xyz.split()]))
+
+
+def _numbers(values: Vector) -> str:
+    """Shortest text that reads back as the same floats (repr), so the text is as exact as the model."""
+    return " ".join(repr(float(v)) for v in values)
+
+
+def _locked_reference(
+    model: pin.Model, locked: Sequence[str], positions: Sequence[float], source: str
+) -> tuple[list[int], Vector]:
+    """The joint ids of ``locked`` and a configuration holding them at ``positions`` (0 each if empty)."""
     values = list(positions) or [0.0] * len(locked)
     reference = pin.neutral(model)
     ids = []
@@ -167,4 +276,10 @@ def _reduced(model: pin.Model, locked: Sequence[str], positions: Sequence[float]
         ids.append(joint)
     if len(ids) == model.njoints - 1:
         raise ModelError("robot.locked_joints: every joint is locked; nothing would move")
+    return ids, reference
+
+
+def _reduced(model: pin.Model, locked: Sequence[str], positions: Sequence[float], source: str) -> pin.Model:
+    """``model`` with the joints ``locked`` fixed at ``positions`` (0 each if empty)."""
+    ids, reference = _locked_reference(model, locked, positions, source)
     return pin.buildReducedModel(model, ids, reference)

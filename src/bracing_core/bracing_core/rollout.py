@@ -122,6 +122,7 @@ class Recording:
     position: np.ndarray  # (N+1, n) [rad], model joint order
     velocity: np.ndarray  # (N+1, n) [rad/s]
     current: np.ndarray  # (N+1, n) [A]
+    temperature: np.ndarray  # (N+1, n) [degC], the motor windings; (N+1, 0) where the thermal model does not apply
     command: np.ndarray  # (N+1, n) [V] or [N m]
     hand_desired: np.ndarray  # (N+1, 3) [m]
     hand_actual: np.ndarray  # (N+1, 3) [m]
@@ -172,6 +173,8 @@ def run_recorded(scenario: Scenario, duration: float, divergence_checks: bool = 
         position=out["position"],
         velocity=out["velocity"],
         current=out["current"],
+        # as motor_state carries it: no columns where the thermal model does not apply
+        temperature=out["temperature"] if scenario.plant.thermal else np.zeros((rows, 0)),
         command=out["command"],
         hand_desired=out["hand_desired"],
         hand_actual=out["hand_actual"],

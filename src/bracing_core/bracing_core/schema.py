@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from enum import Enum
 from typing import Any
 
+from bracing_core.motors import AMBIENT_TEMPERATURE, COPPER_TEMPERATURE_COEFFICIENT, HEAT_CAPACITY, THERMAL_RESISTANCE
 from bracing_core.params import (
     ConfigError,
     Params,
@@ -287,6 +288,50 @@ SHARED: tuple[Param, ...] = (
         minimum=0.0,
         length="robot.joint_names",
         may_be_empty=True,
+    ),
+    Param(
+        "motors.thermal",
+        Kind.BOOL,
+        True,
+        "winding temperatures integrated (voltage mode): C_th dT/dt = R(T) i^2 - (T - T_a) / R_th, "
+        "R(T) = R_20 (1 + alpha (T - 20 degC)) with motors.resistance as R_20; false: R fixed, no temperature",
+    ),
+    Param(
+        "motors.thermal_resistance",
+        Kind.DOUBLE_ARRAY,
+        PerJoint(THERMAL_RESISTANCE),
+        "R_th, winding to ambient (chosen, the paper gives none: ~1 K/W winding to housing + ~2 K/W housing to "
+        f"ambient of a maxon RE 50/65-class motor, whose K, R and I_m match Table 1's); {_MOTOR}",
+        "K/W",
+        positive=True,
+        length="robot.joint_names",
+        may_be_empty=True,
+    ),
+    Param(
+        "motors.heat_capacity",
+        Kind.DOUBLE_ARRAY,
+        PerJoint(HEAT_CAPACITY),
+        "C_th of the winding (chosen, the paper gives none: a ~70 s winding time constant over ~1 K/W winding to "
+        f"housing; tau = R_th C_th = 210 s); {_MOTOR}",
+        "J/K",
+        positive=True,
+        length="robot.joint_names",
+        may_be_empty=True,
+    ),
+    Param(
+        "motors.ambient_temperature",
+        Kind.DOUBLE,
+        AMBIENT_TEMPERATURE,
+        "T_a, also every winding's temperature at the start (chosen: a room at 20 degC, where R(T_a) = R_20)",
+        "degC",
+    ),
+    Param(
+        "motors.temperature_coefficient",
+        Kind.DOUBLE,
+        COPPER_TEMPERATURE_COEFFICIENT,
+        "alpha of the winding's resistance (copper)",
+        "1/K",
+        minimum=0.0,
     ),
     Param("motors.voltage_limit", Kind.DOUBLE, 0.0, "|v| saturation in voltage mode; 0 = none", "V", minimum=0.0),
     Param("motors.torque_limit", Kind.DOUBLE, 0.0, "|tau| saturation in torque mode; 0 = none", "N m", minimum=0.0),

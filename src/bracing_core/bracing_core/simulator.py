@@ -1,6 +1,6 @@
 """Time integration of the constrained dynamics: classic RK4 with the input held.
 
-The state is (q, dq, i) plus running energy integrals, integrated together so the
+The state is (q, dq, i, T: the motor windings' temperatures) plus running energy integrals, integrated together so the
 integrals are as accurate as the trajectory. ``Simulator.step(command)`` advances one
 configured step (optionally in sub-steps) and returns the model's answer at the start
 of the step, which is what the simulator reports for that step (forces, effort).
@@ -22,18 +22,22 @@ import bracing_engine as engine
 from bracing_core.dynamics import ConstrainedDynamics, Derivative, unpack
 from bracing_core.types import Vector
 
-# Order of the energy integrals appended to the state vector.
+# The state vector is [q, dq, i, T] (STATE_BLOCKS blocks of n) and then the energy integrals, in this order.
+STATE_BLOCKS = 4
 ENERGY_KEYS = ("consumed", "net", "copper_loss", "viscous_loss", "friction_loss", "constraint_work", "impact_loss")
 # Status codes of bracing_engine.Simulator.step and of bracing_engine.rollout (0: ok): the step
 # diverged or hit a joint limit (state kept); after a step (rollout only), where the simulator
 # node refuses to go on (Simulator.check): non-finite forces, too fast, a held
-# contact too far off its surface.
-_DIVERGED, _JOINT_LIMIT, _NON_FINITE_FORCES, _TOO_FAST, _OFF_SURFACE = 1, 2, 3, 4, 5
+# contact too far off its surface, a winding hotter than WINDING_TEMPERATURE_LIMIT.
+_DIVERGED, _JOINT_LIMIT, _NON_FINITE_FORCES, _TOO_FAST, _OFF_SURFACE, _TOO_HOT = 1, 2, 3, 4, 5, 6
+WINDING_TEMPERATURE_LIMIT: float = engine.WINDING_TEMPERATURE_LIMIT  # [degC] (copper melts at 1085 degC)
 
 
 def _refusal_reason(code: int, measured: float, divergence_speed: float, divergence_residual: float) -> str:
     if code == _TOO_FAST:
         return f"joint speed exceeds divergence_speed {divergence_speed}: {measured:.3g}"
+    if code == _TOO_HOT:
+        return f"a motor winding would reach {measured:.3g} degC, beyond {WINDING_TEMPERATURE_LIMIT:g} degC (it burns)"
     if code == _OFF_SURFACE:
         return f"constraint residual {measured:.3g} m exceeds divergence_residual {divergence_residual} m"
     return "non-finite forces or effort"
@@ -51,7 +55,7 @@ class JointLimitError(DivergenceError):
 class Energy:
     """Energy integrals since the start [J].
 
-    consumed = int sum |v i| dt, net = int sum v i dt, copper_loss = int sum R i^2 dt
+    consumed = int sum |v i| dt, net = int sum v i dt, copper_loss = int sum R(T) i^2 dt
     (voltage mode; torque mode uses the mechanical power tau dq and no copper loss);
     viscous_loss = int dq^T Dc dq dt, friction_loss = int sum mu f_n (dir . slip) dt,
     constraint_work = int f_n . (J_c dq) dt (zero for an ideal, satisfied constraint),
@@ -85,7 +89,7 @@ class ContactEvent:
 class Checkpoint:
     """A copy of the simulator's state (see :meth:`Simulator.checkpoint`)."""
 
-    state: np.ndarray  # q, dq, i and the energy integrals
+    state: np.ndarray  # q, dq, i, T and the energy integrals
     steps_taken: int
     active: np.ndarray  # which contacts hold a force
     events: int  # length of the event log
@@ -162,8 +166,13 @@ class Simulator:
         return self.engine.state[2 * self.n : 3 * self.n]
 
     @property
+    def temperature(self) -> Vector:
+        """The motor windings' temperatures [degC] (ambient throughout without the thermal model)."""
+        return self.engine.state[3 * self.n : STATE_BLOCKS * self.n]
+
+    @property
     def energy(self) -> Energy:
-        return Energy(*self.engine.state[3 * self.n :].tolist())
+        return Energy(*self.engine.state[STATE_BLOCKS * self.n :].tolist())
 
     @property
     def active(self) -> np.ndarray:

@@ -8,6 +8,7 @@ import pinocchio  # first: the engine links the libpinocchio this loads (one cop
 
 from bracing_engine._engine import (
     PINOCCHIO_VERSION,
+    WINDING_TEMPERATURE_LIMIT,
     BracedContact,
     Contact,
     Drive,
@@ -29,6 +30,7 @@ if PINOCCHIO_VERSION != pinocchio.__version__:
     )
 
 __all__ = [
+    "WINDING_TEMPERATURE_LIMIT",
     "BracedContact",
     "Contact",
     "Drive",

@@ -53,6 +53,7 @@ Vector packed(const Answer& a, const ContactModes& modes) {
 NB_MODULE(_engine, m) {
   m.doc() = "The bracing engine: constrained robot + motor-circuit dynamics and RK4 on pinocchio (C++).";
   m.attr("PINOCCHIO_VERSION") = compiled_pinocchio_version();
+  m.attr("WINDING_TEMPERATURE_LIMIT") = kWindingTemperatureLimit;  // [degC], Simulator::refusal code 6
   nb::exception<SingularError>(m, "SingularError", PyExc_ArithmeticError);
 
   nb::class_<Surface>(m, "Surface")
@@ -112,11 +113,17 @@ NB_MODULE(_engine, m) {
       .def(
           "__init__",
           [](Drive* d, bool voltage, Vector added_inertia, Vector damping, Vector torque_constant, Vector resistance,
-             Vector inductance, Vector reflected_damping) {
-            new (d) Drive{voltage, added_inertia, damping, torque_constant, resistance, inductance, reflected_damping};
+             Vector inductance, Vector reflected_damping, bool thermal, Vector thermal_resistance, Vector heat_capacity,
+             double ambient, double temperature_coefficient) {
+            new (d) Drive{voltage,          added_inertia,   damping,    torque_constant,
+                          resistance,       inductance,      reflected_damping, thermal,
+                          thermal_resistance, heat_capacity, ambient,    temperature_coefficient};
           },
           "voltage"_a, "added_inertia"_a, "damping"_a, "torque_constant"_a, "resistance"_a, "inductance"_a,
-          "reflected_damping"_a);
+          "reflected_damping"_a, "thermal"_a = false, "thermal_resistance"_a = Vector(), "heat_capacity"_a = Vector(),
+          "ambient"_a = 25.0, "temperature_coefficient"_a = 0.00393,
+          "resistance: R_20 at 20 degC; thermal: R(T) = R_20 (1 + alpha (T - 20)), C_th dT/dt = R(T) i^2 - (T - "
+          "ambient) / R_th");
 
   nb::class_<Dynamics>(m, "Dynamics")
       .def(nb::init<const Robot&, const Drive&, std::vector<Contact>, double, double>(), "robot"_a, "drive"_a,
@@ -126,15 +133,15 @@ NB_MODULE(_engine, m) {
       .def_rw("baumgarte", &Dynamics::baumgarte)
       .def(
           "evaluate_packed",
-          [](const Dynamics& d, const Vector& q, const Vector& dq, const Vector& current, const Vector& u,
-             const Mask& held) {
+          [](const Dynamics& d, const Vector& q, const Vector& dq, const Vector& current, const Vector& temperature,
+             const Vector& u, const Mask& held) {
             Answer a;
             ContactModes modes{held, Mask(held.size(), false), RowMatrix::Zero(held.size(), 3),
                                Vector::Ones(held.size())};
-            d.evaluate(q, dq, current, u, modes, true, a);
+            d.evaluate(q, dq, current, temperature, u, modes, true, a);
             return packed(a, modes);
           },
-          "q"_a, "dq"_a, "current"_a, "u"_a, "held"_a)
+          "q"_a, "dq"_a, "current"_a, "temperature"_a, "u"_a, "held"_a, "temperature: the windings' T [degC]")
       .def(
           "terms_packed",
           [](const Dynamics& d, const Vector& q, const Vector& dq) {
@@ -298,6 +305,7 @@ NB_MODULE(_engine, m) {
         out["time"] = Vector(r.time.head(rows));
         const std::pair<const char*, RowMatrix*> arrays[] = {
             {"position", &r.position}, {"velocity", &r.velocity}, {"current", &r.current},
+            {"temperature", &r.temperature},
             {"command", &r.command}, {"hand_desired", &r.hand_desired}, {"hand_actual", &r.hand_actual},
             {"brace_desired", &r.brace_desired}, {"brace_actual", &r.brace_actual},
             {"contact_position", &r.contact_position}, {"slip_velocity", &r.slip_velocity},

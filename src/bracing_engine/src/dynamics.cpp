@@ -154,6 +154,8 @@ Dynamics::Dynamics(const Robot& robot, const Drive& drive, std::vector<Contact> 
   for (const Vector* v : {&drive.damping, &drive.torque_constant, &drive.resistance, &drive.inductance,
                           &drive.reflected_damping})
     if (v->size() != n) throw std::invalid_argument("drive: one value per joint expected");
+  if (drive.thermal && (drive.thermal_resistance.size() != n || drive.heat_capacity.size() != n))
+    throw std::invalid_argument("drive: one thermal resistance and heat capacity per joint expected");
   for (const auto& contact : contacts) {
     if (!m.model.existFrame(contact.frame)) throw std::invalid_argument("unknown frame " + contact.frame);
     m.frames.push_back(m.model.getFrameId(contact.frame));
@@ -215,8 +217,8 @@ int Dynamics::tangent_directions(const Vector3& n, const Eigen::Ref<const RowMat
 }
 
 void Dynamics::evaluate(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& dq,
-                        const Eigen::Ref<const Vector>& current, const Eigen::Ref<const Vector>& u,
-                        const ContactModes& modes, bool full, Answer& out) const {
+                        const Eigen::Ref<const Vector>& current, const Eigen::Ref<const Vector>& temperature,
+                        const Eigen::Ref<const Vector>& u, const ContactModes& modes, bool full, Answer& out) const {
   const Impl& m = *impl_;
   const Drive& d = m.drive;
   const int n = m.model.nv, p = contact_count();
@@ -358,12 +360,14 @@ void Dynamics::evaluate(const Eigen::Ref<const Vector>& q, const Eigen::Ref<cons
   }
   pin::cholesky::solve(m.model, m.data, ddq);  // Mc^-1 (r + W^T lambda)
   if (d.voltage) {
-    out.di.array() = (u - d.resistance.cwiseProduct(current) - d.torque_constant.cwiseProduct(dq)).array() /
+    d.resistance_at(temperature, out.resistance);
+    out.di.array() = (u - out.resistance.cwiseProduct(current) - d.torque_constant.cwiseProduct(dq)).array() /
                      d.inductance.array();
     out.effort.array() = d.torque_constant.cwiseProduct(current).array() -
                          d.reflected_damping.cwiseProduct(dq).array() - d.added_inertia.cwiseProduct(ddq).array();
   } else {
     out.di.setZero(n);
+    out.resistance = d.resistance;
     out.effort = u;
   }
 }

@@ -364,7 +364,8 @@ void rollout(Law& law, Simulator& simulator, long steps, double t0, double diver
   const int n = simulator.nv(), p = simulator.dynamics().contact_count(), b = law.braces();
   const long rows = steps + 1;
   out.time.setZero(rows);
-  for (RowMatrix* a : {&out.position, &out.velocity, &out.current, &out.command}) a->setZero(rows, n);
+  for (RowMatrix* a : {&out.position, &out.velocity, &out.current, &out.temperature, &out.command})
+    a->setZero(rows, n);
   for (RowMatrix* a : {&out.hand_desired, &out.hand_actual, &out.energy}) a->setZero(rows, 3);
   for (RowMatrix* a : {&out.brace_desired, &out.brace_actual}) a->setZero(rows, 3 * b);
   for (RowMatrix* a : {&out.contact_position, &out.slip_velocity}) a->setZero(rows, 3 * p);
@@ -381,12 +382,13 @@ void rollout(Law& law, Simulator& simulator, long steps, double t0, double diver
     out.position.row(k) = q.transpose();
     out.velocity.row(k) = dq.transpose();
     out.current.row(k) = y.segment(2 * n, n).transpose();
+    out.temperature.row(k) = y.segment(3 * n, n).transpose();
     out.command.row(k) = command.command.transpose();
     out.hand_desired.row(k) = command.hand_desired.transpose();
     out.hand_actual.row(k) = command.hand_actual.transpose();
     out.brace_desired.row(k) = Eigen::Map<const Vector>(command.brace_desired.data(), 3 * b).transpose();
     out.brace_actual.row(k) = Eigen::Map<const Vector>(command.brace_actual.data(), 3 * b).transpose();
-    out.energy.row(k) << y[3 * n], y[3 * n + 1], y[3 * n + 2];
+    out.energy.row(k) << y[kStates * n], y[kStates * n + 1], y[kStates * n + 2];
     // the final state gets its reports without a step, as the simulator node's finish() does
     if (k < steps) {
       const StepStatus status = simulator.step(command.command);

@@ -38,13 +38,14 @@ Simulator::Simulator(std::shared_ptr<const Dynamics> dynamics, double step, int 
   if (substeps < 1) throw std::invalid_argument("substeps: must be an integer >= 1");
   if (q0.size() != n_ || dq0.size() != n_ || lower_.size() != n_ || upper_.size() != n_)
     throw std::invalid_argument("one value per joint expected");
-  const int size = 3 * n_ + kEnergies;
+  const int size = kStates * n_ + kEnergies;
   y_.setZero(size);
   y_next_.setZero(size);
   y0_.setZero(size);
   y1_.setZero(size);
   y_.head(n_) = q0;
   y_.segment(n_, n_) = dq0;
+  y_.segment(3 * n_, n_).setConstant(dynamics_->drive().ambient);  // the windings start at ambient
   for (const auto& contact : dynamics_->contacts()) {
     unilateral_.push_back(contact.unilateral);
     enforced_.push_back(contact.enforced);
@@ -68,10 +69,10 @@ Simulator::Simulator(std::shared_ptr<const Dynamics> dynamics, double step, int 
     }
   }
   report_modes_ = modes_;
-  x_.setZero(3 * n_);
-  for (auto& k : k_) k.setZero(3 * n_);
+  x_.setZero(kStates * n_);
+  for (auto& k : k_) k.setZero(kStates * n_);
   for (auto& e : e_) e.setZero(kEnergies);
-  k_end_.setZero(3 * n_);
+  k_end_.setZero(kStates * n_);
   e_end_.setZero(kEnergies);
   start_direction_.setZero(p_, 3);
 }
@@ -110,18 +111,25 @@ void Simulator::truncate_events(std::size_t count) {
 void Simulator::rates(const Eigen::Ref<const Vector>& x, const Vector& u, bool evaluated, Answer& answer, Vector& k,
                       Vector& e) const {
   const int n = n_;
-  const auto q = x.head(n), dq = x.segment(n, n), i = x.segment(2 * n, n);
-  if (!evaluated) dynamics_->evaluate(q, dq, i, u, modes_, false, answer);
+  const auto q = x.head(n), dq = x.segment(n, n), i = x.segment(2 * n, n), T = x.segment(3 * n, n);
+  if (!evaluated) dynamics_->evaluate(q, dq, i, T, u, modes_, false, answer);
   k.head(n) = dq;
   k.segment(n, n) = answer.ddq;
   k.segment(2 * n, n) = answer.di;
-  // consumed |P|, net P (P = v i, or tau dq in torque mode), copper loss R i^2, viscous loss
+  // consumed |P|, net P (P = v i, or tau dq in torque mode), copper loss R(T) i^2, viscous loss
   // dq^T Dc dq, friction loss, constraint work, impact loss (events only)
   const Drive& d = dynamics_->drive();
   const auto flow = d.voltage ? i : dq;
   e[0] = u.cwiseProduct(flow).cwiseAbs().sum();
   e[1] = u.dot(flow);
-  e[2] = d.voltage ? d.resistance.dot(i.cwiseProduct(i)) : 0.0;
+  e[2] = d.voltage ? answer.resistance.dot(i.cwiseProduct(i)) : 0.0;
+  // the windings heat by the same copper loss the books count, and cool to ambient through R_th
+  if (d.voltage && d.thermal)
+    k.segment(3 * n, n).array() =
+        (answer.resistance.array() * i.array().square() - (T.array() - d.ambient) / d.thermal_resistance.array()) /
+        d.heat_capacity.array();
+  else
+    k.segment(3 * n, n).setZero();
   e[3] = d.damping.dot(dq.cwiseProduct(dq));
   e[4] = answer.friction_power;
   e[5] = answer.constraint_power;
@@ -130,7 +138,8 @@ void Simulator::rates(const Eigen::Ref<const Vector>& x, const Vector& u, bool e
 
 void Simulator::evaluate(const Vector& u) {
   const int n = n_;
-  dynamics_->evaluate(y_.head(n), y_.segment(n, n), y_.segment(2 * n, n), u, modes_, true, report);
+  dynamics_->evaluate(y_.head(n), y_.segment(n, n), y_.segment(2 * n, n), y_.segment(3 * n, n), u, modes_, true,
+                     report);
   report_modes_ = modes_;
 }
 
@@ -140,6 +149,11 @@ int Simulator::refusal(double speed_limit, double residual_limit, double& measur
   if (speed > speed_limit) {  // finite, but a state no arm reaches: RK4 overflows a few steps on
     measured = speed;
     return 4;
+  }
+  const double hottest = y_.segment(3 * n_, n_).maxCoeff();
+  if (hottest > kWindingTemperatureLimit) {
+    measured = hottest;
+    return 6;
   }
   measured = 0.0;
   for (int j = 0; j < p_; ++j)
@@ -203,7 +217,7 @@ void Simulator::start(const Vector& u) {
 
 void Simulator::rk4(const Vector& y0, double h, const Vector& u, Vector& y1) {
   // stage 1 (k_[0], e_[0]) is the caller's
-  const int m = 3 * n_;
+  const int m = kStates * n_;
   const double c[3] = {0.5 * h, 0.5 * h, h};
   const double w[4] = {h / 6.0, 2.0 * h / 6.0, 2.0 * h / 6.0, h / 6.0};
   const auto start = y0.head(m);
@@ -235,14 +249,15 @@ void Simulator::event_functions(const Answer& answer, Vector& g) const {
 }
 
 void Simulator::advance(Vector& y, double h, const Vector& u, bool first, double offset) {
-  const int n = n_, m = 3 * n_;
+  const int n = n_, m = kStates * n_;
   double done = 0.0;
   end_evaluated_ = false;
   for (int events = 0;; ++events) {
     const double span = h - done;
     y0_ = y;
     if (!first) {
-      dynamics_->evaluate(y0_.head(n), y0_.segment(n, n), y0_.segment(2 * n, n), u, modes_, false, stage_);
+      dynamics_->evaluate(y0_.head(n), y0_.segment(n, n), y0_.segment(2 * n, n), y0_.segment(3 * n, n), u, modes_,
+                          false, stage_);
       rates(y0_.head(m), u, true, stage_, k_[0], e_[0]);
     } else {
       rates(y0_.head(m), u, true, report, k_[0], e_[0]);
@@ -270,8 +285,9 @@ void Simulator::advance(Vector& y, double h, const Vector& u, bool first, double
     }
     // The event functions at the end (the 4th stage's state is not enough: an event it misses is a
     // reversal taken as slip in the other direction); where one crossed zero, locate it on the cubic
-    // Hermite interpolant of the step (q, dq, i).
-    dynamics_->evaluate(y1_.head(n), y1_.segment(n, n), y1_.segment(2 * n, n), u, modes_, false, located_);
+    // Hermite interpolant of the step (q, dq, i, T).
+    dynamics_->evaluate(y1_.head(n), y1_.segment(n, n), y1_.segment(2 * n, n), y1_.segment(3 * n, n), u, modes_,
+                        false, located_);
     event_functions(located_, g_end_);
     if ((g_end_.array() >= 0.0).all()) {
       y = y1_;
@@ -291,7 +307,8 @@ void Simulator::advance(Vector& y, double h, const Vector& u, bool first, double
         const double theta = c / span, theta2 = theta * theta, theta3 = theta2 * theta;
         x_ = (2.0 * theta3 - 3.0 * theta2 + 1.0) * y0_.head(m) + ((theta3 - 2.0 * theta2 + theta) * span) * k_first_ +
              (-2.0 * theta3 + 3.0 * theta2) * y1_.head(m) + ((theta3 - theta2) * span) * k_end_;
-        dynamics_->evaluate(x_.head(n), x_.segment(n, n), x_.segment(2 * n, n), u, modes_, false, located_);
+        dynamics_->evaluate(x_.head(n), x_.segment(n, n), x_.segment(2 * n, n), x_.segment(3 * n, n), u, modes_,
+                            false, located_);
         event_functions(located_, g_trial_);
         const double gc = g_trial_[j];
         if (gc < 0.0) {
@@ -323,7 +340,8 @@ void Simulator::advance(Vector& y, double h, const Vector& u, bool first, double
     done += when;
     const double at = offset + done;
     if (modes_.sticking[contact]) {
-      dynamics_->evaluate(y.head(n), y.segment(n, n), y.segment(2 * n, n), u, modes_, true, located_);
+      dynamics_->evaluate(y.head(n), y.segment(n, n), y.segment(2 * n, n), y.segment(3 * n, n), u, modes_, true,
+                          located_);
       const Vector3 force = located_.tangential_force.row(contact).transpose();
       modes_.sticking[contact] = false;
       modes_.slide.row(contact) = (-force / force.norm()).transpose();
@@ -334,10 +352,11 @@ void Simulator::advance(Vector& y, double h, const Vector& u, bool first, double
       Vector q = y.head(n), dq = y.segment(n, n);
       const double loss = dynamics_->hold_velocity(q, dq, modes_);  // the slip left at the crossing
       y.segment(n, n) = dq;
-      y[3 * n + 4] += loss;  // friction's: the tangential impulse
+      y[kStates * n + 4] += loss;  // friction's: the tangential impulse
       events_.push_back({steps_taken, at, contact, EventKind::stick, loss});
       // a stick the forces cannot hold slides on at once, the other way
-      dynamics_->evaluate(y.head(n), y.segment(n, n), y.segment(2 * n, n), u, modes_, true, located_);
+      dynamics_->evaluate(y.head(n), y.segment(n, n), y.segment(2 * n, n), y.segment(3 * n, n), u, modes_, true,
+                          located_);
       const double limit = dynamics_->contacts()[contact].friction * std::abs(located_.force[contact]);
       if (located_.friction[contact] - limit > 1e-12 * std::max(1.0, limit)) {
         const Vector3 force = located_.tangential_force.row(contact).transpose();
@@ -395,7 +414,7 @@ void Simulator::hold_sticking() {
   if (!any || !drifted) return;
   const int n = n_;
   Vector q = y_.head(n), dq = y_.segment(n, n);
-  y_[3 * n + 4] += dynamics_->hold_velocity(q, dq, modes_);
+  y_[kStates * n + 4] += dynamics_->hold_velocity(q, dq, modes_);
   y_.segment(n, n) = dq;
 }
 
@@ -417,7 +436,7 @@ void Simulator::touchdown() {
   const double loss = dynamics_->impact(q, dq, held);
   y_.head(n) = q;
   y_.segment(n, n) = dq;
-  y_[3 * n + 6] += loss;
+  y_[kStates * n + 6] += loss;
   dynamics_->terms(q, dq, terms);
   for (int j : landing) {
     modes_.held[j] = true;

@@ -523,9 +523,16 @@ class MotorStateEncoder:
         self._motor_state = _Messages(self._ser.store, "bracing_msgs/msg/MotorState")
 
     def encode(
-        self, stamp_ns: int, voltage: Vector, current: Vector, power: Vector, energies: tuple[float, float, float]
+        self,
+        stamp_ns: int,
+        voltage: Vector,
+        current: Vector,
+        power: Vector,
+        energies: tuple[float, float, float],
+        temperature: Vector,
     ) -> bytes:
-        """``energies``: (energy_consumed, energy_net, copper_loss) [J]."""
+        """``energies``: (energy_consumed, energy_net, copper_loss) [J]; ``temperature``: the windings' T
+        [degC], empty where the thermal model does not apply."""
         energy_consumed, energy_net, copper_loss = energies
         message = self._motor_state(
             header=self._ser.header(stamp_ns, ""),
@@ -536,6 +543,7 @@ class MotorStateEncoder:
             energy_consumed=float(energy_consumed),
             energy_net=float(energy_net),
             copper_loss=float(copper_loss),
+            temperature=_float64s(temperature),
         )
         return self._ser.serialize(message, "bracing_msgs/msg/MotorState")
 

@@ -80,9 +80,12 @@ class SimulatorNode(Node):
         self.wrench_pubs = [
             publisher(WrenchStamped, f"contact_wrench/{c.name}", STREAM_QOS) for c in self.config.shared.contacts
         ]
-        # The URDF loaded, latched: robot_state_publisher, RViz and the recorder get it whenever they join.
+        # The URDF loaded, as simulated (each locked joint a fixed joint at its locked position; the
+        # URDF itself when none is locked), latched: robot_state_publisher, RViz, Foxglove and the
+        # recorder get it whenever they join, and with joint_states (the moving joints) pose the
+        # links where the simulator has them.
         self.description_pub = publisher(String, "robot_description", DESCRIPTION_QOS)
-        self.description_pub.publish(String(data=self.config.shared.urdf.read_text(encoding="utf-8")))
+        self.description_pub.publish(String(data=self.plant.robot.description()))
         # Messages travel as CDR bytes built by ``wire`` (rclpy's message classes cost more than the DDS write).
         contacts = self.plant.contact_set.contacts
         self.joint_wire = wire.JointStateEncoder(self.joint_names)
@@ -172,8 +175,11 @@ class SimulatorNode(Node):
         self.joint_pub.publish(self.joint_wire.encode(t_ns, self.sim.position, self.sim.velocity, effort))
         self.clock_pub.publish(self.clock_wire.encode(t_ns))
 
-    def publish_step(self, t_ns: int, command: Vector, d: Derivative, current: Vector, energy: Energy) -> None:
-        """Reports of one step: forces at its start under the held command, energies up to its start."""
+    def publish_step(
+        self, t_ns: int, command: Vector, d: Derivative, current: Vector, temperature: Vector, energy: Energy
+    ) -> None:
+        """Reports of one step: forces at its start under the held command, energies and the windings'
+        temperatures up to its start."""
         terms = d.contacts
         active = d.active if d.active is not None else np.ones(terms.count, dtype=bool)
         reports = []
@@ -200,8 +206,10 @@ class SimulatorNode(Node):
             voltage, power = command, command * current
         else:  # direct drive: no circuit; mechanical power tau dq
             voltage, current, power = np.zeros(self.sim.n), np.zeros(self.sim.n), command * self.sim.velocity
+        if not self.sim.dynamics.thermal:
+            temperature = np.zeros(0)  # no thermal model: empty, not a made-up ambient
         energies = (energy.consumed, energy.net, energy.copper_loss)
-        self.motor_pub.publish(self.motor_wire.encode(t_ns, voltage, current, power, energies))
+        self.motor_pub.publish(self.motor_wire.encode(t_ns, voltage, current, power, energies, temperature))
 
     # -- one step -------------------------------------------------------------------
     def advance(self, command: Vector) -> bool:
@@ -215,7 +223,7 @@ class SimulatorNode(Node):
         published, ``refusal`` says why, and False is returned.
         """
         t_ns = self.sim.steps_taken * self.step_ns
-        current, energy = self.sim.current, self.sim.energy  # at the step's start
+        current, temperature, energy = self.sim.current, self.sim.temperature, self.sim.energy  # at the step's start
         checkpoint = self.sim.checkpoint()
         try:
             with np.errstate(over="ignore", invalid="ignore"):  # an overflow is reported as a refusal
@@ -236,7 +244,7 @@ class SimulatorNode(Node):
             )
         self.max_residual = max(self.max_residual, residual)
         self.publish_state(effort)
-        self.publish_step(t_ns, command, d, current, energy)
+        self.publish_step(t_ns, command, d, current, temperature, energy)
         self.flow.sent()
         for event in self.sim.events[self._events_logged :]:
             extra = f", {event.impact_loss:.4g} J lost in the impact" if event.kind == "touchdown" else ""
@@ -294,7 +302,7 @@ class SimulatorNode(Node):
             d = self.sim.evaluate(self.command)
         else:
             self.command = command  # type: ignore[assignment]  # not None here
-        self.publish_step(t_ns, self.command, d, self.sim.current, self.sim.energy)
+        self.publish_step(t_ns, self.command, d, self.sim.current, self.sim.temperature, self.sim.energy)
         for contact in sorted(self.braced_unreached):
             self.get_logger().warning(never_reached_warning(contact))
         self.flow.wait()  # every subscriber has every message before this process ends

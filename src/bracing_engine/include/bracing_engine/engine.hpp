@@ -77,21 +77,37 @@ struct Robot {
 };
 
 // Per joint, model order. Voltage mode: drive = K_m i, Mc = M + J_m, Dc = D + D_m, and
-// L di = v - R i - K_m dq. Torque mode: drive = tau, Mc = M, Dc = D, no circuit.
+// L di = v - R(T) i - K_m dq. Torque mode: drive = tau, Mc = M, Dc = D, no circuit.
+// Thermal (voltage mode): one winding temperature T per motor, C_th dT/dt = R(T) i^2 - (T - T_a) / R_th,
+// R(T) = R_20 (1 + alpha (T - 20 degC)); off, R = R_20 and T stays at T_a.
 struct Drive {
   bool voltage = true;
   Vector added_inertia;      // Mc - M (J_m, or zeros)
   Vector damping;            // Dc
   Vector torque_constant;    // K_m [N m / A]
-  Vector resistance;         // R [ohm]
+  Vector resistance;         // R_20 [ohm], at 20 degC
   Vector inductance;         // L [H]
   Vector reflected_damping;  // D_m (the effort the link sees is K_m i - D_m dq - J_m ddq)
+  bool thermal = false;
+  Vector thermal_resistance;    // R_th, winding to ambient [K/W]
+  Vector heat_capacity;         // C_th [J/K]
+  double ambient = 20.0;        // T_a [degC], also every winding's temperature at the start
+  double temperature_coefficient = 0.00393;  // alpha [1/K] (copper)
+
+  // R(T) [ohm] per motor (R_20 when the thermal model is off).
+  void resistance_at(const Eigen::Ref<const Vector>& temperature, Vector& out) const {
+    if (thermal)
+      out = (resistance.array() * (1.0 + temperature_coefficient * (temperature.array() - 20.0))).matrix();
+    else
+      out = resistance;
+  }
 };
 
 // The model's answer at one state. Forces are zero for contacts not held; the contact terms
 // are every contact's when the answer is full (rows in contact order).
 struct Answer {
   Vector ddq, di, force, effort;
+  Vector resistance;              // R(T) the circuit used [ohm]
   double friction_power = 0.0;    // sum mu f_n (dir . slip) [W]
   double constraint_power = 0.0;  // sum f_n (J_c dq) [W]
   RowMatrix positions;            // p x 3
@@ -122,11 +138,11 @@ class Dynamics {
   std::vector<std::string> joint_names() const;
   double baumgarte = 0.0;  // a [1/s]: J_c ddq = -gamma - 2 a J_c dq - a^2 C
 
-  // ddq, di, f_n at (q, dq, i) with input u held, the contacts in `held` holding forces. `full`:
+  // ddq, di, f_n at (q, dq, i, T) with input u held, the contacts in `held` holding forces. `full`:
   // also every contact's terms. Throws SingularError.
   void evaluate(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& dq,
-                const Eigen::Ref<const Vector>& current, const Eigen::Ref<const Vector>& u, const ContactModes& modes,
-                bool full, Answer& out) const;
+                const Eigen::Ref<const Vector>& current, const Eigen::Ref<const Vector>& temperature,
+                const Eigen::Ref<const Vector>& u, const ContactModes& modes, bool full, Answer& out) const;
   // Every contact's terms at (q, dq), no solve (force, ddq and di untouched).
   void terms(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& dq, Answer& out) const;
   // Newton steps in the metric of Mc onto C = 0 for the contacts `rows`; throws std::domain_error
@@ -163,6 +179,14 @@ enum class StepStatus { ok = 0, diverged = 1, joint_limit = 2 };
 
 // Energy integrals appended to the state, in this order (simulator.py ENERGY_KEYS).
 constexpr int kEnergies = 7;
+// The state y = [q, dq, i, T, energies]: kStates blocks of n (T, the winding temperatures [degC], is
+// integrated with the circuit it heats and before the integrals, so the event location's Hermite
+// interpolant carries it with the rest of the motion).
+constexpr int kStates = 4;
+// [degC] A winding hotter than this is refused, as a joint faster than divergence_speed is: copper melts
+// at 1085 degC and insulation fails near 200 degC, so no motor gets there (an absurd voltage does, and
+// R(T) / L would then make the circuit too stiff for RK4 at any later step).
+constexpr double kWindingTemperatureLimit = 1000.0;
 
 // Classic RK4 with the input held over a step (sub-steps of step / substeps), the energy
 // integrals integrated with the state, unilateral release (at a step's start) and touchdown (at
@@ -180,12 +204,13 @@ class Simulator {
   void evaluate(const Vector& u);
   // Whether the simulator node refuses the step just taken (`report` its answer at the step's
   // start, the state the new one): 0 no; 3 non-finite forces or slip; 4 a joint faster than
-  // speed_limit; 5 a held contact further than residual_limit off its surface. `measured`: the
-  // speed (4) or the largest held |C| (otherwise).
+  // speed_limit; 5 a held contact further than residual_limit off its surface; 6 a winding hotter
+  // than kWindingTemperatureLimit. `measured`: the speed (4), the temperature (6) or the largest
+  // held |C| (otherwise).
   int refusal(double speed_limit, double residual_limit, double& measured) const;
   void set_active(const Mask& active);
   void set_modes(const ContactModes& modes);
-  void set_state(const Vector& y);  // [q, dq, i, energies]
+  void set_state(const Vector& y);  // [q, dq, i, T, energies]
   void truncate_events(std::size_t count);
 
   const Dynamics& dynamics() const { return *dynamics_; }
@@ -217,7 +242,7 @@ class Simulator {
   void event_functions(const Answer& answer, Vector& g) const;
   void touchdown();
   void hold_sticking();
-  // The rates [dq, ddq, di] and the energy rates at stage state x (`evaluated`: `answer` is already
+  // The rates [dq, ddq, di, dT] and the energy rates at stage state x (`evaluated`: `answer` is already
   // the model there).
   void rates(const Eigen::Ref<const Vector>& x, const Vector& u, bool evaluated, Answer& answer, Vector& k,
              Vector& e) const;
@@ -227,7 +252,7 @@ class Simulator {
   double step_;
   int substeps_;
   Vector lower_, upper_;
-  Vector y_, y_next_;  // q, dq, i, energies (a step writes the next into y_next_ and swaps)
+  Vector y_, y_next_;  // q, dq, i, T, energies (a step writes the next into y_next_ and swaps)
   ContactModes modes_, report_modes_;
   Mask unilateral_, enforced_, coulomb_;
   bool any_unilateral_ = false, any_coulomb_ = false;

@@ -92,6 +92,7 @@ class Law {
 struct Recording {
   Vector time;                                   // (N+1)
   RowMatrix position, velocity, current;         // (N+1) x n
+  RowMatrix temperature;                         // (N+1) x n: the windings' T [degC]
   RowMatrix command;                             // (N+1) x n
   RowMatrix hand_desired, hand_actual;           // (N+1) x 3
   RowMatrix brace_desired, brace_actual;         // (N+1) x 3b
