@@ -29,9 +29,12 @@ import hashlib
 import json
 import math
 import re
+import signal
 import sys
+import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -329,7 +332,31 @@ def _distribution(vary: Vary) -> Any:
     return optuna.distributions.FloatDistribution(vary.low, vary.high)
 
 
+@contextmanager
+def _ctrl_c_after() -> Iterator[None]:
+    """Ctrl-C (SIGINT) inside waits until the block is done, then raises KeyboardInterrupt: a trial's
+    record (its status, then its values) is written whole. Measured: a Ctrl-C between the two left a
+    trial with a status and no values, and the outputs written on the way out failed on it."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: pending.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if pending:
+        raise KeyboardInterrupt
+
+
 def _record(study: optuna.Study, trial: optuna.Trial, problem: Problem, row: dict[str, Any]) -> str:
+    """Tell the study a trial's outcome, whole even under Ctrl-C (``_tell``)."""
+    with _ctrl_c_after():
+        return _tell(study, trial, problem, row)
+
+
+def _tell(study: optuna.Study, trial: optuna.Trial, problem: Problem, row: dict[str, Any]) -> str:
     """Tell the study a trial's outcome; its row (every metric) kept as a user attribute."""
     from optuna.trial import TrialState
 
@@ -470,7 +497,9 @@ def trial_rows(study: optuna.Study, problem: Problem) -> list[dict[str, Any]]:
 
 
 def feasible(study: optuna.Study) -> list[optuna.trial.FrozenTrial]:
-    return [t for t in study.get_trials(deepcopy=False) if t.user_attrs.get("status") == STATUS_OK]
+    """Trials whose run was ok, met the constraints and were told their values."""
+    trials = study.get_trials(deepcopy=False)
+    return [t for t in trials if t.user_attrs.get("status") == STATUS_OK and t.values is not None]
 
 
 def pareto_front(trials: Sequence[optuna.trial.FrozenTrial]) -> list[optuna.trial.FrozenTrial]:
