@@ -289,7 +289,8 @@ def placement_search(study: Study, rows: dict[str, dict[str, Any]], output: Path
     scenarios: f_nd in [0, 2 x the grid's largest], the target in the grid's range widened by
     SEARCH_WIDEN (the grid's own if the scenario refuses that), hand RMS no worse than the file's
     braced run (rounded up to 0.1 mm). The search starts at the grid's best feasible cell."""
-    if not _grid_cells(study, rows):
+    cells = _grid_cells(study, rows)
+    if not cells:
         raise ConfigError("no placement run came back with an energy and a hand error (hand errors start at t = 2 s)")
     contact, axis = study.contact, study.axis_index
     force = f"contacts.{contact}.desired_normal_force"
@@ -344,7 +345,7 @@ def placement_search(study: Study, rows: dict[str, dict[str, Any]], output: Path
         bound,
         why,
     )
-    feasible = [cell for cell in _grid_cells(study, rows) if float(cell[2][HAND_RMS]) <= bound]
+    feasible = [cell for cell in cells if float(cell[2][HAND_RMS]) <= bound]
     if feasible:
         cell_target, cell_force, _ = min(feasible, key=lambda cell: float(cell[2][ENERGY]))
         point = {force: cell_force, **({target: cell_target} if search.target else {})}

@@ -120,8 +120,8 @@ NB_MODULE(_engine, m) {
                           thermal_resistance, heat_capacity, ambient,    temperature_coefficient};
           },
           "voltage"_a, "added_inertia"_a, "damping"_a, "torque_constant"_a, "resistance"_a, "inductance"_a,
-          "reflected_damping"_a, "thermal"_a = false, "thermal_resistance"_a = Vector(), "heat_capacity"_a = Vector(),
-          "ambient"_a = 25.0, "temperature_coefficient"_a = 0.00393,
+          "reflected_damping"_a, "thermal"_a, "thermal_resistance"_a, "heat_capacity"_a, "ambient"_a,
+          "temperature_coefficient"_a,
           "resistance: R_20 at 20 degC; thermal: R(T) = R_20 (1 + alpha (T - 20)), C_th dT/dt = R(T) i^2 - (T - "
           "ambient) / R_th");
 

@@ -108,11 +108,16 @@ void Simulator::truncate_events(std::size_t count) {
   if (count < events_.size()) events_.resize(count);
 }
 
+void Simulator::evaluate_at(const Eigen::Ref<const Vector>& x, const Vector& u, bool full, Answer& out) const {
+  const int n = n_;
+  dynamics_->evaluate(x.head(n), x.segment(n, n), x.segment(2 * n, n), x.segment(3 * n, n), u, modes_, full, out);
+}
+
 void Simulator::rates(const Eigen::Ref<const Vector>& x, const Vector& u, bool evaluated, Answer& answer, Vector& k,
                       Vector& e) const {
   const int n = n_;
-  const auto q = x.head(n), dq = x.segment(n, n), i = x.segment(2 * n, n), T = x.segment(3 * n, n);
-  if (!evaluated) dynamics_->evaluate(q, dq, i, T, u, modes_, false, answer);
+  const auto dq = x.segment(n, n), i = x.segment(2 * n, n), T = x.segment(3 * n, n);
+  if (!evaluated) evaluate_at(x, u, false, answer);
   k.head(n) = dq;
   k.segment(n, n) = answer.ddq;
   k.segment(2 * n, n) = answer.di;
@@ -137,9 +142,7 @@ void Simulator::rates(const Eigen::Ref<const Vector>& x, const Vector& u, bool e
 }
 
 void Simulator::evaluate(const Vector& u) {
-  const int n = n_;
-  dynamics_->evaluate(y_.head(n), y_.segment(n, n), y_.segment(2 * n, n), y_.segment(3 * n, n), u, modes_, true,
-                     report);
+  evaluate_at(y_, u, true, report);
   report_modes_ = modes_;
 }
 
@@ -256,8 +259,7 @@ void Simulator::advance(Vector& y, double h, const Vector& u, bool first, double
     const double span = h - done;
     y0_ = y;
     if (!first) {
-      dynamics_->evaluate(y0_.head(n), y0_.segment(n, n), y0_.segment(2 * n, n), y0_.segment(3 * n, n), u, modes_,
-                          false, stage_);
+      evaluate_at(y0_, u, false, stage_);
       rates(y0_.head(m), u, true, stage_, k_[0], e_[0]);
     } else {
       rates(y0_.head(m), u, true, report, k_[0], e_[0]);
@@ -286,8 +288,7 @@ void Simulator::advance(Vector& y, double h, const Vector& u, bool first, double
     // The event functions at the end (the 4th stage's state is not enough: an event it misses is a
     // reversal taken as slip in the other direction); where one crossed zero, locate it on the cubic
     // Hermite interpolant of the step (q, dq, i, T).
-    dynamics_->evaluate(y1_.head(n), y1_.segment(n, n), y1_.segment(2 * n, n), y1_.segment(3 * n, n), u, modes_,
-                        false, located_);
+    evaluate_at(y1_, u, false, located_);
     event_functions(located_, g_end_);
     if ((g_end_.array() >= 0.0).all()) {
       y = y1_;
@@ -307,8 +308,7 @@ void Simulator::advance(Vector& y, double h, const Vector& u, bool first, double
         const double theta = c / span, theta2 = theta * theta, theta3 = theta2 * theta;
         x_ = (2.0 * theta3 - 3.0 * theta2 + 1.0) * y0_.head(m) + ((theta3 - 2.0 * theta2 + theta) * span) * k_first_ +
              (-2.0 * theta3 + 3.0 * theta2) * y1_.head(m) + ((theta3 - theta2) * span) * k_end_;
-        dynamics_->evaluate(x_.head(n), x_.segment(n, n), x_.segment(2 * n, n), x_.segment(3 * n, n), u, modes_,
-                            false, located_);
+        evaluate_at(x_, u, false, located_);
         event_functions(located_, g_trial_);
         const double gc = g_trial_[j];
         if (gc < 0.0) {
@@ -340,8 +340,7 @@ void Simulator::advance(Vector& y, double h, const Vector& u, bool first, double
     done += when;
     const double at = offset + done;
     if (modes_.sticking[contact]) {
-      dynamics_->evaluate(y.head(n), y.segment(n, n), y.segment(2 * n, n), y.segment(3 * n, n), u, modes_, true,
-                          located_);
+      evaluate_at(y, u, true, located_);
       const Vector3 force = located_.tangential_force.row(contact).transpose();
       modes_.sticking[contact] = false;
       modes_.slide.row(contact) = (-force / force.norm()).transpose();
@@ -355,8 +354,7 @@ void Simulator::advance(Vector& y, double h, const Vector& u, bool first, double
       y[kStates * n + 4] += loss;  // friction's: the tangential impulse
       events_.push_back({steps_taken, at, contact, EventKind::stick, loss});
       // a stick the forces cannot hold slides on at once, the other way
-      dynamics_->evaluate(y.head(n), y.segment(n, n), y.segment(2 * n, n), y.segment(3 * n, n), u, modes_, true,
-                          located_);
+      evaluate_at(y, u, true, located_);
       const double limit = dynamics_->contacts()[contact].friction * std::abs(located_.force[contact]);
       if (located_.friction[contact] - limit > 1e-12 * std::max(1.0, limit)) {
         const Vector3 force = located_.tangential_force.row(contact).transpose();

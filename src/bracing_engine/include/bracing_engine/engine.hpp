@@ -242,6 +242,9 @@ class Simulator {
   void event_functions(const Answer& answer, Vector& g) const;
   void touchdown();
   void hold_sticking();
+  // The model at state x = [q, dq, i, T, ...] under u with the current contact modes (`full`: every
+  // contact's terms too): the one place a state is cut into the model's arguments.
+  void evaluate_at(const Eigen::Ref<const Vector>& x, const Vector& u, bool full, Answer& out) const;
   // The rates [dq, ddq, di, dT] and the energy rates at stage state x (`evaluated`: `answer` is already
   // the model there).
   void rates(const Eigen::Ref<const Vector>& x, const Vector& u, bool evaluated, Answer& answer, Vector& k,
