@@ -4,6 +4,7 @@ bracing-pair, a resumed study after Ctrl-C, and a bad --vary refused before any 
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -15,6 +16,7 @@ import pytest
 import sqlalchemy
 from ros_helpers import PAPER_YAML, isolated_env, pair_argv, run
 
+from bracing_bringup import optimize as optimize_module
 from bracing_bringup.executors import LocalExecutor
 from bracing_bringup.optimize import BEST_YAML, TRIALS_PARQUET, build_problem, open_study, optimize
 
@@ -136,6 +138,31 @@ def test_ctrl_c_keeps_finished_trials_and_the_same_command_resumes(tmp_path: Pat
     after = {t.number: (t.params, t.values) for t in open_study(problem, tmp_path).trials if "status" in t.user_attrs}
     assert len(after) == total
     assert all(after[n] == before[n] for n in before)  # kept, not redone
+
+
+def test_a_ctrl_c_while_a_trial_is_told_keeps_that_trial_whole(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # The Ctrl-C that CI's timing found: it arrives while the second trial is being told, so
+    # _record defers it to the moment after that trial is complete. The way out must not tell the
+    # finished trial again (Optuna: "Cannot tell a COMPLETE trial"), and both trials stay whole.
+    told: list[int] = []
+
+    def tell_then_ctrl_c(study, trial, problem, row):  # type: ignore[no-untyped-def]
+        told.append(trial.number)
+        if len(told) == 2:
+            os.kill(os.getpid(), signal.SIGINT)  # lands inside _record's deferral
+        return real_tell(study, trial, problem, row)
+
+    real_tell = optimize_module._tell
+    monkeypatch.setattr(optimize_module, "_tell", tell_then_ctrl_c)
+    problem = build_problem(PAPER_YAML, [f"{FORCE}=0:40"], ["energy_consumed_j"], duration=0.1)
+    with LocalExecutor(1) as executor, pytest.raises(KeyboardInterrupt):
+        optimize(problem, tmp_path, executor, trials=10, progress=False, references=False)
+    trials = open_study(problem, tmp_path).trials
+    assert [t.number for t in trials if "status" in t.user_attrs] == told == [0, 1]
+    assert all(t.state.name == "COMPLETE" and t.values for t in trials[:2])
+    assert all(t.state.name == "FAIL" for t in trials[2:])  # asked with them, interrupted
+    table = pq.read_table(tmp_path / TRIALS_PARQUET).to_pylist()
+    assert [row["status"] for row in table][:2] == ["ok", "ok"]
 
 
 @pytest.mark.parametrize(

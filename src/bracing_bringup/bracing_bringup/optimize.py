@@ -464,8 +464,10 @@ def search(
     except KeyboardInterrupt:
         result.interrupted = True
         executor.cancel()
-        for trial in pending.values():
-            study.tell(trial, state=TrialState.FAIL)  # no "status": shown as interrupted, not counted
+        # Still running only: a Ctrl-C deferred by _record lands after its trial was told.
+        running = {t.number for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,))}
+        for number in pending.keys() & running:
+            study.tell(number, state=TrialState.FAIL)  # no "status": shown as interrupted, not counted
         raise
     finally:
         bar.close()
