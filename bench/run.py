@@ -243,7 +243,7 @@ def pair_without_recorder(duration: float = 10.0) -> float:
     the stepping real-time factor, measured as in ``pair_run``. Side by side with the pair, it
     gives the recorder's share of a step."""
     from bracing_bringup.domains import hold_domain
-    from bracing_bringup.timeline import node_events
+    from bracing_ros.status import Status, StatusWatcher
 
     out = scratch("bench_nodes_")
     overrides = out / "overrides.yaml"
@@ -258,6 +258,13 @@ def pair_without_recorder(duration: float = 10.0) -> float:
     args = ["--ros-args", "--params-file", str(PAPER), "--params-file", str(overrides)]
     with hold_domain(None) as domain:
         env = dict(os.environ, ROS_DOMAIN_ID=str(domain.domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+        simulator: dict[str, float] = {}  # its run_status events: wall time of the first of each
+
+        def on_status(status: Status) -> None:
+            if status.node == "bracing_simulator":
+                simulator.setdefault(status.event, status.wall_time_s)
+
+        watcher = StatusWatcher(domain.domain_id, on_status, env).start()
         with (out / "controller.log").open("wb") as clog, (out / "simulator.log").open("wb") as slog:
             controller_proc = subprocess.Popen(
                 [sys.executable, "-m", "bracing_controller.node", *args], stdout=clog, stderr=subprocess.STDOUT, env=env
@@ -277,10 +284,10 @@ def pair_without_recorder(duration: float = 10.0) -> float:
                 except subprocess.TimeoutExpired:  # never leave it running in a domain another run may take
                     controller_proc.kill()
                     controller_proc.wait()
+                watcher.stop()
     if code != 0:
         raise RuntimeError(f"the simulator failed: {(out / 'simulator.log').read_text()[-2000:]}")
-    events = dict((what, stamp) for stamp, what in node_events(out / "simulator.log", "simulator"))
-    return duration / (events["simulator finished"] - events["simulator stepping"])
+    return duration / (simulator["finished"] - simulator["stepping"])
 
 
 def make_run(duration: float | None = None) -> dict[str, Any]:
@@ -306,8 +313,8 @@ def optimize_trials_per_min(trials: int = 40, duration: float = 10.0) -> float:
     """bracing-optimize's throughput: trials per minute of the issue's problem on the paper arm (energy
     subject to hand RMS <= 30 mm over f_nd and the brace target's y), 2 local workers, warmed up first
     (the search alone: no reference runs, a fresh study)."""
-    from bracing_bringup.executors import make_executor
-    from bracing_bringup.optimize import build_problem, open_study, search
+    from bracing_experiments.executors import make_executor
+    from bracing_experiments.optimize import build_problem, open_study, search
 
     problem = build_problem(
         PAPER,

@@ -27,7 +27,7 @@ EXECUTORS = {"local_1": (1, None), "local_2": (2, None), "dask_local_2": (2, "lo
 
 
 def _specs(runs: int, duration: float, tag: int) -> list[Any]:
-    from bracing_bringup.sweep import build_specs
+    from bracing_experiments.sweep import build_specs
 
     # Distinct forces around the paper's 10 N: distinct runs of the same cost; ``tag`` makes ids unique.
     forces = ",".join(f"{10.0 + 0.01 * k + 1e-6 * tag:.6f}" for k in range(runs))
@@ -38,8 +38,8 @@ def sweep_throughput(runs: int = 16, duration: float = 10.0, repeats: int = 2) -
     # 16 runs a sweep: a sweep's fixed costs (validating every run's configuration, the results
     # table) are what a 2-worker sweep of 8 runs waits on (efficiency 0.82 on a quiet machine,
     # 2026-11-23); at 16 they weigh as in a real sweep (0.94 the same hour).
-    from bracing_bringup.executors import make_executor
-    from bracing_bringup.sweep import run_sweep
+    from bracing_experiments.executors import make_executor
+    from bracing_experiments.sweep import run_sweep
 
     load_before = os.getloadavg()[0]  # other work on the machine takes cores from the workers
     samples: dict[str, list[float]] = {name: [] for name in EXECUTORS}

@@ -15,7 +15,8 @@ from typing import Any
 import pytest
 import ros_helpers
 
-from bracing_core import rollout
+from bracing_core import overrides, rollout
+from bracing_core.overrides import NodeOverrides
 from bracing_core.rollout import Run, Scenario, run_closed_loop
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
@@ -28,7 +29,9 @@ Overrides = Mapping[str, Any] | None
 
 def node_params(node: str, shared: Overrides = None, own: Overrides = None) -> dict[str, Any]:
     """A fresh copy of the paper scenario's flat parameters for ``node``, with overrides."""
-    return rollout.node_params(PAPER_YAML, node, shared, own)
+    own_of = {"bracing_simulator": "simulator", "bracing_controller": "controller"}[node]
+    layer = NodeOverrides(dict(shared or {}), **{own_of: dict(own or {})})
+    return overrides.node_params(PAPER_YAML, layer)[node]
 
 
 def build_scenario(

@@ -19,10 +19,10 @@ from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
-from bracing_bringup.columns import MAX_PROBES, Layout, decode
+from bracing_analysis.columns import MAX_PROBES, Layout, decode
+from bracing_analysis.summary import BagReadError, compute_summary, read_series
 from bracing_bringup.recorder import BAG_VERSION
-from bracing_bringup.summary import BagReadError, compute_summary, read_series
-from bracing_ros.typestore import bracing_typestore
+from bracing_core.typestore import bracing_typestore
 
 OUR_TYPES = (
     "sensor_msgs/msg/JointState",

@@ -15,7 +15,8 @@ from bracing_core.chain_urdf import chain_urdf
 from bracing_core.config import SimulatorConfig, build_simulator
 from bracing_core.controller_config import ControllerConfig
 from bracing_core.law import DecoupledController
-from bracing_core.params import ConfigError, load_params_file
+from bracing_core.params import ConfigError
+from bracing_core.rcl_yaml import load_params_file
 
 SIM_CASES: list[tuple[str, dict[str, Any], str]] = [
     ("missing urdf", {"robot.urdf": "no_such_robot.urdf"}, "robot.urdf: file 'no_such_robot.urdf' not found"),

@@ -19,11 +19,11 @@ import yaml
 from ros_helpers import PAPER_YAML, pair_argv, run
 from rosbags.highlevel import AnyReader
 
-from bracing_bringup.animation import ArmAnimation
+from bracing_analysis.animation import ArmAnimation
+from bracing_analysis.summary import read_series
+from bracing_analysis.surfaces import Shape
 from bracing_bringup.scene import SceneBuilder
-from bracing_bringup.summary import read_series
-from bracing_bringup.surfaces import Shape
-from bracing_ros.typestore import bracing_typestore
+from bracing_core.typestore import bracing_typestore
 
 PAPER_URDF = PAPER_YAML.parent / "paper_4link.urdf"
 Q0 = np.array([-0.2, -0.6, 0.8, -0.4]) * np.pi

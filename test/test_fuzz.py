@@ -262,4 +262,3 @@ def test_controller_survives_fuzzed_joint_states(controller: ControllerHarness, 
     assert peer.spin_until(lambda: controller.answered(stamp_ns), 10.0), "no answer to a valid state"
     assert controller.process.poll() is None, "the controller died"
     assert not peer.non_finite, peer.non_finite[:3]
-

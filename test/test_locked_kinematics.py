@@ -1,7 +1,7 @@
 """One kinematics: /tf, markers and the animation pose the robot the simulator simulated, locked joints too.
 
 The simulator publishes on ``robot_description`` the URDF as simulated (``simulated_urdf``: a
-locked joint is a fixed joint at its locked position), and ``scene.LinkPoses`` is the core's
+locked joint is a fixed joint at its locked position), and ``bracing_core.kinematics.LinkPoses`` is the core's
 ``RobotModel`` of that text; a locked joint is in no JointState, yet every link is where the
 simulator's ``contacts`` put its frames.
 """
@@ -18,9 +18,9 @@ import pytest
 from ros_helpers import REPO_ROOT, pair_argv, run
 from rosbags.highlevel import AnyReader
 
-from bracing_bringup.animation import ArmAnimation, nearest
-from bracing_bringup.scene import LinkPoses
-from bracing_bringup.summary import read_series
+from bracing_analysis.animation import ArmAnimation, nearest
+from bracing_analysis.summary import read_series
+from bracing_core.kinematics import LinkPoses
 from bracing_core.model import ModelError, RobotModel, simulated_urdf
 
 MOBILE_YAML = REPO_ROOT / "config" / "mobile_8joint.yaml"

@@ -26,7 +26,7 @@ import pytest
 from conftest import REPO_ROOT
 from ros_helpers import hold_test_domain, isolated_env, pair_argv, start
 
-from bracing_bringup.summary import read_series
+from bracing_analysis.summary import read_series
 
 PEER = str(REPO_ROOT / "test" / "netns_peer.py")
 PEER_SECONDS = 60.0  # its upper bound; it is stopped as soon as the run ends
@@ -63,7 +63,8 @@ def _address(hex_address: str) -> str:
 
 
 def run_processes(output: Path) -> list[int]:
-    """The pids of a run's processes (the nodes and the recorder: their command lines name its output)."""
+    """The pids of a run's processes (bracing-pair, whose participant follows run_status, the nodes
+    and the recorder: their command lines name its output)."""
     pids = []
     for proc in Path("/proc").iterdir():
         if not proc.name.isdigit():
@@ -72,7 +73,7 @@ def run_processes(output: Path) -> list[int]:
             cmdline = (proc / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
         except OSError:
             continue
-        if str(output) in cmdline and "bracing_bringup.pair" not in cmdline:
+        if str(output) in cmdline:
             pids.append(int(proc.name))
     return pids
 
@@ -99,7 +100,7 @@ def test_every_socket_of_a_run_is_on_loopback(tmp_path: Path) -> None:
         if proc.poll() is None:
             proc.kill()
     assert proc.returncode == 0, out
-    assert len(pids) == 3, pids  # the simulator, the controller, the recorder
+    assert len(pids) == 4, pids  # bracing-pair, the simulator, the controller, the recorder
     assert all(sockets.values()), sockets  # each has its DDS sockets
     assert [s for found in sockets.values() for s in found if not s.startswith("127.0.0.1:")] == []
 

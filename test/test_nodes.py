@@ -14,7 +14,7 @@ from ros_helpers import REPO_ROOT, drive, isolated_env, node_argv, params_file, 
 
 from bracing_core.controller_config import ControllerConfig
 from bracing_core.law import DecoupledController
-from bracing_core.params import load_params_file
+from bracing_core.rcl_yaml import load_params_file
 
 
 def _run_node(module: str, node: str, overrides: dict[str, object], driver_args: list[str], tmp_path: Path) -> dict:

@@ -16,12 +16,12 @@ import numpy as np
 import pytest
 from test_recorder_report import N_STEPS, PAPER_URDF, write_bag_directly
 
-from bracing_bringup.compare import comparison_figures, markdown_table
+from bracing_analysis.compare import comparison_figures, markdown_table
+from bracing_analysis.figures import plot_figure, title
+from bracing_analysis.ratios import RATIO_FLOOR, ratio_text
+from bracing_analysis.report import main as report_main
+from bracing_analysis.summary import BagSeries, ContactSeries, compute_summary, read_series
 from bracing_bringup.paper_run import table
-from bracing_bringup.ratios import RATIO_FLOOR, ratio_text
-from bracing_bringup.report import main as report_main
-from bracing_bringup.report import plot_figure, title
-from bracing_bringup.summary import BagSeries, ContactSeries, compute_summary, read_series
 
 DT = 0.01
 

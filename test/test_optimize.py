@@ -16,9 +16,9 @@ import pytest
 import sqlalchemy
 from ros_helpers import PAPER_YAML, isolated_env, pair_argv, run
 
-from bracing_bringup import optimize as optimize_module
-from bracing_bringup.executors import LocalExecutor
-from bracing_bringup.optimize import BEST_YAML, TRIALS_PARQUET, build_problem, open_study, optimize
+from bracing_experiments import optimize as optimize_module
+from bracing_experiments.executors import LocalExecutor
+from bracing_experiments.optimize import BEST_YAML, TRIALS_PARQUET, build_problem, open_study, optimize
 
 FORCE = "contacts.elbow.desired_normal_force"
 TARGET_Y = "contacts.elbow.target[1]"
@@ -28,7 +28,7 @@ def _cli(output: Path, *extra: str) -> list[str]:
     return [
         sys.executable,
         "-m",
-        "bracing_bringup.optimize",
+        "bracing_experiments.optimize",
         "--config",
         str(PAPER_YAML),
         "--output",

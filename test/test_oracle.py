@@ -49,7 +49,7 @@ from reference_model import (
 from bracing_core.config import SharedConfig
 from bracing_core.contacts import Contact
 from bracing_core.dynamics import ConstrainedDynamics, Derivative
-from bracing_core.params import load_params_file
+from bracing_core.rcl_yaml import load_params_file
 from bracing_core.rollout import Scenario, build_scenario
 
 CONFIG = Path(__file__).resolve().parents[1] / "config"

@@ -14,9 +14,9 @@ from conftest import build_scenario, run_closed_loop
 from ros_helpers import isolated_env, pair_argv, run, start
 from rosbags.highlevel import AnyReader
 
-from bracing_bringup.animation import DEFAULT_INTERVAL_S
-from bracing_bringup.drawing import report_series
-from bracing_bringup.summary import compute_summary, flat_summary, read_series
+from bracing_analysis.animation import DEFAULT_INTERVAL_S
+from bracing_analysis.drawing import report_series
+from bracing_analysis.summary import compute_summary, flat_summary, read_series
 
 STEP_TOPICS = [
     "joint_states",

@@ -21,9 +21,9 @@ from ros_helpers import hold_test_domain, isolated_env, pair_argv, start
 from rosbags.highlevel import AnyReader
 from test_recorder_report import N_STEPS, write_bag_directly
 
-from bracing_bringup.drawing import file_names
-from bracing_bringup.report import plot_figure
-from bracing_bringup.summary import ParameterChange, read_series
+from bracing_analysis.drawing import file_names
+from bracing_analysis.figures import plot_figure
+from bracing_analysis.summary import ParameterChange, read_series
 
 DURATION = 4.0
 SET_AFTER_S = 0.5  # [s] of sim time

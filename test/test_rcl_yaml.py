@@ -21,13 +21,14 @@ import yaml
 from conftest import PAPER_YAML, REPO_ROOT
 from ros_helpers import isolated_env, pair_argv, run
 
-from bracing_bringup.overrides import parse_single, parse_sweep
 from bracing_bringup.pair import PARAMS_FILE
-from bracing_bringup.study import build_study
-from bracing_bringup.sweep import build_specs
 from bracing_core import rcl_yaml, schema
-from bracing_core.params import ConfigError, load_params_file
+from bracing_core.overrides import parse_single, parse_sweep
+from bracing_core.params import ConfigError
+from bracing_core.rcl_yaml import load_params_file
 from bracing_core.rollout import build_scenario
+from bracing_experiments.study import build_study
+from bracing_experiments.sweep import build_specs
 
 # Read by the real rcl in a node process: {"name": [type, value]} or {"error": text}.
 _RCL_READER = """

@@ -34,9 +34,9 @@ except ImportError:  # not built into the workspace yet: use the source tree
 
 from rosbags.highlevel import AnyReader  # noqa: E402
 
-from bracing_bringup.report import main as report_main  # noqa: E402
-from bracing_bringup.report import write_report  # noqa: E402
-from bracing_bringup.summary import (  # noqa: E402
+from bracing_analysis.report import main as report_main  # noqa: E402
+from bracing_analysis.report import write_report  # noqa: E402
+from bracing_analysis.summary import (  # noqa: E402
     SUMMARY_EXTRA_KEYS,
     SUMMARY_KEYS,
     BagSeries,

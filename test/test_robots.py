@@ -151,8 +151,8 @@ def test_the_start_check_names_every_contact_off() -> None:
 
 def test_an_in_process_passive_run_summarises_its_obstacle() -> None:
     """--no-bracing in-process (a sweep's row): the elbow is an obstacle the arm rests on."""
-    from bracing_bringup.experiment import summarize
     from bracing_core.rollout import run_recorded
+    from bracing_experiments.experiment import summarize
 
     sc = build_scenario({"bracing": False})
     summary = summarize(run_recorded(sc, 0.2), 1.0)

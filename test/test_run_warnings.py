@@ -20,10 +20,10 @@ import pyarrow.parquet as pq
 import pytest
 from ros_helpers import PAPER_YAML, pair_argv, run
 
-from bracing_bringup.experiment import execute_run
-from bracing_bringup.sweep import build_specs, row_warnings
 from bracing_core import checks
 from bracing_core.rollout import build_scenario
+from bracing_experiments.experiment import execute_run
+from bracing_experiments.sweep import build_specs, row_warnings
 
 CONFIG_DIR = PAPER_YAML.parent
 SCENARIOS = ("paper_4link", "hyper_7link", "wall_7link", "mobile_8joint", "writing_desk")
@@ -156,7 +156,7 @@ def _cli(module: str, *args: str) -> subprocess.CompletedProcess[str]:
 def test_a_sweep_with_a_failed_run_exits_1_with_its_table(tmp_path: Path) -> None:
     # An elbow 5 cm below its plane is an infeasible start: that run fails, the other does not.
     done = _cli(
-        "bracing_bringup.sweep", "--config", str(PAPER_YAML), "--output", str(tmp_path), "--duration", "0.1",
+        "bracing_experiments.sweep", "--config", str(PAPER_YAML), "--output", str(tmp_path), "--duration", "0.1",
         "--set", "contacts.elbow.offset=0.0,0.05",
     )  # fmt: skip
     assert done.returncode == 1, done.stdout + done.stderr
@@ -168,7 +168,7 @@ def test_a_sweep_with_a_failed_run_exits_1_with_its_table(tmp_path: Path) -> Non
 def test_the_study_checks_the_task_rank_before_any_run_and_exits_1_when_a_run_fails(tmp_path: Path) -> None:
     # The planar arm cannot move its elbow along x: every braced run would fail on it. Refused first.
     ranked = _cli(
-        "bracing_bringup.study", "paper", "--output", str(tmp_path / "rank"), "--duration", "0.1",
+        "bracing_experiments.study", "paper", "--output", str(tmp_path / "rank"), "--duration", "0.1",
         "--positions", "1", "--set", "contacts.elbow.brace_axes=[x]",
     )  # fmt: skip
     assert ranked.returncode == 2, ranked.stdout + ranked.stderr
@@ -176,7 +176,7 @@ def test_the_study_checks_the_task_rank_before_any_run_and_exits_1_when_a_run_fa
     assert not (tmp_path / "rank" / "runs").exists()
     # Every run diverges at once (a joint faster than 0.5 rad/s): the report is written, the exit is 1.
     failed = _cli(
-        "bracing_bringup.study", "paper", "--output", str(tmp_path / "failed"), "--duration", "0.1",
+        "bracing_experiments.study", "paper", "--output", str(tmp_path / "failed"), "--duration", "0.1",
         "--positions", "1", "--set", "divergence_speed=0.5",
     )  # fmt: skip
     assert failed.returncode == 1, failed.stdout + failed.stderr

@@ -10,12 +10,14 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
-from bracing_bringup.executors import LocalExecutor
-from bracing_bringup.experiment import FORCE_MAX_ERROR_KEY, STATUS_OK, summarize
-from bracing_bringup.optimize import open_study
-from bracing_bringup.pair import RunOptions, shared_overrides
+from bracing_bringup.pair import RunOptions, command_line
 from bracing_bringup.paper_run import RUNS
-from bracing_bringup.study import (
+from bracing_core.params import ConfigError
+from bracing_core.rollout import build_scenario, run_recorded
+from bracing_experiments.executors import LocalExecutor
+from bracing_experiments.experiment import FORCE_MAX_ERROR_KEY, STATUS_OK, summarize
+from bracing_experiments.optimize import open_study
+from bracing_experiments.study import (
     PAPER_HAND_RMS_BOUND,
     build_study,
     placement_search,
@@ -23,9 +25,7 @@ from bracing_bringup.study import (
     run_placement_search,
     write_report,
 )
-from bracing_bringup.sweep import RESULTS_PARQUET, ResultsStore, run_sweep
-from bracing_core.params import ConfigError
-from bracing_core.rollout import build_scenario, run_recorded
+from bracing_experiments.sweep import RESULTS_PARQUET, ResultsStore, run_sweep
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PAPER_YAML = REPO_ROOT / "config" / "paper_4link.yaml"
@@ -96,7 +96,7 @@ def test_the_study_reproduces_the_papers_comparisons(tmp_path: Path) -> None:
     passive = {(s.varied["input_mode"], s.varied["gravity_compensation"]): rows[s.run_id] for s in study.passive}
     assert set(passive) == {(m, c) for m in ("voltage", "torque") for c in (False, True)}
     make_run = next(run for run in RUNS if run.name == "passive")
-    shared = shared_overrides(RunOptions(PAPER_YAML, tmp_path / "unused", mode="voltage", bracing=make_run.bracing))
+    shared = command_line(RunOptions(PAPER_YAML, tmp_path / "unused", mode="voltage", bracing=make_run.bracing))
     assert shared == {"input_mode": "voltage", "bracing": False}
     direct = summarize(run_recorded(build_scenario(PAPER_YAML, shared=shared), 2.5), wall_time_s=0.0)
     row = passive[("voltage", False)]

@@ -15,9 +15,8 @@ import numpy as np
 import pytest
 from test_columns import JOINTS, BagBuilder, same_series
 
-from bracing_bringup.drawing import BRACE_MOVES_M, brace_axes, file_names, report_series
-from bracing_bringup.paper_run import table
-from bracing_bringup.summary import (
+from bracing_analysis.drawing import BRACE_MOVES_M, brace_axes, file_names, report_series
+from bracing_analysis.summary import (
     CONTACT_KEYS,
     SUMMARY_EXTRA_KEYS,
     SUMMARY_KEYS,
@@ -27,6 +26,7 @@ from bracing_bringup.summary import (
     format_summary,
     read_series,
 )
+from bracing_bringup.paper_run import table
 
 DT = 0.01
 OBSTACLE = "link3_tip@floor"  # a collision frame on the floor: reported by the simulator, not braced

@@ -17,19 +17,22 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from bracing_bringup.executors import DaskExecutor, LocalExecutor
-from bracing_bringup.experiment import STATUS_FAILED, STATUS_OK, RunOutcome, execute_run
-from bracing_bringup.overrides import (
+from bracing_bringup.pair import command_line, parse_args
+from bracing_core.overrides import (
     CONTROLLER,
     SIMULATOR,
     destination,
+    node_params,
     parse_assignment,
     parse_single,
     route,
     split_values,
 )
-from bracing_bringup.pair import effective_params, parse_args
-from bracing_bringup.sweep import (
+from bracing_core.params import ConfigError
+from bracing_core.rollout import build_scenario, run_closed_loop
+from bracing_experiments.executors import DaskExecutor, LocalExecutor
+from bracing_experiments.experiment import STATUS_FAILED, STATUS_OK, RunOutcome, execute_run
+from bracing_experiments.sweep import (
     RESULTS_CSV,
     RESULTS_PARQUET,
     ROW_FILE,
@@ -38,8 +41,6 @@ from bracing_bringup.sweep import (
     combinations,
     run_sweep,
 )
-from bracing_core.params import ConfigError
-from bracing_core.rollout import build_scenario, run_closed_loop
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PAPER_YAML = REPO_ROOT / "config" / "paper_4link.yaml"
@@ -98,11 +99,12 @@ def test_pair_takes_the_same_overrides() -> None:
     options = parse_args(
         ["--config", str(PAPER_YAML), "--set", "hand.kp=[150,150]", "--set", "contacts.elbow.desired_normal_force=5"]
     )
-    controller = effective_params(options, CONTROLLER)
+    given = node_params(options.config, command_line(options))
+    controller = given[CONTROLLER]
     assert controller["hand.kp"] == [150, 150]
     assert controller["contacts.elbow.desired_normal_force"] == 5
-    assert effective_params(options, SIMULATOR)["contacts.elbow.desired_normal_force"] == 5
-    assert "hand.kp" not in effective_params(options, SIMULATOR)
+    assert given[SIMULATOR]["contacts.elbow.desired_normal_force"] == 5
+    assert "hand.kp" not in given[SIMULATOR]
     with pytest.raises(ConfigError, match="one value expected"):
         parse_single(["hand.kp=[1,1],[2,2]"])
 
@@ -180,7 +182,7 @@ def _sweep_cli(output: Path, *extra: str) -> list[str]:
     return [
         sys.executable,
         "-m",
-        "bracing_bringup.sweep",
+        "bracing_experiments.sweep",
         "--config",
         str(PAPER_YAML),
         "--output",

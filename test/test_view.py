@@ -15,8 +15,8 @@ import pytest
 
 rr = pytest.importorskip("rerun")
 
+from bracing_analysis.summary import read_series  # noqa: E402
 from bracing_bringup import view  # noqa: E402
-from bracing_bringup.summary import read_series  # noqa: E402
 
 REQUIRE_BROWSER = "BRACING_REQUIRE_BROWSER"
 INSTALL_HINT = "install Debian's chromium (apt-get install chromium) and the pinned playwright (make setup)"
@@ -44,6 +44,80 @@ def test_logged_entities_and_counts(runs: dict[str, Path], tmp_path: Path) -> No
     assert counts["world/hand/desired_path"] == counts["world/hand/actual_path"] == 1
 
 
+def _contacts_message(store, contacts):  # type: ignore[no-untyped-def]
+    """A Contacts message (the project's typestore) of (name, point on the surface, unit normal)."""
+    t = store.types
+    header = t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](sec=0, nanosec=0), frame_id="world")
+    states = [
+        t["bracing_msgs/msg/ContactState"](
+            name=name,
+            frame=name,
+            active=True,
+            position=t["geometry_msgs/msg/Point"](x=p[0], y=p[1], z=p[2]),
+            normal=t["geometry_msgs/msg/Vector3"](x=n[0], y=n[1], z=n[2]),
+            normal_force=5.0,
+            friction_force=0.0,
+            slip_velocity=t["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0),
+            residual=0.0,
+        )
+        for name, p, n in contacts
+    ]
+    return t["bracing_msgs/msg/Contacts"](header=header, contacts=states)
+
+
+def test_surfaces_are_drawn_as_their_scenario_says(tmp_path: Path) -> None:
+    """A sphere whole at its centre, a cylinder along its axis nearest the contact, a plane as its
+    tangent patch turned onto the normal; a collision frame's contact (frame@owner) on its owner's."""
+    from rerun.chunk import RrdReader
+
+    from bracing_analysis.surfaces import Shape
+    from bracing_core.typestore import bracing_typestore
+
+    shapes = {
+        "ball": Shape("sphere", center=(0.1, 0.0, 0.5), radius=0.4),
+        "post": Shape("cylinder", point=(1.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), radius=0.2),
+        "wall": Shape("plane", normal=(0.0, 1.0, 0.0), offset=0.3),
+    }
+    s = 1 / np.sqrt(2)
+    contacts = [
+        ("ball", (0.1, 0.0, 0.9), (0.0, 0.0, 1.0)),
+        ("post", (1.2, 0.0, 0.7), (1.0, 0.0, 0.0)),
+        ("tip@wall", (0.5, 0.3, 0.2), (0.0, 1.0, 0.0)),
+        ("unknown", (0.0, 0.0, 0.0), (s, s, 0.0)),  # no geometry known: its tangent patch
+    ]
+    rrd = tmp_path / "surfaces.rrd"
+    recording = view.new_recording()
+    recording.save(str(rrd))
+    feed = view.Feed(recording, 0.0, shapes)
+    feed.message("contacts", _contacts_message(bracing_typestore(), contacts))
+    recording.flush()
+    recording.disconnect()
+    rows = {
+        chunk.entity_path.replace("\\", ""): chunk.to_record_batch().to_pylist()[0]  # rerun escapes "@"
+        for chunk in RrdReader(rrd).store().stream()
+        if chunk.entity_path.startswith("/world/surfaces/")
+    }
+    assert set(rows) == {f"/world/surfaces/{name}" for name, _, _ in contacts}
+    ball = rows["/world/surfaces/ball"]
+    assert ball["Ellipsoids3D:centers"][0] == pytest.approx([0.1, 0.0, 0.5])
+    assert ball["Ellipsoids3D:half_sizes"][0] == pytest.approx([0.4] * 3)
+    post = rows["/world/surfaces/post"]
+    assert post["Cylinders3D:centers"][0] == pytest.approx([1.0, 0.0, 0.7])  # on the axis, level with the contact
+    assert post["Cylinders3D:radii"] == pytest.approx([0.2])
+    assert _z_axis(post["Cylinders3D:quaternions"][0]) == pytest.approx([0.0, 0.0, 1.0], abs=1e-6)
+    for name, point, normal in contacts[2:]:
+        patch = rows[f"/world/surfaces/{name}"]
+        assert patch["Boxes3D:centers"][0] == pytest.approx(np.subtract(point, 0.001 * np.array(normal)), abs=1e-6)
+        assert _z_axis(patch["Boxes3D:quaternions"][0]) == pytest.approx(normal, abs=1e-6)  # thin along the normal
+        assert min(patch["Boxes3D:half_sizes"][0]) == pytest.approx(0.001) == patch["Boxes3D:half_sizes"][0][2]
+
+
+def _z_axis(xyzw: list[float]) -> list[float]:
+    """Where a quaternion (x, y, z, w) turns the z axis."""
+    x, y, z, w = xyzw
+    return [2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)]
+
+
 def test_recording_reads_back(runs: dict[str, Path], tmp_path: Path) -> None:
     """The .rrd holds the entities on the sim_time timeline (read back through rerun's own reader)."""
     from rerun.chunk import RrdReader
@@ -64,7 +138,7 @@ def test_period_thins_states(runs: dict[str, Path], tmp_path: Path) -> None:
 
 
 def read_links(urdf: str) -> list[str]:
-    from bracing_bringup.scene import LinkPoses
+    from bracing_core.kinematics import LinkPoses
 
     return LinkPoses(urdf).body_names
 
@@ -169,3 +243,21 @@ def _colored_lines(region: np.ndarray) -> bool:
     """Plotted series: saturated (coloured) pixels, which the empty panels' greys and whites lack."""
     saturation = region.max(axis=2) - region.min(axis=2)
     return int((saturation > 60).sum()) > 500
+
+
+def test_pair_view_watches_the_run_from_its_first_state(tmp_path: Path) -> None:
+    """bracing-pair --view: the viewer serves on 127.0.0.1, sees the run from its first state (it
+    subscribes before the nodes start) and ends with the run; the run itself is unaffected."""
+    from ros_helpers import pair_argv, run
+
+    out = tmp_path / "run"
+    done = run(pair_argv(out, "--duration", "0.5", "--view"), timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    log = (out / "logs" / "viewer.log").read_text()
+    assert "bracing-view: open http://127.0.0.1:" in log, log
+    drawn = [line for line in log.splitlines() if "robot states drawn" in line]
+    assert drawn, log
+    first, last = (float(v) for v in drawn[-1].split("sim time ", 1)[1].removesuffix(" s").split(" to "))
+    assert first <= view.DEFAULT_PERIOD_S  # the first state (t = 0, or the next one drawn)
+    assert 0.0 <= first <= last <= 0.5 + 1e-9
+    assert len(read_series(out / "bag").joint_t) == 501  # every state recorded: nothing lost to the viewer

@@ -25,7 +25,7 @@ from ros_helpers import PAPER_YAML, isolated_env, node_argv, start
 from rosbags.highlevel import AnyReader
 
 import bracing_bringup.scene as scene_module
-from bracing_bringup.animation import (
+from bracing_analysis.animation import (
     FORCE_COLOR,
     LINK_COLOR,
     POINT_COLOR,
@@ -37,12 +37,13 @@ from bracing_bringup.animation import (
     Palette,
     frame_times,
 )
-from bracing_bringup.compare import write_comparison
+from bracing_analysis.compare import write_comparison
+from bracing_analysis.report import main as report_main
+from bracing_analysis.report import write_report
+from bracing_analysis.summary import read_series
 from bracing_bringup.recorder import bracing_typestore, missing_messages
-from bracing_bringup.report import main as report_main
-from bracing_bringup.report import write_report
-from bracing_bringup.scene import FORCE_ARROW_M_PER_N, DescriptionError, SceneBuilder
-from bracing_bringup.summary import read_series
+from bracing_bringup.scene import FORCE_ARROW_M_PER_N, SceneBuilder
+from bracing_core.kinematics import DescriptionError
 from bracing_ros import wire
 
 DURATION = SHORT_RUN_S  # the `runs` fixture's (conftest)

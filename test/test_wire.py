@@ -24,9 +24,9 @@ from rosbags.typesys.store import Typestore
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
+from bracing_core.typestore import bracing_msgs_dir, bracing_typestore
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState
 from bracing_ros import wire
-from bracing_ros.typestore import bracing_msgs_dir, bracing_typestore
 
 MOTOR_STATE = "bracing_msgs/msg/MotorState"
 

@@ -1,7 +1,7 @@
 """Write the README's parameter reference from the schema (bracing_core.schema).
 
-    python tools/param_reference.py          # rewrite the block in README.md
-    python tools/param_reference.py --check  # exit 1 if it is stale
+python tools/param_reference.py          # rewrite the block in README.md
+python tools/param_reference.py --check  # exit 1 if it is stale
 """
 
 from __future__ import annotations

@@ -11,13 +11,15 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/launch", ["launch/pair.launch.py"]),
         ("share/" + package_name + "/config", sorted(glob("../../config/*.yaml") + glob("../../config/*.urdf"))),
     ],
     install_requires=["setuptools"],
     zip_safe=True,
     maintainer="Bracing maintainers",
     maintainer_email="maintainers@bracing-robotics.org",
-    description="Runs the simulator and controller as a pair, records a rosbag2 bag, and reports the paper's figures.",
+    description="Runs the simulator and controller as a pair and records a rosbag2 bag (bracing-pair, the recorder, "
+    "launch/pair.launch.py), shows it live (bracing-view), and make run's paper runs; the scenario files.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
@@ -25,16 +27,8 @@ setup(
             "recorder=bracing_bringup.recorder:main",
             "bracing-recorder=bracing_bringup.recorder:main",
             "bracing-pair=bracing_bringup.pair:main",
-            "report=bracing_bringup.report:main",
-            "bracing-report=bracing_bringup.report:main",
-            "sweep=bracing_bringup.sweep:main",
-            "bracing-sweep=bracing_bringup.sweep:main",
-            "study=bracing_bringup.study:main",
-            "bracing-study=bracing_bringup.study:main",
             "view=bracing_bringup.view:main",
             "bracing-view=bracing_bringup.view:main",
-            "optimize=bracing_bringup.optimize:main",
-            "bracing-optimize=bracing_bringup.optimize:main",
         ],
     },
 )

@@ -14,8 +14,8 @@ stopped) before its first step keeps only its logs, so the same --output works a
 from __future__ import annotations
 
 import argparse
+import math
 import os
-import re
 import shutil
 import signal
 import subprocess
@@ -25,10 +25,9 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bracing_bringup.domains import hold_domain
-from bracing_bringup.overrides import CONTROLLER, SIMULATOR, parse_single, route
 from bracing_bringup.timeline import (
     BAG_CLOSED,
     FIRST_STEP,
@@ -36,17 +35,20 @@ from bracing_bringup.timeline import (
     LAST_STEP,
     TIMELINE_FILE,
     Timeline,
-    node_events,
     process_start_time,
-    recorder_events,
+    status_event,
 )
 from bracing_bringup.topics import missing_from_counts
-from bracing_bringup.variants import variant_overrides
 from bracing_bringup.viewurl import free_ports, view_url, wait_for_port
 from bracing_core import rcl_yaml, schema
-from bracing_core.params import ConfigError, load_params_file, resolve_file
+from bracing_core.overrides import CONTROLLER, SIMULATOR, node_params, parse_single
+from bracing_core.params import ConfigError, resolve_file
+from bracing_core.variants import variant_overrides
 from bracing_ros.fastdds import NETWORK_ENV
 from bracing_ros.lifetime import STOP_WITH_PARENT
+
+if TYPE_CHECKING:
+    from bracing_ros.status import Status
 
 EXIT_FAILED = 1
 EXIT_CONFIG = 2
@@ -54,7 +56,6 @@ PARAMS_FILE = "params.yaml"
 """DIR/params.yaml: every parameter each node ran with (``bracing-simulator --ros-args --params-file``
 runs it again)."""
 VIEWER_START_S = 60.0  # [s] --view: how long the viewer may take to serve its page before the run goes on without
-PROGRESS = re.compile(r"progress t=([0-9.eE+-]+)")
 
 
 @dataclass
@@ -89,48 +90,30 @@ class RunResult:
     timeline: Timeline | None = None
 
 
-def shared_overrides(options: RunOptions) -> dict[str, Any]:
-    """What the command line changes for both nodes (the /** part of the scenario)."""
-    common: dict[str, Any] = dict(route(options.parameters).shared)  # --set first: the flags below win
+def command_line(options: RunOptions) -> dict[str, Any]:
+    """What the command line sets, as flat parameter names: ``--set``, then the flags (they win)."""
+    values = dict(options.parameters)
     if options.mode is not None:
-        common["input_mode"] = options.mode
-    common.update(variant_overrides(options.bracing, options.free_space))
-    return common
+        values["input_mode"] = options.mode
+    values.update(variant_overrides(options.bracing, options.free_space))
+    return values
 
 
-def effective_params(options: RunOptions, node: str) -> dict[str, Any]:
-    """The flat parameters ``node`` will run with: the scenario file and the command line."""
-    params = load_params_file(options.config, node)
-    params.update(route(options.parameters).for_node(node))
-    params.update(shared_overrides(options))
-    return params
+def pair_needs(options: RunOptions, urdf: Path) -> dict[str, Any]:
+    """What the pair sets over the scenario and the command line, as flat parameter names.
 
-
-def overrides(options: RunOptions, urdf: Path) -> dict[str, dict[str, Any]]:
-    """Per-node parameters that win over the scenario file.
-
-    The nodes resolve a relative URDF from their working directory, so it is pinned to the
-    file found now (``urdf``).
+    Both nodes publish their first message only once the recorder has matched every topic they
+    publish, and the simulator once the controller has too (joint_states: the controller, the
+    recorder and, with --view, the viewer). The nodes resolve a relative URDF from their working
+    directory, so it is pinned to the file found now (``urdf``).
     """
-    # Both nodes publish their first message only once the recorder (and, for joint_states, the
-    # controller) subscribes to every topic they publish.
-    sim: dict[str, Any] = dict(shared_overrides(options), min_subscribers=2, wait_for_recorder=True)
+    needs: dict[str, Any] = {"wait_for_recorder": True, "min_subscribers": 3 if options.view else 2}
     if options.duration is not None:
-        sim["duration"] = options.duration
+        needs["duration"] = options.duration
     if options.real_time:
-        sim["stepping"] = "real_time"
-    controller = dict(shared_overrides(options), wait_for_recorder=True)
-    sim["robot.urdf"] = controller["robot.urdf"] = str(urdf)
-    node_sets = route(options.parameters)
-    for own, sets in ((sim, node_sets.simulator), (controller, node_sets.controller)):
-        own.update({key: value for key, value in sets.items() if key not in own})  # what the pair needs wins
-    return {SIMULATOR: sim, CONTROLLER: controller}
-
-
-def node_parameters(given: dict[str, dict[str, Any]], options: RunOptions, urdf: Path) -> dict[str, dict[str, Any]]:
-    """Every parameter each node runs with: ``given`` (``effective_params``: the scenario file and the
-    command line, read once the way rcl reads them) and what the pair needs."""
-    return {node: {**given[node], **own} for node, own in overrides(options, urdf).items()}
+        needs["stepping"] = "real_time"
+    needs["robot.urdf"] = str(urdf)
+    return needs
 
 
 def write_params(path: Path, node_params: dict[str, dict[str, Any]]) -> None:
@@ -155,10 +138,12 @@ def _environment(options: RunOptions, domain: int) -> dict[str, str]:
 class Pair:
     """The processes of one run and their supervision.
 
-    Each process's output goes to DIR/logs/<name>.log through a thread of this process that
-    also notes the lines the run waits for (the simulator's last line, the recorder's closing
-    of the bag) and the simulator's progress, and wakes ``changed``: the run reacts to them at
-    once instead of polling the logs.
+    Each process's output goes to DIR/logs/<name>.log through a thread of this process, which
+    wakes ``changed`` when the process closes it (exits). What the processes do comes from ROS:
+    their run_status messages (``on_status``, from a ``bracing_ros.status.StatusWatcher``) note
+    the moments the run waits for (the simulator finished, the recorder closed the bag), the
+    simulator's progress and the timeline's events, and wake ``changed`` too: the run reacts at
+    once instead of polling.
     """
 
     def __init__(self, options: RunOptions, timeline: Timeline) -> None:
@@ -170,8 +155,10 @@ class Pair:
         self.exited: set[str] = set()
         self.timeline = timeline
         self.changed = threading.Event()  # a watched line came, or a process closed its output
-        self.seen: set[str] = set()  # watched lines seen (WATCHED)
-        self.sim_time: float | None = None  # [s] the simulator's last progress line
+        self.seen: set[str] = set()  # the timeline's events so far (FINISHED, RECORDER_CLOSED, ...)
+        self.events: list[tuple[float, str]] = []  # (wall time, what): the first of each
+        self.sim_time: float | None = None  # [s] the simulator's last status
+        self.real_time_achieved: float | None = None  # real-time stepping: the simulator's FINISHED status says
         self._followers: dict[str, threading.Thread] = {}
 
     def say(self, text: str, end: str = "\n") -> None:
@@ -194,15 +181,19 @@ class Pair:
             for line in iter(proc.stdout.readline, b""):
                 handle.write(line)
                 handle.flush()  # the log is whole whenever someone reads it (a failure's tail)
-                text = line.decode(errors="replace")
-                progress = PROGRESS.search(text)
-                if progress is not None:
-                    self.sim_time = float(progress.group(1))
-                watched = next((needle for needle in WATCHED if needle in text), None)
-                if watched is not None:
-                    self.seen.add(watched)
-                    self.changed.set()
         self.changed.set()  # end of output: the process exited
+
+    def on_status(self, status: Status) -> None:
+        """A process's run_status message, from the watcher's thread."""
+        if status.node == SIMULATOR and math.isfinite(status.sim_time):
+            self.sim_time = status.sim_time
+        if status.node == SIMULATOR and status.event == "finished" and math.isfinite(status.real_time_factor):
+            self.real_time_achieved = status.real_time_factor
+        moment = status_event(status.node, status.event, status.wall_time_s)
+        if moment is not None and moment[1] not in self.seen:
+            self.events.append(moment)
+            self.seen.add(moment[1])
+            self.changed.set()
 
     def wait_for_change(self, timeout: float) -> None:
         """Until a watched line comes or a process exits (at most ``timeout`` [s]); _Interrupted
@@ -291,31 +282,94 @@ def run_pair(options: RunOptions) -> RunResult:
         return _run_pair(options, domain.domain_id)
 
 
-def _run_pair(options: RunOptions, domain: int) -> RunResult:
-    timeline = Timeline(options.command_start if options.command_start is not None else time.time())
-    start_wall = time.monotonic()
-    out = options.output
-    # What starting the processes needs, checked against the schemas (names, types, bounds); the
-    # configurations' own checks (pinocchio's imports, ~0.25 s) follow while the processes import.
+@dataclass(frozen=True)
+class RunProcess:
+    """One process of a run: bracing-pair starts it as ``python -m module``, launch/pair.launch.py
+    as ``package``'s ``executable``; both with these arguments (ours, then ROS's)."""
+
+    name: str  # simulator | controller | recorder
+    package: str
+    executable: str
+    module: str
+    arguments: tuple[str, ...]
+    ros_arguments: tuple[str, ...] = ()
+
+    def argv(self) -> list[str]:
+        ros = ["--ros-args", *self.ros_arguments] if self.ros_arguments else []
+        return [sys.executable, "-m", self.module, *self.arguments, *ros]
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """What a run starts, from (scenario file, --set overrides, flags), checked against the schemas
+    (names, types, bounds): every node's parameters and the processes. No file is written."""
+
+    options: RunOptions
+    sim_values: schema.Values
+    controller_values: schema.Values
+    node_params: dict[str, dict[str, Any]]  # each node's complete parameters (DIR/params.yaml)
+    duration: float  # [s] of sim time
+    step: float  # [s]
+    expected_states: int  # lockstep: the states the recorder waits for before it closes the bag (0: any)
+
+    @property
+    def contacts(self) -> list[str]:
+        return list(self.sim_values.contacts)
+
+    @property
+    def search(self) -> list[Path]:
+        return [self.options.config.parent]
+
+    def processes(self, out: Path) -> list[RunProcess]:
+        """The recorder, the controller and the simulator of a run into ``out`` (its params file
+        ``out / PARAMS_FILE``, its bag ``out / "bag"``)."""
+        params_file = str(out / PARAMS_FILE)
+        recorder = ["--output", str(out / "bag"), "--contacts", ",".join(self.contacts)]
+        recorder += ["--niceness", "10"]  # the lockstep loop comes first
+        recorder += ["--drain-idle", "0.05"]  # stopped only after the nodes' last messages are acknowledged
+        recorder += ["--params-file", params_file, "--scenario", self.options.config.stem]  # surfaces, name
+        if self.expected_states:
+            recorder += ["--expect-states", str(self.expected_states)]  # it closes the bag once it has them all
+        nodes = ("--params-file", params_file)
+        return [
+            RunProcess("recorder", "bracing_bringup", "bracing-recorder", "bracing_bringup.recorder", tuple(recorder)),
+            RunProcess("controller", "bracing_controller", "bracing-controller", "bracing_controller.node", (), nodes),
+            RunProcess("simulator", "bracing_sim", "bracing-simulator", "bracing_sim.node", (), nodes),
+        ]
+
+
+def plan_run(options: RunOptions) -> RunPlan:
+    """The one way a run's parameters are assembled for its nodes (bracing-pair, the launch file):
+    the scenario file, then ``--set``, then the flags, then what the pair needs (``overrides``).
+    The configurations' own checks (pinocchio's imports, ~0.25 s) are ``_check_configs``'."""
     search = [options.config.parent]
-    given = {node: effective_params(options, node) for node in (SIMULATOR, CONTROLLER)}
+    given = node_params(options.config, command_line(options))
     sim_values = schema.read("simulator", given[SIMULATOR])
     controller_values = schema.read("controller", given[CONTROLLER])
     urdf = resolve_file(sim_values["robot.urdf"], "robot.urdf", search)
     duration = options.duration if options.duration is not None else float(sim_values["duration"])
     step = float(sim_values["step"])
+    lockstep = sim_values["stepping"] == "lockstep" and not options.real_time and duration > 0
+    expected_states = round(duration / step) + 1 if lockstep else 0
+    every = node_params(options.config, command_line(options), pair_needs(options, urdf))
+    return RunPlan(options, sim_values, controller_values, every, duration, step, expected_states)
+
+
+def _run_pair(options: RunOptions, domain: int) -> RunResult:
+    timeline = Timeline(options.command_start if options.command_start is not None else time.time())
+    start_wall = time.monotonic()
+    out = options.output
+    plan = plan_run(options)  # checked against the schemas; the configurations' checks follow while processes import
+    sim_values, controller_values, search = plan.sim_values, plan.controller_values, plan.search
+    duration, contacts, expected_states = plan.duration, plan.contacts, plan.expected_states
     bag = out / "bag"
     if bag.exists():
         raise ConfigError(f"--output: {bag} exists already; choose a new output directory")
     created = not out.exists()
     (out / "logs").mkdir(parents=True, exist_ok=True)
     params_file = out / PARAMS_FILE
-    write_params(params_file, node_parameters(given, options, urdf))  # the nodes read only this file
+    write_params(params_file, plan.node_params)  # the nodes read only this file
     env = _environment(options, domain)
-    ros_args = ["--ros-args", "--params-file", str(params_file)]
-    contacts = list(sim_values.contacts)
-    lockstep = sim_values["stepping"] == "lockstep" and not options.real_time and duration > 0
-    expected_states = round(duration / step) + 1 if lockstep else 0
     pair = Pair(options, timeline)
     # Ctrl-C or a SIGTERM (a CI timeout, `kill`): stop the nodes in order, keep the bag. The
     # children run in sessions of their own, so nothing else would stop them.
@@ -327,6 +381,7 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
     for sig in previous:
         signal.signal(sig, on_signal)
     message, code, finished = "", 0, False
+    watcher = None  # the run_status watcher, once the processes are started
     warnings: list[str] = []  # what the run's summary says and the bag cannot show (see _check_configs)
     try:
         pair.say(f"bracing-pair: ROS_DOMAIN_ID={domain}, output {out}")
@@ -340,7 +395,7 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
             # subscribes best effort, so once running it never holds the loop back.
             web_port, grpc_port = free_ports(2)
             ports = ["--web-port", str(web_port), "--grpc-port", str(grpc_port)]
-            viewer = [sys.executable, "-m", "bracing_bringup.view", *ports]
+            viewer = [sys.executable, "-m", "bracing_bringup.view", *ports, "--params-file", str(params_file)]
             viewer += ["--ros-args", "-p", f"contacts:={contacts!r}"]
             pair.start("viewer", viewer, env)
             url = view_url(web_port, grpc_port)
@@ -349,15 +404,14 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
             else:
                 pair.say(f"bracing-pair: the viewer did not start (see {out / 'logs' / 'viewer.log'}); running without")
             timeline.mark("viewer started")
-        recorder = [sys.executable, "-m", "bracing_bringup.recorder", "--output", str(bag)]
-        recorder += ["--contacts", ",".join(contacts), "--niceness", "10"]  # the lockstep loop comes first
-        recorder += ["--drain-idle", "0.05"]  # stopped only after the nodes' last messages are acknowledged
-        recorder += ["--params-file", str(params_file), "--scenario", options.config.stem]  # surfaces, name
-        if expected_states:
-            recorder += ["--expect-states", str(expected_states)]  # it closes the bag once it has them all
-        pair.start("recorder", recorder, env)
-        pair.start("controller", [sys.executable, "-m", "bracing_controller.node", *ros_args], env)
-        pair.start("simulator", [sys.executable, "-m", "bracing_sim.node", *ros_args], env)
+        # What they do, from ROS: their run_status messages. The watcher's participant starts (in its
+        # thread, ~0.15 s) while the processes import (~1 s), so each process is matched within the
+        # first of its announcements; the topic keeps a process's history for a late subscriber.
+        from bracing_ros.status import StatusWatcher  # rclpy (~70 ms): only once a run starts
+
+        watcher = StatusWatcher(domain, pair.on_status, env).start()
+        for process in plan.processes(out):
+            pair.start(process.name, process.argv(), env)
         timeline.mark("processes started")
         try:
             warnings = _check_configs(sim_values, controller_values, search)
@@ -370,6 +424,13 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
         tty = sys.stdout.isatty()
         while FINISHED not in pair.seen:  # the simulator's last messages are acknowledged by every subscriber
             pair.wait_for_change(0.1)
+            if pair.exit_code("simulator") == 0 and FINISHED not in pair.seen:
+                # Ended unheard (its FINISHED status is in flight, or it ended before run_status was
+                # matched): its exit code says it finished; the bag check says whether the run is whole.
+                heard_by = time.monotonic() + 1.0
+                while FINISHED not in pair.seen and time.monotonic() < heard_by:
+                    pair.wait_for_change(0.1)
+                pair.seen.add(FINISHED)
             for name in ("simulator", "controller", "recorder"):
                 exit_code = pair.exit_code(name)
                 # The recorder may close the bag and exit by itself once it has every message.
@@ -388,7 +449,7 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
         finished = True
         if tty:
             pair.say("")
-        from bracing_bringup.drawing import prepare_drawing  # rosbags and numpy: needed from here on
+        from bracing_analysis.drawing import prepare_drawing  # rosbags and numpy: needed from here on
 
         prepare_drawing()  # the drawing processes load matplotlib while the nodes exit and the bag is read
         # The controller's answers are all out (the simulator had the last one): it flushes and exits
@@ -411,21 +472,21 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
     finally:
         if not finished or code != 0:
             pair.stop_all()
+        if watcher is not None:
+            watcher.stop()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     wall = time.monotonic() - start_wall
     summary = None
-    timeline.add(recorder_events(pair.logs["recorder"]))
+    timeline.add(pair.events)
     if code == 0:
         timeline.mark(BAG_CLOSED, timeline.at("recorder closed the bag"))
         # The report is drawn while the processes finish exiting (their exit codes are checked after).
-        warnings += _real_time_warnings(pair.logs["simulator"], float(sim_values["real_time_factor"]))
+        warnings += _real_time_warnings(pair.real_time_achieved, float(sim_values["real_time_factor"]))
         summary, code, message = _report(bag, out, contacts, wall, options, expected_states, timeline, warnings)
         for name, process_code in pair.stop_all(ask=False).items():
             if process_code != 0 and code == 0 and name != "viewer":  # a viewer's end is no run's failure
                 code, message = EXIT_FAILED, f"error: the {name} exited with code {process_code}\n{pair.tail(name)}"
-    for name in ("simulator", "controller"):
-        timeline.add(node_events(pair.logs[name], name))
     if code != 0 and timeline.at("simulator stepping") is None:
         # Nothing to keep from a run that never stepped: the same --output works again.
         _discard(out, created, keep_logs=True)
@@ -468,19 +529,18 @@ def _check_configs(sim_values: schema.Values, controller_values: schema.Values, 
     return reach_warnings(controller, plant)
 
 
-def _real_time_warnings(log: Path, requested: float) -> list[str]:
-    """Real-time stepping slower than asked, from the factor the simulator logged (none in lockstep)."""
-    from bracing_core.checks import REAL_TIME_ACHIEVED, slow_real_time_warning
+def _real_time_warnings(achieved: float | None, requested: float) -> list[str]:
+    """Real-time stepping slower than asked, from the factor the simulator's FINISHED status gave
+    (none in lockstep)."""
+    from bracing_core.checks import slow_real_time_warning
 
-    found = re.search(re.escape(REAL_TIME_ACHIEVED) + r"([0-9.eE+-]+|inf)x", log.read_text(errors="replace"))
-    warning = slow_real_time_warning(float(found.group(1)), requested) if found else None
+    warning = slow_real_time_warning(achieved, requested) if achieved is not None else None
     return [warning] if warning is not None else []
 
 
-FINISHED = "finished at t = "
-"""The simulator's last line: every subscriber has acknowledged everything it sent."""
+FINISHED = "simulator finished"
+"""The simulator's last status: every subscriber has acknowledged everything it sent."""
 RECORDER_CLOSED = "recorder closed the bag"
-WATCHED = (FINISHED, RECORDER_CLOSED)
 
 
 def _report(
@@ -495,9 +555,9 @@ def _report(
 ) -> tuple[dict[str, Any] | None, int, str]:
     """Read the bag once: check it (a lockstep run promises every step), then write the summary
     (with ``warnings``), the figures and the animation from what was read. (summary, exit code, message)."""
-    from bracing_bringup.animation import DEFAULT_INTERVAL_S
-    from bracing_bringup.drawing import report_series
-    from bracing_bringup.summary import BagReadError, read_series
+    from bracing_analysis.animation import DEFAULT_INTERVAL_S
+    from bracing_analysis.drawing import report_series
+    from bracing_analysis.summary import BagReadError, read_series  # rosbags ~100 ms, bag replay only, where used
 
     try:
         series = read_series(bag)
@@ -608,7 +668,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if result.exit_code != 0:
         print(f"bracing-pair: {result.message}", file=sys.stderr)
         return result.exit_code
-    from bracing_bringup.summary import format_summary
+    from bracing_analysis.summary import format_summary  # rosbags ~100 ms, bag replay only, where used
 
     print(format_summary(result.summary or {}))
     print(f"bag: {result.output / 'bag'}  report and summary.json: {result.output}")

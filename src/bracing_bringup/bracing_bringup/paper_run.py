@@ -12,11 +12,11 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from bracing_analysis.ratios import ratio_text, temperature_saving_text
+from bracing_analysis.summary import BagReadError
 from bracing_bringup.pair import RunOptions, run_pair
-from bracing_bringup.ratios import ratio_text, temperature_saving_text
-from bracing_bringup.summary import BagReadError
-from bracing_bringup.variants import RUNS
 from bracing_core.params import ConfigError
+from bracing_core.variants import RUNS
 
 RATIOS = (("braced", "free_space"), ("braced", "passive"))
 """The ratios printed, the paper's headline (braced against free space) first."""
@@ -90,8 +90,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(table(summaries))
     dirs = [str(args.output / name) for name in summaries]
     print(f"\nbags, plots and summary.json: {', '.join(dirs[:-1])} and {dirs[-1]}")
-    from bracing_bringup.compare import write_comparison  # matplotlib: only once there is something to draw
-    from bracing_bringup.report import ANIMATION_FILES
+    from bracing_analysis.animation import ANIMATION_FILES
+    from bracing_analysis.compare import write_comparison  # matplotlib: only once there is something to draw
 
     for name in summaries:
         movies = [args.output / name / f for f in ANIMATION_FILES if (args.output / name / f).exists()]

@@ -61,25 +61,36 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
-from bracing_bringup import surfaces
-from bracing_bringup.scene import Derived, DescriptionError, SceneBuilder
+from bracing_analysis import surfaces
+from bracing_bringup.scene import Derived, SceneBuilder
 from bracing_bringup.topics import (
     CONTROLLER_NODE,
     DESCRIPTION_TOPIC,
     PARAMETER_EVENTS_TOPIC,
-    PARAMETER_EVENTS_TYPE,
     SCENE_TOPICS,
-    STRING_TYPE,
     missing_from_counts,
     recorded_topics,
 )
 from bracing_bringup.topics import expected_counts as expected_counts  # re-exported: the check lives in topics
-from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState
-from bracing_ros.common import SubscriptionWaiter, use_fastdds_profile
+from bracing_core.kinematics import DescriptionError
+from bracing_core.typestore import BRACING_MSGS as BRACING_MSGS  # re-exported: the typestore lives in bracing_core
+from bracing_core.typestore import (
+    CLOCK,
+    CONTACTS,
+    CONTROLLER_STATE,
+    JOINT_STATE,
+    MOTOR_COMMAND,
+    MOTOR_STATE,
+    PARAMETER_EVENT,
+    STRING,
+    WRENCH_STAMPED,
+    bracing_typestore,
+)
+from bracing_core.typestore import bracing_msgs_dir as bracing_msgs_dir
+from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState, RunStatus
+from bracing_ros.common import RECORDER_NODE, SubscriptionWaiter, use_fastdds_profile
 from bracing_ros.lifetime import stop_with_parent
-from bracing_ros.typestore import BRACING_MSGS as BRACING_MSGS  # re-exported: the typestore lives in bracing_ros
-from bracing_ros.typestore import bracing_msgs_dir as bracing_msgs_dir
-from bracing_ros.typestore import bracing_typestore
+from bracing_ros.status import StatusPublisher
 
 BAG_VERSION: Literal[8] = 8
 """rosbag2 metadata version written (8 is read by every Jazzy rosbag2)."""
@@ -124,13 +135,13 @@ subscription would not match."""
 
 
 _RCLPY_TYPES: dict[str, type] = {
-    "sensor_msgs/msg/JointState": JointState,
-    "geometry_msgs/msg/WrenchStamped": WrenchStamped,
-    "bracing_msgs/msg/Contacts": Contacts,
-    "bracing_msgs/msg/MotorState": MotorState,
-    "rosgraph_msgs/msg/Clock": Clock,
-    "bracing_msgs/msg/MotorCommand": MotorCommand,
-    "bracing_msgs/msg/ControllerState": ControllerState,
+    JOINT_STATE: JointState,
+    WRENCH_STAMPED: WrenchStamped,
+    CONTACTS: Contacts,
+    MOTOR_STATE: MotorState,
+    CLOCK: Clock,
+    MOTOR_COMMAND: MotorCommand,
+    CONTROLLER_STATE: ControllerState,
 }
 
 
@@ -174,7 +185,7 @@ class Recorder(Node):
         scene: bool = True,
         shapes: Mapping[str, surfaces.Shape] | None = None,
     ) -> None:
-        super().__init__("bracing_recorder", namespace=namespace)
+        super().__init__(RECORDER_NODE, namespace=namespace)
         self.writer = writer
         self.typestore = typestore
         self.counts: dict[str, int] = {}
@@ -185,7 +196,7 @@ class Recorder(Node):
         self._connections: dict[Subscription, Connection] = {}
         self._roles: dict[Subscription, str] = {}  # what the scene makes of a subscription's messages
         table = [(topic, msg_type, type_name, topic) for topic, msg_type, type_name in topic_table(contacts)]
-        table.append((DESCRIPTION_TOPIC, String, STRING_TYPE, "description"))
+        table.append((DESCRIPTION_TOPIC, String, STRING, "description"))
         for topic, msg_type, type_name, role in table:
             # Messages are taken directly in ``record`` (no executor: per message it costs more
             # than the write), so the callback is never called.
@@ -247,14 +258,14 @@ class Recorder(Node):
         (Every node announces its parameters there when it starts, stamped with the wall clock; the
         controller stamps its changes with the sim time, the bag's time axis.) Whether it was written."""
         try:
-            event: Any = self.typestore.deserialize_cdr(data, PARAMETER_EVENTS_TYPE)
+            event: Any = self.typestore.deserialize_cdr(data, PARAMETER_EVENT)
         except (SerdeError, ValueError, IndexError, KeyError):
             return False
         if event.node != self._controller or not (len(event.changed_parameters) or len(event.deleted_parameters)):
             return False
         if self._events_connection is None:
             topic = self._events.topic_name
-            self._events_connection = self.writer.add_connection(topic, PARAMETER_EVENTS_TYPE, typestore=self.typestore)
+            self._events_connection = self.writer.add_connection(topic, PARAMETER_EVENT, typestore=self.typestore)
             self.counts[topic] = 0
         self.writer.write(self._events_connection, cdr_stamp_ns(data), data)
         self.counts[self._events_connection.topic] += 1
@@ -427,11 +438,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         writer.set_custom_data(surfaces.SURFACES_KEY, surfaces.to_json(shapes))
     writer.open()
     node: Recorder | None = None
+    status: StatusPublisher | None = None
     try:
         node = Recorder(
             writer, typestore, namespace=args.namespace, contacts=contacts, scene=not args.no_scene, shapes=shapes
         )
-        print(f"recorder subscribed at {time.time():.6f}", flush=True)  # wall time: for the run's timeline
+        status = StatusPublisher(node)  # what bracing-pair follows
+        status.say(RunStatus.READY)
+        print(f"recorder subscribed at {time.time():.6f}", flush=True)
         print("recorder ready", flush=True)
         idle, complete = False, False
         wanted = expected_counts(contacts, args.expect_states, node.get_namespace()) if args.expect_states else None
@@ -459,6 +473,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         writer.close()
         print(f"recorder closed the bag at {time.time():.6f}", flush=True)
+        if status is not None:
+            status.say(RunStatus.BAG_CLOSED)
+            status.flush()  # bracing-pair has it before this process ends
         total = node.received if node is not None else 0
         print(f"recorder wrote {total} messages to {output}", flush=True)
         if node is not None and node.derived:

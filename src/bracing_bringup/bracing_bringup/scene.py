@@ -4,11 +4,8 @@ No rclpy: the recorder feeds it the CDR bytes it records, and it answers CDR byt
 ``tf2_msgs/msg/TFMessage`` and ``visualization_msgs/msg/MarkerArray`` built with rosbags'
 Jazzy typestore.
 
-- ``LinkPoses``: the core's robot model (``bracing_core.model.RobotModel``) of the URDF text
-  (``/robot_description``) and the world pose of every link (every BODY frame) for a
-  JointState. The simulator publishes the robot as simulated (``simulated_urdf``: a locked
-  joint is a fixed joint at its locked position), so its JointStates name every joint that
-  moves and the poses are the simulator's.
+- Link poses come from the core's kinematics (``bracing_core.kinematics.LinkPoses``), the
+  simulator's and the controller's model.
 - ``SceneBuilder``: the messages of one recorded state: ``/tf`` (world -> every moving
   link), ``/tf_static`` (world -> the links fixed to the world, once) and
   ``contact_markers`` (per contact: its surface, the contact point and the contact force
@@ -28,37 +25,28 @@ from __future__ import annotations
 
 import struct
 from collections import Counter
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
-import pinocchio as pin
 from numpy.typing import NDArray
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
-from bracing_bringup.surfaces import Shape, shape_of
-from bracing_core.model import ModelError, RobotModel
+from bracing_analysis.surfaces import Shape, shape_of
+from bracing_core import cdr
+from bracing_core.kinematics import WORLD_FRAME, LinkPoses, z_to
+from bracing_core.typestore import CONTACTS, MARKER_ARRAY, STRING, TF_MESSAGE, WRENCH_STAMPED
 from bracing_ros import wire
 
 FloatArray = NDArray[np.float64]
-
-WORLD_FRAME = "world"
-"""TF root: the frame of the contact wrenches and of pinocchio's universe."""
 
 FORCE_ARROW_M_PER_N = 0.01
 """Length of a force arrow marker per newton of force [m/N] (10 N -> 10 cm)."""
 
 SURFACE_PATCH_M = 2.0
 """Side of the square drawn for a surface [m] (a patch of the tangent plane); a cylinder's drawn length."""
-
-TF_TYPE = "tf2_msgs/msg/TFMessage"
-MARKERS_TYPE = "visualization_msgs/msg/MarkerArray"
-STRING_TYPE = "std_msgs/msg/String"
-JOINT_STATE_TYPE = "sensor_msgs/msg/JointState"
-CONTACTS_TYPE = "bracing_msgs/msg/Contacts"
-WRENCH_TYPE = "geometry_msgs/msg/WrenchStamped"
 
 MAX_WAITING_STATES = 100_000
 """JointStates kept while no robot_description has come (a simulator that publishes none)."""
@@ -69,85 +57,6 @@ SURFACE_ID, POINT_ID, FORCE_ID = 0, 1, 2
 # The fields of the derived messages filled per message (paths of field names); the rest is fixed for a layout.
 TF_VARIES = frozenset({"transforms.header.stamp", "transforms.transform"})
 MARKERS_VARIES = frozenset({"markers.header.stamp", "markers.pose", "markers.color", "markers.points"})
-
-
-class DescriptionError(ValueError):
-    """The robot description is not a URDF the core's robot model takes."""
-
-
-class LinkPoses:
-    """World poses of the links of a URDF for named joint positions: the core's ``RobotModel``
-    (the simulator's and the controller's model) of the text, read with pinocchio's frame kinematics.
-
-    Hand it the text the simulator publishes (``robot_description``: its locked joints are
-    fixed joints there); a joint a JointState does not name is at its neutral position.
-    """
-
-    def __init__(self, urdf_xml: str) -> None:
-        try:
-            self.robot = RobotModel.from_xml(urdf_xml, "robot_description")
-        except ModelError as exc:
-            msg = f"robot_description is not a usable URDF: {exc}"
-            raise DescriptionError(msg) from exc
-        self.model = self.robot.model
-        self.data = self.robot.data
-        model = self.model
-        bodies = [i for i, f in enumerate(model.frames) if f.type == pin.FrameType.BODY and f.name != WORLD_FRAME]
-        self.body_ids = bodies
-        self.body_names = [model.frames[i].name for i in bodies]
-        # Links on joint 0 (the universe) never move: /tf_static; the rest: /tf.
-        self.static_ids = [i for i in bodies if model.frames[i].parentJoint == 0]
-        self.moving_ids = [i for i in bodies if model.frames[i].parentJoint != 0]
-        self.static_names = [model.frames[i].name for i in self.static_ids]
-        self.moving_names = [model.frames[i].name for i in self.moving_ids]
-        self._neutral = pin.neutral(model)
-        # RobotModel holds 1-dof joints only (nq == nv): a joint's position is one entry of q.
-        self._slots = {name: int(model.joints[jid].idx_q) for jid, name in enumerate(model.names) if jid}
-        # The last names whose joints are distinct: their q indices.
-        self._direct: tuple[tuple[str, ...], NDArray[np.intp]] = ((), np.zeros(0, dtype=np.intp))
-
-    def configuration(self, names: Sequence[str], positions: Sequence[float] | FloatArray) -> FloatArray:
-        """pinocchio's q for JointState-style names and positions (others at neutral, unknown names ignored)."""
-        q = self._neutral.copy()
-        key = tuple(names)
-        if key == self._direct[0] and len(positions) == len(key):  # a state like the last: one assignment
-            q[self._direct[1]] = positions
-            return q
-        slots = [self._slots.get(name) for name in key]
-        if key and None not in slots and len(set(key)) == len(key):
-            self._direct = key, np.array(slots, dtype=np.intp)
-        for slot, value in zip(slots, positions, strict=False):
-            if slot is not None:
-                q[slot] = value
-        return q
-
-    def update(self, q: FloatArray) -> None:
-        pin.framesForwardKinematics(self.model, self.data, q)
-
-    def xyzquat(self, frame_ids: Sequence[int]) -> FloatArray:
-        """(len, 7): x, y, z, qx, qy, qz, qw of each frame in the world, after ``update``."""
-        # updateFramePlacement answers oMf[i] (recomputed from the joint's placement, the same product) in a
-        # fraction of the time data.oMf[i] takes.
-        model, data, placement, xyzquat = self.model, self.data, pin.updateFramePlacement, pin.SE3ToXYZQUAT
-        return np.array([xyzquat(placement(model, data, i)) for i in frame_ids], dtype=float).reshape(-1, 7)
-
-    def positions(self, q: FloatArray) -> FloatArray:
-        """(bodies, 3): world position of every link (``body_names`` order)."""
-        self.update(q)
-        return np.array([self.data.oMf[i].translation for i in self.body_ids])
-
-    def segments(self) -> list[tuple[int, int]]:
-        """(parent, child) rows of ``body_names``: each link drawn from its parent link's origin."""
-        index = {fid: row for row, fid in enumerate(self.body_ids)}
-        frames = self.model.frames
-        pairs = []
-        for row, fid in enumerate(self.body_ids):
-            parent = frames[fid].parentFrame
-            while parent != 0 and frames[parent].type != pin.FrameType.BODY:
-                parent = frames[parent].parentFrame  # past the joint frame to the parent link
-            if parent in index and parent != fid:
-                pairs.append((index[parent], row))
-        return pairs
 
 
 @dataclass
@@ -200,9 +109,9 @@ class SceneBuilder:
         self._parts: dict[int, _StampParts] = {}
         self._tf: Any = None
         self._tf_header: Any = None
-        self._tf_bytes = _Layout(typestore, TF_TYPE, TF_VARIES)
+        self._tf_bytes = _Layout(typestore, TF_MESSAGE, TF_VARIES)
         self._markers = _MarkerTemplates(typestore, surfaces or {})
-        self._marker_bytes = _Layout(typestore, MARKERS_TYPE, MARKERS_VARIES)
+        self._marker_bytes = _Layout(typestore, MARKER_ARRAY, MARKERS_VARIES)
         self._states: wire.JointStateDecoder | None = None  # for the first JointState's names
         self._contacts_reader: _ContactsReader | None = None  # for the first Contacts' layout
         self._wrench_reader: _Reader | None = None  # for the first WrenchStamped's layout
@@ -212,7 +121,7 @@ class SceneBuilder:
         """The recorded std_msgs/String robot_description: /tf_static, then every waiting /tf."""
         if self.poses is not None:
             return []  # the first description wins; a republished one is the same robot
-        urdf = str(self._read(data, STRING_TYPE).data)
+        urdf = str(self._read(data, STRING).data)
         self.poses = LinkPoses(urdf)
         self._tf, self._tf_header = self._tf_template(self.poses.moving_names)
         out = [Derived("tf_static", 0, self._static_message(self.poses))]
@@ -254,7 +163,7 @@ class SceneBuilder:
             contacts = reader.read(data)
             if contacts is not None:
                 return contacts
-        message = self._read(data, CONTACTS_TYPE)
+        message = self._read(data, CONTACTS)
         self.general["contacts"] += 1
         if reader is None:
             self._contacts_reader = _ContactsReader(self.store, message)
@@ -275,10 +184,10 @@ class SceneBuilder:
             values = reader.read(data)
             if values is not None:
                 return values[reader.slots["wrench"][0]][:3]  # wrench: force x, y, z, torque x, y, z
-        message = self._read(data, WRENCH_TYPE)
+        message = self._read(data, WRENCH_STAMPED)
         self.general["wrench"] += 1
         if reader is None:
-            self._wrench_reader = _Reader(self.store, WRENCH_TYPE, message)
+            self._wrench_reader = _Reader(self.store, WRENCH_STAMPED, message)
         force = message.wrench.force
         return (force.x, force.y, force.z)
 
@@ -293,13 +202,13 @@ class SceneBuilder:
         t = self.store.types
         header = _header(t, WORLD_FRAME)
         transforms = [_transform(t, header, child) for child in children]
-        return t["tf2_msgs/msg/TFMessage"](transforms=transforms), header
+        return t[TF_MESSAGE](transforms=transforms), header
 
     def _static_message(self, poses: LinkPoses) -> bytes:
         message, _ = self._tf_template(poses.static_names)
         poses.update(poses.configuration([], []))
         _fill(message.transforms, poses.xyzquat(poses.static_ids).tolist())
-        return bytes(self.store.serialize_cdr(message, TF_TYPE))
+        return bytes(self.store.serialize_cdr(message, TF_MESSAGE))
 
     def _tf_message(self, stamp_ns: int, data: bytes) -> Derived:
         assert self.poses is not None
@@ -364,12 +273,6 @@ def _fill(transforms: Sequence[Any], rows: list[list[float]]) -> None:
     for transform, row in zip(transforms, rows, strict=True):
         tr, rot = transform.transform.translation, transform.transform.rotation
         tr.x, tr.y, tr.z, rot.x, rot.y, rot.z, rot.w = row
-
-
-def z_to(normal: FloatArray) -> FloatArray:
-    """Quaternion (x, y, z, w) turning +z onto ``normal`` (a marker's axis onto the surface normal)."""
-    quat = pin.Quaternion.FromTwoVectors(np.array([0.0, 0.0, 1.0]), np.asarray(normal, dtype=float))
-    return np.asarray(quat.coeffs(), dtype=float)
 
 
 _Drawn = tuple[list[float], tuple[float, float, float, float], list[float]]
@@ -520,7 +423,7 @@ class _MarkerTemplates:
                 for k, point in enumerate(marker.points):
                     point.x, point.y, point.z = points[3 * k : 3 * k + 3]
                 out.append(marker)
-        return self.t["visualization_msgs/msg/MarkerArray"](markers=out)
+        return self.t[MARKER_ARRAY](markers=out)
 
 
 # ----------------------------------------------------------------------------- byte templates
@@ -558,8 +461,9 @@ class _Layout:
         if not self._tried:
             self._tried, self.key = True, key
             try:
-                spec = _spec(self.store, self.typename, message, lambda path, _: path in self.varies, [])
-                template = wire.derive_template(self.typename, spec, self.store)
+                template, _ = wire.message_template(
+                    self.typename, message, lambda path, _: path in self.varies, self.store
+                )
                 if template.fill(*values) == data:
                     self.template = template
             except (ValueError, TypeError, AttributeError, struct.error):
@@ -575,12 +479,12 @@ class _Reader:
     """
 
     def __init__(self, store: Typestore, typename: str, message: Any) -> None:
-        paths: list[str] = []
         self.slots: dict[str, list[int]] = {}
         self.template: wire.Template | None = None
         try:
-            spec = _spec(store, typename, message, lambda _, desc: _read_per_message(store, desc), paths)
-            self.template = wire.derive_template(typename, spec, store)
+            self.template, paths = wire.message_template(
+                typename, message, lambda _, desc: _read_per_message(store, desc), store
+            )
         except (ValueError, TypeError, AttributeError, struct.error):
             return  # a layout the templates do not cover: rosbags for every message
         for k, path in enumerate(paths):
@@ -594,7 +498,7 @@ class _ContactsReader:
     """bracing_msgs/Contacts with the first message's contacts (names, frames) and frame id."""
 
     def __init__(self, store: Typestore, message: Any) -> None:
-        self._reader = _Reader(store, CONTACTS_TYPE, message)
+        self._reader = _Reader(store, CONTACTS, message)
         slot = self._reader.slots.get
         self._contacts: list[tuple[str, int, int, int, int]] = []  # name, then the slots of what _Contact holds
         if self._reader.template is not None:
@@ -612,53 +516,9 @@ class _ContactsReader:
         ]
 
 
-def _spec(
-    store: Typestore,
-    typename: str,
-    message: Any,
-    varies: Callable[[str, Any], bool],
-    slots: list[str],
-    prefix: str = "",
-) -> dict[str, Any]:
-    """``wire.derive_template``'s spec of ``message``: the fields where ``varies(path, field desc)`` filled per
-    message (their paths, ``a.b.c``, appended to ``slots`` in definition order), the rest ``message``'s."""
-    spec: dict[str, Any] = {}
-    for name, desc in store.fielddefs[typename][1]:
-        path, value = prefix + name, getattr(message, name)
-        if varies(path, desc):
-            slots.append(path)
-            spec[name] = wire.PerMessage(len(value)) if desc[0] == Nodetype.SEQUENCE else wire.PER_MESSAGE
-        else:
-            spec[name] = _constant(store, desc, value, varies, slots, path + ".")
-    return spec
-
-
-def _constant(
-    store: Typestore, desc: Any, value: Any, varies: Callable[[str, Any], bool], slots: list[str], prefix: str
-) -> Any:
-    kind, arg = desc
-    if kind == Nodetype.BASE:
-        return value
-    if kind == Nodetype.NAME:
-        return _spec(store, arg, value, varies, slots, prefix)
-    return [_constant(store, arg[0], element, varies, slots, prefix) for element in value]
-
-
-def _fixed_numbers(store: Typestore, desc: Any) -> bool:
-    """A number, or numbers only (an array of them, a message of them): no string, no sequence."""
-    kind, arg = desc
-    if kind == Nodetype.BASE:
-        return arg[0] not in ("string", "wstring")
-    if kind == Nodetype.NAME:
-        return all(_fixed_numbers(store, sub) for _, sub in store.fielddefs[arg][1])
-    if kind == Nodetype.ARRAY:
-        return _fixed_numbers(store, arg[0])
-    return False
-
-
 def _read_per_message(store: Typestore, desc: Any) -> bool:
     """A reader's slot: numbers (a sequence of numbers too, its length fixed by the first message)."""
     kind, arg = desc
     if kind == Nodetype.SEQUENCE:
-        return arg[0][0] == Nodetype.BASE and _fixed_numbers(store, arg[0])
-    return _fixed_numbers(store, desc)
+        return arg[0][0] == Nodetype.BASE and cdr.numbers_only(store, arg[0])
+    return cdr.numbers_only(store, desc)

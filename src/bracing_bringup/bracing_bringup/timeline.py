@@ -1,12 +1,12 @@
 """Where the wall time of one run goes, from the command to the last file written.
 
-A run's processes say what they do in their logs (rcutils stamps every line with the wall
-clock); the pair adds its own moments. ``Timeline`` collects both as (wall time, what) and
+A run's processes say what they do on the run_status topic (``bracing_ros.status``: each
+message stamped with the wall clock); the pair adds its own moments. ``Timeline`` collects both as (wall time, what) and
 splits the run into the phases ``make bench`` reports:
 
 - ``startup_s``: the command's process start to the first simulation step (imports, rclpy's
   re-exec, the nodes' configuration, discovery and matching, the wait for the recorder);
-- ``stepping_s``: the first step to the last (the simulator's "finished" line);
+- ``stepping_s``: the first step to the last (the simulator's FINISHED status);
 - ``shutdown_s``: the last step to the bag closed (the nodes' flush and exit, the recorder's
   drain, /tf and markers, closing the bag);
 - ``report_s``: the bag closed to the last file written (the one read of the bag, its check,
@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import json
 import os
-import re
 import time
 from pathlib import Path
 from typing import Any
@@ -32,29 +31,6 @@ FIRST_STEP = "first step"
 LAST_STEP = "last step"
 BAG_CLOSED = "bag closed"
 LAST_FILE = "last file written"
-
-_ROS_LINE = re.compile(r"^\[(?P<level>[A-Z]+)\] \[(?P<stamp>[0-9]+\.[0-9]+)\] \[[^\]]*\]: (?P<text>.*)$")
-NODE_EVENTS = (
-    ("configured", re.compile(r"^(voltage|torque) (input|output)")),
-    ("stepping", re.compile(r"^(lockstep|real-time): stepping")),
-    ("answering", re.compile(r"^answering joint_states")),
-    ("finished", re.compile(r"^finished at t = ")),
-)
-"""Lines of a node's log that mark a moment of the run (the first of each counts)."""
-
-
-_RECORDER_LINE = re.compile(r"^recorder (?P<text>subscribed|closed the bag) at (?P<stamp>[0-9]+\.[0-9]+)")
-_RECORDER_EVENTS = {"subscribed": "recorder ready", "closed the bag": "recorder closed the bag"}
-
-
-def recorder_events(log: Path) -> list[tuple[float, str]]:
-    """(wall time, "recorder ready" / "recorder closed the bag") from the recorder's output."""
-    try:
-        lines = log.read_text(errors="replace").splitlines()
-    except OSError:
-        return []
-    matches = [m for line in lines if (m := _RECORDER_LINE.match(line))]
-    return [(float(m["stamp"]), _RECORDER_EVENTS[m["text"]]) for m in matches]
 
 
 def process_start_time(pid: int | None = None) -> float:
@@ -71,21 +47,24 @@ def process_start_time(pid: int | None = None) -> float:
         return time.time()
 
 
-def node_events(log: Path, process: str) -> list[tuple[float, str]]:
-    """(wall time, "<process> <event>") for the first line of each of ``NODE_EVENTS`` in a node's log."""
-    try:
-        lines = log.read_text(errors="replace").splitlines()
-    except OSError:
-        return []
-    found: dict[str, float] = {}
-    for line in lines:
-        match = _ROS_LINE.match(line)
-        if match is None:
-            continue
-        for name, pattern in NODE_EVENTS:
-            if name not in found and pattern.match(match["text"]):
-                found[name] = float(match["stamp"])
-    return [(stamp, f"{process} {name}") for name, stamp in found.items()]
+PROCESSES = {"bracing_simulator": "simulator", "bracing_controller": "controller", "bracing_recorder": "recorder"}
+"""The run's node names and the processes they are (run_status says the node)."""
+EVENT_LABELS = {
+    ("simulator", "configured"): "simulator configured",
+    ("simulator", "stepping"): "simulator stepping",
+    ("simulator", "finished"): "simulator finished",
+    ("controller", "configured"): "controller configured",
+    ("controller", "stepping"): "controller answering",
+    ("recorder", "ready"): "recorder ready",
+    ("recorder", "bag closed"): "recorder closed the bag",
+}
+"""The timeline's moments, by (process, run_status event): the first of each counts."""
+
+
+def status_event(node: str, event: str, wall_time_s: float) -> tuple[float, str] | None:
+    """A run_status message as a moment of the timeline (wall time, what), or None if it is none."""
+    label = EVENT_LABELS.get((PROCESSES.get(node, node), event))
+    return None if label is None else (wall_time_s, label)
 
 
 class Timeline:

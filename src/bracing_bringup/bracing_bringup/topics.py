@@ -8,19 +8,27 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
+from bracing_core.typestore import (
+    CLOCK,
+    CONTACTS,
+    CONTROLLER_STATE,
+    JOINT_STATE,
+    MARKER_ARRAY,
+    MOTOR_COMMAND,
+    MOTOR_STATE,
+    TF_MESSAGE,
+    WRENCH_STAMPED,
+)
+
 DESCRIPTION_TOPIC = "robot_description"
 PARAMETER_EVENTS_TOPIC = "/parameter_events"
-PARAMETER_EVENTS_TYPE = "rcl_interfaces/msg/ParameterEvent"
 """rclpy's parameter events: the recorder keeps the controller's changes (as many as there are)."""
 CONTROLLER_NODE = "bracing_controller"
-STRING_TYPE = "std_msgs/msg/String"
-TF_TYPE = "tf2_msgs/msg/TFMessage"
-MARKERS_TYPE = "visualization_msgs/msg/MarkerArray"
 
 SCENE_TOPICS = {
-    "tf": ("/tf", TF_TYPE),
-    "tf_static": ("/tf_static", TF_TYPE),
-    "contact_markers": ("contact_markers", MARKERS_TYPE),
+    "tf": ("/tf", TF_MESSAGE),
+    "tf_static": ("/tf_static", TF_MESSAGE),
+    "contact_markers": ("contact_markers", MARKER_ARRAY),
 }
 """Topics the recorder derives (``scene.Derived.key`` -> topic, type)."""
 
@@ -28,13 +36,13 @@ SCENE_TOPICS = {
 def recorded_topics(contacts: Sequence[str]) -> list[tuple[str, str]]:
     """(relative topic, ROS 2 type name) of every topic the nodes publish once per state."""
     return [
-        ("joint_states", "sensor_msgs/msg/JointState"),
-        *((f"contact_wrench/{name}", "geometry_msgs/msg/WrenchStamped") for name in contacts),
-        ("contacts", "bracing_msgs/msg/Contacts"),
-        ("motor_state", "bracing_msgs/msg/MotorState"),
-        ("/clock", "rosgraph_msgs/msg/Clock"),
-        ("motor_command", "bracing_msgs/msg/MotorCommand"),
-        ("controller_state", "bracing_msgs/msg/ControllerState"),
+        ("joint_states", JOINT_STATE),
+        *((f"contact_wrench/{name}", WRENCH_STAMPED) for name in contacts),
+        ("contacts", CONTACTS),
+        ("motor_state", MOTOR_STATE),
+        ("/clock", CLOCK),
+        ("motor_command", MOTOR_COMMAND),
+        ("controller_state", CONTROLLER_STATE),
     ]
 
 

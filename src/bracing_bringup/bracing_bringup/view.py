@@ -5,7 +5,7 @@ logs it to rerun with sim time on the ``sim_time`` timeline. With BAG: the recor
 the same ``Feed``, so a replay looks like the live view. ``--rrd FILE`` writes the recording.
 
 Every message is reduced to numbers by the project's readers (``bracing_ros.wire``'s typestore)
-and every link pose comes from the project's kinematics (``scene.LinkPoses``, pinocchio).
+and every link pose comes from the project's kinematics (``bracing_core.kinematics.LinkPoses``, pinocchio).
 A state is drawn at most every ``--period`` of sim time (default 1/30 s, a frame at real time): the browser cannot
 draw 1 kHz anyway, and the live viewer must not take the CPU the lockstep loop needs.
 
@@ -25,7 +25,7 @@ import subprocess
 import sys
 import time
 import xml.etree.ElementTree as ET
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -35,21 +35,24 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from bracing_bringup.scene import LinkPoses
+from bracing_analysis.surfaces import Shape, read_scenario, shape_of
+from bracing_bringup.scene import SURFACE_PATCH_M
 from bracing_bringup.viewurl import GRPC_PORT, WEB_PORT, view_url, wait_for_port
+from bracing_core.kinematics import LinkPoses, z_to
+from bracing_core.params import ConfigError
+from bracing_core.typestore import CONTACTS, CONTROLLER_STATE, JOINT_STATE, MOTOR_STATE, STRING, WRENCH_STAMPED
 
 DEFAULT_PERIOD_S = 1.0 / 30.0  # [s] of sim time between drawn states: a browser's frame at real time
 FORCE_M_PER_N = 0.01  # arrow length per newton [m/N], as the recorder's markers
 TIMELINE = "sim_time"
 
 _TYPES = {
-    "robot_description": "std_msgs/msg/String",
-    "joint_states": "sensor_msgs/msg/JointState",
-    "contacts": "bracing_msgs/msg/Contacts",
-    "controller_state": "bracing_msgs/msg/ControllerState",
-    "motor_state": "bracing_msgs/msg/MotorState",
+    "robot_description": STRING,
+    "joint_states": JOINT_STATE,
+    "contacts": CONTACTS,
+    "controller_state": CONTROLLER_STATE,
+    "motor_state": MOTOR_STATE,
 }
-WRENCH_TYPE = "geometry_msgs/msg/WrenchStamped"
 
 
 def blueprint() -> rrb.Blueprint:
@@ -80,12 +83,19 @@ def _stamp_s(msg: Any) -> float:
 class Feed:
     """Logs the run's messages (already decoded, rosbags' or rclpy's objects) to a rerun recording."""
 
-    def __init__(self, recording: rr.RecordingStream, period_s: float = DEFAULT_PERIOD_S) -> None:
+    def __init__(
+        self,
+        recording: rr.RecordingStream,
+        period_s: float = DEFAULT_PERIOD_S,
+        surfaces: Mapping[str, Shape] | None = None,
+    ) -> None:
         self.rec = recording
         self.period = period_s
+        self.shapes = dict(surfaces or {})  # each contact's surface, if known (a bag's metadata, the scenario)
         self.poses: LinkPoses | None = None
         self.counts: dict[str, int] = {}
         self._last: dict[str, float] = {}
+        self.first: dict[str, float] = {}  # per kind, the sim time [s] of the first state drawn
         self._forces: dict[str, np.ndarray] = {}
         self._surfaces: set[str] = set()
 
@@ -102,6 +112,7 @@ class Feed:
         if last is not None and t - last < self.period - 1e-9:
             return False
         self._last[kind] = t
+        self.first.setdefault(kind, t)
         self.rec.set_time(TIMELINE, duration=t)
         return True
 
@@ -155,11 +166,10 @@ class Feed:
         for c in msg.contacts:
             point = np.array([c.position.x, c.position.y, c.position.z])
             normal = np.array([c.normal.x, c.normal.y, c.normal.z])
-            if c.name not in self._surfaces:  # the surface where the contact first is (a plane: a fixed patch)
+            if c.name not in self._surfaces:  # drawn once, where the contact first is
                 self._surfaces.add(c.name)
                 on_surface = point - float(c.residual) * normal
-                patch = rr.Boxes3D(centers=[on_surface - 0.001 * normal], half_sizes=[_patch_half_sizes(normal)])
-                self._log(f"world/surfaces/{c.name}", patch, True)
+                self._log(f"world/surfaces/{c.name}", _surface(shape_of(self.shapes, c.name), on_surface, normal), True)
             base = f"world/contacts/{c.name}"
             color = [220, 30, 30] if c.active else [128, 128, 128]
             self._log(f"{base}/point", rr.Points3D([point], radii=0.02, colors=[color]))
@@ -197,17 +207,46 @@ class Feed:
         for name, temperature in zip(msg.name, getattr(msg, "temperature", []), strict=False):
             self._log(f"plots/temperature/{name}", rr.Scalars(float(temperature)))
 
+    def drawn(self) -> str:
+        """What was drawn of the robot: how many states, from and to which sim time."""
+        states = self.counts.get("world/skeleton", 0)
+        if not states:
+            return "no robot state drawn"
+        first, last = self.first["joint_states"], self._last["joint_states"]
+        return f"{states} robot states drawn, sim time {first:.3f} to {last:.3f} s"
+
     def paths(self, desired: np.ndarray, actual: np.ndarray) -> None:
         """The hand's whole desired and actual paths (a bag's: known at once)."""
         self._log("world/hand/desired_path", rr.LineStrips3D([desired], radii=0.003, colors=[0, 120, 255]), True)
         self._log("world/hand/actual_path", rr.LineStrips3D([actual], radii=0.003, colors=[200, 0, 200]), True)
 
 
-def _patch_half_sizes(normal: np.ndarray) -> list[float]:
-    """A 1 m square patch, thin along the normal's main axis."""
-    half = [0.5, 0.5, 0.5]
-    half[int(np.argmax(np.abs(normal)))] = 0.001
-    return half
+SURFACE_COLOR = [120, 120, 120, 90]  # grey, see-through: the arm stays visible behind a surface
+
+
+def _surface(shape: Shape | None, on_surface: np.ndarray, normal: np.ndarray) -> Any:
+    """A contact's surface as the recorder's markers draw it (``scene``): a sphere or a cylinder of
+    known geometry whole (a cylinder SURFACE_PATCH_M long, centred nearest ``on_surface``), anything
+    else as the square patch of its tangent plane at ``on_surface``, SURFACE_PATCH_M a side."""
+    if shape is not None and shape.curved and shape.radius > 0.0:
+        if shape.kind == "sphere":
+            radii = [[shape.radius] * 3]
+            return rr.Ellipsoids3D(centers=[shape.center], half_sizes=radii, colors=[SURFACE_COLOR], fill_mode="solid")
+        point, axis = np.array(shape.point), np.array(shape.axis)
+        centre = point + float(np.dot(on_surface - point, axis)) * axis
+        return rr.Cylinders3D(
+            lengths=[SURFACE_PATCH_M],
+            radii=[shape.radius],
+            centers=[centre],
+            quaternions=[rr.Quaternion(xyzw=z_to(axis))],
+            colors=[SURFACE_COLOR],
+            fill_mode="solid",
+        )
+    half = [0.5 * SURFACE_PATCH_M, 0.5 * SURFACE_PATCH_M, 0.001]
+    turn = rr.Quaternion(xyzw=z_to(normal))  # the patch's thin z onto the normal
+    return rr.Boxes3D(
+        centers=[on_surface - 0.001 * normal], half_sizes=[half], quaternions=[turn], colors=[SURFACE_COLOR]
+    )
 
 
 def _urdf_visuals(urdf: str) -> dict[str, list[tuple[Any, list[float]]]]:
@@ -261,21 +300,21 @@ def new_recording(name: str = "bracing") -> rr.RecordingStream:
 
 def replay_bag(bag: Path, recording: rr.RecordingStream, period_s: float = DEFAULT_PERIOD_S) -> Feed:
     """Every message of a recorded run through a ``Feed`` (the project's typestore; robot first)."""
-    from rosbags.highlevel import AnyReader
+    from rosbags.highlevel import AnyReader  # rosbags ~100 ms, bag replay only, where used
 
-    from bracing_bringup.summary import read_series, resolve_bag
+    from bracing_analysis.summary import read_series, resolve_bag  # rosbags ~100 ms, bag replay only, where used
 
     path = resolve_bag(Path(bag))
-    feed = Feed(recording, period_s)
+    series = read_series(path)
+    feed = Feed(recording, period_s, series.surfaces)
     recording.send_blueprint(blueprint())
     with AnyReader([path]) as reader:
-        wanted = [c for c in reader.connections if c.msgtype in (*_TYPES.values(), WRENCH_TYPE)]
+        wanted = [c for c in reader.connections if c.msgtype in (*_TYPES.values(), WRENCH_STAMPED)]
         described = [c for c in wanted if c.topic.endswith("robot_description")]
         for conn, _, raw in reader.messages(connections=described):
             feed.message(conn.topic, reader.deserialize(raw, conn.msgtype))
         for conn, _, raw in reader.messages(connections=[c for c in wanted if c not in described]):
             feed.message(conn.topic, reader.deserialize(raw, conn.msgtype))
-    series = read_series(path)
     if len(series.hand_desired):
         feed.paths(series.hand_desired, series.hand_actual)
     return feed
@@ -338,12 +377,12 @@ class Live:
     nodes once the viewer's page is up, so the viewer sees the run from its first state."""
 
     def __init__(self, feed: Feed) -> None:
-        import rclpy
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        import rclpy  # imported where used: rclpy ~70 ms, live only (python -X importtime)
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # rclpy ~70 ms, live only, where used
 
+        from bracing_core.typestore import bracing_typestore
         from bracing_ros.common import SubscriptionWaiter
         from bracing_ros.lifetime import stop_with_parent
-        from bracing_ros.typestore import bracing_typestore
 
         stop_with_parent()  # under bracing-pair: a SIGTERM should the pair die
         os.nice(10)  # the lockstep loop comes first (as the recorder)
@@ -356,7 +395,7 @@ class Live:
             depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
         )
         contacts = [str(c) for c in node.declare_parameter("contacts", ["elbow"]).value or []]
-        topics = [(t, ty) for t, ty in _TYPES.items()] + [(f"contact_wrench/{c}", WRENCH_TYPE) for c in contacts]
+        topics = [(t, ty) for t, ty in _TYPES.items()] + [(f"contact_wrench/{c}", WRENCH_STAMPED) for c in contacts]
         module_types = _rclpy_types()
         self.topics: dict[Any, tuple[str, str]] = {}
         for topic, typename in topics:
@@ -368,8 +407,8 @@ class Live:
 
     def spin(self, stop_after: float | None) -> None:
         """Draw what arrives until Ctrl-C, the end of the ROS context or ``stop_after`` seconds."""
-        import rclpy
-        from rclpy.executors import ExternalShutdownException
+        import rclpy  # imported where used: rclpy ~70 ms, live only (python -X importtime)
+        from rclpy.executors import ExternalShutdownException  # rclpy ~70 ms, live only, where used
 
         feed, store = self.feed, self.store
         deadline = None if stop_after is None else time.monotonic() + stop_after
@@ -402,12 +441,12 @@ def _rclpy_types() -> dict[str, Any]:
     from bracing_msgs.msg import Contacts, ControllerState, MotorState
 
     return {
-        "std_msgs/msg/String": String,
-        "sensor_msgs/msg/JointState": JointState,
-        "bracing_msgs/msg/Contacts": Contacts,
-        "bracing_msgs/msg/ControllerState": ControllerState,
-        "bracing_msgs/msg/MotorState": MotorState,
-        WRENCH_TYPE: WrenchStamped,
+        STRING: String,
+        JOINT_STATE: JointState,
+        CONTACTS: Contacts,
+        CONTROLLER_STATE: ControllerState,
+        MOTOR_STATE: MotorState,
+        WRENCH_STAMPED: WrenchStamped,
     }
 
 
@@ -420,6 +459,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--period", type=float, default=DEFAULT_PERIOD_S, help="sim time between drawn states [s]")
     parser.add_argument("--no-serve", action="store_true", help="only --rrd, no web viewer")
     parser.add_argument("--exit-after", type=float, default=None, help="stop after this many seconds of wall time")
+    parser.add_argument(
+        "--params-file",
+        dest="params_files",
+        action="append",
+        default=[],
+        metavar="FILE",
+        help="live: the scenario's params file(s), for the contact surfaces' geometry (a bag has them)",
+    )
     argv = list(sys.argv[1:] if argv is None else argv)
     ours = argv[: argv.index("--ros-args")] if "--ros-args" in argv else argv  # rclpy reads the rest
     args = parser.parse_args(ours)
@@ -427,8 +474,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         counts = write_rrd(args.bag, args.rrd or Path("run.rrd"), args.period)
         print(f"bracing-view: {sum(counts.values())} logs to {args.rrd or 'run.rrd'}")
         return 0
+    try:
+        shapes = read_scenario(args.params_files) if args.params_files else None
+    except ConfigError as exc:
+        print(f"bracing-view: {exc}", file=sys.stderr)
+        return 2
     recording = new_recording()
-    feed = Feed(recording, args.period)
+    feed = Feed(recording, args.period, shapes)
     subscribed = Live(feed) if args.bag is None else None  # before serving: see Live
     url, proxy = serve(recording, args.web_port, args.grpc_port)
     print(f"bracing-view: open {url}", flush=True)
@@ -446,6 +498,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         pass
     finally:
+        if args.bag is None:
+            print(f"bracing-view: {feed.drawn()}", flush=True)
         recording.flush()
         proxy.terminate()
         proxy.wait(10)

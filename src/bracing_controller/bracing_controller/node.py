@@ -25,10 +25,11 @@ from bracing_core.controller_config import ControllerConfig
 from bracing_core.law import DecoupledController
 from bracing_core.params import ConfigError
 from bracing_core.types import Vector
-from bracing_msgs.msg import ControllerState, MotorCommand
+from bracing_msgs.msg import ControllerState, MotorCommand, RunStatus
 from bracing_ros import parameters, wire
 from bracing_ros.commands import MODE_CODES
 from bracing_ros.common import (
+    RECORDER_NODE,
     STREAM_QOS,
     SUBSCRIBE_QOS,
     AckWindow,
@@ -37,8 +38,10 @@ from bracing_ros.common import (
     create_waking_publisher,
     read_joint_state,
     run,
+    subscribed_by,
     wait_until,
 )
+from bracing_ros.status import StatusPublisher
 
 STAMP_RANGE_NS = (-(2**31) * 1_000_000_000, 2**31 * 1_000_000_000)
 
@@ -107,6 +110,8 @@ class ControllerNode(Node):
         )
         for warning in configuration_warnings(self.config, self.law.plant):  # before the run, once
             self.get_logger().warning(warning)
+        self.status = StatusPublisher(self)  # what bracing-pair follows
+        self.status.say(RunStatus.CONFIGURED)
 
     def sync_clock(self) -> None:
         """Set this node's clock to the sim time of the last state answered (see ``__init__``)."""
@@ -146,10 +151,10 @@ class ControllerNode(Node):
         the simulator starts stepping when this subscription appears (it waits for it), so no
         state is answered before the answers have somewhere to be recorded.
         """
-        self.state_sub = self.create_subscription(JointState, "joint_states", self._on_state, SUBSCRIBE_QOS, raw=True)
+        self.state_sub = self.create_subscription(JointState, "joint_states", self.on_state, SUBSCRIBE_QOS, raw=True)
         return self.state_sub
 
-    def _on_state(self, data: bytes) -> None:
+    def on_state(self, data: bytes) -> None:
         try:
             self.answer(data)
         except Exception as exc:  # the last line of defence: no message may stop the controller
@@ -214,15 +219,20 @@ def spin(node: ControllerNode) -> int:
             wait_until(
                 node,
                 executor,
-                lambda: node.command_pub.get_subscription_count() >= 2 and node.state_pub.get_subscription_count() >= 1,
+                lambda: (
+                    node.command_pub.get_subscription_count() >= 2  # the simulator and the recorder
+                    and subscribed_by(node, node.command_pub, RECORDER_NODE)
+                    and subscribed_by(node, node.state_pub, RECORDER_NODE)
+                ),
                 "waiting for the recorder to subscribe to the command and state topics",
             )
         waiter = SubscriptionWaiter(node, node.listen())
         node.get_logger().info("answering joint_states")
+        node.status.say(RunStatus.STEPPING)
         while True:
             messages = waiter.take(0.1)
             for msg in messages:
-                node._on_state(msg)
+                node.on_state(msg)
             answered += len(messages)
             if not messages or answered >= 100:
                 answered = 0

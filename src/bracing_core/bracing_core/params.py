@@ -2,7 +2,7 @@
 
 Both nodes and every in-process user (tests, benchmarks, sweeps) build their typed
 configuration from the same flat dict: a node gets it from its ROS parameters, the
-library from the scenario YAML (``load_params_file``). Errors name the parameter and
+library from the scenario YAML (``rcl_yaml.load_params_file``). Errors name the parameter and
 what was expected.
 """
 
@@ -19,19 +19,6 @@ Params = Mapping[str, Any]
 
 class ConfigError(ValueError):
     """An invalid or unknown parameter, or a missing file; the message names it."""
-
-
-def load_params_file(path: str | Path, node_name: str) -> dict[str, Any]:
-    """The flat parameters a node named ``node_name`` gets from a ROS 2 params file.
-
-    Sections ``/**`` and ``<node_name>`` (also ``/<node_name>``) are merged in file
-    order, as rcl does. Values are read as the node's rcl reads them and given the meaning the
-    user wrote (``rcl_yaml``): every reader of a scenario file sees what the nodes will.
-    """
-    from bracing_core import rcl_yaml  # it reads the schema, which imports this module
-
-    path = Path(path)
-    return rcl_yaml.conform_all(rcl_yaml.node_sections(path, node_name), str(path))
 
 
 def check_known(

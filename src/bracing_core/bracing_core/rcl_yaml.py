@@ -362,3 +362,14 @@ def dump(document: Mapping[str, Any]) -> str:
     """``document`` (node sections of flat parameters) as YAML that rcl reads back with the same
     types: every string quoted, numbers and booleans plain, lists in flow style, no aliases."""
     return yaml.dump(_quoted(document), Dumper=_Dumper, sort_keys=False, width=1000)
+
+
+def load_params_file(path: str | Path, node_name: str) -> dict[str, Any]:
+    """The flat parameters a node named ``node_name`` gets from a ROS 2 params file.
+
+    Sections ``/**`` and ``<node_name>`` (also ``/<node_name>``) are merged in file
+    order, as rcl does. Values are read as the node's rcl reads them and given the meaning the
+    user wrote (``rcl_yaml``): every reader of a scenario file sees what the nodes will.
+    """
+    path = Path(path)
+    return conform_all(node_sections(path, node_name), str(path))

@@ -23,18 +23,10 @@ import numpy as np
 from bracing_core.config import Plant, SimulatorConfig, build_simulator
 from bracing_core.controller_config import ControllerConfig
 from bracing_core.law import DecoupledController
-from bracing_core.params import load_params_file
+from bracing_core.overrides import CONTROLLER, SIMULATOR, NodeOverrides, node_params
 from bracing_core.simulator import Energy, Simulator
 
 Overrides = Mapping[str, Any] | None
-
-
-def node_params(config: str | Path, node: str, shared: Overrides = None, own: Overrides = None) -> dict[str, Any]:
-    """The flat parameters ``node`` gets from the scenario file, with overrides applied."""
-    params = load_params_file(config, node)
-    params.update(shared or {})
-    params.update(own or {})
-    return params
 
 
 @dataclass
@@ -53,11 +45,8 @@ def build_scenario(
     with_controller: bool = True,
 ) -> Scenario:
     search = [Path(config).resolve().parent]
-    return build_scenario_from_params(
-        node_params(config, "bracing_simulator", shared, sim),
-        node_params(config, "bracing_controller", shared, ctl) if with_controller else None,
-        search,
-    )
+    params = node_params(config, NodeOverrides(dict(shared or {}), dict(sim or {}), dict(ctl or {})))
+    return build_scenario_from_params(params[SIMULATOR], params[CONTROLLER] if with_controller else None, search)
 
 
 def build_scenario_from_params(

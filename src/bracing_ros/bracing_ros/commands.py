@@ -13,8 +13,10 @@ import numpy as np
 
 from bracing_core.dynamics import InputMode
 from bracing_core.types import Vector
+from bracing_core.typestore import motor_command_modes
 
-MODE_CODES = {InputMode.VOLTAGE: 0, InputMode.TORQUE: 1}  # bracing_msgs/MotorCommand constants
+MODE_CODES = {mode: motor_command_modes()[mode.value] for mode in InputMode}
+"""An input mode -> its bracing_msgs/MotorCommand.mode constant."""
 
 
 class CommandError(ValueError):

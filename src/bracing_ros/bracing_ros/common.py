@@ -95,6 +95,20 @@ def _matched(_: object) -> None:
     pass
 
 
+RECORDER_NODE = "bracing_recorder"
+"""The recorder's node name: what ``wait_for_recorder`` waits for (``subscribed_by``)."""
+
+
+def subscribed_by(node: Node, publisher: Publisher, name: str) -> bool:
+    """Whether the node ``name`` subscribes to ``publisher``'s topic and every subscriber the ROS
+    graph knows of there has matched it. A count alone cannot tell the recorder from another
+    subscriber (bracing-view's, measured: a viewer subscribed first let the pair start stepping
+    before the recorder matched, and the bag lost the first answer)."""
+    subscribers = node.get_subscriptions_info_by_topic(publisher.topic_name)
+    named = any(info.node_name == name for info in subscribers)
+    return named and publisher.get_subscription_count() >= len(subscribers)
+
+
 def wait_until(node: Node, executor: Executor, ready: Callable[[], bool], message: str) -> None:
     """Serve ``executor`` until ``ready()`` (a subscription count, say), logging ``message`` (what
     it waits for) once it has waited 2 s. Discovery and matching happen in DDS's own threads; a
@@ -158,6 +172,9 @@ class SubscriptionWaiter:
     timers, ...) on every spin, which costs more than a whole simulation step; this waits
     on the subscriptions that matter (and on Ctrl-C). Call the executor now and then so
     that the node's services still answer.
+
+    rclpy has no public wait set: this class is the project's one use of its internal one
+    (``_rclpy.WaitSet``, what rclpy's own executors wait on).
     """
 
     def __init__(self, node: Node, subscriptions: Subscription | Sequence[Subscription]) -> None:

@@ -33,7 +33,8 @@ _TYPES = {
 def given_parameters(node: Node) -> dict[str, Any]:
     """The flat parameters the node was started with (params files and ``-p``), by name.
 
-    rclpy keeps them in ``Node._parameter_overrides`` and offers no public reader; declaring
+    rclpy keeps them in ``Node._parameter_overrides`` and offers no public reader (this is the
+    project's one read of it); declaring
     them would need their types first (an empty list reaches rclpy as NOT_SET, which it refuses
     to declare). Reading them here lets the schema name an unknown or mistyped parameter.
     """

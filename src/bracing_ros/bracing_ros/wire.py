@@ -6,7 +6,7 @@ the DDS write itself, and it sits on the lockstep loop's critical path. ``Publis
 accepts serialised bytes as they are, so every message here is built as bytes.
 
 Layouts come from the message definitions (the ``.msg`` files, through the rosbags typestore
-of :mod:`bracing_ros.typestore`); none is written here by hand:
+of :mod:`bracing_core.typestore`, walked by :mod:`bracing_core.cdr`); none is written here by hand:
 
 - The two messages on the lockstep critical path, state out / in (``sensor_msgs/JointState``:
   the simulator encodes, the controller decodes) and command out / in
@@ -58,43 +58,31 @@ raise :class:`UnsupportedEncoding`, so the caller can fall back to rclpy.
 from __future__ import annotations
 
 import struct
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from operator import itemgetter
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from rosbags.interfaces import Nodetype
 
+from bracing_core import cdr
+from bracing_core.cdr import FieldDesc
 from bracing_core.types import Vector
-from bracing_ros.typestore import bracing_typestore
+from bracing_core.typestore import (
+    CLOCK,
+    CONTACT_STATE,
+    CONTACTS,
+    CONTROLLER_STATE,
+    JOINT_STATE,
+    MOTOR_COMMAND,
+    MOTOR_STATE,
+    WRENCH_STAMPED,
+    bracing_typestore,
+)
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
-
-_FieldDesc = Any  # rosbags' FieldDesc, (Nodetype, argument) tuples nested; a union mypy cannot narrow by kind
-
-_HEADER_SIZE = 4  # encapsulation header; CDR alignment counts from its end
-_ENCAPSULATION_LE = b"\x00\x01\x00\x00"
-
-JOINT_STATE = "sensor_msgs/msg/JointState"
-MOTOR_COMMAND = "bracing_msgs/msg/MotorCommand"
-
-_NUMBERS = {  # ROS 2 base type -> struct format character (its size is its CDR alignment)
-    "bool": "?",
-    "byte": "B",
-    "char": "B",
-    "int8": "b",
-    "uint8": "B",
-    "int16": "h",
-    "uint16": "H",
-    "int32": "i",
-    "uint32": "I",
-    "int64": "q",
-    "uint64": "Q",
-    "float32": "f",
-    "float64": "d",
-}
 
 
 class DecodeError(ValueError):
@@ -186,161 +174,182 @@ def derive_template(typename: str, spec: Mapping[str, Any], typestore: Typestore
     :class:`PerMessage` (filled by :meth:`Template.fill`, one slot per marker, in definition
     order). Fields left out are zero / empty. Per-message parts hold numbers only.
     """
-    builder = _Builder(typestore if typestore is not None else bracing_typestore())
-    builder.fields(typename, spec)
+    builder = _SpecBuilder(typestore if typestore is not None else bracing_typestore())
+    builder.message(typename, spec, f"{typename}.")
     return builder.build()
+
+
+def message_template(
+    typename: str, message: Any, varies: Callable[[str, FieldDesc], bool], typestore: Typestore
+) -> tuple[Template, list[str]]:
+    """A template of the layout of ``message`` (a message object of ``typestore``), and its slots' paths.
+
+    Its strings, lengths and other values are fixed; a field (or an array's or a sequence's
+    element) where ``varies(path, field desc)`` is a slot (a sequence: of ``message``'s
+    length). Paths are field names, ``a.b.c``, without element indices (every element's
+    alike); the answer lists each slot's, in definition order.
+    """
+    builder = _MessageBuilder(typestore, varies)
+    builder.message(typename, message)
+    return builder.build(), builder.paths
 
 
 @dataclass
 class _Slot:
     start: int  # offset of its first number (after the alignment before it)
-    tokens: list[str]  # struct format items: numbers, and padding between them
+    end: int  # past its last number
+    tokens: list[str] = field(default_factory=list)  # struct format items: numbers, and padding between them
     count: int = 0  # numbers
 
 
-class _Builder:
-    """Walks a definition the way rosbags' CDR generator does, writing the template's bytes."""
+class _Builder(cdr.Walker):
+    """Writes a template's bytes along the definition: constants, and slots for the per-message parts.
+
+    Subclasses say where the values come from (``member``) and which fields are filled per
+    message (``marker``).
+    """
 
     def __init__(self, store: Typestore) -> None:
-        self.store = store
-        self.buffer = bytearray(_ENCAPSULATION_LE)
+        super().__init__(store)
+        self.buffer = bytearray(cdr.ENCAPSULATION_LE)
         self.slots: list[_Slot] = []
-        self._live: _Slot | None = None  # the slot being written
+        self._marker: PerMessage | None = None  # the per-message part being walked
+        self._slot: _Slot | None = None  # its slot, from its first number on
 
-    # -- bytes
+    def marker(self, value: Any, desc: FieldDesc, path: str) -> PerMessage | None:
+        raise NotImplementedError
 
-    def _pad(self, align: int) -> int:
-        size = -(len(self.buffer) - _HEADER_SIZE) % align
-        self.buffer += bytes(size)
-        return size
-
-    def _constant(self, char: str, value: object) -> None:
-        packer = struct.Struct("<" + char)
-        self._pad(packer.size)
-        self.buffer += packer.pack(value)
-
-    def _string(self, text: object, where: str) -> None:
-        if not isinstance(text, str):
-            raise TypeError(f"{where}: a string field needs a str, not {text!r}")
-        data = text.encode() + b"\x00"
-        self._constant("I", len(data))
-        self.buffer += data
-
-    def _numbers(self, char: str, count: int) -> None:
-        """``count`` numbers of the slot being written."""
-        slot = self._live
-        assert slot is not None
-        if count == 0:
-            return  # CDR aligns no empty array
-        size = struct.calcsize(char)
-        if not slot.tokens:  # the slot starts here, after the alignment (part of the constant before it)
-            self._pad(size)
-            slot.start = len(self.buffer)
-        elif pad := self._pad(size):
-            slot.tokens.append(f"{pad}x")
-        slot.tokens.append(f"{count}{char}")
-        slot.count += count
-        self.buffer += bytes(size * count)
-
-    # -- the walk
-
-    def fields(self, typename: str, spec: Mapping[str, Any]) -> None:
-        if not isinstance(spec, Mapping):
-            raise TypeError(f"{typename}: a nested message needs a mapping of its fields, not {spec!r}")
-        _, fields = self.store.fielddefs[typename]
-        unknown = set(spec) - {name for name, _ in fields}
-        if unknown:
-            raise ValueError(f"{typename} has no field {', '.join(sorted(unknown))}")
-        for name, desc in fields:
-            self.field(desc, spec.get(name, _DEFAULT), f"{typename}.{name}")
-
-    def field(self, desc: _FieldDesc, value: Any, where: str) -> None:
+    def field(self, desc: FieldDesc, value: Any, path: str) -> None:
         """One field: constant ``value`` (or its default), or a slot for a :class:`PerMessage`."""
+        marker = None if self._marker is not None else self.marker(value, desc, path)
+        if marker is None:
+            super().field(desc, value, path)
+            return
         kind, arg = desc
-        if isinstance(value, PerMessage):
-            self._slot(desc, value, where)
-        elif kind == Nodetype.BASE:
-            base, bound = arg
-            if base == "string":
-                text = "" if value is _DEFAULT else value
-                if bound and isinstance(text, str) and len(text) > bound:
-                    raise ValueError(f"{where}: a string of at most {bound} characters, not {len(text)}")
-                self._string(text, where)
-            else:
-                self._constant(_char(base, where), 0 if value is _DEFAULT else value)
-        elif kind == Nodetype.NAME:
-            self.fields(arg, {} if value is _DEFAULT else value)
-        else:
-            sub, bound = arg
-            if value is _DEFAULT:
-                elements = [_DEFAULT] * bound if kind == Nodetype.ARRAY else []
-            else:
-                elements = list(value)
-            if kind == Nodetype.ARRAY and len(elements) != bound:
-                raise ValueError(f"{where}: an array of {bound}, not {len(elements)}")
-            if kind == Nodetype.SEQUENCE:
-                if bound and len(elements) > bound:
-                    raise ValueError(f"{where}: at most {bound} elements, not {len(elements)}")
-                self._constant("I", len(elements))
-            for element in elements:
-                self.field(sub, element, where)
-
-    def _slot(self, desc: _FieldDesc, marker: PerMessage, where: str) -> None:
-        kind, arg = desc
-        count = 1
         if kind == Nodetype.SEQUENCE:
             if marker.count is None:
-                raise ValueError(f"{where}: a sequence filled per message needs its length (PerMessage(count))")
-            sub, bound = arg
-            if bound and marker.count > bound:
-                raise ValueError(f"{where}: at most {bound} elements, not {marker.count}")
-            self._constant("I", marker.count)
-            desc, count = sub, marker.count
+                raise ValueError(f"{path}: a sequence filled per message needs its length (PerMessage(count))")
+            if arg[1] and marker.count > arg[1]:
+                raise ValueError(f"{path}: at most {arg[1]} elements, not {marker.count}")
         elif marker.count is not None:
-            raise ValueError(f"{where}: only a sequence takes a length")
-        self._live = _Slot(len(self.buffer), [])
-        self.slots.append(self._live)
-        if desc[0] == Nodetype.BASE:
-            self._numbers(_char(desc[1][0], where, per_message=True), count)
-        else:
-            for _ in range(count):
-                self._numbers_of(desc, where)
-        self._live = None
+            raise ValueError(f"{path}: only a sequence takes a length")
+        self._marker, self._slot = marker, None
+        super().field(desc, marker, path)
+        if self._slot is None:  # no number (an empty sequence): an empty slot
+            self.slots.append(_Slot(self.offset, self.offset))
+        self._marker = None
 
-    def _numbers_of(self, desc: _FieldDesc, where: str) -> None:
-        kind, arg = desc
-        if kind == Nodetype.BASE:
-            self._numbers(_char(arg[0], where, per_message=True), 1)
-        elif kind == Nodetype.NAME:
-            for name, sub in self.store.fielddefs[arg][1]:
-                self._numbers_of(sub, f"{where}.{name}")
-        elif kind == Nodetype.ARRAY:
-            sub, length = arg
-            if sub[0] == Nodetype.BASE:
-                self._numbers(_char(sub[1][0], where, per_message=True), length)
-            else:
-                for _ in range(length):
-                    self._numbers_of(sub, where)
+    def _pad(self) -> None:
+        """The alignment padding the walk has just moved past, written."""
+        self.buffer += bytes(self.offset - len(self.buffer))
+
+    def number(self, code: str, value: Any, path: str) -> None:
+        if self._marker is None:
+            self._pad()
+            self.buffer += struct.pack("<" + code, 0 if value is _DEFAULT else value)
         else:
-            raise ValueError(f"{where}: a sequence inside a per-message part (its length would vary)")
+            self.numbers(code, (), 1, path)
+
+    def numbers(self, code: str, values: Sequence[Any], count: int, path: str) -> None:
+        self._pad()
+        if self._marker is None:
+            self.buffer += struct.pack(f"<{count}{code}", *[0 if v is _DEFAULT else v for v in values])
+            return
+        slot = self._slot
+        if slot is None:  # the slot starts here, after the alignment (part of the constant before it)
+            slot = self._slot = _Slot(self.offset, self.offset)
+            self.slots.append(slot)
+        elif self.offset > slot.end:
+            slot.tokens.append(f"{self.offset - slot.end}x")
+        slot.tokens.append(f"{count}{code}")
+        slot.count += count
+        slot.end = self.offset + cdr.SIZES[code] * count
+        self.buffer += bytes(slot.end - self.offset)
+
+    def string(self, value: Any, bound: int, path: str) -> int:
+        if self._marker is not None:
+            raise ValueError(f"{path}: a string in a per-message part (its length would vary)")
+        text = "" if value is _DEFAULT else value
+        if not isinstance(text, str):
+            raise TypeError(f"{path}: a string field needs a str, not {text!r}")
+        if bound and len(text) > bound:
+            raise ValueError(f"{path}: a string of at most {bound} characters, not {len(text)}")
+        data = text.encode() + b"\x00"
+        self._pad()
+        self.buffer += struct.pack("<I", len(data)) + data
+        return 4 + len(data)
+
+    def length(self, value: Any, bound: int, path: str) -> int:
+        if self._marker is None:
+            count = 0 if value is _DEFAULT else len(value)
+            if bound and count > bound:
+                raise ValueError(f"{path}: at most {bound} elements, not {count}")
+        elif value is self._marker:
+            count = self._marker.count or 0
+        else:
+            raise ValueError(f"{path}: a sequence inside a per-message part (its length would vary)")
+        self._pad()
+        self.buffer += struct.pack("<I", count)
+        return count
+
+    def elements(self, value: Any, count: int, path: str) -> Sequence[Any]:
+        if self._marker is not None or value is _DEFAULT:
+            return [_DEFAULT] * count
+        elements = list(value)
+        if len(elements) != count:
+            raise ValueError(f"{path}: an array of {count}, not {len(elements)}")
+        return elements
 
     def build(self) -> Template:
-        chunks, formats, end = [], [], 0
+        chunks, end = [], 0
         for slot in self.slots:
             chunks.append(bytes(self.buffer[end : slot.start]))
-            formats.append("".join(slot.tokens))
-            end = slot.start + struct.calcsize("<" + formats[-1])
+            end = slot.end
         chunks.append(bytes(self.buffer[end:]))
-        return Template(chunks, formats, [slot.count for slot in self.slots])
+        return Template(chunks, ["".join(slot.tokens) for slot in self.slots], [slot.count for slot in self.slots])
 
 
-def _char(base: str, where: str, per_message: bool = False) -> str:
-    if base == "string" and per_message:
-        raise ValueError(f"{where}: a string in a per-message part (its length would vary)")
-    try:
-        return _NUMBERS[base]
-    except KeyError:
-        raise ValueError(f"{where}: type {base} is not supported") from None
+class _SpecBuilder(_Builder):
+    """Values from a :func:`derive_template` spec; its :class:`PerMessage` markers are the slots."""
+
+    def message(self, typename: str, value: Any, path: str = "") -> None:
+        if self._marker is None:
+            spec = {} if value is _DEFAULT else value
+            if not isinstance(spec, Mapping):
+                raise TypeError(f"{path.rstrip('.')}: a nested message needs a mapping of its fields, not {spec!r}")
+            unknown = set(spec) - {name for name, _ in self.store.fielddefs[typename][1]}
+            if unknown:
+                raise ValueError(f"{typename} has no field {', '.join(sorted(unknown))}")
+        super().message(typename, value, path)
+
+    def member(self, value: Any, name: str, path: str) -> Any:
+        if self._marker is not None or value is _DEFAULT:
+            return _DEFAULT
+        return value.get(name, _DEFAULT)
+
+    def marker(self, value: Any, desc: FieldDesc, path: str) -> PerMessage | None:
+        return value if isinstance(value, PerMessage) else None
+
+
+class _MessageBuilder(_Builder):
+    """Values from a message object; the fields ``varies`` names are the slots (``paths``)."""
+
+    def __init__(self, store: Typestore, varies: Callable[[str, FieldDesc], bool]) -> None:
+        super().__init__(store)
+        self.varies = varies
+        self.paths: list[str] = []
+
+    def item(self, path: str, index: int) -> str:
+        return path  # every element's field alike
+
+    def member(self, value: Any, name: str, path: str) -> Any:
+        return _DEFAULT if self._marker is not None else getattr(value, name)
+
+    def marker(self, value: Any, desc: FieldDesc, path: str) -> PerMessage | None:
+        if not self.varies(path, desc):
+            return None
+        self.paths.append(path)
+        return PerMessage(len(value)) if desc[0] == Nodetype.SEQUENCE else PER_MESSAGE
 
 
 # ----------------------------------------------------------------------------- encoding
@@ -403,7 +412,7 @@ class _Messages:
         return self._cls(**(self._defaults | values))
 
 
-def _default_value(store: Typestore, desc: _FieldDesc) -> object:
+def _default_value(store: Typestore, desc: FieldDesc) -> object:
     kind, arg = desc
     if kind == Nodetype.BASE:
         base = arg[0]
@@ -414,7 +423,7 @@ def _default_value(store: Typestore, desc: _FieldDesc) -> object:
     if kind == Nodetype.SEQUENCE:
         length = 0
     if sub[0] == Nodetype.BASE and sub[1][0] != "string":
-        return np.zeros(length, dtype={"bool": np.bool_, "char": np.uint8, "byte": np.uint8}.get(sub[1][0], sub[1][0]))
+        return np.zeros(length, dtype=cdr.STRUCT_CODES.get(sub[1][0], sub[1][0]))
     return [_default_value(store, sub) for _ in range(length)]
 
 
@@ -449,11 +458,11 @@ class ClockEncoder:
 
     def __init__(self) -> None:
         self._ser = _Serializer()
-        self._clock = _Messages(self._ser.store, "rosgraph_msgs/msg/Clock")
+        self._clock = _Messages(self._ser.store, CLOCK)
 
     def encode(self, stamp_ns: int) -> bytes:
         message = self._clock(clock=self._ser.time(stamp_ns))
-        return self._ser.serialize(message, "rosgraph_msgs/msg/Clock")
+        return self._ser.serialize(message, CLOCK)
 
 
 class WrenchStampedEncoder:
@@ -461,7 +470,7 @@ class WrenchStampedEncoder:
 
     def __init__(self, frame_id: str) -> None:
         self._ser, self._frame_id = _Serializer(), frame_id
-        self._wrench_stamped = _Messages(self._ser.store, "geometry_msgs/msg/WrenchStamped")
+        self._wrench_stamped = _Messages(self._ser.store, WRENCH_STAMPED)
         self._wrench = _Messages(self._ser.store, "geometry_msgs/msg/Wrench")
 
     def encode(self, stamp_ns: int, force: Vector) -> bytes:
@@ -470,7 +479,7 @@ class WrenchStampedEncoder:
             header=ser.header(stamp_ns, self._frame_id),
             wrench=self._wrench(force=ser.Vector3(*force.tolist())),  # torque: zero (force at the contact point)
         )
-        return ser.serialize(message, "geometry_msgs/msg/WrenchStamped")
+        return ser.serialize(message, WRENCH_STAMPED)
 
 
 @dataclass(frozen=True)
@@ -492,8 +501,8 @@ class ContactsEncoder:
     def __init__(self, names: Sequence[str], frames: Sequence[str], frame_id: str = "world") -> None:
         self._ser, self._frame_id = _Serializer(), frame_id
         self._names = list(zip(names, frames, strict=True))
-        self._contacts = _Messages(self._ser.store, "bracing_msgs/msg/Contacts")
-        self._contact = _Messages(self._ser.store, "bracing_msgs/msg/ContactState")
+        self._contacts = _Messages(self._ser.store, CONTACTS)
+        self._contact = _Messages(self._ser.store, CONTACT_STATE)
 
     def encode(self, stamp_ns: int, contacts: Sequence[ContactReport]) -> bytes:
         ser = self._ser
@@ -512,7 +521,7 @@ class ContactsEncoder:
             for (name, frame), c in zip(self._names, contacts, strict=True)
         ]
         message = self._contacts(header=ser.header(stamp_ns, self._frame_id), contacts=states)
-        return ser.serialize(message, "bracing_msgs/msg/Contacts")
+        return ser.serialize(message, CONTACTS)
 
 
 class MotorStateEncoder:
@@ -520,7 +529,7 @@ class MotorStateEncoder:
 
     def __init__(self, names: Sequence[str]) -> None:
         self._ser, self._names = _Serializer(), list(names)
-        self._motor_state = _Messages(self._ser.store, "bracing_msgs/msg/MotorState")
+        self._motor_state = _Messages(self._ser.store, MOTOR_STATE)
 
     def encode(
         self,
@@ -545,7 +554,7 @@ class MotorStateEncoder:
             copper_loss=float(copper_loss),
             temperature=_float64s(temperature),
         )
-        return self._ser.serialize(message, "bracing_msgs/msg/MotorState")
+        return self._ser.serialize(message, MOTOR_STATE)
 
 
 class ControllerStateEncoder:
@@ -558,7 +567,7 @@ class ControllerStateEncoder:
     def __init__(self, contact_names: Sequence[str], command_length: int, frame_id: str = "world") -> None:
         self._ser, self._frame_id = _Serializer(), frame_id
         self._contact_names, self.command_length = list(contact_names), command_length
-        self._controller_state = _Messages(self._ser.store, "bracing_msgs/msg/ControllerState")
+        self._controller_state = _Messages(self._ser.store, CONTROLLER_STATE)
 
     def encode(
         self,
@@ -584,7 +593,7 @@ class ControllerStateEncoder:
             command=_float64s(command),
             compute_time=float(compute_time),
         )
-        return self._ser.serialize(message, "bracing_msgs/msg/ControllerState")
+        return self._ser.serialize(message, CONTROLLER_STATE)
 
 
 # ----------------------------------------------------------------------------- decoding
@@ -596,13 +605,13 @@ def _deserialize(data: bytes, typename: str) -> Any:
     Bytes past the message's end are ignored: rclpy's own messages can carry several
     (``Typestore.deserialize_cdr`` refuses more than 3, so its generated function is called).
     """
-    if len(data) < _HEADER_SIZE or data[0] != 0 or data[1] not in (0, 1):
+    if len(data) < cdr.HEADER_SIZE or data[0] != 0 or data[1] not in (0, 1):
         raise UnsupportedEncoding(f"encapsulation {bytes(data[:2]).hex() or 'missing'} is not plain CDR")
     store = bracing_typestore()
     msgdef = store.get_msgdef(typename)
     read = msgdef.deserialize_cdr_le if data[1] == 1 else msgdef.deserialize_cdr_be
     try:
-        return read(data[_HEADER_SIZE:], 0, msgdef.cls, store)[0]
+        return read(data[cdr.HEADER_SIZE :], 0, msgdef.cls, store)[0]
     except Exception as exc:  # SerdeError, struct.error, ValueError: whatever arbitrary bytes provoke
         raise DecodeError(f"not a {typename}: {exc}") from None
 

@@ -7,6 +7,7 @@ stamp, step with it held. Real-time: a wall-clock timer steps with the latest co
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from functools import partial
@@ -26,11 +27,12 @@ from bracing_core.config import SimulatorConfig, build_simulator
 from bracing_core.dynamics import Derivative, InputMode
 from bracing_core.simulator import DivergenceError, Energy
 from bracing_core.types import Vector
-from bracing_msgs.msg import Contacts, MotorCommand, MotorState
+from bracing_msgs.msg import Contacts, MotorCommand, MotorState, RunStatus
 from bracing_ros import parameters, wire
 from bracing_ros.commands import MODE_CODES, CommandError, command_vector
 from bracing_ros.common import (
     EXIT_DIVERGED,
+    RECORDER_NODE,
     STREAM_QOS,
     SUBSCRIBE_QOS,
     AckWindow,
@@ -39,8 +41,10 @@ from bracing_ros.common import (
     create_waking_publisher,
     read_motor_command,
     run,
+    subscribed_by,
     wait_until,
 )
+from bracing_ros.status import StatusPublisher
 
 DESCRIPTION_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
@@ -95,7 +99,7 @@ class SimulatorNode(Node):
         self.motor_wire = wire.MotorStateEncoder(self.joint_names)
         self.command_reader = wire.MotorCommandDecoder(self.joint_names, MODE_CODES[self.mode])
         self.command_sub = self.create_subscription(
-            MotorCommand, "motor_command", self._on_command, SUBSCRIBE_QOS, raw=True
+            MotorCommand, "motor_command", self.on_command, SUBSCRIBE_QOS, raw=True
         )
         self.report = RateLimitedLog(self, self.config.log_throttle_period)
         # robot_description too: a short run could otherwise end before the recorder has it.
@@ -108,10 +112,12 @@ class SimulatorNode(Node):
             self.description_pub,
         ]
         self.flow = AckWindow(self, self.publishers_, STREAM_QOS.depth)
+        self.status = StatusPublisher(self)  # what bracing-pair follows (not a data topic: not in publishers_)
+        self.real_time_achieved = math.nan  # real-time stepping: sim time / wall time, once finished
 
         self.command = np.zeros(self.sim.n)  # last applied (held) command
         self.pending: dict[int, Vector] = {}  # lockstep: valid commands by stamp [ns]
-        self._latest: tuple[float, Vector] | None = None  # real-time: (wall time, command)
+        self.latest_command: tuple[float, Vector] | None = None  # real-time: (wall time, command)
         self._next_progress = 0.0  # wall time of the next progress line
         self.max_residual = 0.0  # [m], over the run so far (contacts holding a force)
         self._events_logged = 0
@@ -133,9 +139,10 @@ class SimulatorNode(Node):
             self.get_logger().info(
                 f"initial position projected onto the contacts: {projected} (moved {moved:.3g} at most)"
             )
+        self.status.say(RunStatus.CONFIGURED, self.sim.time)
 
     # -- commands -------------------------------------------------------------------
-    def _on_command(self, data: bytes) -> None:
+    def on_command(self, data: bytes) -> None:
         try:
             self.take_command(data)
         except Exception as exc:  # the last line of defence: no message may stop the simulator
@@ -165,7 +172,7 @@ class SimulatorNode(Node):
         if saturated:  # said only of a command that is applied
             self.report("warning", "saturated", f"motor_command saturated to +/-{self.limit}")
         if self.config.stepping == "real_time":
-            self._latest = (time.monotonic(), u)
+            self.latest_command = (time.monotonic(), u)
         else:
             self.pending[stamp_ns] = u
 
@@ -254,9 +261,10 @@ class SimulatorNode(Node):
             self.warn_braced(event.contact, event.kind, event.time)
         self._events_logged = len(self.sim.events)
         now = time.monotonic()
-        if now >= self._next_progress:  # bracing-pair follows these lines
+        if now >= self._next_progress:
             self._next_progress = now + 0.5
             self.get_logger().info(f"progress t={self.sim.time:.3f} max_residual={self.max_residual:.3e}")
+            self.status.say(RunStatus.PROGRESS, self.sim.time)
         return True
 
     def warn_braced(self, contact: str, kind: str, t: float) -> None:
@@ -308,6 +316,19 @@ class SimulatorNode(Node):
         self.flow.wait()  # every subscriber has every message before this process ends
         self.get_logger().info(f"progress t={self.sim.time:.3f} max_residual={self.max_residual:.3e}")
         self.get_logger().info(f"finished at t = {self.sim.time:.6f} s")
+        self.status.say(RunStatus.FINISHED, self.sim.time, self.real_time_achieved)
+        self.status.flush()  # bracing-pair has it before this process ends
+
+
+def wait_for_recorder(node: SimulatorNode, executor: SingleThreadedExecutor) -> None:
+    """Before the first state: every report must reach the recorder, so it is matched on every
+    topic (joint_states has the controller besides). AckWindow keeps it lossless from then on."""
+    wait_until(
+        node,
+        executor,
+        lambda: all(subscribed_by(node, pub, RECORDER_NODE) for pub in node.publishers_),
+        "waiting for the recorder to subscribe to every topic",
+    )
 
 
 def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None:
@@ -322,15 +343,9 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
         f"lockstep: waiting for {cfg.min_subscribers} subscriber(s) of joint_states (start the controller)",
     )
     if cfg.wait_for_recorder:
-        # Every report must reach the recorder: be matched on every topic before the first state
-        # (joint_states has the controller besides). AckWindow keeps it lossless from then on.
-        wait_until(
-            node,
-            executor,
-            lambda: all(pub.get_subscription_count() >= 1 for pub in node.publishers_),
-            "waiting for the recorder to subscribe to every topic",
-        )
+        wait_for_recorder(node, executor)
     node.get_logger().info(f"lockstep: stepping (subscribers matched in {time.monotonic() - since:.3f} s)")
+    node.status.say(RunStatus.STEPPING, node.sim.time)
     waiter = SubscriptionWaiter(node, node.command_sub)
     node.publish_state(node.state_effort())
     node.flow.sent()
@@ -349,7 +364,7 @@ def next_command(node: SimulatorNode, waiter: SubscriptionWaiter, deadline: floa
         if remaining <= 0.0:
             return None
         for msg in waiter.take(min(remaining, 0.1)):
-            node._on_command(msg)
+            node.on_command(msg)
     command = node.pending.pop(expected)
     node.pending.clear()
     return command
@@ -393,7 +408,7 @@ def spin_real_time(node: SimulatorNode, executor: SingleThreadedExecutor) -> Non
     def tick() -> None:
         if node.done():
             return
-        latest = node._latest
+        latest = node.latest_command
         if latest is None or time.monotonic() - latest[0] > cfg.command_timeout:
             if latest is not None:
                 node.report("warning", "watchdog", "motor_command stale: applying zero")
@@ -403,11 +418,12 @@ def spin_real_time(node: SimulatorNode, executor: SingleThreadedExecutor) -> Non
         if node.advance(command):
             return
         node.refuse(command)
-        node._latest = None  # never again: a stale command becomes zero
+        node.latest_command = None  # never again: a stale command becomes zero
         if not node.advance(np.zeros(node.sim.n)):
             raise DivergenceError(f"{node.refusal} (under a zero command)")
 
     node.get_logger().info("real-time: stepping")
+    node.status.say(RunStatus.STEPPING, node.sim.time)
     node.publish_state(node.state_effort())
     started = time.monotonic()
     node.create_timer(period, tick)
@@ -418,9 +434,10 @@ def spin_real_time(node: SimulatorNode, executor: SingleThreadedExecutor) -> Non
 
 
 def report_real_time(node: SimulatorNode, wall_s: float) -> None:
-    """Say how fast real-time stepping went (bracing-pair reads ``REAL_TIME_ACHIEVED``), and warn if
-    it fell behind: a timer whose ticks run late skips them, so the sim time lags the wall clock."""
+    """Say how fast real-time stepping went (in the log, and to bracing-pair in the FINISHED status),
+    and warn if it fell behind: a timer whose ticks run late skips them, so the sim time lags the wall clock."""
     achieved = node.sim.time / wall_s if wall_s > 0.0 else float("inf")
+    node.real_time_achieved = achieved
     asked = node.config.real_time_factor
     node.get_logger().info(f"{REAL_TIME_ACHIEVED}{achieved:.4f}x real time (asked {asked:g}x)")
     warning = slow_real_time_warning(achieved, asked)

@@ -1,7 +1,9 @@
 """The rosbags typestore of the bracing interface: ROS 2 Jazzy's types plus bracing_msgs.
 
-The recorder writes bags with it (definitions embedded) and ``wire`` derives message bytes
-from its field definitions, so a ``.msg`` file is the one place a message's layout is written.
+The recorder writes bags with it (definitions embedded), ``bracing_ros.wire`` derives message
+bytes from its field definitions (through :mod:`bracing_core.cdr`) and the analysis reads the
+``.msg`` constants from it, so a ``.msg`` file is the one place a message's layout is written.
+No ROS: it lives here for the ROS-free analysis as much as for the nodes.
 """
 
 from __future__ import annotations
@@ -15,6 +17,20 @@ from rosbags.typesys.store import Typestore
 
 BRACING_MSGS = ("ContactState", "Contacts", "ControllerState", "MotorCommand", "MotorState")
 
+# The message types a run sends, records and derives, named as the typestore and a bag's metadata name them.
+JOINT_STATE = "sensor_msgs/msg/JointState"
+WRENCH_STAMPED = "geometry_msgs/msg/WrenchStamped"
+CLOCK = "rosgraph_msgs/msg/Clock"
+STRING = "std_msgs/msg/String"
+PARAMETER_EVENT = "rcl_interfaces/msg/ParameterEvent"
+TF_MESSAGE = "tf2_msgs/msg/TFMessage"
+MARKER_ARRAY = "visualization_msgs/msg/MarkerArray"
+CONTACT_STATE = "bracing_msgs/msg/ContactState"
+CONTACTS = "bracing_msgs/msg/Contacts"
+CONTROLLER_STATE = "bracing_msgs/msg/ControllerState"
+MOTOR_COMMAND = "bracing_msgs/msg/MotorCommand"
+MOTOR_STATE = "bracing_msgs/msg/MotorState"
+
 
 def bracing_msgs_dir() -> Path:
     """Directory of the bracing_msgs ``.msg`` files (installed share dir, else source)."""
@@ -26,7 +42,7 @@ def bracing_msgs_dir() -> Path:
             return share
     except (ImportError, LookupError, ValueError):
         pass
-    # src/bracing_ros/bracing_ros/typestore.py -> src/bracing_msgs/msg
+    # src/bracing_core/bracing_core/typestore.py -> src/bracing_msgs/msg
     src = Path(__file__).resolve().parents[2] / "bracing_msgs" / "msg"
     if all((src / f"{name}.msg").is_file() for name in BRACING_MSGS):
         return src
@@ -43,6 +59,13 @@ def bracing_typestore(msg_dir: Path | None = None) -> Typestore:
     if msg_dir is None:
         return _default_typestore()
     return _build_typestore(msg_dir)
+
+
+def motor_command_modes(store: Typestore | None = None) -> dict[str, int]:
+    """MotorCommand's mode constants as the ``.msg`` defines them (``VOLTAGE=0``...), by the
+    input_mode parameter's name for each (``voltage``...); from ``store`` if given (a bag's)."""
+    constants, _ = (store or bracing_typestore()).fielddefs[MOTOR_COMMAND]
+    return {name.lower(): int(value) for name, _, value in constants}
 
 
 @functools.cache

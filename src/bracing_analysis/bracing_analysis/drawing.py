@@ -25,11 +25,9 @@ from typing import Any
 
 import numpy as np
 
-from bracing_bringup.summary import BagSeries, compute_summary
+from bracing_analysis.summary import BagSeries, compute_summary
 
 SUMMARY_FILE = "summary.json"
-NO_ANIMATION = "no animation"
-"""How ``report.draw_file`` says that a bag cannot be animated (the reason follows)."""
 
 Mark = Callable[..., None]
 """Called with what was just written and when (``timeline.Timeline.mark``)."""
@@ -41,13 +39,13 @@ _pool: ProcessPoolExecutor | None = None
 def drawing_pool() -> ProcessPoolExecutor:
     """The processes that draw reports, made once per process.
 
-    They fork from a forkserver that has imported ``bracing_bringup.report`` (matplotlib, the
+    They fork from a forkserver that has imported ``bracing_analysis.figures`` (matplotlib, the
     animation) once, so a report's drawing starts at once and uses both cores: a 10 s run's
     report takes about max(animation, plots) instead of their sum."""
     global _pool
     if _pool is None:
         context = multiprocessing.get_context("forkserver")
-        context.set_forkserver_preload(["bracing_bringup.report"])
+        context.set_forkserver_preload(["bracing_analysis.figures"])
         _pool = ProcessPoolExecutor(DRAWING_PROCESSES, mp_context=context, initializer=_ignore_sigint)
     return _pool
 
@@ -94,8 +92,8 @@ def report_series(
     names = file_names(series, animation=animation_interval_s is not None)
     draw = partial(_draw, series=series, out=out, animation_interval_s=animation_interval_s, urdf=urdf)
     written = list(drawing_pool().map(draw, names) if parallel and (os.cpu_count() or 1) > 1 else map(draw, names))
-    for stamp, label in written:
-        if label.startswith(NO_ANIMATION):
+    for stamp, label, wrote in written:
+        if not wrote:
             print(f"bracing-report: {label}", file=sys.stderr, flush=True)
         elif mark is not None:
             mark(label, stamp)
@@ -123,7 +121,7 @@ def brace_axes(series: BagSeries) -> list[str]:
 
 
 def file_names(series: BagSeries, animation: bool) -> list[str]:
-    """The report's files but summary.json that ``series`` allows, by name (``report.draw_file``):
+    """The report's files but summary.json that ``series`` allows, by name (``figures.draw_file``):
     the animation (the longest, first), then each plot that has data."""
     names = ["animation"] if animation else []
     if series.t.size:
@@ -140,8 +138,10 @@ def file_names(series: BagSeries, animation: bool) -> list[str]:
 
 def _draw(
     name: str, series: BagSeries, out: Path, animation_interval_s: float | None, urdf: str | None
-) -> tuple[float, str]:
-    from bracing_bringup.report import draw_file  # loaded already in the drawing processes
+) -> tuple[float, str, bool]:
+    # Imported here, not above: loaded already in the drawing processes (their forkserver's preload),
+    # and kept out of bracing-pair's process, which imports this module (see the module's docstring).
+    from bracing_analysis.figures import draw_file  # imported where used: matplotlib ~460 ms (python -X importtime)
 
-    label = draw_file(name, series, out, animation_interval_s, urdf)
-    return time.time(), label
+    label, wrote = draw_file(name, series, out, animation_interval_s, urdf)
+    return time.time(), label, wrote

@@ -21,28 +21,13 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
+
+from bracing_core import cdr
 
 MAX_PROBES = 16
 """Layouts tried per message size before each remaining message is its own probe: bounds the
 vectorised comparisons when nearly every message differs (e.g. a counter in a string)."""
-
-_KINDS: dict[str, str] = {
-    "bool": "u1",  # read as bytes, then != 0 (rosbags' struct '?' is True for any non-zero byte)
-    "byte": "i1",
-    "char": "u1",
-    "int8": "i1",
-    "uint8": "u1",
-    "int16": "i2",
-    "uint16": "u2",
-    "int32": "i4",
-    "uint32": "u4",
-    "int64": "i8",
-    "uint64": "u8",
-    "float32": "f4",
-    "float64": "f8",
-}
 
 
 @dataclass
@@ -59,60 +44,43 @@ class Layout:
         return [self.strings[f"{path}[{i}]"] for i in range(self.lengths[path])]
 
 
-class _Probe:
+class _Probe(cdr.Walker):
     """Walks one message's bytes along its definition: where each primitive lies and which
     bytes (sequence lengths, strings) fix the layout."""
 
     def __init__(self, typestore: Typestore, data: bytes) -> None:
-        self.typestore = typestore
+        super().__init__(typestore)
         self.data = data
         self.order = "<" if data[1] & 1 else ">"
-        self.pos = 4  # after the encapsulation header; CDR alignment is relative to it
-        self.leaves: list[tuple[str, int, str]] = []  # path, offset, base type
+        self.leaves: list[tuple[str, int, str]] = []  # path, offset, struct code
         self.fixed: list[int] = [0, 1]  # header bytes: representation and endianness
         self.strings: dict[str, str] = {}
         self.lengths: dict[str, int] = {}
 
-    def _align(self, size: int) -> None:
-        self.pos = 4 + ((self.pos - 4 + size - 1) & -size)
-
     def _uint32(self) -> int:
-        self._align(4)
-        value = int.from_bytes(self.data[self.pos : self.pos + 4], "little" if self.order == "<" else "big")
-        self.fixed.extend(range(self.pos, self.pos + 4))
-        self.pos += 4
-        return value
+        self.fixed.extend(range(self.offset, self.offset + 4))
+        return int.from_bytes(self.data[self.offset : self.offset + 4], "little" if self.order == "<" else "big")
 
-    def message(self, msgtype: str, prefix: str = "") -> None:
-        for name, desc in self.typestore.get_msgdef(msgtype).fields:
-            self.field(prefix + name, desc)
+    def number(self, code: str, value: Any, path: str) -> None:
+        self.leaves.append((path, self.offset, code))
 
-    def field(self, path: str, desc: Any) -> None:
-        kind, arg = desc
-        if kind == Nodetype.BASE:
-            self.base(path, arg[0])
-        elif kind == Nodetype.NAME:
-            self.message(arg, path + ".")
-        else:  # ARRAY (fixed size) or SEQUENCE (size in the bytes)
-            count = self.lengths[path] = arg[1] if kind == Nodetype.ARRAY else self._uint32()
-            for i in range(count):
-                self.field(f"{path}[{i}]", arg[0])
+    def numbers(self, code: str, values: Sequence[Any], count: int, path: str) -> None:
+        size = cdr.SIZES[code]
+        self.leaves += [(f"{path}[{i}]", self.offset + i * size, code) for i in range(count)]
 
-    def base(self, path: str, typename: str) -> None:
-        if typename == "string":
-            size = self._uint32()  # includes the terminating NUL
-            self.fixed.extend(range(self.pos, self.pos + size))
-            self.strings[path] = self.data[self.pos : self.pos + size - 1].decode()
-            self.pos += size
-            return
-        kind = _KINDS.get(typename)
-        if kind is None:  # rosbags cannot decode these either (its probe decode raises first)
-            msg = f"unsupported CDR type {typename!r} at {path}"
-            raise ValueError(msg)
-        size = int(kind[1])
-        self._align(size)
-        self.leaves.append((path, self.pos, typename))
-        self.pos += size
+    def string(self, value: Any, bound: int, path: str) -> int:
+        size = self._uint32()  # includes the terminating NUL
+        start = self.offset + 4
+        self.fixed.extend(range(start, start + size))
+        self.strings[path] = self.data[start : start + size - 1].decode()
+        return 4 + size
+
+    def length(self, value: Any, bound: int, path: str) -> int:
+        return self._uint32()
+
+    def elements(self, value: Any, count: int, path: str) -> Sequence[Any]:
+        self.lengths[path] = count
+        return [None] * count
 
 
 def decode(
@@ -147,18 +115,19 @@ def _probe(typestore: Typestore, msgtype: str, data: bytes) -> _Probe:
     # a message with the same size and the same layout bytes is then valid too.
     typestore.deserialize_cdr(data, msgtype)
     probe = _Probe(typestore, data)
-    probe.message(msgtype)
+    probe.message(msgtype, None)
     return probe
 
 
 def _columns(probe: _Probe, index: NDArray[np.intp], rows: NDArray[np.uint8]) -> Layout:
     layout = Layout(index=index, strings=probe.strings, lengths=probe.lengths)
     buffer = np.ascontiguousarray(rows)
-    for path, offset, typename in probe.leaves:
-        kind = _KINDS[typename]
+    for path, offset, code in probe.leaves:
+        # A bool is read as a byte, then != 0 (rosbags' struct '?' is True for any non-zero byte).
+        kind = "B" if code == "?" else code
         view = np.ndarray((len(rows),), probe.order + kind, buffer, offset, (rows.shape[1],))
         # Native byte order, like rosbags' values (a copy: the rows are freed).
-        layout.values[path] = view != 0 if typename == "bool" else view.astype(kind)
+        layout.values[path] = view != 0 if code == "?" else view.astype(kind)
     return layout
 
 

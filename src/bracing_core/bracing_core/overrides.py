@@ -19,7 +19,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from bracing_core import rcl_yaml, schema
-from bracing_core.params import ConfigError, load_params_file
+from bracing_core.params import ConfigError
+from bracing_core.rcl_yaml import load_params_file
 
 if TYPE_CHECKING:
     from bracing_core.config import SimulatorConfig
@@ -118,9 +119,17 @@ def route(values: Mapping[str, Any]) -> NodeOverrides:
     return out
 
 
-def node_params(config: Path, overrides: NodeOverrides) -> dict[str, dict[str, Any]]:
-    """Each node's complete flat parameters: the scenario file, then the overrides."""
-    return {node: {**load_params_file(config, node), **overrides.for_node(node)} for node in (SIMULATOR, CONTROLLER)}
+def node_params(config: str | Path, *layers: NodeOverrides | Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """The one assembly of a run's parameters (bracing-pair, the launch file, in-process runs, sweeps,
+    studies, the optimiser): each node's complete flat parameters, by node name, from the scenario
+    file, then each layer in order (a later one wins). A layer is flat names, routed here to their
+    node (``route``: ConfigError for an unknown name), or a ``NodeOverrides`` routed already."""
+    params = {node: load_params_file(config, node) for node in (SIMULATOR, CONTROLLER)}
+    for layer in layers:
+        routed = layer if isinstance(layer, NodeOverrides) else route(layer)
+        for node, own in params.items():
+            own.update(routed.for_node(node))
+    return params
 
 
 def validate(config: Path, overrides: NodeOverrides) -> SimulatorConfig:

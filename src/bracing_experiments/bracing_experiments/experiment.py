@@ -1,5 +1,5 @@
 """One in-process run of a sweep or study, as a worker executes it: the nodes' core objects
-(bracing_core.rollout), the metrics of summary.json (bracing_bringup.summary), the arrays.
+(bracing_core.rollout), the metrics of summary.json (bracing_analysis.summary), the arrays.
 
 A worker may be another machine (a Dask cluster): a ``RunSpec`` carries each node's complete
 parameters and the URDF's text, and ``execute_run`` returns everything (row, summary, arrays as
@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from bracing_bringup.summary import BagSeries, ContactSeries, compute_summary, flat_summary
+from bracing_analysis.summary import BagSeries, ContactSeries, compute_summary, flat_summary
 from bracing_core.checks import reach_warnings
 from bracing_core.rollout import Recording, build_scenario_from_params, run_recorded
 

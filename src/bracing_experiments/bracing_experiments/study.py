@@ -35,13 +35,18 @@ from typing import Any
 
 import numpy as np
 
-from bracing_bringup.executors import Executor, make_executor
-from bracing_bringup.experiment import FORCE_MAX_ERROR_KEY, STATUS_FAILED, STATUS_OK, RunSpec
-from bracing_bringup.optimize import Optimum, Problem, build_problem, changes, optimize
-from bracing_bringup.overrides import CONTROLLER, parse_single, route
-from bracing_bringup.ratios import TEMPERATURE_KEY, number, ratio, temperature_saving, temperature_saving_text
-from bracing_bringup.summary import HAND_ERROR_T_MIN_S
-from bracing_bringup.sweep import (
+from bracing_analysis.ratios import TEMPERATURE_KEY, number, ratio, temperature_saving, temperature_saving_text
+from bracing_analysis.summary import HAND_ERROR_T_MIN_S
+from bracing_core import schema
+from bracing_core.config import SharedConfig
+from bracing_core.overrides import CONTROLLER, node_params, parse_single, route
+from bracing_core.params import ConfigError, resolve_file
+from bracing_core.rollout import build_scenario
+from bracing_core.variants import PASSIVE
+from bracing_experiments.executors import Executor, make_executor
+from bracing_experiments.experiment import FORCE_MAX_ERROR_KEY, STATUS_FAILED, STATUS_OK, RunSpec
+from bracing_experiments.optimize import Optimum, Problem, build_problem, changes, optimize
+from bracing_experiments.sweep import (
     ARRAYS_FILE,
     EXIT_CONFIG,
     EXIT_FAILED,
@@ -53,10 +58,6 @@ from bracing_bringup.sweep import (
     row_warnings,
     run_sweep,
 )
-from bracing_bringup.variants import PASSIVE
-from bracing_core import schema
-from bracing_core.config import SharedConfig
-from bracing_core.params import ConfigError, load_params_file, resolve_file
 
 SCENARIO_ALIASES = {"paper": "paper_4link.yaml"}
 PAPER_SCENARIO = "paper_4link"
@@ -137,11 +138,9 @@ def build_study(
     gain_scales: Sequence[float] = GAIN_SCALES,
 ) -> Study:
     """Every run of the three comparisons, validated. ``base``: overrides applied to all runs."""
-    from bracing_core.rollout import build_scenario
-
     base = dict(base or {})
     routed = route(base)
-    ctl = {**load_params_file(config, CONTROLLER), **routed.for_node(CONTROLLER)}
+    ctl = node_params(config, routed)[CONTROLLER]
     shared = SharedConfig.from_values(schema.read("controller", ctl), [config.resolve().parent])
     braced = [c for c in shared.contacts if c.brace_axes and c.desired_normal_force]
     if not braced:
@@ -489,7 +488,7 @@ def _bracing_section(study: Study, store: ResultsStore, rows: dict[str, dict[str
 
 
 def _draw_bracing(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any]]) -> None:
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # imported where used: matplotlib ~460 ms (python -X importtime)
 
     fig = Figure(figsize=(11, 4.2), layout="constrained")
     fig.suptitle(f"{study.scenario}: braced, passive and free")
@@ -611,7 +610,7 @@ def _braced_forces(data: dict[str, np.ndarray]) -> np.ndarray:
 
 
 def _draw_gains(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any]]) -> None:
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # imported where used: matplotlib ~460 ms (python -X importtime)
 
     fig = Figure(figsize=(14, 4.2), layout="constrained")
     fig.suptitle(f"{study.scenario}: gains scaled together")
@@ -862,7 +861,7 @@ def _grid_position(value: float, ticks: Sequence[float]) -> float:
 def _draw_placement(
     study: Study, store: ResultsStore, grids: dict[str, np.ndarray], optimum: tuple[float, float] | None
 ) -> None:
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # imported where used: matplotlib ~460 ms (python -X importtime)
 
     fig = Figure(figsize=(11, 4.0), layout="constrained")
     fig.suptitle(f"{study.scenario}: brace placement and force")
@@ -933,7 +932,7 @@ def write_report(
 ) -> Path:
     """DIR/report.md and its figures from the runs in DIR (and the optimiser's ``search``, when it ran;
     ``search_note``: why it did not)."""
-    import matplotlib
+    import matplotlib  # imported where used: matplotlib ~460 ms (python -X importtime)
 
     matplotlib.use("Agg")
     store = ResultsStore(output)

@@ -112,7 +112,7 @@ class DaskExecutor(Executor):
     """
 
     def __init__(self, address: str | None = None, workers: int | None = None, timeout: float = 30.0) -> None:
-        from distributed import Client, LocalCluster
+        from distributed import Client, LocalCluster  # imported where used: distributed ~340 ms (python -X importtime)
 
         self._cluster = None
         if address is None:
@@ -142,7 +142,7 @@ class DaskExecutor(Executor):
     def run(
         self, fn: Callable[[Item], Result], items: Sequence[Item], keys: Sequence[str] | None = None
     ) -> Iterator[tuple[Item, Result | None, BaseException | None]]:
-        from distributed import as_completed as dask_as_completed
+        from distributed import as_completed as dask_as_completed  # distributed ~340 ms, where used
 
         names = list(keys) if keys is not None else [None] * len(items)
         futures = {

@@ -23,9 +23,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bracing_bringup.scene import LinkPoses
-from bracing_bringup.summary import BagSeries
-from bracing_bringup.surfaces import Shape, shape_of
+from bracing_analysis.summary import BagSeries
+from bracing_analysis.surfaces import Shape, shape_of
+from bracing_core.kinematics import LinkPoses
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -33,6 +33,9 @@ if TYPE_CHECKING:
     from PIL import Image
 
 FloatArray = NDArray[np.float64]
+
+ANIMATION_FILES = ("animation.gif", "animation.mp4")
+"""What ``write_animation`` writes (the MP4 where ffmpeg is available)."""
 
 DEFAULT_INTERVAL_S = 0.1
 """Sim time between frames [s]: 101 frames for the paper's 10 s, drawn and written in about 0.6 s."""
@@ -110,11 +113,11 @@ class GlyphText:
     """
 
     def __init__(self, ax: Axes, x: float, y: float) -> None:
-        import matplotlib as mpl
-        from matplotlib.font_manager import FontProperties, findfont, get_font
-        from matplotlib.patches import PathPatch
-        from matplotlib.path import Path as MplPath
-        from matplotlib.transforms import ScaledTranslation
+        import matplotlib as mpl  # imported where used: matplotlib ~460 ms (python -X importtime)
+        from matplotlib.font_manager import FontProperties, findfont, get_font  # matplotlib ~460 ms, where used
+        from matplotlib.patches import PathPatch  # imported where used: matplotlib ~460 ms (python -X importtime)
+        from matplotlib.path import Path as MplPath  # imported where used: matplotlib ~460 ms (python -X importtime)
+        from matplotlib.transforms import ScaledTranslation  # matplotlib ~460 ms, where used
 
         fig = ax.get_figure(root=True)
         assert fig is not None
@@ -143,14 +146,14 @@ class GlyphText:
     def _glyph(self, char: str) -> tuple[FloatArray, NDArray[np.uint8]]:
         """The outline of ``char`` [px], its origin on the baseline at 0."""
         if char not in self._glyphs:
-            from matplotlib.textpath import TextPath
+            from matplotlib.textpath import TextPath  # imported where used: matplotlib ~460 ms (python -X importtime)
 
             path = TextPath((0, 0), char, prop=self._prop)  # [pt]
             self._glyphs[char] = (np.asarray(path.vertices) * self._px_per_pt, np.asarray(path.codes, dtype=np.uint8))
         return self._glyphs[char]
 
     def set_text(self, text: str) -> None:
-        from matplotlib.path import Path as MplPath
+        from matplotlib.path import Path as MplPath  # imported where used: matplotlib ~460 ms (python -X importtime)
 
         vertices, codes = [np.zeros((0, 2))], [np.zeros(0, dtype=np.uint8)]
         for row, line in enumerate(text.split("\n")):
@@ -181,7 +184,7 @@ class Palette:
     """
 
     def __init__(self) -> None:
-        from PIL import Image
+        from PIL import Image  # imported where used: Pillow, only when drawing (python -X importtime)
 
         drawing = [LINK_COLOR, SURFACE_COLOR, FORCE_COLOR, TARGET_COLOR, TRAIL_COLOR, POINT_COLOR]
         exact = np.array([_rgb(c) for c in ["#ffffff", "#000000", *drawing]])
@@ -206,14 +209,14 @@ class Palette:
 
     def index(self, rgba: NDArray[np.uint8]) -> NDArray[np.uint8]:
         """The palette index of every pixel of an RGBA image (rows, columns, 4)."""
-        from PIL import Image
+        from PIL import Image  # imported where used: Pillow, only when drawing (python -X importtime)
 
         rgb = Image.frombytes("RGB", (rgba.shape[1], rgba.shape[0]), rgba, "raw", "RGBX")
         return np.asarray(rgb.quantize(palette=self._image, dither=Image.Dither.NONE))
 
     def image(self, index: NDArray[np.uint8]) -> Image.Image:
         """A "P" image of palette indices."""
-        from PIL import Image
+        from PIL import Image  # imported where used: Pillow, only when drawing (python -X importtime)
 
         image = Image.fromarray(index, "P")
         image.putpalette(self.rgb.tobytes())
@@ -241,7 +244,7 @@ class GifWriter:
 
     def add(self, index: NDArray[np.uint8]) -> None:
         """Append a frame of palette indices (rows, columns)."""
-        from PIL import GifImagePlugin
+        from PIL import GifImagePlugin  # imported where used: Pillow, only when drawing (python -X importtime)
 
         if self._previous is None:
             first = self._palette.image(index)
@@ -258,7 +261,7 @@ class GifWriter:
         self._previous = index
 
     def _write(self, image: Image.Image, offset: tuple[int, int], **params: int) -> None:
-        from PIL import GifImagePlugin
+        from PIL import GifImagePlugin  # imported where used: Pillow, only when drawing (python -X importtime)
 
         data = GifImagePlugin.getdata(image, offset, duration=self._duration_ms, **params)
         self._file.write(b"".join(data))
@@ -339,9 +342,9 @@ class ArmAnimation:
         """The figure, with every artist created (frame 0 not drawn yet)."""
         if self._fig is not None:
             return self._fig
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-        from matplotlib.patches import FancyArrowPatch, Polygon
+        from matplotlib.backends.backend_agg import FigureCanvasAgg  # matplotlib ~460 ms, where used
+        from matplotlib.figure import Figure  # imported where used: matplotlib ~460 ms (python -X importtime)
+        from matplotlib.patches import FancyArrowPatch, Polygon  # matplotlib ~460 ms, where used
 
         fig = Figure(figsize=FRAME_SIZE_IN, dpi=FRAME_DPI)
         FigureCanvasAgg(fig)  # frames are read from the Agg buffer
@@ -425,7 +428,7 @@ class ArmAnimation:
     def _draw_solid(self, ax: Axes, shape: Shape, span: float) -> None:
         """A sphere or a cylinder as seen along the axis normal to the drawing plane (its outline):
         filled, unless the frame stays inside it (then the solid is all around: its outline only)."""
-        from matplotlib.patches import Circle, Polygon
+        from matplotlib.patches import Circle, Polygon  # imported where used: matplotlib ~460 ms (python -X importtime)
 
         fill = dict(color=SURFACE_COLOR, alpha=0.5, lw=0)
         edge = dict(color=SURFACE_COLOR, lw=2)
@@ -531,7 +534,7 @@ def _mp4_writer(path: Path, interval_s: float) -> Any:
     """imageio-ffmpeg's writer (its bundled ffmpeg) of pal8 frames (indices, then ``Palette.ffmpeg``),
     primed; None without imageio-ffmpeg."""
     try:
-        import imageio_ffmpeg
+        import imageio_ffmpeg  # imported where used: optional: the MP4 only (python -X importtime)
     except ImportError:
         return None
     writer = imageio_ffmpeg.write_frames(
@@ -562,4 +565,5 @@ def write_animation(
     out = Path(output_dir)
     out.mkdir(parents=True, exist_ok=True)
     animation = ArmAnimation(series, interval_s, urdf)
-    return animation.save(out / "animation.gif", out / "animation.mp4" if mp4 else None)
+    gif, movie = ANIMATION_FILES
+    return animation.save(out / gif, out / movie if mp4 else None)

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from bracing_core import schema
-from bracing_core.params import load_params_file
+from bracing_core.rcl_yaml import load_params_file
 
 SCENARIO_KEY = "bracing.scenario"
 """Bag metadata (custom_data): the scenario's name, its file's stem (``paper_4link``)."""

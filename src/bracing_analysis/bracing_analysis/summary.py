@@ -17,6 +17,7 @@ stamp of any recorded message if there is no ``joint_states``).
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,9 +28,20 @@ import yaml
 from numpy.typing import NDArray
 from rosbags.highlevel import AnyReader
 
-from bracing_bringup.columns import Layout, column, decode
-from bracing_bringup.surfaces import SCENARIO_KEY, SURFACES_KEY, Shape, from_json
+from bracing_analysis.columns import Layout, column, decode
+from bracing_analysis.surfaces import SCENARIO_KEY, SURFACES_KEY, Shape, from_json
 from bracing_core import checks
+from bracing_core.typestore import (
+    CONTACTS,
+    CONTROLLER_STATE,
+    JOINT_STATE,
+    MOTOR_COMMAND,
+    MOTOR_STATE,
+    PARAMETER_EVENT,
+    STRING,
+    WRENCH_STAMPED,
+    motor_command_modes,
+)
 
 FloatArray = NDArray[np.float64]
 _Xyz = tuple[float, ...]
@@ -73,17 +85,7 @@ CONTACT_KEYS = (
 )
 """The keys of each contact in summary.json's ``contacts`` (``contact_metrics``)."""
 
-INPUT_MODES = {0: "voltage", 1: "torque"}
-"""MotorCommand.mode (VOLTAGE, TORQUE) -> the input_mode parameter's name for it."""
 
-_JOINT_STATE = "sensor_msgs/msg/JointState"
-_CONTACTS = "bracing_msgs/msg/Contacts"
-_CONTROLLER_STATE = "bracing_msgs/msg/ControllerState"
-_MOTOR_STATE = "bracing_msgs/msg/MotorState"
-_MOTOR_COMMAND = "bracing_msgs/msg/MotorCommand"
-_WRENCH = "geometry_msgs/msg/WrenchStamped"
-_STRING = "std_msgs/msg/String"
-_PARAMETER_EVENT = "rcl_interfaces/msg/ParameterEvent"
 _WRENCH_TOPIC = "contact_wrench/"
 _DESCRIPTION_TOPIC = "robot_description"
 
@@ -201,9 +203,9 @@ def _wanted(reader: AnyReader, counts: dict[str, int]) -> list[Any]:
     return [
         c
         for c in reader.connections
-        if c.msgtype in (_JOINT_STATE, _CONTACTS, _CONTROLLER_STATE, _MOTOR_STATE)
-        or (c.msgtype == _WRENCH and _WRENCH_TOPIC in c.topic)
-        or (c.msgtype == _STRING and c.topic.endswith(_DESCRIPTION_TOPIC))
+        if c.msgtype in (JOINT_STATE, CONTACTS, CONTROLLER_STATE, MOTOR_STATE)
+        or (c.msgtype == WRENCH_STAMPED and _WRENCH_TOPIC in c.topic)
+        or (c.msgtype == STRING and c.topic.endswith(_DESCRIPTION_TOPIC))
     ]
 
 
@@ -211,12 +213,13 @@ def _input_mode(reader: AnyReader) -> str | None:
     """The mode of the first motor_command (the controller sends one mode for a whole run), decoded
     by rosbags: both read paths call this, so they agree by construction; None if none was recorded
     or the mode is not one MotorCommand defines."""
-    commands = [c for c in reader.connections if c.msgtype == _MOTOR_COMMAND]
+    commands = [c for c in reader.connections if c.msgtype == MOTOR_COMMAND]
     if not commands:  # (an empty list would make reader.messages read every topic)
         return None
     for conn, _, raw in reader.messages(connections=commands):
         command: Any = reader.deserialize(raw, conn.msgtype)
-        return INPUT_MODES.get(int(command.mode))
+        names = {code: name for name, code in motor_command_modes(reader.typestore).items()}  # the bag's .msg
+        return names.get(int(command.mode))
     return None
 
 
@@ -259,7 +262,7 @@ def _parameter_value(value: Any) -> Any:
 def _parameter_events(reader: AnyReader) -> list[tuple[int, str, dict[str, Any]]]:
     """(stamp [ns], node, {name: new value}) of each recorded /parameter_events message that changes
     or deletes a value, decoded by rosbags (a few per run); both read paths call this."""
-    connections = [c for c in reader.connections if c.msgtype == _PARAMETER_EVENT]
+    connections = [c for c in reader.connections if c.msgtype == PARAMETER_EVENT]
     if not connections:  # (an empty list would make reader.messages read every topic)
         return []
     out = []
@@ -293,18 +296,18 @@ def _read_general(path: Path) -> BagSeries:
             events = _parameter_events(reader)
             for conn, _, raw in reader.messages(connections=wanted):
                 msg: Any = reader.deserialize(raw, conn.msgtype)
-                if conn.msgtype == _STRING:
+                if conn.msgtype == STRING:
                     description = description or str(msg.data)
                     continue
                 stamp = _stamp_ns(msg)
-                if conn.msgtype == _JOINT_STATE:
+                if conn.msgtype == JOINT_STATE:
                     joint.append((stamp, msg))
-                elif conn.msgtype == _WRENCH:
+                elif conn.msgtype == WRENCH_STAMPED:
                     name = conn.topic.rsplit(_WRENCH_TOPIC, 1)[1]
                     wrenches.setdefault(name, []).append((stamp, _xyz(msg.wrench.force)))
-                elif conn.msgtype == _CONTROLLER_STATE:
+                elif conn.msgtype == CONTROLLER_STATE:
                     ctrl.append((stamp, msg))
-                elif conn.msgtype == _CONTACTS:
+                elif conn.msgtype == CONTACTS:
                     contacts.append((stamp, msg))
                 else:
                     motor.append((stamp, float(msg.energy_consumed), float(msg.energy_net), float(msg.copper_loss)))
@@ -414,7 +417,7 @@ def _read_general(path: Path) -> BagSeries:
 
 def _kind(conn: Any) -> tuple[str, str]:
     """What the columnar path groups messages by: the type, and the contact of a wrench topic."""
-    return (conn.msgtype, conn.topic.rsplit(_WRENCH_TOPIC, 1)[1] if conn.msgtype == _WRENCH else "")
+    return (conn.msgtype, conn.topic.rsplit(_WRENCH_TOPIC, 1)[1] if conn.msgtype == WRENCH_STAMPED else "")
 
 
 @dataclass
@@ -533,8 +536,8 @@ def _match(rows: _Rows, crow: _Rows) -> tuple[NDArray[np.int64], FloatArray]:
 def _read_columnar(path: Path) -> BagSeries:
     """read_series decoding each kind of message column-wise (columns.decode)."""
     counts: dict[str, int] = {}
-    raws: dict[tuple[str, str], list[bytes]] = {(t, ""): [] for t in (_JOINT_STATE, _CONTROLLER_STATE, _CONTACTS)}
-    raws[(_MOTOR_STATE, "")] = []
+    raws: dict[tuple[str, str], list[bytes]] = {(t, ""): [] for t in (JOINT_STATE, CONTROLLER_STATE, CONTACTS)}
+    raws[(MOTOR_STATE, "")] = []
     try:
         with AnyReader([path]) as reader:
             wanted = _wanted(reader, counts)
@@ -543,7 +546,7 @@ def _read_columnar(path: Path) -> BagSeries:
             for conn, _, raw in reader.messages(connections=wanted):
                 raws.setdefault(_kind(conn), []).append(raw)
             store = reader.typestore
-            texts = decode(store, _STRING, raws.pop((_STRING, ""), []))
+            texts = decode(store, STRING, raws.pop((STRING, ""), []))
             messages = {kind: _messages(store, kind[0], lst) for kind, lst in raws.items()}
     except BagReadError:
         raise
@@ -551,8 +554,8 @@ def _read_columnar(path: Path) -> BagSeries:
         msg = f"cannot read bag {path}: {exc}"
         raise BagReadError(msg) from exc
 
-    joint, ctrl = messages[(_JOINT_STATE, "")], messages[(_CONTROLLER_STATE, "")]
-    sim, motor = messages[(_CONTACTS, "")], messages[(_MOTOR_STATE, "")]
+    joint, ctrl = messages[(JOINT_STATE, "")], messages[(CONTROLLER_STATE, "")]
+    sim, motor = messages[(CONTACTS, "")], messages[(MOTOR_STATE, "")]
     if joint.count:
         t0 = int(joint.stamp[joint.order[0]])
     else:
@@ -597,7 +600,7 @@ def _read_columnar(path: Path) -> BagSeries:
             cs.position = rows.xyz("contacts[{j}].position")
             cs.normal = rows.xyz("contacts[{j}].normal")
             cs.slip_velocity = rows.xyz("contacts[{j}].slip_velocity")
-        wrench = messages.get((_WRENCH, name))
+        wrench = messages.get((WRENCH_STAMPED, name))
         if wrench is not None and wrench.count:
             force = [column(wrench.layouts, f"wrench.force.{axis}", wrench.count).astype(float) for axis in "xyz"]
             by_force = np.lexsort((*force[::-1], wrench.stamp))  # as sorted() of (stamp, force) tuples
@@ -792,3 +795,11 @@ def format_summary(summary: dict[str, Any]) -> str:
         lines.append(f"{key:<{width}}  {text}")
     lines += [f"warning: {warning}" for warning in warnings]
     return "\n".join(lines)
+
+
+def scenario_name(series: BagSeries) -> str:
+    """The run's scenario: as the bag notes it, else its robot's name (URDF), else unknown."""
+    if series.scenario:
+        return series.scenario
+    robot = re.search(r"<robot\b[^>]*\bname\s*=\s*[\"']([^\"']+)", series.robot_description or "")
+    return f"robot {robot.group(1)}" if robot else "unknown scenario"

@@ -1,0 +1,133 @@
+"""run_status: what each process of a run is doing, as ROS messages (``bracing_msgs/RunStatus``).
+
+The simulator, the controller and the recorder say each moment of their run here (configured,
+ready, stepping, progress, finished, bag closed); bracing-pair supervises a run and builds its
+timeline from these messages (``StatusWatcher``), never from log text. The topic is reliable and
+transient local, so a watcher that joins late gets every process's history, and a process waits
+until its last status is acknowledged before it exits (``StatusPublisher.flush``).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import threading
+import time
+from collections.abc import Callable, Mapping
+from typing import NamedTuple
+
+import rclpy
+from rclpy.duration import Duration
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+
+from bracing_msgs.msg import RunStatus
+from bracing_ros.fastdds import use_fastdds_profile
+
+STATUS_TOPIC = "run_status"
+STATUS_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,  # a run's few events and its latest progress, for a late subscriber
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+EVENT_NAMES = {
+    RunStatus.CONFIGURED: "configured",
+    RunStatus.READY: "ready",
+    RunStatus.STEPPING: "stepping",
+    RunStatus.PROGRESS: "progress",
+    RunStatus.FINISHED: "finished",
+    RunStatus.BAG_CLOSED: "bag closed",
+}
+
+
+class Status(NamedTuple):
+    """A run_status message as plain values (what a watcher hands on)."""
+
+    node: str
+    event: str  # EVENT_NAMES' words: configured, ready, stepping, progress, finished, bag closed
+    wall_time_s: float  # [s] since the epoch
+    sim_time: float  # [s], NaN where none
+    real_time_factor: float  # NaN but in a real-time run's FINISHED
+
+    @classmethod
+    def of(cls, msg: RunStatus) -> Status:
+        wall = msg.wall_time.sec + 1e-9 * msg.wall_time.nanosec
+        return cls(msg.node, EVENT_NAMES.get(msg.event, str(msg.event)), wall, msg.sim_time, msg.real_time_factor)
+
+
+class StatusPublisher:
+    """A node's side of run_status."""
+
+    def __init__(self, node: Node) -> None:
+        self._name = node.get_name()
+        self._publisher = node.create_publisher(RunStatus, STATUS_TOPIC, STATUS_QOS)
+
+    def say(self, event: int, sim_time: float = math.nan, real_time_factor: float = math.nan) -> None:
+        msg = RunStatus(node=self._name, event=event, sim_time=float(sim_time), real_time_factor=real_time_factor)
+        msg.wall_time.sec, nanosec = divmod(time.time_ns(), 10**9)
+        msg.wall_time.nanosec = nanosec
+        self._publisher.publish(msg)
+
+    def flush(self, timeout_s: float = 5.0) -> bool:
+        """Wait until every subscriber has acknowledged what was said (a process about to exit)."""
+        return bool(self._publisher.wait_for_all_acked(Duration(seconds=timeout_s)))
+
+
+class StatusWatcher:
+    """Follows run_status in ROS domain ``domain_id`` from a thread of this process (its own rclpy
+    context), calling ``on_status`` with each message as it comes. ``environment``: the run's
+    processes' (discovery range, network or not), which this participant takes as they do."""
+
+    def __init__(self, domain_id: int, on_status: Callable[[Status], None], environment: Mapping[str, str]) -> None:
+        self._domain_id = domain_id
+        self._on_status = on_status
+        self._environment = dict(environment)
+        self._context = rclpy.Context()
+        self._ready = threading.Event()
+        self._thread = threading.Thread(target=self._spin, name="run-status", daemon=True)
+
+    def start(self) -> StatusWatcher:
+        self._thread.start()
+        return self
+
+    def _spin(self) -> None:
+        # The middleware reads its settings from the environment when its participant starts, at
+        # the context's first node (rmw_fastrtps): this process's own are the run's for that
+        # moment only (its next run may differ). Measured: set around rclpy.init alone, the
+        # participant took Fast DDS's defaults (every interface, multicast), not the run's profile.
+        saved = {key: os.environ.get(key) for key in self._environment}
+        os.environ.update(self._environment)
+        profile = {key: os.environ.get(key) for key in _FASTDDS_KEYS}
+        use_fastdds_profile()
+        try:
+            rclpy.init(context=self._context, domain_id=self._domain_id, signal_handler_options=_NO_SIGNALS)
+            node = Node("bracing_pair", context=self._context, start_parameter_services=False)
+        finally:
+            for key, value in {**profile, **saved}.items():
+                if value is None:
+                    os.environ.pop(key, None)
+                else:
+                    os.environ[key] = value
+        node.create_subscription(RunStatus, STATUS_TOPIC, lambda msg: self._on_status(Status.of(msg)), STATUS_QOS)
+        executor = SingleThreadedExecutor(context=self._context)
+        executor.add_node(node)
+        self._ready.set()
+        try:
+            while self._context.ok():
+                executor.spin_once(timeout_sec=0.1)
+        except ExternalShutdownException:
+            pass
+        finally:
+            executor.shutdown()
+            node.destroy_node()
+
+    def stop(self) -> None:
+        self._context.try_shutdown()
+        self._thread.join(timeout=5.0)
+
+
+_NO_SIGNALS = SignalHandlerOptions.NO  # Ctrl-C is bracing-pair's: it stops the run itself
+_FASTDDS_KEYS = ("FASTRTPS_DEFAULT_PROFILES_FILE", "ROS_AUTOMATIC_DISCOVERY_RANGE")

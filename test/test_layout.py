@@ -1,0 +1,96 @@
+"""The packages by job (README, Layout): dependencies run one way, no module imports itself back
+through others, the ROS-free packages load no ROS, and each package.xml names the project's
+packages its code imports (and no other)."""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+
+ALLOWED = {
+    "bracing_engine": set(),
+    "bracing_core": {"bracing_engine"},
+    "bracing_ros": {"bracing_core", "bracing_msgs"},
+    "bracing_sim": {"bracing_core", "bracing_ros", "bracing_msgs"},
+    "bracing_controller": {"bracing_core", "bracing_ros", "bracing_msgs"},
+    "bracing_analysis": {"bracing_core"},
+    "bracing_experiments": {"bracing_core", "bracing_analysis"},
+    "bracing_bringup": {"bracing_core", "bracing_ros", "bracing_msgs", "bracing_analysis"},
+}
+"""Who may import whom: core <- ros <- nodes; core <- analysis <- experiments; ros + analysis <- bringup."""
+STARTED_NOT_IMPORTED = {"bracing_bringup": {"bracing_sim", "bracing_controller"}}
+"""Packages a package starts as processes (bracing-pair, the launch file): in its package.xml, never imported."""
+ROS_FREE = ("bracing_core", "bracing_analysis", "bracing_experiments")
+
+
+def modules(package: str) -> dict[str, Path]:
+    return {f"{package}.{path.stem}": path for path in sorted((SRC / package / package).glob("*.py"))}
+
+
+def imports(path: Path) -> set[str]:
+    """Every module ``path`` imports, anywhere in it (a function's import counts as much as the top's)."""
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            found.add(node.module)
+            found |= {f"{node.module}.{alias.name}" for alias in node.names}  # from package import module
+    return found
+
+
+def first_party(names: set[str]) -> set[str]:
+    return {name.split(".")[0] for name in names if name.split(".")[0] in ALLOWED or name.startswith("bracing_msgs")}
+
+
+@pytest.mark.parametrize("package", [p for p in ALLOWED if p != "bracing_engine"])
+def test_dependencies_run_one_way(package: str) -> None:
+    for module, path in modules(package).items():
+        used = first_party(imports(path)) - {package}
+        assert used <= ALLOWED[package], f"{module} imports {sorted(used - ALLOWED[package])}"
+
+
+def test_no_import_cycles() -> None:
+    everything = {name: path for package in ALLOWED for name, path in modules(package).items()}
+    graph = {name: sorted(imports(path) & everything.keys() - {name}) for name, path in everything.items()}
+    done: set[str] = set()
+
+    def visit(name: str, trail: list[str]) -> None:
+        if name in trail:
+            pytest.fail("import cycle: " + " -> ".join([*trail[trail.index(name) :], name]))
+        if name in done:
+            return
+        for used in graph[name]:
+            visit(used, [*trail, name])
+        done.add(name)
+
+    for name in graph:
+        visit(name, [])
+    assert "bracing_analysis.report" in graph and "bracing_analysis.figures" in graph["bracing_analysis.compare"]
+
+
+@pytest.mark.parametrize("package", ROS_FREE)
+def test_ros_free_packages_load_no_ros(package: str) -> None:
+    names = [name for name in modules(package) if not name.endswith("__init__")]
+    code = f"import sys; import {', '.join(names)}; print(sorted(m for m in sys.modules if m.startswith('rcl')))"
+    loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert loaded.strip() == "[]"
+
+
+@pytest.mark.parametrize("package", [p for p in ALLOWED if p != "bracing_engine"])
+def test_package_xml_names_what_the_code_imports(package: str) -> None:
+    declared = {
+        element.text or ""
+        for element in ET.parse(SRC / package / "package.xml").getroot()
+        if element.tag in ("depend", "exec_depend")
+    }
+    used = set().union(*(first_party(imports(path)) for path in modules(package).values())) - {package}
+    ours = {name for name in declared if name in ALLOWED or name == "bracing_msgs"}
+    assert ours == used | STARTED_NOT_IMPORTED.get(package, set()), package
