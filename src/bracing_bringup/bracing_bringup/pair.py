@@ -103,11 +103,11 @@ def pair_needs(options: RunOptions, urdf: Path) -> dict[str, Any]:
     """What the pair sets over the scenario and the command line, as flat parameter names.
 
     Both nodes publish their first message only once the recorder has matched every topic they
-    publish, and the simulator once the controller has too (joint_states: the controller, the
-    recorder and, with --view, the viewer). The nodes resolve a relative URDF from their working
+    publish, and the simulator once the controller has too (joint_states: the controller and the
+    recorder; bracing-view subscribes once the run steps). The nodes resolve a relative URDF from their working
     directory, so it is pinned to the file found now (``urdf``).
     """
-    needs: dict[str, Any] = {"wait_for_recorder": True, "min_subscribers": 3 if options.view else 2}
+    needs: dict[str, Any] = {"wait_for_recorder": True, "min_subscribers": 2}
     if options.duration is not None:
         needs["duration"] = options.duration
     if options.real_time:
@@ -360,7 +360,7 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
     start_wall = time.monotonic()
     out = options.output
     plan = plan_run(options)  # checked against the schemas; the configurations' checks follow while processes import
-    sim_values, controller_values, search = plan.sim_values, plan.controller_values, plan.search
+    sim_values = plan.sim_values
     duration, contacts, expected_states = plan.duration, plan.contacts, plan.expected_states
     bag = out / "bag"
     if bag.exists():
@@ -396,6 +396,7 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
             web_port, grpc_port = free_ports(2)
             ports = ["--web-port", str(web_port), "--grpc-port", str(grpc_port)]
             viewer = [sys.executable, "-m", "bracing_bringup.view", *ports, "--params-file", str(params_file)]
+            viewer += ["--after-stepping"]  # not counted as the recorder by the nodes' wait (see view.Live)
             viewer += ["--ros-args", "-p", f"contacts:={contacts!r}"]
             pair.start("viewer", viewer, env)
             url = view_url(web_port, grpc_port)
@@ -404,17 +405,17 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
             else:
                 pair.say(f"bracing-pair: the viewer did not start (see {out / 'logs' / 'viewer.log'}); running without")
             timeline.mark("viewer started")
-        # What they do, from ROS: their run_status messages. The watcher's participant starts (in its
-        # thread, ~0.15 s) while the processes import (~1 s), so each process is matched within the
-        # first of its announcements; the topic keeps a process's history for a late subscriber.
-        from bracing_ros.status import StatusWatcher  # rclpy (~70 ms): only once a run starts
-
-        watcher = StatusWatcher(domain, pair.on_status, env).start()
         for process in plan.processes(out):
             pair.start(process.name, process.argv(), env)
         timeline.mark("processes started")
+        # What they do, from ROS: their run_status messages. The watcher's participant starts (in its
+        # thread) while the processes import (~1 s), before theirs; the topic keeps a process's
+        # history for a subscriber that joins late.
+        from bracing_ros.status import StatusWatcher  # rclpy (~0.1 s): once the processes are started
+
+        watcher = StatusWatcher(domain, pair.on_status, env).start()
         try:
-            warnings = _check_configs(sim_values, controller_values, search)
+            warnings = _check_configs(plan)
         except Exception:  # a ConfigError (or a fault of the checks themselves): the run never starts
             pair.kill_all()  # they would stop on the same error; nothing of the run is kept
             _discard(out, created, keep_logs=False)
@@ -514,19 +515,17 @@ def _discard(out: Path, created: bool, keep_logs: bool) -> None:
         out.rmdir()
 
 
-def _check_configs(sim_values: schema.Values, controller_values: schema.Values, search: list[Path]) -> list[str]:
-    """The nodes' configuration checks (they would stop on the same error), the start posture's
-    feasibility and the task's rank there: ConfigError, before the run leaves a bag behind. The
-    targets out of the arm's reach: warnings, as the controller logs them (the summary's)."""
+def _check_configs(plan: RunPlan) -> list[str]:
+    """The nodes' configurations built as an in-process run builds them (``rollout``: they would stop
+    on the same error), the start posture's feasibility and the task's rank there: ConfigError,
+    before the run leaves a bag behind. The targets out of the arm's reach: warnings, as the
+    controller logs them (the summary's)."""
     from bracing_core.checks import reach_warnings
-    from bracing_core.config import SimulatorConfig, build_simulator
-    from bracing_core.controller_config import ControllerConfig
-    from bracing_core.law import check_task_rank
+    from bracing_core.rollout import build_scenario_from_params
 
-    plant, simulator = build_simulator(SimulatorConfig.from_values(sim_values, search))  # a feasible start
-    controller = ControllerConfig.from_values(controller_values, search)
-    check_task_rank(controller, plant, simulator.position)
-    return reach_warnings(controller, plant)
+    scenario = build_scenario_from_params(plan.node_params[SIMULATOR], plan.node_params[CONTROLLER], plan.search)
+    assert scenario.controller is not None  # built with the controller's parameters
+    return reach_warnings(scenario.controller.config, scenario.controller.plant)
 
 
 def _real_time_warnings(achieved: float | None, requested: float) -> list[str]:

@@ -373,37 +373,70 @@ QUEUE_DEPTH = 100
 
 class Live:
     """The run's topics, subscribed best effort (the viewer never holds the lockstep loop back) and
-    drawn every POLL_S. Subscribed at construction, before the viewer serves: bracing-pair starts the
-    nodes once the viewer's page is up, so the viewer sees the run from its first state."""
+    drawn every POLL_S. The robot description (latched) is subscribed at construction, before the
+    viewer serves; with ``after_stepping`` (bracing-pair) the rest once the simulator's run_status
+    says it steps: the nodes wait for the recorder by their subscription counts before the first
+    state, and a viewer subscribed by then would count as the recorder (measured: the bag then
+    lost the first answer). Without it, everything at once (a viewer joining a running system)."""
 
-    def __init__(self, feed: Feed) -> None:
+    def __init__(self, feed: Feed, after_stepping: bool = False) -> None:
         import rclpy  # imported where used: rclpy ~70 ms, live only (python -X importtime)
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # rclpy ~70 ms, live only, where used
 
         from bracing_core.typestore import bracing_typestore
-        from bracing_ros.common import SubscriptionWaiter
+        from bracing_ros.fastdds import use_fastdds_profile
         from bracing_ros.lifetime import stop_with_parent
+        from bracing_ros.status import STATUS_QOS, STATUS_TOPIC
 
         stop_with_parent()  # under bracing-pair: a SIGTERM should the pair die
         os.nice(10)  # the lockstep loop comes first (as the recorder)
         self.feed = feed
         self.store = bracing_typestore()
+        use_fastdds_profile()  # as the run's processes: loopback only, matched at once
         rclpy.init()
         self.node = node = rclpy.create_node("bracing_view")
-        fast = QoSProfile(depth=QUEUE_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
+        self._fast = QoSProfile(depth=QUEUE_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
         latched = QoSProfile(
             depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
         )
         contacts = [str(c) for c in node.declare_parameter("contacts", ["elbow"]).value or []]
-        topics = [(t, ty) for t, ty in _TYPES.items()] + [(f"contact_wrench/{c}", WRENCH_STAMPED) for c in contacts]
-        module_types = _rclpy_types()
+        self._types = _rclpy_types()
+        self._later = [(t, ty) for t, ty in _TYPES.items() if t != "robot_description"]
+        self._later += [(f"contact_wrench/{c}", WRENCH_STAMPED) for c in contacts]
         self.topics: dict[Any, tuple[str, str]] = {}
-        for topic, typename in topics:
-            qos = latched if topic == "robot_description" else fast
-            # taken by the waiter below, never by an executor: the callback is not called
-            sub = node.create_subscription(module_types[typename], topic, lambda _: None, qos, raw=True)
-            self.topics[sub] = (topic, typename)
-        self.waiter = SubscriptionWaiter(node, list(self.topics))
+        self._subscribe("robot_description", _TYPES["robot_description"], latched)
+        self.status = None
+        if after_stepping:
+            from bracing_msgs.msg import RunStatus
+
+            self.status = node.create_subscription(RunStatus, STATUS_TOPIC, lambda _: None, STATUS_QOS, raw=True)
+        else:
+            self._subscribe_the_rest()
+
+    def _subscribe(self, topic: str, typename: str, qos: Any) -> None:
+        # taken by the waiter, never by an executor: the callback is not called
+        sub = self.node.create_subscription(self._types[typename], topic, lambda _: None, qos, raw=True)
+        self.topics[sub] = (topic, typename)
+
+    def _subscribe_the_rest(self) -> None:
+        for topic, typename in self._later:
+            self._subscribe(topic, typename, self._fast)
+        self._later = []
+
+    def _waiter(self) -> Any:
+        from bracing_ros.common import SubscriptionWaiter
+
+        return SubscriptionWaiter(self.node, [*self.topics, *([self.status] if self.status is not None else [])])
+
+    def _stepping(self, data: bytes) -> bool:
+        """Whether a run_status message (CDR bytes) says the simulator steps (or stepped)."""
+        from rclpy.serialization import deserialize_message
+
+        from bracing_msgs.msg import RunStatus
+        from bracing_ros.status import Status
+
+        status = Status.of(deserialize_message(data, RunStatus))
+        return status.node == "bracing_simulator" and status.event in ("stepping", "progress", "finished")
 
     def spin(self, stop_after: float | None) -> None:
         """Draw what arrives until Ctrl-C, the end of the ROS context or ``stop_after`` seconds."""
@@ -411,10 +444,17 @@ class Live:
         from rclpy.executors import ExternalShutdownException  # rclpy ~70 ms, live only, where used
 
         feed, store = self.feed, self.store
+        waiter = self._waiter()
         deadline = None if stop_after is None else time.monotonic() + stop_after
         try:
             while rclpy.ok() and (deadline is None or time.monotonic() < deadline):
-                batch = self.waiter.take_all(0.5)
+                batch = waiter.take_all(0.5)
+                if self.status is not None and any(sub is self.status and self._stepping(d) for sub, d in batch):
+                    self.node.destroy_subscription(self.status)
+                    self.status = None
+                    self._subscribe_the_rest()
+                    waiter = self._waiter()
+                batch = [(sub, data) for sub, data in batch if sub in self.topics]
                 newest_wrench = {self.topics[sub][0]: k for k, (sub, _) in enumerate(batch)}
                 for k, (sub, data) in enumerate(batch):
                     topic, typename = self.topics[sub]
@@ -458,6 +498,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--grpc-port", type=int, default=GRPC_PORT)
     parser.add_argument("--period", type=float, default=DEFAULT_PERIOD_S, help="sim time between drawn states [s]")
     parser.add_argument("--no-serve", action="store_true", help="only --rrd, no web viewer")
+    parser.add_argument(
+        "--after-stepping",
+        action="store_true",
+        help="live: subscribe to the run's data once the simulator steps (bracing-pair: see Live)",
+    )
     parser.add_argument("--exit-after", type=float, default=None, help="stop after this many seconds of wall time")
     parser.add_argument(
         "--params-file",
@@ -481,7 +526,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     recording = new_recording()
     feed = Feed(recording, args.period, shapes)
-    subscribed = Live(feed) if args.bag is None else None  # before serving: see Live
+    subscribed = Live(feed, args.after_stepping) if args.bag is None else None  # before serving: see Live
     url, proxy = serve(recording, args.web_port, args.grpc_port)
     print(f"bracing-view: open {url}", flush=True)
     try:

@@ -533,8 +533,7 @@ SIMULATOR: tuple[Param, ...] = (
         "wait_for_recorder",
         Kind.BOOL,
         False,
-        "publish the first state only once the recorder (node bracing_recorder) has matched every topic"
-        " (bracing-pair sets true)",
+        "publish the first state only once every topic has a subscriber (bracing-pair sets true)",
     ),
     Param(
         "divergence_residual",
@@ -616,8 +615,7 @@ CONTROLLER: tuple[Param, ...] = (
         "wait_for_recorder",
         Kind.BOOL,
         False,
-        "answer the first state only once the recorder (node bracing_recorder) has matched both outputs"
-        " (bracing-pair sets true)",
+        "answer the first state only once a recorder subscribes to both outputs (bracing-pair sets true)",
     ),
     LOG_THROTTLE_PERIOD,
 )

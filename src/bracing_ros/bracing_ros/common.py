@@ -96,17 +96,7 @@ def _matched(_: object) -> None:
 
 
 RECORDER_NODE = "bracing_recorder"
-"""The recorder's node name: what ``wait_for_recorder`` waits for (``subscribed_by``)."""
-
-
-def subscribed_by(node: Node, publisher: Publisher, name: str) -> bool:
-    """Whether the node ``name`` subscribes to ``publisher``'s topic and every subscriber the ROS
-    graph knows of there has matched it. A count alone cannot tell the recorder from another
-    subscriber (bracing-view's, measured: a viewer subscribed first let the pair start stepping
-    before the recorder matched, and the bag lost the first answer)."""
-    subscribers = node.get_subscriptions_info_by_topic(publisher.topic_name)
-    named = any(info.node_name == name for info in subscribers)
-    return named and publisher.get_subscription_count() >= len(subscribers)
+"""The recorder's node name."""
 
 
 def wait_until(node: Node, executor: Executor, ready: Callable[[], bool], message: str) -> None:

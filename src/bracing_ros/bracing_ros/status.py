@@ -104,7 +104,8 @@ class StatusWatcher:
         use_fastdds_profile()
         try:
             rclpy.init(context=self._context, domain_id=self._domain_id, signal_handler_options=_NO_SIGNALS)
-            node = Node("bracing_pair", context=self._context, start_parameter_services=False)
+            # A listener only: no parameter services, no /rosout (fewer endpoints for every process to match).
+            node = Node("bracing_pair", context=self._context, start_parameter_services=False, enable_rosout=False)
         finally:
             for key, value in {**profile, **saved}.items():
                 if value is None:

@@ -32,7 +32,6 @@ from bracing_ros import parameters, wire
 from bracing_ros.commands import MODE_CODES, CommandError, command_vector
 from bracing_ros.common import (
     EXIT_DIVERGED,
-    RECORDER_NODE,
     STREAM_QOS,
     SUBSCRIBE_QOS,
     AckWindow,
@@ -41,7 +40,6 @@ from bracing_ros.common import (
     create_waking_publisher,
     read_motor_command,
     run,
-    subscribed_by,
     wait_until,
 )
 from bracing_ros.status import StatusPublisher
@@ -326,7 +324,7 @@ def wait_for_recorder(node: SimulatorNode, executor: SingleThreadedExecutor) -> 
     wait_until(
         node,
         executor,
-        lambda: all(subscribed_by(node, pub, RECORDER_NODE) for pub in node.publishers_),
+        lambda: all(pub.get_subscription_count() >= 1 for pub in node.publishers_),
         "waiting for the recorder to subscribe to every topic",
     )
 
