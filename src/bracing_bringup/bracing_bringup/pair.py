@@ -104,10 +104,11 @@ def pair_needs(options: RunOptions, urdf: Path) -> dict[str, Any]:
 
     Both nodes publish their first message only once the recorder has matched every topic they
     publish, and the simulator once the controller has too (joint_states: the controller and the
-    recorder; bracing-view subscribes once the run steps). The nodes resolve a relative URDF from their working
-    directory, so it is pinned to the file found now (``urdf``).
+    recorder; bracing-view subscribes once the run steps) and this process's run_status watcher.
+    The nodes resolve a relative URDF from their working directory, so it is pinned to the file
+    found now (``urdf``).
     """
-    needs: dict[str, Any] = {"wait_for_recorder": True, "min_subscribers": 2}
+    needs: dict[str, Any] = {"wait_for_recorder": True, "min_subscribers": 2, "min_status_subscribers": 1}
     if options.duration is not None:
         needs["duration"] = options.duration
     if options.real_time:
@@ -426,8 +427,9 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
         while FINISHED not in pair.seen:  # the simulator's last messages are acknowledged by every subscriber
             pair.wait_for_change(0.1)
             if pair.exit_code("simulator") == 0 and FINISHED not in pair.seen:
-                # Ended unheard (its FINISHED status is in flight, or it ended before run_status was
-                # matched): its exit code says it finished; the bag check says whether the run is whole.
+                # Ended, its FINISHED status still in flight (it waits for run_status's subscriber before
+                # its first state, so it is heard): its exit code says it finished; the bag check says
+                # whether the run is whole.
                 heard_by = time.monotonic() + 1.0
                 while FINISHED not in pair.seen and time.monotonic() < heard_by:
                     pair.wait_for_change(0.1)

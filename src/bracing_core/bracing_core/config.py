@@ -315,6 +315,7 @@ class SimulatorConfig:
     command_timeout: float
     watchdog_policy: str
     min_subscribers: int
+    min_status_subscribers: int
     divergence_residual: float
     divergence_speed: float
     wait_for_recorder: bool

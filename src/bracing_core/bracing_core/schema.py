@@ -530,6 +530,13 @@ SIMULATOR: tuple[Param, ...] = (
         "min_subscribers", Kind.INTEGER, 1, "lockstep: joint_states subscribers to wait for before stepping", minimum=0
     ),
     Param(
+        "min_status_subscribers",
+        Kind.INTEGER,
+        0,
+        "run_status subscribers to wait for before the first state (bracing-pair sets 1: it follows the run there)",
+        minimum=0,
+    ),
+    Param(
         "wait_for_recorder",
         Kind.BOOL,
         False,

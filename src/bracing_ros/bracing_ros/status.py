@@ -24,6 +24,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.signals import SignalHandlerOptions
 
 from bracing_msgs.msg import RunStatus
+from bracing_ros.common import create_waking_publisher
 from bracing_ros.fastdds import use_fastdds_profile
 
 STATUS_TOPIC = "run_status"
@@ -63,13 +64,17 @@ class StatusPublisher:
 
     def __init__(self, node: Node) -> None:
         self._name = node.get_name()
-        self._publisher = node.create_publisher(RunStatus, STATUS_TOPIC, STATUS_QOS)
+        self._publisher = create_waking_publisher(node, RunStatus, STATUS_TOPIC, STATUS_QOS)  # see subscribers()
 
     def say(self, event: int, sim_time: float = math.nan, real_time_factor: float = math.nan) -> None:
         msg = RunStatus(node=self._name, event=event, sim_time=float(sim_time), real_time_factor=real_time_factor)
         msg.wall_time.sec, nanosec = divmod(time.time_ns(), 10**9)
         msg.wall_time.nanosec = nanosec
         self._publisher.publish(msg)
+
+    def subscribers(self) -> int:
+        """How many subscribers have matched run_status (a match wakes ``common.wait_until``)."""
+        return int(self._publisher.get_subscription_count())
 
     def flush(self, timeout_s: float = 5.0) -> bool:
         """Wait until every subscriber has acknowledged what was said (a process about to exit)."""

@@ -329,6 +329,18 @@ def wait_for_recorder(node: SimulatorNode, executor: SingleThreadedExecutor) -> 
     )
 
 
+def wait_for_status_subscribers(node: SimulatorNode, executor: SingleThreadedExecutor) -> None:
+    """Before the first state: bracing-pair follows the run on run_status, and a run that ended
+    before its subscriber matched would end unheard (measured: 1 of 12 runs of 0.01 s)."""
+    wanted = node.config.min_status_subscribers
+    wait_until(
+        node,
+        executor,
+        lambda: node.status.subscribers() >= wanted,
+        f"waiting for {wanted} subscriber(s) of run_status (bracing-pair)",
+    )
+
+
 def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None:
     cfg = node.config
     since = time.monotonic()
@@ -342,6 +354,7 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
     )
     if cfg.wait_for_recorder:
         wait_for_recorder(node, executor)
+    wait_for_status_subscribers(node, executor)
     node.get_logger().info(f"lockstep: stepping (subscribers matched in {time.monotonic() - since:.3f} s)")
     node.status.say(RunStatus.STEPPING, node.sim.time)
     waiter = SubscriptionWaiter(node, node.command_sub)
@@ -420,6 +433,7 @@ def spin_real_time(node: SimulatorNode, executor: SingleThreadedExecutor) -> Non
         if not node.advance(np.zeros(node.sim.n)):
             raise DivergenceError(f"{node.refusal} (under a zero command)")
 
+    wait_for_status_subscribers(node, executor)
     node.get_logger().info("real-time: stepping")
     node.status.say(RunStatus.STEPPING, node.sim.time)
     node.publish_state(node.state_effort())
