@@ -409,12 +409,6 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
         for process in plan.processes(out):
             pair.start(process.name, process.argv(), env)
         timeline.mark("processes started")
-        # What they do, from ROS: their run_status messages. The watcher's participant starts (in its
-        # thread) while the processes import (~1 s), before theirs; the topic keeps a process's
-        # history for a subscriber that joins late.
-        from bracing_ros.status import StatusWatcher  # rclpy (~0.1 s): once the processes are started
-
-        watcher = StatusWatcher(domain, pair.on_status, env).start()
         try:
             warnings = _check_configs(plan)
         except Exception:  # a ConfigError (or a fault of the checks themselves): the run never starts
@@ -422,6 +416,12 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
             _discard(out, created, keep_logs=False)
             raise
         timeline.mark("configuration checked")
+        # What they do, from ROS: their run_status messages. The watcher's participant starts (in its
+        # thread) while the processes still import (~1 s); the simulator steps only once it matched
+        # (min_status_subscribers), and the topic keeps a process's history for a late subscriber.
+        from bracing_ros.status import StatusWatcher  # rclpy (~0.1 s): after the check, not competing with it
+
+        watcher = StatusWatcher(domain, pair.on_status, env).start()
         last_progress, last_time, last_shown = time.monotonic(), -1.0, 0.0
         tty = sys.stdout.isatty()
         while FINISHED not in pair.seen:  # the simulator's last messages are acknowledged by every subscriber
