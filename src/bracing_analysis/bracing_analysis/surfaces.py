@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from bracing_core import schema
+from bracing_core.overrides import SIMULATOR
 from bracing_core.rcl_yaml import load_params_file
 
 SCENARIO_KEY = "bracing.scenario"
@@ -26,7 +27,6 @@ SCENARIO_KEY = "bracing.scenario"
 SURFACES_KEY = "bracing.surfaces"
 """Bag metadata (custom_data): every contact's surface, JSON (``to_json``)."""
 
-SIMULATOR = "bracing_simulator"
 CURVED = ("sphere", "cylinder")
 
 

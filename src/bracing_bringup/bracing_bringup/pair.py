@@ -41,7 +41,7 @@ from bracing_bringup.timeline import (
 from bracing_bringup.topics import missing_from_counts
 from bracing_bringup.viewurl import free_ports, view_url, wait_for_port
 from bracing_core import rcl_yaml, schema
-from bracing_core.overrides import CONTROLLER, SIMULATOR, node_params, parse_single
+from bracing_core.overrides import CONTROLLER, SIMULATOR, node_params, parse_single, with_layers
 from bracing_core.params import ConfigError, resolve_file
 from bracing_core.variants import variant_overrides
 from bracing_ros.fastdds import NETWORK_ENV
@@ -307,10 +307,8 @@ class RunPlan:
 
     options: RunOptions
     sim_values: schema.Values
-    controller_values: schema.Values
     node_params: dict[str, dict[str, Any]]  # each node's complete parameters (DIR/params.yaml)
     duration: float  # [s] of sim time
-    step: float  # [s]
     expected_states: int  # lockstep: the states the recorder waits for before it closes the bag (0: any)
 
     @property
@@ -346,14 +344,14 @@ def plan_run(options: RunOptions) -> RunPlan:
     search = [options.config.parent]
     given = node_params(options.config, command_line(options))
     sim_values = schema.read("simulator", given[SIMULATOR])
-    controller_values = schema.read("controller", given[CONTROLLER])
+    schema.read("controller", given[CONTROLLER])  # refused here, before any process starts
     urdf = resolve_file(sim_values["robot.urdf"], "robot.urdf", search)
     duration = options.duration if options.duration is not None else float(sim_values["duration"])
     step = float(sim_values["step"])
     lockstep = sim_values["stepping"] == "lockstep" and not options.real_time and duration > 0
     expected_states = round(duration / step) + 1 if lockstep else 0
-    every = node_params(options.config, command_line(options), pair_needs(options, urdf))
-    return RunPlan(options, sim_values, controller_values, every, duration, step, expected_states)
+    every = with_layers(given, pair_needs(options, urdf))
+    return RunPlan(options, sim_values, every, duration, expected_states)
 
 
 def _run_pair(options: RunOptions, domain: int) -> RunResult:

@@ -67,6 +67,7 @@ from bracing_bringup.topics import (
     CONTROLLER_NODE,
     DESCRIPTION_TOPIC,
     PARAMETER_EVENTS_TOPIC,
+    RECORDER_NODE,
     SCENE_TOPICS,
     missing_from_counts,
     recorded_topics,
@@ -88,7 +89,7 @@ from bracing_core.typestore import (
 )
 from bracing_core.typestore import bracing_msgs_dir as bracing_msgs_dir
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState, RunStatus
-from bracing_ros.common import RECORDER_NODE, SubscriptionWaiter, use_fastdds_profile
+from bracing_ros.common import SubscriptionWaiter, use_fastdds_profile
 from bracing_ros.lifetime import stop_with_parent
 from bracing_ros.status import StatusPublisher
 

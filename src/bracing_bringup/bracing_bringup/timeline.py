@@ -24,6 +24,9 @@ import time
 from pathlib import Path
 from typing import Any
 
+from bracing_bringup.topics import RECORDER_NODE
+from bracing_core.overrides import CONTROLLER, SIMULATOR
+
 TIMELINE_FILE = "timeline.json"
 PHASES = ("startup_s", "stepping_s", "shutdown_s", "report_s", "whole_run_s")
 
@@ -47,7 +50,7 @@ def process_start_time(pid: int | None = None) -> float:
         return time.time()
 
 
-PROCESSES = {"bracing_simulator": "simulator", "bracing_controller": "controller", "bracing_recorder": "recorder"}
+PROCESSES = {SIMULATOR: "simulator", CONTROLLER: "controller", RECORDER_NODE: "recorder"}
 """The run's node names and the processes they are (run_status says the node)."""
 EVENT_LABELS = {
     ("simulator", "configured"): "simulator configured",

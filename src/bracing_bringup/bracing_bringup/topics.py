@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
+from bracing_core.overrides import CONTROLLER
 from bracing_core.typestore import (
     CLOCK,
     CONTACTS,
@@ -23,7 +24,8 @@ from bracing_core.typestore import (
 DESCRIPTION_TOPIC = "robot_description"
 PARAMETER_EVENTS_TOPIC = "/parameter_events"
 """rclpy's parameter events: the recorder keeps the controller's changes (as many as there are)."""
-CONTROLLER_NODE = "bracing_controller"
+CONTROLLER_NODE = CONTROLLER
+RECORDER_NODE = "bracing_recorder"
 
 SCENE_TOPICS = {
     "tf": ("/tf", TF_MESSAGE),

@@ -39,6 +39,7 @@ from bracing_analysis.surfaces import Shape, read_scenario, shape_of
 from bracing_bringup.scene import SURFACE_PATCH_M
 from bracing_bringup.viewurl import GRPC_PORT, WEB_PORT, view_url, wait_for_port
 from bracing_core.kinematics import LinkPoses, z_to
+from bracing_core.overrides import SIMULATOR
 from bracing_core.params import ConfigError
 from bracing_core.typestore import CONTACTS, CONTROLLER_STATE, JOINT_STATE, MOTOR_STATE, STRING, WRENCH_STAMPED
 
@@ -436,7 +437,7 @@ class Live:
         from bracing_ros.status import Status
 
         status = Status.of(deserialize_message(data, RunStatus))
-        return status.node == "bracing_simulator" and status.event in ("stepping", "progress", "finished")
+        return status.node == SIMULATOR and status.event in ("stepping", "progress", "finished")
 
     def spin(self, stop_after: float | None) -> None:
         """Draw what arrives until Ctrl-C, the end of the ROS context or ``stop_after`` seconds."""

@@ -124,12 +124,19 @@ def node_params(config: str | Path, *layers: NodeOverrides | Mapping[str, Any]) 
     studies, the optimiser): each node's complete flat parameters, by node name, from the scenario
     file, then each layer in order (a later one wins). A layer is flat names, routed here to their
     node (``route``: ConfigError for an unknown name), or a ``NodeOverrides`` routed already."""
-    params = {node: load_params_file(config, node) for node in (SIMULATOR, CONTROLLER)}
+    return with_layers({node: load_params_file(config, node) for node in (SIMULATOR, CONTROLLER)}, *layers)
+
+
+def with_layers(
+    params: Mapping[str, Mapping[str, Any]], *layers: NodeOverrides | Mapping[str, Any]
+) -> dict[str, dict[str, Any]]:
+    """``node_params``' layering on parameters read already (a copy; a later layer wins)."""
+    out = {node: dict(own) for node, own in params.items()}
     for layer in layers:
         routed = layer if isinstance(layer, NodeOverrides) else route(layer)
-        for node, own in params.items():
+        for node, own in out.items():
             own.update(routed.for_node(node))
-    return params
+    return out
 
 
 def validate(config: Path, overrides: NodeOverrides) -> SimulatorConfig:

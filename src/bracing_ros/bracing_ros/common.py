@@ -95,10 +95,6 @@ def _matched(_: object) -> None:
     pass
 
 
-RECORDER_NODE = "bracing_recorder"
-"""The recorder's node name."""
-
-
 def wait_until(node: Node, executor: Executor, ready: Callable[[], bool], message: str) -> None:
     """Serve ``executor`` until ``ready()`` (a subscription count, say), logging ``message`` (what
     it waits for) once it has waited 2 s. Discovery and matching happen in DDS's own threads; a

@@ -25,7 +25,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from bracing_msgs.msg import RunStatus
 from bracing_ros.common import create_waking_publisher
-from bracing_ros.fastdds import use_fastdds_profile
+from bracing_ros.fastdds import PROFILE_ENV, RANGE_ENV, use_fastdds_profile
 
 STATUS_TOPIC = "run_status"
 STATUS_QOS = QoSProfile(
@@ -91,7 +91,6 @@ class StatusWatcher:
         self._on_status = on_status
         self._environment = dict(environment)
         self._context = rclpy.Context()
-        self._ready = threading.Event()
         self._thread = threading.Thread(target=self._spin, name="run-status", daemon=True)
 
     def start(self) -> StatusWatcher:
@@ -105,7 +104,7 @@ class StatusWatcher:
         # participant took Fast DDS's defaults (every interface, multicast), not the run's profile.
         saved = {key: os.environ.get(key) for key in self._environment}
         os.environ.update(self._environment)
-        profile = {key: os.environ.get(key) for key in _FASTDDS_KEYS}
+        profile = {key: os.environ.get(key) for key in (PROFILE_ENV, RANGE_ENV)}  # use_fastdds_profile's
         use_fastdds_profile()
         try:
             rclpy.init(context=self._context, domain_id=self._domain_id, signal_handler_options=_NO_SIGNALS)
@@ -120,7 +119,6 @@ class StatusWatcher:
         node.create_subscription(RunStatus, STATUS_TOPIC, lambda msg: self._on_status(Status.of(msg)), STATUS_QOS)
         executor = SingleThreadedExecutor(context=self._context)
         executor.add_node(node)
-        self._ready.set()
         try:
             while self._context.ok():
                 executor.spin_once(timeout_sec=0.1)
@@ -136,4 +134,3 @@ class StatusWatcher:
 
 
 _NO_SIGNALS = SignalHandlerOptions.NO  # Ctrl-C is bracing-pair's: it stops the run itself
-_FASTDDS_KEYS = ("FASTRTPS_DEFAULT_PROFILES_FILE", "ROS_AUTOMATIC_DISCOVERY_RANGE")
