@@ -30,6 +30,14 @@ from rosbags.highlevel import AnyReader
 
 from bracing_analysis.columns import Layout, column, decode
 from bracing_analysis.surfaces import SCENARIO_KEY, SURFACES_KEY, Shape, from_json
+from bracing_analysis.truth import (
+    HAND,
+    TASK_FRAMES_KEY,
+    apply_ground_truth,
+    is_ground_truth,
+    task_frames_from_json,
+    true_positions,
+)
 from bracing_core import checks
 from bracing_core.typestore import (
     CONTACTS,
@@ -120,6 +128,7 @@ class ContactSeries:
     normal_force_desired: FloatArray = field(default_factory=_empty)  # f_nd [N]
     brace_desired: FloatArray = field(default_factory=lambda: _empty(3))  # [m]
     brace_actual: FloatArray = field(default_factory=lambda: _empty(3))  # [m]
+    brace_measured: FloatArray = field(default_factory=lambda: _empty(3))  # [m] with sensors: the controller's view
     # contacts and controller_state samples with the same header stamp:
     t_matched: FloatArray = field(default_factory=_empty)  # [s]
     normal_force_error: FloatArray = field(default_factory=_empty)  # f_n - f_nd [N]
@@ -150,6 +159,8 @@ class BagSeries:
     t: FloatArray = field(default_factory=_empty)  # controller_state stamps [s]
     hand_desired: FloatArray = field(default_factory=lambda: _empty(3))  # [m]
     hand_actual: FloatArray = field(default_factory=lambda: _empty(3))  # [m]
+    # with sensors (truth.py): hand_actual is the true position, this what the controller believed
+    hand_measured: FloatArray = field(default_factory=lambda: _empty(3))  # [m]
     contacts: dict[str, ContactSeries] = field(default_factory=dict)
     motor_t: FloatArray = field(default_factory=_empty)  # motor_state stamps [s]
     energy_consumed: FloatArray = field(default_factory=_empty)  # [J]
@@ -193,7 +204,34 @@ def read_series(bag: str | Path, columnar: bool = True) -> BagSeries:
     """
     path = resolve_bag(Path(bag))
     # Columnar: read_series of a 10 s bag (50k messages) 1.5 s -> 0.25 s, best of 3 (rosbags' reading: 0.2 s of it).
-    return _read_columnar(path) if columnar else _read_general(path)
+    series = _read_columnar(path) if columnar else _read_general(path)
+    _read_ground_truth(series, path)
+    return series
+
+
+def _read_ground_truth(series: BagSeries, path: Path) -> None:
+    """With sensors (truth.py): the task positions from ground_truth/joint_states, the controller's beside them."""
+    if not any(is_ground_truth(topic) and topic.endswith("/joint_states") for topic in series.topic_counts):
+        return
+    frames = task_frames_from_json(_custom_data(path).get(TASK_FRAMES_KEY, ""))
+    if not frames or not series.robot_description:
+        return  # a bag without the task frames: the controller's view is all there is
+    stamps: list[int] = []
+    rows: list[list[float]] = []
+    names: list[str] = []
+    try:
+        with AnyReader([path]) as reader:
+            wanted = [c for c in reader.connections if is_ground_truth(c.topic) and c.msgtype == JOINT_STATE]
+            for conn, _, raw in reader.messages(connections=wanted):
+                msg: Any = reader.deserialize(raw, conn.msgtype)
+                names = names or list(msg.name)
+                stamps.append(_stamp_ns(msg))
+                rows.append(_by_name(msg, names))
+    except Exception as exc:  # rosbags raises many kinds on a damaged bag
+        raise BagReadError(f"cannot read bag {path}: {exc}") from exc
+    task = [frames[HAND], *frames["braces"].values()]
+    truth = true_positions(series.robot_description, np.array(stamps, dtype=np.int64), names, np.array(rows), task)
+    apply_ground_truth(series, truth, frames)
 
 
 def _wanted(reader: AnyReader, counts: dict[str, int]) -> list[Any]:
@@ -203,9 +241,12 @@ def _wanted(reader: AnyReader, counts: dict[str, int]) -> list[Any]:
     return [
         c
         for c in reader.connections
-        if c.msgtype in (JOINT_STATE, CONTACTS, CONTROLLER_STATE, MOTOR_STATE)
-        or (c.msgtype == WRENCH_STAMPED and _WRENCH_TOPIC in c.topic)
-        or (c.msgtype == STRING and c.topic.endswith(_DESCRIPTION_TOPIC))
+        if not is_ground_truth(c.topic)  # _read_ground_truth's, after the rest
+        and (
+            c.msgtype in (JOINT_STATE, CONTACTS, CONTROLLER_STATE, MOTOR_STATE)
+            or (c.msgtype == WRENCH_STAMPED and _WRENCH_TOPIC in c.topic)
+            or (c.msgtype == STRING and c.topic.endswith(_DESCRIPTION_TOPIC))
+        )
     ]
 
 

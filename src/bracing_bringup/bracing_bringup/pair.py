@@ -43,6 +43,7 @@ from bracing_bringup.viewurl import free_ports, view_url, wait_for_port
 from bracing_core import rcl_yaml, schema
 from bracing_core.overrides import CONTROLLER, SIMULATOR, node_params, parse_single, with_layers
 from bracing_core.params import ConfigError, resolve_file
+from bracing_core.sensing import SensorConfig
 from bracing_core.variants import variant_overrides
 from bracing_ros.fastdds import NETWORK_ENV
 from bracing_ros.lifetime import STOP_WITH_PARENT
@@ -316,6 +317,11 @@ class RunPlan:
         return list(self.sim_values.contacts)
 
     @property
+    def ground_truth(self) -> bool:
+        """The simulator measures through sensors (sensors.*): it publishes the truth too, and the bag keeps it."""
+        return not SensorConfig.from_values(self.sim_values).exact
+
+    @property
     def search(self) -> list[Path]:
         return [self.options.config.parent]
 
@@ -324,6 +330,7 @@ class RunPlan:
         ``out / PARAMS_FILE``, its bag ``out / "bag"``)."""
         params_file = str(out / PARAMS_FILE)
         recorder = ["--output", str(out / "bag"), "--contacts", ",".join(self.contacts)]
+        recorder += ["--ground-truth"] if self.ground_truth else []
         recorder += ["--niceness", "10"]  # the lockstep loop comes first
         recorder += ["--drain-idle", "0.05"]  # stopped only after the nodes' last messages are acknowledged
         recorder += ["--params-file", params_file, "--scenario", self.options.config.stem]  # surfaces, name
@@ -360,7 +367,7 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
     out = options.output
     plan = plan_run(options)  # checked against the schemas; the configurations' checks follow while processes import
     sim_values = plan.sim_values
-    duration, contacts, expected_states = plan.duration, plan.contacts, plan.expected_states
+    duration, contacts = plan.duration, plan.contacts
     bag = out / "bag"
     if bag.exists():
         raise ConfigError(f"--output: {bag} exists already; choose a new output directory")
@@ -484,7 +491,7 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
         timeline.mark(BAG_CLOSED, timeline.at("recorder closed the bag"))
         # The report is drawn while the processes finish exiting (their exit codes are checked after).
         warnings += _real_time_warnings(pair.real_time_achieved, float(sim_values["real_time_factor"]))
-        summary, code, message = _report(bag, out, contacts, wall, options, expected_states, timeline, warnings)
+        summary, code, message = _report(bag, out, plan, wall, timeline, warnings)
         for name, process_code in pair.stop_all(ask=False).items():
             if process_code != 0 and code == 0 and name != "viewer":  # a viewer's end is no run's failure
                 code, message = EXIT_FAILED, f"error: the {name} exited with code {process_code}\n{pair.tail(name)}"
@@ -543,14 +550,7 @@ RECORDER_CLOSED = "recorder closed the bag"
 
 
 def _report(
-    bag: Path,
-    out: Path,
-    contacts: list[str],
-    wall: float,
-    options: RunOptions,
-    expected_states: int,
-    timeline: Timeline,
-    warnings: list[str],
+    bag: Path, out: Path, plan: RunPlan, wall: float, timeline: Timeline, warnings: list[str]
 ) -> tuple[dict[str, Any] | None, int, str]:
     """Read the bag once: check it (a lockstep run promises every step), then write the summary
     (with ``warnings``), the figures and the animation from what was read. (summary, exit code, message)."""
@@ -563,8 +563,9 @@ def _report(
     except BagReadError as exc:
         return None, EXIT_FAILED, f"error: {exc}"
     timeline.mark("bag read")
+    options, expected_states = plan.options, plan.expected_states
     if expected_states:  # lockstep
-        problems = missing_from_counts(series.topic_counts, contacts, expected_states)
+        problems = missing_from_counts(series.topic_counts, plan.contacts, expected_states, "", plan.ground_truth)
         timeline.mark("bag checked")
         if problems:
             return None, EXIT_FAILED, "error: the bag is incomplete (lost messages): " + "; ".join(problems)

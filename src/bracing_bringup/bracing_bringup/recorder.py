@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import faulthandler
+import json
 import math
 import os
 import signal
@@ -61,7 +62,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
-from bracing_analysis import surfaces
+from bracing_analysis import surfaces, truth
 from bracing_bringup.scene import Derived, SceneBuilder
 from bracing_bringup.topics import (
     CONTROLLER_NODE,
@@ -146,9 +147,9 @@ _RCLPY_TYPES: dict[str, type] = {
 }
 
 
-def topic_table(contacts: Sequence[str]) -> list[tuple[str, type, str]]:
+def topic_table(contacts: Sequence[str], ground_truth: bool = False) -> list[tuple[str, type, str]]:
     """(relative topic, rclpy type, ROS 2 type name) for every topic recorded once per state."""
-    return [(topic, _RCLPY_TYPES[type_name], type_name) for topic, type_name in recorded_topics(contacts)]
+    return [(topic, _RCLPY_TYPES[type_name], type_name) for topic, type_name in recorded_topics(contacts, ground_truth)]
 
 
 def missing_messages(bag: Path, contacts: Sequence[str], expected: int, namespace: str = "") -> list[str]:
@@ -185,6 +186,7 @@ class Recorder(Node):
         contacts: Sequence[str] = (),
         scene: bool = True,
         shapes: Mapping[str, surfaces.Shape] | None = None,
+        ground_truth: bool = False,
     ) -> None:
         super().__init__(RECORDER_NODE, namespace=namespace)
         self.writer = writer
@@ -196,7 +198,9 @@ class Recorder(Node):
         self.last_receive = time.monotonic()
         self._connections: dict[Subscription, Connection] = {}
         self._roles: dict[Subscription, str] = {}  # what the scene makes of a subscription's messages
-        table = [(topic, msg_type, type_name, topic) for topic, msg_type, type_name in topic_table(contacts)]
+        table = [
+            (topic, msg_type, type_name, topic) for topic, msg_type, type_name in topic_table(contacts, ground_truth)
+        ]
         table.append((DESCRIPTION_TOPIC, String, STRING, "description"))
         for topic, msg_type, type_name, role in table:
             # Messages are taken directly in ``record`` (no executor: per message it costs more
@@ -339,6 +343,17 @@ def _scenario_surfaces(files: Sequence[str]) -> dict[str, surfaces.Shape]:
         return {}
 
 
+def _task_frames(files: Sequence[str]) -> dict[str, Any]:
+    """The controller's task frames (the report judges the truth at them: truth.py); none if unreadable."""
+    if not files:
+        return {}
+    try:
+        return truth.read_task_frames(files)
+    except ValueError as exc:  # ConfigError: the nodes will say the same, more loudly
+        print(f"recorder: warning: no task frames from {', '.join(files)}: {exc}", file=sys.stderr, flush=True)
+        return {}
+
+
 def _parse(argv: Sequence[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog="bracing-recorder",
@@ -347,6 +362,11 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
     parser.add_argument("--output", required=True, help="bag directory to create (must not exist)")
     parser.add_argument("--namespace", default="", help="namespace of the recorded nodes")
     parser.add_argument("--contacts", default="", help="comma-separated contact names (contact_wrench/<name>)")
+    parser.add_argument(
+        "--ground-truth",
+        action="store_true",
+        help="also record ground_truth/joint_states and ground_truth/motor_state (a simulator with sensors.*)",
+    )
     parser.add_argument(
         "--params-file",
         dest="params_files",
@@ -437,19 +457,31 @@ def main(argv: Sequence[str] | None = None) -> int:
         writer.set_custom_data(surfaces.SCENARIO_KEY, scenario)
     if shapes:
         writer.set_custom_data(surfaces.SURFACES_KEY, surfaces.to_json(shapes))
+    if args.ground_truth and (frames := _task_frames(args.params_files)):
+        writer.set_custom_data(truth.TASK_FRAMES_KEY, json.dumps(frames, sort_keys=True))
     writer.open()
     node: Recorder | None = None
     status: StatusPublisher | None = None
     try:
         node = Recorder(
-            writer, typestore, namespace=args.namespace, contacts=contacts, scene=not args.no_scene, shapes=shapes
+            writer,
+            typestore,
+            namespace=args.namespace,
+            contacts=contacts,
+            scene=not args.no_scene,
+            shapes=shapes,
+            ground_truth=args.ground_truth,
         )
         status = StatusPublisher(node)  # what bracing-pair follows
         status.say(RunStatus.READY)
         print(f"recorder subscribed at {time.time():.6f}", flush=True)
         print("recorder ready", flush=True)
         idle, complete = False, False
-        wanted = expected_counts(contacts, args.expect_states, node.get_namespace()) if args.expect_states else None
+        wanted = (
+            expected_counts(contacts, args.expect_states, node.get_namespace(), args.ground_truth)
+            if args.expect_states
+            else None
+        )
         while not stop["requested"]:
             got = node.record(0.0 if idle and node.scene_backlog else 0.1)
             idle = not got

@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 from bracing_core.overrides import CONTROLLER
+from bracing_core.sensing import GROUND_TRUTH
 from bracing_core.typestore import (
     CLOCK,
     CONTACTS,
@@ -35,9 +36,12 @@ SCENE_TOPICS = {
 """Topics the recorder derives (``scene.Derived.key`` -> topic, type)."""
 
 
-def recorded_topics(contacts: Sequence[str]) -> list[tuple[str, str]]:
-    """(relative topic, ROS 2 type name) of every topic the nodes publish once per state."""
+def recorded_topics(contacts: Sequence[str], ground_truth: bool = False) -> list[tuple[str, str]]:
+    """(relative topic, ROS 2 type name) of every topic the nodes publish once per state; ``ground_truth``:
+    with the truth the simulator publishes beside what its sensors measure (sensors.* not exact)."""
+    truth = [(GROUND_TRUTH + "joint_states", JOINT_STATE), (GROUND_TRUTH + "motor_state", MOTOR_STATE)]
     return [
+        *(truth if ground_truth else []),
         ("joint_states", JOINT_STATE),
         *((f"contact_wrench/{name}", WRENCH_STAMPED) for name in contacts),
         ("contacts", CONTACTS),
@@ -48,7 +52,9 @@ def recorded_topics(contacts: Sequence[str]) -> list[tuple[str, str]]:
     ]
 
 
-def expected_counts(contacts: Sequence[str], expected: int, namespace: str = "") -> dict[str, int]:
+def expected_counts(
+    contacts: Sequence[str], expected: int, namespace: str = "", ground_truth: bool = False
+) -> dict[str, int]:
     """Messages a complete lockstep bag of ``expected`` states holds, per resolved topic name.
 
     Every topic is sent once per state in lockstep (the command and controller state once
@@ -60,7 +66,7 @@ def expected_counts(contacts: Sequence[str], expected: int, namespace: str = "")
     def resolve(topic: str) -> str:
         return topic if topic.startswith("/") else prefix + topic
 
-    counts = {resolve(topic): expected for topic, _ in recorded_topics(contacts)}
+    counts = {resolve(topic): expected for topic, _ in recorded_topics(contacts, ground_truth)}
     counts[resolve(DESCRIPTION_TOPIC)] = 1
     counts[resolve(SCENE_TOPICS["tf_static"][0])] = 1
     counts[resolve(SCENE_TOPICS["tf"][0])] = expected
@@ -70,12 +76,12 @@ def expected_counts(contacts: Sequence[str], expected: int, namespace: str = "")
 
 
 def missing_from_counts(
-    counts: Mapping[str, int], contacts: Sequence[str], expected: int, namespace: str = ""
+    counts: Mapping[str, int], contacts: Sequence[str], expected: int, namespace: str = "", ground_truth: bool = False
 ) -> list[str]:
     """One line per topic of ``counts`` (messages per topic in a bag) recorded fewer times than a
     complete lockstep bag of ``expected`` states holds."""
     return [
         f"{name}: {counts.get(name, 0)} of {wanted} messages"
-        for name, wanted in expected_counts(contacts, expected, namespace).items()
+        for name, wanted in expected_counts(contacts, expected, namespace, ground_truth).items()
         if counts.get(name, 0) < wanted
     ]

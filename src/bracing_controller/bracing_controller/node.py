@@ -8,8 +8,10 @@ from __future__ import annotations
 
 import sys
 import time
+from functools import partial
 
 import numpy as np
+from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import ClockType, ROSClock
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -23,9 +25,10 @@ from bracing_core import schema
 from bracing_core.checks import configuration_warnings, desired_force_warning
 from bracing_core.controller_config import ControllerConfig
 from bracing_core.law import DecoupledController
+from bracing_core.measurements import Measurements
 from bracing_core.params import ConfigError
 from bracing_core.types import Vector
-from bracing_msgs.msg import ControllerState, MotorCommand, RunStatus
+from bracing_msgs.msg import ControllerState, MotorCommand, MotorState, RunStatus
 from bracing_ros import parameters, wire
 from bracing_ros.commands import MODE_CODES
 from bracing_ros.common import (
@@ -42,6 +45,9 @@ from bracing_ros.common import (
 from bracing_ros.status import StatusPublisher
 
 STAMP_RANGE_NS = (-(2**31) * 1_000_000_000, 2**31 * 1_000_000_000)
+MEASUREMENT_WAIT_S = 0.5
+"""[s] wall: how long a state waits for the force and temperature reports of the step before it
+(``Measurements``); past it the state is answered with the latest ones, and a warning says which lagged."""
 
 
 class StateError(ValueError):
@@ -100,6 +106,11 @@ class ControllerNode(Node):
         self.state_wire = wire.ControllerStateEncoder(self.contact_names, len(self.joint_names))
         self.state_reader = wire.JointStateDecoder(self.joint_names)
         self.state_sub: Subscription | None = None  # see ``listen``
+        # Force feedback and thermal compensation read contact_wrench/<name> and motor_state.
+        self.measurements = Measurements.for_law(self.law)
+        self.measurement_waiter: SubscriptionWaiter | None = None
+        self.wrench_subs: dict[Subscription, str] = {}
+        self.previous_ns: int | None = None  # the stamp of the last state answered (None: none yet)
         self.report = RateLimitedLog(self, self.config.log_throttle_period)
         self.flow = AckWindow(self, [self.command_pub, self.state_pub], STREAM_QOS.depth)
         self.get_logger().info(
@@ -150,7 +161,56 @@ class ControllerNode(Node):
         state is answered before the answers have somewhere to be recorded.
         """
         self.state_sub = self.create_subscription(JointState, "joint_states", self.on_state, SUBSCRIBE_QOS, raw=True)
+        if self.measurements is not None:
+            # the executor (spun between states) and the waiter (while a state waits) both hand them to on_measurement
+            self.wrench_subs = {
+                self.create_subscription(
+                    WrenchStamped, f"contact_wrench/{name}", partial(self.on_wrench, name), SUBSCRIBE_QOS
+                ): name
+                for name in self.measurements.forces
+            }
+            subs = list(self.wrench_subs)
+            if self.measurements.temperature:
+                subs.append(self.create_subscription(MotorState, "motor_state", self.on_temperature, SUBSCRIBE_QOS))
+            self.measurement_waiter = SubscriptionWaiter(self, subs)
         return self.state_sub
+
+    def take_measurements(self, timeout_sec: float) -> None:
+        """The force and temperature reports that have come (waiting up to ``timeout_sec`` for one)."""
+        assert self.measurement_waiter is not None
+        for subscription, msg in self.measurement_waiter.take_all(timeout_sec):
+            if subscription in self.wrench_subs:
+                self.on_wrench(self.wrench_subs[subscription], msg)
+            else:
+                self.on_temperature(msg)
+
+    def on_wrench(self, contact: str, msg: WrenchStamped) -> None:
+        """Keep a contact's measured force (contact_wrench/<contact>)."""
+        assert self.measurements is not None
+        f = msg.wrench.force
+        problem = self.measurements.take_force(contact, _stamp_ns(msg), np.array([f.x, f.y, f.z]))
+        if problem is not None:
+            self.report("error", "measurement", f"ignored: {problem}")
+
+    def on_temperature(self, msg: MotorState) -> None:
+        """Keep the windings' measured temperatures (motor_state)."""
+        assert self.measurements is not None
+        problem = self.measurements.take_temperature(_stamp_ns(msg), np.array(msg.temperature), len(self.joint_names))
+        if problem is not None:
+            self.report("error", "measurement", f"ignored: {problem}")
+
+    def measure(self) -> None:
+        """Give the law the reports of the step before this state (``Measurements``), waiting briefly for them."""
+        if self.measurements is None:
+            return
+        deadline = time.monotonic() + MEASUREMENT_WAIT_S
+        self.take_measurements(0.0)
+        while not self.measurements.ready(self.previous_ns) and (left := deadline - time.monotonic()) > 0.0:
+            self.take_measurements(min(left, 0.05))
+        if self.previous_ns is not None and not self.measurements.ready(self.previous_ns):
+            lagging = ", ".join(self.measurements.missing(self.previous_ns))
+            self.report("warning", "lagging", f"no report of the last step within {MEASUREMENT_WAIT_S} s: {lagging}")
+        self.measurements.apply(self.law)
 
     def on_state(self, data: bytes) -> None:
         try:
@@ -173,6 +233,7 @@ class ControllerNode(Node):
             self.law.retune(self.retuned)
             self.config, self.retuned = self.retuned, None
         t = msg.stamp_ns * 1e-9
+        self.measure()
         start = time.perf_counter()
         try:
             out = self.law.update(t, q, dq)
@@ -199,8 +260,12 @@ class ControllerNode(Node):
                 compute_time,
             )
         )
-        self.answered_ns = msg.stamp_ns
+        self.answered_ns = self.previous_ns = msg.stamp_ns
         self.flow.sent()
+
+
+def _stamp_ns(msg: WrenchStamped | MotorState) -> int:
+    return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
 
 
 def spin(node: ControllerNode) -> int:

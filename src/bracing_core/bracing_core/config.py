@@ -8,7 +8,7 @@ controller alike. Everything is validated here, once, with errors naming the par
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +22,7 @@ from bracing_core.motors import FIELDS as MOTOR_FIELDS
 from bracing_core.motors import MotorParams
 from bracing_core.params import ConfigError, Params, resolve_file
 from bracing_core.schema import Values
+from bracing_core.sensing import PlantError, SensorConfig, prefixed
 from bracing_core.simulator import Simulator
 from bracing_core.trajectory import TrajectoryConfig
 from bracing_core.types import Vector
@@ -104,6 +105,8 @@ class ContactConfig:
     target: tuple[float, float, float] | None  # None: the brace point's initial position
     trajectory: TrajectoryConfig  # the brace point's path (hold: target)
     unilateral: bool = False  # the surface only pushes: release and touchdown (bilateral: the paper)
+    feedback_kp: float = 0.0  # force_feedback.kp (dimensionless); 0 0: the paper's feed-forward law
+    feedback_ki: float = 0.0  # force_feedback.ki [1/s]
 
     @property
     def braced(self) -> bool:
@@ -127,6 +130,12 @@ class ContactConfig:
                 "task; give it a desired_normal_force or remove its brace_axes"
             )
         target = values["target"]
+        feedback = (values["force_feedback.kp"] or 0.0, values["force_feedback.ki"] or 0.0)
+        if desired is None and bracing and any(feedback):
+            raise ConfigError(
+                f"{key}force_feedback: contact {name!r} has no desired_normal_force, so no force to feed back; "
+                "give it a desired_normal_force or set its force_feedback gains to 0"
+            )
         return cls(
             name=name,
             frame=values["frame"],
@@ -140,6 +149,8 @@ class ContactConfig:
             target=(target[0], target[1], target[2]) if target else None,
             trajectory=trajectory_from_values("trajectory.", values, target),
             unilateral=values["unilateral"] or desired is None,
+            feedback_kp=feedback[0] if desired is not None else 0.0,
+            feedback_ki=feedback[1] if desired is not None else 0.0,
         )
 
     def contact(self, enforced: bool = True) -> Contact:
@@ -216,10 +227,10 @@ class Plant:
     surface); ``braced_set`` the controller's (the contacts it keeps a force on).
     """
 
-    def __init__(self, config: SharedConfig, slip_epsilon: float) -> None:
+    def __init__(self, config: SharedConfig, slip_epsilon: float, mass_scale: float = 1.0) -> None:
         try:
             self.robot = RobotModel.from_urdf(
-                config.urdf, config.gravity, config.locked_joints, config.locked_positions
+                config.urdf, config.gravity, config.locked_joints, config.locked_positions, mass_scale
             )
             # Index array taking configuration-ordered data to model order (locked joints dropped).
             actuated = [name for name in config.joint_names if name not in config.locked_joints]
@@ -320,6 +331,8 @@ class SimulatorConfig:
     divergence_speed: float
     wait_for_recorder: bool
     log_throttle_period: float
+    plant_error: PlantError = field(default_factory=PlantError)
+    sensors: SensorConfig = field(default_factory=SensorConfig)
 
     @classmethod
     def from_params(cls, params: Params, search_dirs: Sequence[Path] = ()) -> SimulatorConfig:
@@ -328,14 +341,23 @@ class SimulatorConfig:
 
     @classmethod
     def from_values(cls, values: Values, search_dirs: Sequence[Path] = ()) -> SimulatorConfig:
-        own = {p.name: values[p.name] for p in schema.SIMULATOR}
-        return cls(shared=SharedConfig.from_values(values, search_dirs), **own)
+        nested = {p.name for p in (*schema.PLANT_ERROR, *schema.SENSORS)}
+        own = {p.name: values[p.name] for p in schema.SIMULATOR if p.name not in nested}
+        error = prefixed(values, schema.PLANT_ERROR, "plant_error.")
+        if error["urdf"]:
+            error["urdf"] = str(resolve_file(error["urdf"], "plant_error.urdf", search_dirs))
+        return cls(
+            shared=SharedConfig.from_values(values, search_dirs),
+            plant_error=PlantError(**error),
+            sensors=SensorConfig.from_values(values),
+            **own,
+        )
 
 
 def build_simulator(config: SimulatorConfig) -> tuple[Plant, Simulator]:
     """The plant and a simulator at the configured start (moved onto the contacts first if
     ``project_initial_position``); refuses an infeasible start."""
-    plant = Plant(config.shared, config.slip_epsilon)
+    plant = Plant(config.plant_error.applied(config.shared), config.slip_epsilon, config.plant_error.mass_scale)
     q0 = plant.to_model_order(config.initial_position)
     dq0 = plant.to_model_order(config.initial_velocity)
     if config.project_initial_position:

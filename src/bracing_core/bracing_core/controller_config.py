@@ -31,6 +31,7 @@ class ControllerConfig:
     null_space: str  # paper: B^+ (the paper's eq. 38) | dynamically_consistent: B^# = Mc B^T (B Mc B^T)^-1
     wait_for_recorder: bool  # answer the first state only once a recorder subscribes to both outputs
     log_throttle_period: float  # [s] wall; at most one report per kind of bad input per period
+    thermal_compensation: bool = False  # voltage_law.thermal_compensation: v = K_V tau R(T) / R_20
 
     @property
     def task_dimension(self) -> int:
@@ -61,6 +62,7 @@ class ControllerConfig:
             null_space=values["null_space"],
             wait_for_recorder=values["wait_for_recorder"],
             log_throttle_period=values["log_throttle_period"],
+            thermal_compensation=values["voltage_law.thermal_compensation"],
         )
         if config.task_dimension > n - p:
             raise ConfigError(

@@ -73,7 +73,9 @@ class Derivative:
 
 def engine_robot(robot: RobotModel) -> engine.Robot:
     """What the engine rebuilds ``robot``'s pinocchio model from."""
-    return engine.Robot(str(robot.urdf_path), robot.gravity, list(robot.locked_joints), list(robot.locked_positions))
+    return engine.Robot(
+        str(robot.urdf_path), robot.gravity, list(robot.locked_joints), list(robot.locked_positions), robot.mass_scale
+    )
 
 
 def thermal_applies(motors: MotorParams, mode: InputMode) -> bool:

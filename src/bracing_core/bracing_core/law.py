@@ -14,7 +14,7 @@ class describes the configured tasks, contacts and gains to it and wraps its ans
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -38,6 +38,7 @@ class ControlOutput:
     brace_actual: Vector
     desired_normal_force: Vector  # (p,) [N]
     damped: bool  # True when B was near-singular and a damped inverse was used
+    force_command: Vector = field(default_factory=lambda: np.zeros(0))  # (p,) f_cmd [N]: f_nd without feedback
 
 
 def axis_gains(axes: tuple[int, ...], gains: tuple[float, ...]) -> Vector:
@@ -76,6 +77,8 @@ class DecoupledController:
                 engine_contact(contact),
                 c.desired_normal_force,
                 task(c.frame, c.brace_axes, c.kp, c.kd, c.trajectory),
+                c.feedback_kp,
+                c.feedback_ki,
             )
             for contact, c in zip(self.contact_set.contacts, contacts, strict=True)
         ]
@@ -89,6 +92,8 @@ class DecoupledController:
             config.damping_lambda,
             config.null_space == "dynamically_consistent",
             float(self.contact_set.slip_epsilon),
+            config.thermal_compensation,
+            self.plant.motors.voltage_limit if self.mode.value == "voltage" else self.plant.motors.torque_limit,
         )
 
     def retune(self, config: ControllerConfig) -> None:
@@ -141,7 +146,26 @@ class DecoupledController:
             values[2 * n + 6 + 3 * b : 2 * n + 6 + 6 * b].reshape(b, 3),
             self.desired_normal_force.copy(),
             bool(values[-1]),
+            values[2 * n + 6 + 6 * b : 2 * n + 6 + 7 * b],
         )
+
+    @property
+    def uses_force_feedback(self) -> bool:
+        """A braced contact has force-feedback gains: the law reads its measured force (``measure_force``)."""
+        return bool(self.engine.uses_force_feedback)
+
+    @property
+    def uses_temperature(self) -> bool:
+        """Thermal compensation applies (voltage input, thermal motors): the law reads ``measure_temperature``."""
+        return bool(self.engine.uses_temperature)
+
+    def measure_force(self, contact: int, force: Vector) -> None:
+        """Braced contact ``contact``'s measured force on the robot [N], world axes (contact_wrench/<name>)."""
+        self.engine.measure_force(int(contact), np.asarray(force, dtype=float))
+
+    def measure_temperature(self, temperature: Vector) -> None:
+        """The windings' measured temperatures [degC], model joint order (motor_state)."""
+        self.engine.measure_temperature(np.asarray(temperature, dtype=float))
 
 
 def check_task_rank(config: ControllerConfig, plant: Plant, q0: Vector) -> None:

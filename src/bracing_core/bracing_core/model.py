@@ -74,6 +74,7 @@ class RobotModel:
         self.gravity: Vector = np.array(model.gravity.linear, dtype=float)
         self.locked_joints = tuple(locked_joints)
         self.locked_positions = tuple(float(v) for v in locked_positions) or (0.0,) * len(self.locked_joints)
+        self.mass_scale = 1.0  # every moving link's mass and inertia times this (from_urdf's mass_scale)
         self.joint_names: tuple[str, ...] = tuple(model.names[j] for j in range(1, model.njoints))
         self.damping: Vector = np.array(model.damping, dtype=float)
         # Prismatic joints move in metres (a force drives them); the rest rotate.
@@ -91,9 +92,11 @@ class RobotModel:
         gravity: Sequence[float] = (0.0, 0.0, -9.81),
         locked_joints: Sequence[str] = (),
         locked_positions: Sequence[float] = (),
+        mass_scale: float = 1.0,
     ) -> RobotModel:
         """The URDF's model; ``locked_joints`` are held at ``locked_positions`` (default 0) and removed
-        with pinocchio's ``buildReducedModel`` (their links ride along, rigidly)."""
+        with pinocchio's ``buildReducedModel`` (their links ride along, rigidly); every moving link's mass
+        and rotational inertia times ``mass_scale`` (a plant's model error; the engine does the same)."""
         path = Path(path)
         if not path.is_file():
             raise ModelError(f"robot.urdf: file not found: {path}")
@@ -101,7 +104,15 @@ class RobotModel:
             model = pin.buildModelFromUrdf(str(path))
         except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError on bad XML
             raise ModelError(f"robot.urdf: pinocchio cannot load {path}: {exc}") from exc
-        return cls._built(model, str(path), gravity, locked_joints, locked_positions)
+        robot = cls._built(model, str(path), gravity, locked_joints, locked_positions)
+        if mass_scale != 1.0:
+            for k, inertia in enumerate(robot.model.inertias):
+                robot.model.inertias[k] = pin.Inertia(
+                    mass_scale * inertia.mass, inertia.lever, mass_scale * inertia.inertia
+                )
+            robot.data = robot.model.createData()
+            robot.mass_scale = float(mass_scale)
+        return robot
 
     @classmethod
     def from_xml(
@@ -151,7 +162,9 @@ class RobotModel:
             raise ModelError(f"armature: expected {self.nv} finite values >= 0, got {np.ravel(values).tolist()}")
         model = self.model.copy()
         model.armature[:] = model.armature + values
-        return RobotModel(model, self.source, self.locked_joints, self.locked_positions)
+        robot = RobotModel(model, self.source, self.locked_joints, self.locked_positions)
+        robot.mass_scale = self.mass_scale
+        return robot
 
     def description(self) -> str:
         """The URDF text of this robot as simulated (``simulated_urdf`` of its file and locked joints):

@@ -94,7 +94,7 @@ def destination(key: str) -> str:
     controller = {p.name for p in schema.CONTROLLER}
     if key in shared:
         return "shared"
-    parts = key.split(".")
+    parts = key.split(".", 2)  # a field may have dots of its own (force_feedback.kp)
     if len(parts) == 3 and parts[0] == "contacts" and parts[2] in {f.name for f in schema.CONTACT}:
         return "shared"
     if key in simulator and key in controller:  # both nodes have one (e.g. wait_for_recorder)

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+import bracing_engine as engine
 from bracing_core.config import Plant, SimulatorConfig, build_simulator
 from bracing_core.controller_config import ControllerConfig
 from bracing_core.law import DecoupledController
@@ -35,6 +36,13 @@ class Scenario:
     sim: Simulator
     controller: DecoupledController | None  # built on its own plant, as in the node
     sim_config: SimulatorConfig | None = None  # what the simulator was built from (its divergence limit, ...)
+
+    def sensors(self) -> engine.Sensors | None:
+        """The configured sensors (fresh: the noise from its seed's start), None for the paper's exact ones."""
+        config = self.sim_config
+        if config is None or config.sensors.exact:
+            return None
+        return config.sensors.engine(config.step, self.plant.robot.prismatic.tolist())
 
 
 def build_scenario(
@@ -124,6 +132,9 @@ class Recording:
     residual: np.ndarray  # (N+1, p) [m]
     active: np.ndarray  # (N+1, p) bool
     desired_normal_force: np.ndarray  # (b,) [N]
+    force_command: np.ndarray  # (N+1, b) [N]: f_cmd, the force the law asked for (f_nd without force feedback)
+    measured_position: np.ndarray  # (N+1, n) what the controller read ((N+1, 0) with exact sensors)
+    measured_velocity: np.ndarray  # (N+1, n)
     energy_consumed: np.ndarray  # (N+1,) [J]
     energy_net: np.ndarray  # (N+1,) [J]
     copper_loss: np.ndarray  # (N+1,) [J]
@@ -155,7 +166,7 @@ def run_recorded(scenario: Scenario, duration: float, divergence_checks: bool = 
     steps = round(duration / sim.step_size)
     config = scenario.sim_config if divergence_checks else None
     limits = (config.divergence_speed, config.divergence_residual) if config is not None else (np.inf, np.inf)
-    out = sim.rollout(controller.engine, steps, *limits)
+    out = sim.rollout(controller.engine, steps, *limits, sensors=scenario.sensors())
     rows, p, braced = steps + 1, len(scenario.plant.contact_set), len(controller.contact_set)
     return Recording(
         time=out["time"],
@@ -176,6 +187,9 @@ def run_recorded(scenario: Scenario, duration: float, divergence_checks: bool = 
         residual=out["residual"],
         active=out["active"].astype(bool),
         desired_normal_force=controller.desired_normal_force.copy(),
+        force_command=out["force_command"],
+        measured_position=out["measured_position"],
+        measured_velocity=out["measured_velocity"],
         energy_consumed=out["energy"][:, 0],
         energy_net=out["energy"][:, 1],
         copper_loss=out["energy"][:, 2],

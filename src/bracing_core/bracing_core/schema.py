@@ -453,6 +453,25 @@ CONTACT: tuple[Param, ...] = (
         nodes=("controller",),
     ),
     *trajectory_params("trajectory.", "hold", "the brace point's desired path", ("controller",)),
+    Param(
+        "force_feedback.kp",
+        Kind.DOUBLE,
+        0.0,
+        "force feedback (not in the paper): the force fed to eqs. 38/40 is f_cmd = f_nd + kp (f_nd - f_meas) + "
+        "ki * integral (f_nd - f_meas) dt, f_meas the normal force measured on contact_wrench/<name>; 0 = the paper",
+        "",
+        minimum=0.0,
+        nodes=("controller",),
+    ),
+    Param(
+        "force_feedback.ki",
+        Kind.DOUBLE,
+        0.0,
+        "force feedback's integral gain (held while a command saturates: anti-windup); 0 = none",
+        "1/s",
+        minimum=0.0,
+        nodes=("controller",),
+    ),
 )
 
 # Both nodes have one (each its own value).
@@ -463,6 +482,97 @@ LOG_THROTTLE_PERIOD = Param(
     "at most one report per kind of bad input per period (wall)",
     "s",
     minimum=0.0,
+)
+
+# A plant that differs from the controller's model (the simulator's robot and motors only; the controller
+# keeps the scenario's). 1 and empty: the scenario's plant, bit for bit.
+PLANT_ERROR: tuple[Param, ...] = (
+    Param(
+        "plant_error.mass_scale",
+        Kind.DOUBLE,
+        1.0,
+        "every moving link's mass and rotational inertia in the simulated plant times this",
+        positive=True,
+    ),
+    Param("plant_error.friction_scale", Kind.DOUBLE, 1.0, "every contact's mu in the plant times this", minimum=0.0),
+    Param(
+        "plant_error.torque_constant_scale", Kind.DOUBLE, 1.0, "every motor's K in the plant times this", positive=True
+    ),
+    Param("plant_error.resistance_scale", Kind.DOUBLE, 1.0, "every motor's R in the plant times this", positive=True),
+    Param("plant_error.inductance_scale", Kind.DOUBLE, 1.0, "every motor's L in the plant times this", positive=True),
+    Param(
+        "plant_error.rotor_inertia_scale",
+        Kind.DOUBLE,
+        1.0,
+        "every motor's rotor inertia I_m in the plant times this",
+        minimum=0.0,
+    ),
+    Param(
+        "plant_error.urdf",
+        Kind.STRING,
+        "",
+        "the plant's own URDF (same joints and frames, e.g. other masses); empty = robot.urdf",
+    ),
+)
+
+# What the controller receives, as a real arm measures it (the simulator publishes it; the truth goes to
+# ground_truth/...). 0: exact and instant, bit for bit the paper's sensing.
+SENSORS: tuple[Param, ...] = (
+    Param(
+        "sensors.noise_seed", Kind.INTEGER, 0, "seed of every sensor's noise (the same seed: the same run)", minimum=0
+    ),
+    Param(
+        "sensors.encoder_counts_per_rev",
+        Kind.INTEGER,
+        0,
+        "encoder counts per joint revolution (after the gear): published q on a grid of 2 pi / counts; revolute "
+        "joints only; 0 = exact",
+        minimum=0,
+    ),
+    Param(
+        "sensors.position_noise_rad",
+        Kind.DOUBLE,
+        0.0,
+        "sigma of white noise on q (before the quantisation)",
+        "rad or m",
+        minimum=0.0,
+    ),
+    Param(
+        "sensors.velocity_filter_hz",
+        Kind.DOUBLE,
+        0.0,
+        "> 0: dq measured as the finite difference of the measured q through a first-order low-pass at this "
+        "cutoff (as a drive differentiates its encoder); 0 = the true dq (plus sensors.velocity_noise_rad_s)",
+        "Hz",
+        minimum=0.0,
+    ),
+    Param(
+        "sensors.velocity_noise_rad_s",
+        Kind.DOUBLE,
+        0.0,
+        "sigma of white noise on the true dq (sensors.velocity_filter_hz 0)",
+        "rad/s or m/s",
+        minimum=0.0,
+    ),
+    Param(
+        "sensors.force_noise_n",
+        Kind.DOUBLE,
+        0.0,
+        "sigma of white noise on each force component of contact_wrench/<contact>",
+        "N",
+        minimum=0.0,
+    ),
+    Param("sensors.force_bias_n", Kind.DOUBLE, 0.0, "a force sensor's offset, along the contact's normal", "N"),
+    Param(
+        "sensors.current_noise_a", Kind.DOUBLE, 0.0, "sigma of white noise on motor_state's currents", "A", minimum=0.0
+    ),
+    Param(
+        "sensors.command_latency_steps",
+        Kind.INTEGER,
+        0,
+        "a command is applied this many steps after the state it answers (zero before the first lands)",
+        minimum=0,
+    ),
 )
 
 SIMULATOR: tuple[Param, ...] = (
@@ -560,6 +670,8 @@ SIMULATOR: tuple[Param, ...] = (
         positive=True,
     ),
     LOG_THROTTLE_PERIOD,
+    *PLANT_ERROR,
+    *SENSORS,
 )
 
 CONTROLLER: tuple[Param, ...] = (
@@ -603,6 +715,13 @@ CONTROLLER: tuple[Param, ...] = (
         tunable=True,
     ),
     Param("gravity_compensation", Kind.BOOL, False, "add g(q) to the null-space input l (not in the paper)"),
+    Param(
+        "voltage_law.thermal_compensation",
+        Kind.BOOL,
+        False,
+        "voltage input: v = K_V tau R(T) / R_20 from the windings' measured temperatures (motor_state), so the "
+        "current the law asks for does not fall as they warm (not in the paper)",
+    ),
     Param(
         "null_space",
         Kind.STRING,

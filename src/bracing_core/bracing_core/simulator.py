@@ -231,15 +231,21 @@ class Simulator:
         return unpack(values, self.n, self.dynamics.contacts)[0]
 
     def rollout(
-        self, law: engine.Law, steps: int, divergence_speed: float = np.inf, divergence_residual: float = np.inf
+        self,
+        law: engine.Law,
+        steps: int,
+        divergence_speed: float = np.inf,
+        divergence_residual: float = np.inf,
+        sensors: engine.Sensors | None = None,
     ) -> dict[str, np.ndarray]:
         """The closed loop with ``law`` (a ``bracing_engine.Law``) for ``steps`` steps, in the engine:
         per state k = 0..steps what the nodes publish in lockstep (``bracing_engine.rollout``; the
         last state answered and evaluated without a step). Raises as ``step`` does, and
         DivergenceError where the simulator node would refuse a step (speed above
-        ``divergence_speed`` [rad/s], a held contact further than ``divergence_residual`` [m] off)."""
+        ``divergence_speed`` [rad/s], a held contact further than ``divergence_residual`` [m] off).
+        ``sensors``: what the law reads and when its commands land (None: exact and instant)."""
         try:
-            out = engine.rollout(law, self.engine, int(steps), self.t0, divergence_speed, divergence_residual)
+            out = engine.rollout(law, self.engine, int(steps), self.t0, divergence_speed, divergence_residual, sensors)
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
         finally:

@@ -1,7 +1,8 @@
 """The compiled engine (C++ on pinocchio, docs/model.md): ``Dynamics`` evaluates the constrained
 robot + motor-circuit model, ``Simulator`` integrates it (RK4, energy integrals, unilateral
 contacts), ``Law`` is the decoupled control law with its task ``Path``s, and ``rollout`` runs the
-closed loop (law + simulator) for many steps without coming back to Python. ``bracing_core``'s
+closed loop (law + simulator) for many steps without coming back to Python; ``Sensors`` is what a
+real arm's controller measures and how late its commands land. ``bracing_core``'s
 dynamics, simulator, law and trajectory modules are its readable Python face."""
 
 import pinocchio  # first: the engine links the libpinocchio this loads (one copy in the process)
@@ -16,6 +17,7 @@ from bracing_engine._engine import (
     Law,
     Path,
     Robot,
+    Sensors,
     Simulator,
     SingularError,
     Surface,
@@ -38,6 +40,7 @@ __all__ = [
     "Law",
     "Path",
     "Robot",
+    "Sensors",
     "Simulator",
     "SingularError",
     "Surface",

@@ -11,6 +11,7 @@
 
 #include "bracing_engine/engine.hpp"
 #include "bracing_engine/law.hpp"
+#include "bracing_engine/sensors.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -104,10 +105,12 @@ NB_MODULE(_engine, m) {
       .def(
           "__init__",
           [](Robot* r, std::string urdf_path, const Vector3& gravity, std::vector<std::string> locked_joints,
-             std::vector<double> locked_positions) {
-            new (r) Robot{std::move(urdf_path), gravity, std::move(locked_joints), std::move(locked_positions)};
+             std::vector<double> locked_positions, double mass_scale) {
+            new (r) Robot{std::move(urdf_path), gravity, std::move(locked_joints), std::move(locked_positions),
+                          mass_scale};
           },
-          "urdf_path"_a, "gravity"_a, "locked_joints"_a, "locked_positions"_a);
+          "urdf_path"_a, "gravity"_a, "locked_joints"_a, "locked_positions"_a, "mass_scale"_a = 1.0,
+          "mass_scale: every moving link's mass and rotational inertia times this (a plant's model error)");
 
   nb::class_<Drive>(m, "Drive")
       .def(
@@ -254,51 +257,110 @@ NB_MODULE(_engine, m) {
   nb::class_<BracedContact>(m, "BracedContact")
       .def(
           "__init__",
-          [](BracedContact* brace, const Contact& contact, double desired_normal_force, const Task& task) {
-            new (brace) BracedContact{contact, desired_normal_force, task};
+          [](BracedContact* brace, const Contact& contact, double desired_normal_force, const Task& task,
+             double feedback_kp, double feedback_ki) {
+            new (brace) BracedContact{contact, desired_normal_force, task, feedback_kp, feedback_ki};
           },
-          "contact"_a, "desired_normal_force"_a, "task"_a);
+          "contact"_a, "desired_normal_force"_a, "task"_a, "feedback_kp"_a = 0.0, "feedback_ki"_a = 0.0,
+          "feedback: f_cmd = f_nd + kp (f_nd - f_meas) + ki * integral (f_nd - f_meas) dt (0 0: the paper's law)");
 
   nb::class_<Law>(m, "Law")
       .def(
           "__init__",
           [](Law* law, const Robot& robot, const Drive& drive, Vector voltage_gain, const Task& hand,
              std::vector<BracedContact> braces, bool gravity_compensation, double damping_lambda,
-             bool dynamically_consistent, double slip_epsilon) {
+             bool dynamically_consistent, double slip_epsilon, bool thermal_compensation, double command_limit) {
             new (law) Law(LawSpec{robot, drive, std::move(voltage_gain), hand, std::move(braces), gravity_compensation,
-                                  damping_lambda, dynamically_consistent, slip_epsilon});
+                                  damping_lambda, dynamically_consistent, slip_epsilon, thermal_compensation,
+                                  command_limit});
           },
           "robot"_a, "drive"_a, "voltage_gain"_a, "hand"_a, "braces"_a, "gravity_compensation"_a, "damping_lambda"_a,
-          "dynamically_consistent"_a, "slip_epsilon"_a)
+          "dynamically_consistent"_a, "slip_epsilon"_a, "thermal_compensation"_a = false, "command_limit"_a = 0.0)
       .def(
           "update_packed",
           [](Law& law, double t, const Vector& q, const Vector& dq) {
             LawOutput o;
             law.update(t, q, dq, o);
             const Eigen::Index n = o.command.size(), b = o.brace_desired.rows();
-            Vector out(2 * n + 6 + 6 * b + 1);
+            Vector out(2 * n + 6 + 7 * b + 1);
             out << o.command, o.torque, o.hand_desired, o.hand_actual,
                 Eigen::Map<const Vector>(o.brace_desired.data(), 3 * b),
-                Eigen::Map<const Vector>(o.brace_actual.data(), 3 * b), o.damped ? 1.0 : 0.0;
+                Eigen::Map<const Vector>(o.brace_actual.data(), 3 * b), o.force_command, o.damped ? 1.0 : 0.0;
             return out;
           },
           "t"_a, "q"_a, "dq"_a,
           "update's answer in one array: command, torque (n each), hand desired, hand actual (3 each), brace desired, "
-          "brace actual (3b each, row-major), damped (1/0)")
+          "brace actual (3b each, row-major), the force command f_cmd (b), damped (1/0)")
       .def("reset", &Law::reset)
+      .def("measure_force", &Law::measure_force, "brace"_a, "force"_a,
+           "brace j's measured force on the robot [N], world axes (force feedback reads its normal component)")
+      .def("measure_temperature", &Law::measure_temperature, "temperature"_a,
+           "the windings' measured temperatures [degC] (thermal compensation)")
+      .def_prop_ro("uses_force_feedback", &Law::uses_force_feedback)
+      .def_prop_ro("uses_temperature", &Law::uses_temperature)
+      .def("task_positions", &Law::task_positions, "q"_a, "the hand's and each brace point's positions at q")
       .def("first_rankless_axis", &Law::first_rankless_axis, "q0"_a,
            "(task: 0 the hand, 1 + j brace j; world axis) of the first axis adding no rank at q0, or (-1, -1)")
       .def("retune", &Law::retune, "hand_kp"_a, "hand_kd"_a, "brace_kp"_a, "brace_kd"_a, "desired_normal_force"_a,
            "voltage_gain"_a)
       .def_prop_ro("desired_normal_force", &Law::desired_normal_force);
 
+  nb::class_<Sensors>(m, "Sensors")
+      .def(
+          "__init__",
+          [](Sensors* sensors, int n, double step, Mask revolute, unsigned long long seed, long encoder_counts_per_rev,
+             double position_noise, double velocity_noise, double velocity_filter_hz, double force_noise,
+             double force_bias, double current_noise, long command_latency_steps) {
+            SensorSpec spec;
+            spec.seed = seed;
+            spec.encoder_counts_per_rev = encoder_counts_per_rev;
+            spec.position_noise = position_noise;
+            spec.velocity_noise = velocity_noise;
+            spec.velocity_filter_hz = velocity_filter_hz;
+            spec.force_noise = force_noise;
+            spec.force_bias = force_bias;
+            spec.current_noise = current_noise;
+            spec.command_latency_steps = command_latency_steps;
+            spec.step = step;
+            spec.revolute = std::move(revolute);
+            new (sensors) Sensors(spec, n);
+          },
+          "n"_a, "step"_a, "revolute"_a, "seed"_a = 0, "encoder_counts_per_rev"_a = 0, "position_noise"_a = 0.0,
+          "velocity_noise"_a = 0.0, "velocity_filter_hz"_a = 0.0, "force_noise"_a = 0.0, "force_bias"_a = 0.0,
+          "current_noise"_a = 0.0, "command_latency_steps"_a = 0)
+      .def_prop_ro("exact", &Sensors::exact)
+      .def_prop_ro("exact_joints", &Sensors::exact_joints)
+      .def(
+          "joints",
+          [](Sensors& s, const Vector& q, const Vector& dq) {
+            Vector q_out, dq_out;
+            s.joints(q, dq, q_out, dq_out);
+            return std::make_pair(q_out, dq_out);
+          },
+          "q"_a, "dq"_a, "(q, dq) as measured; call once per state, in order")
+      .def("force", &Sensors::force, "force"_a, "normal"_a, "a contact sensor's reading [N]")
+      .def(
+          "currents",
+          [](Sensors& s, const Vector& current) {
+            Vector out;
+            s.currents(current, out);
+            return out;
+          },
+          "current"_a)
+      .def(
+          "delay", [](Sensors& s, const Vector& command) { return Vector(s.delay(command)); }, "command"_a,
+          "the command to apply now (the answer command_latency_steps states ago; zero before the first lands)")
+      .def("take_back", &Sensors::take_back, "undo the last delay() (its step was refused)")
+      .def("reset", &Sensors::reset);
+
   m.def(
       "rollout",
-      [](Law& law, Simulator& simulator, long steps, double t0, double divergence_speed, double divergence_residual) {
+      [](Law& law, Simulator& simulator, long steps, double t0, double divergence_speed, double divergence_residual,
+         Sensors* sensors) {
         Recording r;
         {
           nb::gil_scoped_release release;
-          rollout(law, simulator, steps, t0, divergence_speed, divergence_residual, r);
+          rollout(law, simulator, steps, t0, divergence_speed, divergence_residual, r, sensors);
         }
         nb::dict out;
         const long rows = r.rows;
@@ -310,13 +372,15 @@ NB_MODULE(_engine, m) {
             {"brace_desired", &r.brace_desired}, {"brace_actual", &r.brace_actual},
             {"contact_position", &r.contact_position}, {"slip_velocity", &r.slip_velocity},
             {"normal_force", &r.normal_force}, {"friction_force", &r.friction_force}, {"residual", &r.residual},
-            {"active", &r.active}, {"energy", &r.energy}};
-        for (const auto& [name, array] : arrays) out[name] = RowMatrix(array->topRows(rows));
+            {"active", &r.active}, {"energy", &r.energy}, {"measured_position", &r.measured_position},
+            {"measured_velocity", &r.measured_velocity}, {"force_command", &r.force_command}};
+        for (const auto& [name, array] : arrays) out[name] = RowMatrix(array->topRows(std::min<Eigen::Index>(rows, array->rows())));
         out["status"] = r.status;
         out["measured"] = r.measured;
         return out;
       },
       "law"_a, "simulator"_a, "steps"_a, "t0"_a, "divergence_speed"_a, "divergence_residual"_a,
+      "sensors"_a.none() = nb::none(),
       "The closed loop for `steps` steps (and the final state's answer), all in C++: the recorded arrays per "
       "state, 'status' (0 ok; 1 diverged, 2 joint limit in the last row's step; 3 non-finite forces, 4 too fast, "
       "5 a held contact too far off, after it) and 'measured' (the speed or residual of 4 / 5).");

@@ -140,6 +140,13 @@ pin::Model build_model(const Robot& robot, const Vector& armature) {
   if (model.nq != model.nv) throw std::invalid_argument("only 1-dof revolute/prismatic joints are supported");
   if (armature.size() != model.nv) throw std::invalid_argument("drive: one value per joint expected");
   model.armature += armature;
+  if (robot.mass_scale != 1.0) {
+    for (auto& inertia : model.inertias) {
+      pin::Inertia::Symmetric3 rotational = inertia.inertia();
+      rotational.data() *= robot.mass_scale;
+      inertia = pin::Inertia(robot.mass_scale * inertia.mass(), inertia.lever(), rotational);
+    }
+  }
   return model;
 }
 

@@ -10,6 +10,7 @@
 #include <pinocchio/algorithm/cholesky.hpp>
 #include <pinocchio/algorithm/compute-all-terms.hpp>
 #include <pinocchio/algorithm/frames.hpp>
+#include <pinocchio/algorithm/kinematics.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
 
 #include <Eigen/Dense>
@@ -103,6 +104,24 @@ struct Law::Impl {
   Eigen::Matrix<double, 3, Eigen::Dynamic> jacobian;
   pin::Data::Matrix6x frame_jacobian;
   Vector y_column;
+  // force feedback: the last measured force per brace, its integral of (f_nd - f_meas) dt, the time of
+  // the last update and whether its command saturated (the integral then holds: anti-windup)
+  RowMatrix measured_force;
+  std::vector<bool> measured;
+  Vector integral;
+  double last_time = 0.0;
+  bool saturated = false;
+  Vector temperature;  // the windings' measured temperatures [degC]
+
+  // f_cmd of brace j at the normal `normal` (f_nd without feedback gains or a measurement).
+  double force_command(int j, const Vector3& normal, double dt) {
+    const BracedContact& brace = spec.braces[j];
+    const double f_nd = brace.desired_normal_force;
+    if ((brace.feedback_kp == 0.0 && brace.feedback_ki == 0.0) || !measured[j]) return f_nd;
+    const double error = f_nd - normal.dot(measured_force.row(j).transpose());
+    if (!saturated) integral[j] += error * dt;
+    return f_nd + brace.feedback_kp * error + brace.feedback_ki * integral[j];
+  }
 };
 
 Law::Law(const LawSpec& spec) : impl_(std::make_unique<Impl>()) {
@@ -123,6 +142,8 @@ Law::Law(const LawSpec& spec) : impl_(std::make_unique<Impl>()) {
   m.jacobian.setZero(3, n);
   m.frame_jacobian.setZero(6, n);
   m.y_column.setZero(n);
+  m.measured_force.setZero(braces(), 3);
+  reset();
 }
 
 Law::~Law() = default;
@@ -136,7 +157,48 @@ Vector Law::desired_normal_force() const {
   return f;
 }
 
-void Law::reset() { impl_->started = false; }
+void Law::reset() {
+  Impl& m = *impl_;
+  m.started = false;
+  m.measured.assign(m.spec.braces.size(), false);
+  m.integral.setZero(braces());
+  m.saturated = false;
+  m.temperature = Vector::Constant(m.model.nv, m.spec.drive.ambient);
+}
+
+void Law::measure_force(int brace, const Vector3& force) {
+  Impl& m = *impl_;
+  if (brace < 0 || brace >= braces()) throw std::out_of_range("measure_force: no such brace");
+  m.measured_force.row(brace) = force.transpose();
+  m.measured[brace] = true;
+}
+
+void Law::measure_temperature(const Vector& temperature) {
+  if (temperature.size() != impl_->model.nv) throw std::invalid_argument("measure_temperature: one per joint");
+  impl_->temperature = temperature;
+}
+
+bool Law::uses_force_feedback() const {
+  for (const auto& brace : impl_->spec.braces)
+    if (brace.feedback_kp != 0.0 || brace.feedback_ki != 0.0) return true;
+  return false;
+}
+
+bool Law::uses_temperature() const {
+  const LawSpec& s = impl_->spec;
+  return s.thermal_compensation && s.drive.voltage && s.drive.thermal;
+}
+
+const std::string& Law::brace_name(int brace) const { return impl_->spec.braces.at(brace).contact.name; }
+
+RowMatrix Law::task_positions(const Vector& q) {
+  Impl& m = *impl_;
+  pin::forwardKinematics(m.model, m.data, q);
+  RowMatrix out(m.frames.size(), 3);
+  for (std::size_t k = 0; k < m.frames.size(); ++k)
+    out.row(k) = pin::updateFramePlacement(m.model, m.data, m.frames[k]).translation().transpose();
+  return out;
+}
 
 std::pair<int, int> Law::first_rankless_axis(const Vector& q0) {
   Impl& m = *impl_;
@@ -204,7 +266,11 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
     for (std::size_t k = 0; k < m.frames.size(); ++k)
       m.starts[k] = pin::updateFramePlacement(m.model, m.data, m.frames[k]).translation();
     m.started = true;
+    m.last_time = t;
   }
+  const double dt = t - m.last_time;  // since the last update (force feedback's integral)
+  m.last_time = t;
+  out.force_command.resize(p);
   out.brace_desired.resize(p, 3);
   out.brace_actual.resize(p, 3);
   // l: the PD tasks along their axes (eq. 39)
@@ -259,7 +325,7 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
       if (contact.surface.kind != SurfaceKind::plane) gamma[j] += velocity.dot(hessian * velocity);
       const Vector3 slip = velocity - normal * normal.dot(velocity);
       const double speed = slip.norm();
-      f_nd[j] = brace.desired_normal_force;
+      f_nd[j] = out.force_command[j] = m.force_command(j, normals[j], dt);
       jc.row(j).noalias() = normal.transpose() * jacobian;
       w.row(j) = jc.row(j);
       if (contact.friction == 0.0) continue;
@@ -357,48 +423,107 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
     }
   }
   out.command = s.drive.voltage ? Vector(s.voltage_gain.cwiseProduct(out.torque)) : out.torque;
+  if (uses_temperature())  // R(T) / R_20 = 1 + alpha (T - 20 degC)
+    out.command.array() *= 1.0 + s.drive.temperature_coefficient * (m.temperature.array() - 20.0);
+  m.saturated = s.command_limit > 0.0 && out.command.cwiseAbs().maxCoeff() >= s.command_limit;
 }
 
-void rollout(Law& law, Simulator& simulator, long steps, double t0, double divergence_speed,
-             double divergence_residual, Recording& out) {
-  const int n = simulator.nv(), p = simulator.dynamics().contact_count(), b = law.braces();
-  const long rows = steps + 1;
+namespace {
+
+// Per braced contact of the law, its row in the simulator's contact list (matched by name).
+std::vector<int> brace_rows(const Law& law, const Simulator& simulator) {
+  std::vector<int> rows;
+  const auto& contacts = simulator.dynamics().contacts();
+  for (int j = 0; j < law.braces(); ++j) {
+    int row = -1;
+    for (std::size_t i = 0; i < contacts.size(); ++i)
+      if (contacts[i].name == law.brace_name(j)) row = static_cast<int>(i);
+    if (row < 0) throw std::invalid_argument("rollout: the simulator has no contact " + law.brace_name(j));
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+// What the law measures of the step just reported: each braced contact's force on the robot (through
+// its sensor, if any); the temperatures at the state the step started from.
+void measure_report(Law& law, const Simulator& simulator, const std::vector<int>& rows, const Vector& temperature,
+                    Sensors* sensors) {
+  const Answer& report = simulator.report;
+  if (law.uses_force_feedback()) {
+    for (std::size_t j = 0; j < rows.size(); ++j) {
+      const int i = rows[j];
+      const Vector3 normal = report.normals.row(i).transpose();
+      const Vector3 force = report.force[i] * normal + report.tangential_force.row(i).transpose();
+      law.measure_force(static_cast<int>(j), sensors ? sensors->force(force, normal) : force);
+    }
+  }
+  if (law.uses_temperature()) law.measure_temperature(temperature);
+}
+
+void size_recording(long rows, int n, int p, int b, bool sensed, Recording& out) {
   out.time.setZero(rows);
   for (RowMatrix* a : {&out.position, &out.velocity, &out.current, &out.temperature, &out.command})
     a->setZero(rows, n);
+  for (RowMatrix* a : {&out.measured_position, &out.measured_velocity}) a->setZero(sensed ? rows : 0, n);
   for (RowMatrix* a : {&out.hand_desired, &out.hand_actual, &out.energy}) a->setZero(rows, 3);
   for (RowMatrix* a : {&out.brace_desired, &out.brace_actual}) a->setZero(rows, 3 * b);
   for (RowMatrix* a : {&out.contact_position, &out.slip_velocity}) a->setZero(rows, 3 * p);
   for (RowMatrix* a : {&out.normal_force, &out.friction_force, &out.residual, &out.active}) a->setZero(rows, p);
+  out.force_command.setZero(rows, b);
   out.rows = 0;
   out.status = 0;
+}
+
+}  // namespace
+
+void rollout(Law& law, Simulator& simulator, long steps, double t0, double divergence_speed,
+             double divergence_residual, Recording& out, Sensors* sensors) {
+  const int n = simulator.nv(), p = simulator.dynamics().contact_count(), b = law.braces();
+  const long rows = steps + 1;
+  if (sensors && sensors->exact()) sensors = nullptr;  // the paper's exact, instant sensing: bit for bit as without
+  size_recording(rows, n, p, b, sensors != nullptr, out);
+  const std::vector<int> braced = brace_rows(law, simulator);
   LawOutput command;
+  Vector q_measured, dq_measured;
   for (long k = 0; k < rows; ++k) {
     const double t = t0 + static_cast<double>(simulator.steps_taken) * simulator.step_size();
     const Vector& y = simulator.state();
     const Vector q = y.head(n), dq = y.segment(n, n);
-    law.update(t, q, dq, command);
+    if (sensors) {
+      sensors->joints(q, dq, q_measured, dq_measured);
+      law.update(t, q_measured, dq_measured, command);
+      out.measured_position.row(k) = q_measured.transpose();
+      out.measured_velocity.row(k) = dq_measured.transpose();
+      const RowMatrix truth = law.task_positions(q);  // what the metrics judge: where the arm really is
+      command.hand_actual = truth.row(0).transpose();
+      for (int j = 0; j < b; ++j) command.brace_actual.row(j) = truth.row(j + 1);
+    } else {
+      law.update(t, q, dq, command);
+    }
     out.time[k] = t;
     out.position.row(k) = q.transpose();
     out.velocity.row(k) = dq.transpose();
     out.current.row(k) = y.segment(2 * n, n).transpose();
-    out.temperature.row(k) = y.segment(3 * n, n).transpose();
+    const Vector temperature = y.segment(3 * n, n);
+    out.temperature.row(k) = temperature.transpose();
     out.command.row(k) = command.command.transpose();
     out.hand_desired.row(k) = command.hand_desired.transpose();
     out.hand_actual.row(k) = command.hand_actual.transpose();
     out.brace_desired.row(k) = Eigen::Map<const Vector>(command.brace_desired.data(), 3 * b).transpose();
     out.brace_actual.row(k) = Eigen::Map<const Vector>(command.brace_actual.data(), 3 * b).transpose();
+    if (b) out.force_command.row(k) = command.force_command.transpose();
     out.energy.row(k) << y[kStates * n], y[kStates * n + 1], y[kStates * n + 2];
     // the final state gets its reports without a step, as the simulator node's finish() does
+    const Vector& applied = sensors ? sensors->delay(command.command) : command.command;
     if (k < steps) {
-      const StepStatus status = simulator.step(command.command);
+      const StepStatus status = simulator.step(applied);
       if (status != StepStatus::ok) {
         out.rows = k;
         out.status = static_cast<int>(status);
         return;
       }
     } else {
-      simulator.evaluate(command.command);
+      simulator.evaluate(applied);
     }
     const Answer& report = simulator.report;
     out.contact_position.row(k) = Eigen::Map<const Vector>(report.positions.data(), 3 * p).transpose();
@@ -410,6 +535,7 @@ void rollout(Law& law, Simulator& simulator, long steps, double t0, double diver
       out.active(k, j) = simulator.report_modes().held[j] ? 1.0 : 0.0;
     }
     out.rows = k + 1;
+    measure_report(law, simulator, braced, temperature, sensors);
     // where the simulator node refuses a step (the node asks the same function)
     out.status = simulator.refusal(divergence_speed, divergence_residual, out.measured);
     if (out.status) return;

@@ -25,6 +25,7 @@ from bracing_core import schema
 from bracing_core.checks import REAL_TIME_ACHIEVED, let_go_warning, never_reached_warning, slow_real_time_warning
 from bracing_core.config import SimulatorConfig, build_simulator
 from bracing_core.dynamics import Derivative, InputMode
+from bracing_core.sensing import GROUND_TRUTH
 from bracing_core.simulator import DivergenceError, Energy
 from bracing_core.types import Vector
 from bracing_msgs.msg import Contacts, MotorCommand, MotorState, RunStatus
@@ -87,6 +88,15 @@ class SimulatorNode(Node):
         # recorder get it whenever they join, and with joint_states (the moving joints) pose the
         # links where the simulator has them.
         self.description_pub = publisher(String, "robot_description", DESCRIPTION_QOS)
+        # What the controller receives, as a real arm measures it (sensors.*); the truth then goes out too.
+        sensing = self.config.sensors
+        self.sensors = None if sensing.exact else sensing.engine(self.config.step, self.plant.robot.prismatic.tolist())
+        self.truth_pubs = []
+        if self.sensors is not None:
+            self.truth_pubs = [
+                publisher(JointState, GROUND_TRUTH + "joint_states", STREAM_QOS),
+                publisher(MotorState, GROUND_TRUTH + "motor_state", STREAM_QOS),
+            ]
         self.description_pub.publish(String(data=self.plant.robot.description()))
         # Messages travel as CDR bytes built by ``wire`` (rclpy's message classes cost more than the DDS write).
         contacts = self.plant.contact_set.contacts
@@ -108,6 +118,7 @@ class SimulatorNode(Node):
             self.clock_pub,
             *self.wrench_pubs,
             self.description_pub,
+            *self.truth_pubs,
         ]
         self.flow = AckWindow(self, self.publishers_, STREAM_QOS.depth)
         self.status = StatusPublisher(self)  # what bracing-pair follows (not a data topic: not in publishers_)
@@ -177,7 +188,13 @@ class SimulatorNode(Node):
     # -- publishing -----------------------------------------------------------------
     def publish_state(self, effort: Vector) -> None:
         t_ns = self.sim.steps_taken * self.step_ns
-        self.joint_pub.publish(self.joint_wire.encode(t_ns, self.sim.position, self.sim.velocity, effort))
+        position, velocity = self.sim.position, self.sim.velocity
+        if self.sensors is None:
+            self.joint_pub.publish(self.joint_wire.encode(t_ns, position, velocity, effort))
+        else:  # once per state, in order: the velocity filter and the noise advance
+            measured_position, measured_velocity = self.sensors.joints(position, velocity)
+            self.joint_pub.publish(self.joint_wire.encode(t_ns, measured_position, measured_velocity, effort))
+            self.truth_pubs[0].publish(self.joint_wire.encode(t_ns, position, velocity, effort))
         self.clock_pub.publish(self.clock_wire.encode(t_ns))
 
     def publish_step(
@@ -194,6 +211,8 @@ class SimulatorNode(Node):
             normal_force = float(d.normal_force[j])
             if j < len(wrench_pubs):
                 force = normal_force * normal + d.tangential_force[j]
+                if self.sensors is not None:
+                    force = self.sensors.force(force, normal)
                 wrench_pubs[j].publish(self.wrench_wire.encode(t_ns, force))  # at the contact point: no moment
             reports.append(
                 wire.ContactReport(
@@ -214,11 +233,17 @@ class SimulatorNode(Node):
         if not self.sim.dynamics.thermal:
             temperature = np.zeros(0)  # no thermal model: empty, not a made-up ambient
         energies = (energy.consumed, energy.net, energy.copper_loss)
-        self.motor_pub.publish(self.motor_wire.encode(t_ns, voltage, current, power, energies, temperature))
+        if self.sensors is None:
+            self.motor_pub.publish(self.motor_wire.encode(t_ns, voltage, current, power, energies, temperature))
+            return
+        measured = self.sensors.currents(current) if self.mode is InputMode.VOLTAGE else current
+        self.motor_pub.publish(self.motor_wire.encode(t_ns, voltage, measured, power, energies, temperature))
+        self.truth_pubs[1].publish(self.motor_wire.encode(t_ns, voltage, current, power, energies, temperature))
 
     # -- one step -------------------------------------------------------------------
     def advance(self, command: Vector) -> bool:
-        """Step with ``command`` held, publish the new state, then the step's reports.
+        """Step with ``command`` held (or, with sensors.command_latency_steps, the answer that many
+        states old), publish the new state, then the step's reports.
 
         The new state goes out first: the controller computes its answer while this
         process builds and sends the reports of the step just taken. A command whose step
@@ -230,6 +255,7 @@ class SimulatorNode(Node):
         t_ns = self.sim.steps_taken * self.step_ns
         current, temperature, energy = self.sim.current, self.sim.temperature, self.sim.energy  # at the step's start
         checkpoint = self.sim.checkpoint()
+        command = self.sensors.delay(command) if self.sensors is not None else command
         try:
             with np.errstate(over="ignore", invalid="ignore"):  # an overflow is reported as a refusal
                 d = self.sim.step(command)
@@ -239,6 +265,8 @@ class SimulatorNode(Node):
                 raise DivergenceError("non-finite forces or effort")
         except DivergenceError as exc:
             self.sim.restore(checkpoint)
+            if self.sensors is not None:
+                self.sensors.take_back()
             self.refusal = str(exc)
             return False
         self.command = command
@@ -300,6 +328,8 @@ class SimulatorNode(Node):
         """Report the final state (under ``command``, the answer to it if there is one, else
         the held command) and let reliable subscribers receive everything."""
         t_ns = self.sim.steps_taken * self.step_ns
+        if command is not None and self.sensors is not None:
+            command = self.sensors.delay(command)
         d = self.sim.evaluate(command) if command is not None else None
         if d is None or not _finite(d.normal_force, d.friction_force, d.effort):
             if command is not None:

@@ -74,6 +74,9 @@ struct Robot {
   Vector3 gravity = Vector3(0.0, 0.0, -9.81);
   std::vector<std::string> locked_joints;
   std::vector<double> locked_positions;
+  // Every moving link's mass and rotational inertia times this (plant_error.mass_scale: a plant that
+  // differs from the controller's model; 1 leaves the URDF's numbers untouched).
+  double mass_scale = 1.0;
 };
 
 // Per joint, model order. Voltage mode: drive = K_m i, Mc = M + J_m, Dc = D + D_m, and

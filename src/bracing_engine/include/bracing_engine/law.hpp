@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "bracing_engine/engine.hpp"
+#include "bracing_engine/sensors.hpp"
 
 namespace bracing_engine {
 
@@ -39,6 +40,10 @@ struct BracedContact {
   Contact contact;  // frame, surface, mu (the law's contact model: f_t = mu f_n along the slip)
   double desired_normal_force = 0.0;  // f_nd [N]
   Task task;                          // the brace task (its frame is the contact's)
+  // Force feedback (not in the paper; 0 0: its feed-forward law): the force fed to eqs. (38)/(40) is
+  // f_cmd = f_nd + kp (f_nd - f_meas) + ki * integral of (f_nd - f_meas) dt, f_meas the measured normal force.
+  double feedback_kp = 0.0;  // dimensionless
+  double feedback_ki = 0.0;  // [1/s]
 };
 
 struct LawSpec {
@@ -51,12 +56,17 @@ struct LawSpec {
   double damping_lambda = 1e-6;       // damped inverse for a near-singular B
   bool dynamically_consistent = false;  // B^# = J_c^T (J_c Mc^-1 J_c^T)^-1 instead of B^+
   double slip_epsilon = 1e-4;
+  // v = K_V tau R(T) / R_20 from the measured winding temperatures (voltage mode, thermal drive): the
+  // current, and so the torque, the law asks for stays as the windings warm (not in the paper).
+  bool thermal_compensation = false;
+  double command_limit = 0.0;  // |command| where the motors saturate (0: none): force feedback's anti-windup
 };
 
 struct LawOutput {
   Vector command, torque;
   Vector3 hand_desired, hand_actual;
   RowMatrix brace_desired, brace_actual;  // b x 3
+  Vector force_command;                   // b: f_cmd [N], the force the law asked for (f_nd without feedback)
   bool damped = false;
 };
 
@@ -70,8 +80,18 @@ class Law {
   // The command for the measured state (q, dq) at time t [s]. The task paths start from the
   // first state's positions.
   void update(double t, const Vector& q, const Vector& dq, LawOutput& out);
-  // Forget the paths' starts (a new run begins).
+  // Forget the paths' starts, the force feedback's integral and the measurements (a new run begins).
   void reset();
+  // Brace j's measured force on the robot [N], world axes (its contact sensor): the feedback's f_meas is
+  // its component along the law's surface normal at the next update.
+  void measure_force(int brace, const Vector3& force);
+  // The windings' measured temperatures [degC] (thermal compensation; ambient until the first).
+  void measure_temperature(const Vector& temperature);
+  bool uses_force_feedback() const;  // a brace has a feedback gain
+  bool uses_temperature() const;     // thermal compensation applies (voltage mode, thermal drive)
+  const std::string& brace_name(int brace) const;
+  // The hand's and each brace point's positions at q (the law's kinematics): b + 1 rows.
+  RowMatrix task_positions(const Vector& q);
   // The tunable values: task gains (per world axis), f_nd and K_V.
   void retune(const Vector3& hand_kp, const Vector3& hand_kd, const std::vector<Vector3>& brace_kp,
               const std::vector<Vector3>& brace_kd, const Vector& desired_normal_force, const Vector& voltage_gain);
@@ -100,6 +120,10 @@ struct Recording {
   RowMatrix normal_force, friction_force;        // (N+1) x p
   RowMatrix residual, active;                    // (N+1) x p (active: 1/0)
   RowMatrix energy;                              // (N+1) x 3: consumed, net, copper loss up to the step's start
+  // With sensors: what the controller received, (N+1) x n (0 rows without); hand_actual and brace_actual
+  // then hold the true positions (the law's kinematics at the true q), not the law's measured ones.
+  RowMatrix measured_position, measured_velocity;
+  RowMatrix force_command;                       // (N+1) x b: f_cmd of each brace [N]
   long rows = 0;                                 // rows filled
   int status = 0;  // 0 ok; 1 diverged, 2 joint limit (in the step of the last row); 3 non-finite forces,
                    // 4 too fast, 5 residual (after the last row's step)
@@ -108,8 +132,11 @@ struct Recording {
 
 // The closed loop (law + simulator) for `steps` steps from the simulator's state at time t0 +
 // steps_taken * h; the last row is the final state, answered and evaluated without a step. Stops
-// early where the simulator node would refuse a step (status).
+// early where the simulator node would refuse a step (status). `sensors` (may be null: exact and
+// instant): what the law reads of each state and when its commands land. The law's force feedback
+// reads each braced contact's force of the previous step's report, its thermal compensation the
+// previous state's temperatures: what the nodes have when they answer a state in lockstep.
 void rollout(Law& law, Simulator& simulator, long steps, double t0, double divergence_speed,
-             double divergence_residual, Recording& out);
+             double divergence_residual, Recording& out, Sensors* sensors = nullptr);
 
 }  // namespace bracing_engine

@@ -1,0 +1,76 @@
+"""What the controller measures besides the joints, and which measurement a state is answered with (no ROS).
+
+Force feedback reads each fed-back contact's force (``contact_wrench/<name>``), thermal compensation the
+windings' temperatures (``motor_state``). The simulator reports a step after it has published the state
+the step led to, so the controller answering state k + 1 waits, briefly, for the reports of step k (those
+stamped with the state it answered last): what the in-process rollout feeds the law, so that a lockstep
+pair and a rollout run the same loop. The first state has no such report: the law starts without one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from bracing_core.law import DecoupledController
+from bracing_core.types import Vector
+
+
+class Measurements:
+    """The latest measurement per source (a contact's force, the temperatures) with its stamp [ns]."""
+
+    def __init__(self, forces: Sequence[str], temperature: bool) -> None:
+        self.forces = list(forces)  # the braced contacts whose force is fed back, in the law's brace order
+        self.temperature = temperature
+        self._force: dict[str, tuple[int, Vector]] = {}
+        self._temperature: tuple[int, Vector] | None = None
+
+    @classmethod
+    def for_law(cls, law: DecoupledController) -> Measurements | None:
+        """What ``law`` reads (None: nothing; the paper's law)."""
+        if not (law.uses_force_feedback or law.uses_temperature):
+            return None
+        names = list(law.contact_set.names) if law.uses_force_feedback else []
+        return cls(names, law.uses_temperature)
+
+    def take_force(self, contact: str, stamp_ns: int, force: Vector) -> str | None:
+        """Keep a contact's measured force [N] (world axes, on the robot); why not, if it is refused."""
+        value = np.asarray(force, dtype=float)
+        if value.shape != (3,) or not np.isfinite(value).all():
+            return f"contact_wrench/{contact}: force {value.tolist()} is not 3 finite numbers"
+        if contact in self.forces:
+            self._force[contact] = (stamp_ns, value)
+        return None
+
+    def take_temperature(self, stamp_ns: int, temperature: Vector, joints: int) -> str | None:
+        """Keep the windings' temperatures [degC] (model order); why not, if they are refused."""
+        value = np.asarray(temperature, dtype=float)
+        if value.shape != (joints,) or not np.isfinite(value).all():
+            return f"motor_state: temperature {value.tolist()} is not {joints} finite numbers"
+        self._temperature = (stamp_ns, value)
+        return None
+
+    def ready(self, since_ns: int | None) -> bool:
+        """Every source has a measurement stamped ``since_ns`` or later (None: the first state, nothing to wait for)."""
+        if since_ns is None:
+            return True
+        stamps = [self._force[c][0] if c in self._force else None for c in self.forces]
+        if self.temperature:
+            stamps.append(self._temperature[0] if self._temperature is not None else None)
+        return all(stamp is not None and stamp >= since_ns for stamp in stamps)
+
+    def missing(self, since_ns: int) -> list[str]:
+        """The sources without a measurement stamped ``since_ns`` or later."""
+        out = [f"contact_wrench/{c}" for c in self.forces if c not in self._force or self._force[c][0] < since_ns]
+        if self.temperature and (self._temperature is None or self._temperature[0] < since_ns):
+            out.append("motor_state")
+        return out
+
+    def apply(self, law: DecoupledController) -> None:
+        """Give ``law`` the latest of each measurement (none yet: it keeps what it had)."""
+        for j, contact in enumerate(self.forces):
+            if contact in self._force:
+                law.measure_force(j, self._force[contact][1])
+        if self._temperature is not None:
+            law.measure_temperature(self._temperature[1])

@@ -1,0 +1,102 @@
+"""How the simulated arm differs from what its controller is told: the plant's model error
+(``plant_error.*``) and what its sensors measure (``sensors.*``). Light: the pair plans runs with it
+without loading pinocchio or the engine.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from bracing_core import schema
+from bracing_core.schema import Values
+
+if TYPE_CHECKING:
+    import bracing_engine as engine
+    from bracing_core.config import SharedConfig
+
+
+@dataclass(frozen=True)
+class PlantError:
+    """plant_error.*: how the simulated plant differs from the scenario (the controller's model)."""
+
+    mass_scale: float = 1.0
+    friction_scale: float = 1.0
+    torque_constant_scale: float = 1.0
+    resistance_scale: float = 1.0
+    inductance_scale: float = 1.0
+    rotor_inertia_scale: float = 1.0
+    urdf: str = ""  # the plant's own URDF (resolved path); empty: robot.urdf
+
+    def applied(self, shared: SharedConfig) -> SharedConfig:
+        """``shared`` as the plant has it (itself when there is no error: every number as it was)."""
+        if self == PlantError():
+            return shared
+        m = shared.motors
+        motors = dataclasses.replace(
+            m,
+            torque_constant=m.torque_constant * self.torque_constant_scale,
+            resistance=m.resistance * self.resistance_scale,
+            inductance=m.inductance * self.inductance_scale,
+            rotor_inertia=m.rotor_inertia * self.rotor_inertia_scale,
+        )
+        contacts = tuple(dataclasses.replace(c, friction=c.friction * self.friction_scale) for c in shared.contacts)
+        urdf = Path(self.urdf) if self.urdf else shared.urdf
+        return dataclasses.replace(shared, urdf=urdf, motors=motors, contacts=contacts)
+
+
+GROUND_TRUTH = "ground_truth/"
+"""With sensors that are not exact, the simulator publishes the truth under this prefix too
+(``ground_truth/joint_states``, ``ground_truth/motor_state``): the bag holds what the controller
+received and what was true."""
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    """sensors.*: what the simulator publishes as measured (units in the names; schema.SENSORS)."""
+
+    noise_seed: int = 0
+    encoder_counts_per_rev: int = 0
+    position_noise_rad: float = 0.0
+    velocity_filter_hz: float = 0.0
+    velocity_noise_rad_s: float = 0.0
+    force_noise_n: float = 0.0
+    force_bias_n: float = 0.0
+    current_noise_a: float = 0.0
+    command_latency_steps: int = 0
+
+    @classmethod
+    def from_values(cls, values: Values) -> SensorConfig:
+        """From the simulator's schema values (``schema.read``)."""
+        return cls(**prefixed(values, schema.SENSORS, "sensors."))
+
+    @property
+    def exact(self) -> bool:
+        """Exact and instant (the paper's sensing): the seed alone changes nothing."""
+        return dataclasses.replace(self, noise_seed=0) == SensorConfig()
+
+    def engine(self, step: float, prismatic: Sequence[bool]) -> engine.Sensors:
+        """The engine's sensors for joints that are ``prismatic`` (not on the encoder's angular grid)."""
+        import bracing_engine as engine
+
+        return engine.Sensors(
+            len(prismatic),
+            step,
+            [not p for p in prismatic],
+            seed=self.noise_seed,
+            encoder_counts_per_rev=self.encoder_counts_per_rev,
+            position_noise=self.position_noise_rad,
+            velocity_noise=self.velocity_noise_rad_s,
+            velocity_filter_hz=self.velocity_filter_hz,
+            force_noise=self.force_noise_n,
+            force_bias=self.force_bias_n,
+            current_noise=self.current_noise_a,
+            command_latency_steps=self.command_latency_steps,
+        )
+
+
+def prefixed(values: Values, params: Sequence[schema.Param], prefix: str) -> dict[str, Any]:
+    return {p.name[len(prefix) :]: values[p.name] for p in params}
