@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -30,14 +30,7 @@ from rosbags.highlevel import AnyReader
 
 from bracing_analysis.columns import Layout, column, decode
 from bracing_analysis.surfaces import SCENARIO_KEY, SURFACES_KEY, Shape, from_json
-from bracing_analysis.truth import (
-    HAND,
-    TASK_FRAMES_KEY,
-    apply_ground_truth,
-    is_ground_truth,
-    task_frames_from_json,
-    true_positions,
-)
+from bracing_analysis.truth import HAND, TASK_FRAMES_KEY, is_ground_truth, task_frames_from_json, true_positions
 from bracing_core import checks
 from bracing_core.typestore import (
     CONTACTS,
@@ -232,6 +225,31 @@ def _read_ground_truth(series: BagSeries, path: Path) -> None:
     task = [frames[HAND], *frames["braces"].values()]
     truth = true_positions(series.robot_description, np.array(stamps, dtype=np.int64), names, np.array(rows), task)
     apply_ground_truth(series, truth, frames)
+
+
+def apply_ground_truth(series: BagSeries, truth: Mapping[int, np.ndarray], frames: Mapping[str, Any]) -> None:
+    """The series' task positions from ``truth`` ({stamp: (1 + braces, 3)}, hand first then ``frames``'
+    braces in order), the controller's own beside them; a controller state without a true state keeps its own."""
+    braces = list(frames.get("braces", {}))
+    stamps = np.round(series.t * 1e9).astype(np.int64) + series.t0_ns
+    series.hand_measured = series.hand_actual.copy()
+    series.hand_actual = _replaced(series.hand_actual, stamps, truth, 0)
+    for j, name in enumerate(braces):
+        cs = series.contacts.get(name)
+        if cs is None or not cs.t_ctrl.size:
+            continue
+        ctrl_stamps = np.round(cs.t_ctrl * 1e9).astype(np.int64) + series.t0_ns
+        cs.brace_measured = cs.brace_actual.copy()
+        cs.brace_actual = _replaced(cs.brace_actual, ctrl_stamps, truth, j + 1)
+
+
+def _replaced(values: np.ndarray, stamps: np.ndarray, truth: Mapping[int, np.ndarray], row: int) -> np.ndarray:
+    out = values.copy()
+    for k, stamp in enumerate(stamps.tolist()):
+        true = truth.get(int(stamp))
+        if true is not None:
+            out[k] = true[row]
+    return out
 
 
 def _wanted(reader: AnyReader, counts: dict[str, int]) -> list[Any]:

@@ -2,19 +2,19 @@
 its controller received on the usual topics and the truth on ``ground_truth/joint_states`` (no rclpy).
 
 The controller's ``controller_state`` says where it *believes* the hand and the brace points are (from
-the positions it received); the paper's metrics judge where they *are*. ``apply_ground_truth`` puts the
-true positions (the task frames' kinematics at the true joint positions) in the series' ``hand_actual``
-and each contact's ``brace_actual``, and keeps the believed ones beside them (``hand_measured``,
-``brace_measured``): the summary's metrics are then the truth's, as the in-process rollout's are.
+the positions it received); the paper's metrics judge where they *are*. ``summary.apply_ground_truth``
+puts the true positions (the task frames' kinematics at the true joint positions, ``true_positions``)
+in the series' ``hand_actual`` and each contact's ``brace_actual``, and keeps the believed ones beside
+them (``hand_measured``, ``brace_measured``): the summary's metrics are then the truth's, as the rollout's are.
 The task frames come from the scenario (the recorder keeps them in the bag's metadata, ``TASK_FRAMES_KEY``).
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -22,9 +22,6 @@ from bracing_core import schema
 from bracing_core.overrides import CONTROLLER
 from bracing_core.rcl_yaml import load_params_file
 from bracing_core.sensing import GROUND_TRUTH
-
-if TYPE_CHECKING:
-    from bracing_analysis.summary import BagSeries
 
 TASK_FRAMES_KEY = "bracing.task_frames"
 """Bag metadata (custom_data): JSON {"hand": frame, "braces": {contact: frame}} of the controller's tasks."""
@@ -69,29 +66,4 @@ def true_positions(
     for stamp, row in zip(stamps.tolist(), positions, strict=True):
         poses.update(poses.configuration(names, row))
         out[int(stamp)] = np.array([pin.updateFramePlacement(poses.model, poses.data, i).translation for i in ids])
-    return out
-
-
-def apply_ground_truth(series: BagSeries, truth: Mapping[int, np.ndarray], frames: Mapping[str, Any]) -> None:
-    """The series' task positions from ``truth`` ({stamp: (1 + braces, 3)}, hand first then ``frames``'
-    braces in order), the controller's own beside them; a controller state without a true state keeps its own."""
-    braces = list(frames.get("braces", {}))
-    stamps = np.round(series.t * 1e9).astype(np.int64) + series.t0_ns
-    series.hand_measured = series.hand_actual.copy()
-    series.hand_actual = _replaced(series.hand_actual, stamps, truth, 0)
-    for j, name in enumerate(braces):
-        cs = series.contacts.get(name)
-        if cs is None or not cs.t_ctrl.size:
-            continue
-        ctrl_stamps = np.round(cs.t_ctrl * 1e9).astype(np.int64) + series.t0_ns
-        cs.brace_measured = cs.brace_actual.copy()
-        cs.brace_actual = _replaced(cs.brace_actual, ctrl_stamps, truth, j + 1)
-
-
-def _replaced(values: np.ndarray, stamps: np.ndarray, truth: Mapping[int, np.ndarray], row: int) -> np.ndarray:
-    out = values.copy()
-    for k, stamp in enumerate(stamps.tolist()):
-        true = truth.get(int(stamp))
-        if true is not None:
-            out[k] = true[row]
     return out

@@ -7,6 +7,7 @@ controller alike. Everything is validated here, once, with errors naming the par
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -354,10 +355,30 @@ class SimulatorConfig:
         )
 
 
+def with_plant_error(shared: SharedConfig, error: PlantError) -> SharedConfig:
+    """``shared`` as the simulated plant has it (``shared`` itself without error: every number as it was);
+    the link masses are scaled where the model is built (``Plant``'s ``mass_scale``)."""
+    if error.none:
+        return shared
+    m = shared.motors
+    motors = dataclasses.replace(
+        m,
+        torque_constant=m.torque_constant * error.torque_constant_scale,
+        resistance=m.resistance * error.resistance_scale,
+        inductance=m.inductance * error.inductance_scale,
+        rotor_inertia=m.rotor_inertia * error.rotor_inertia_scale,
+    )
+    contacts = tuple(dataclasses.replace(c, friction=c.friction * error.friction_scale) for c in shared.contacts)
+    urdf = Path(error.urdf) if error.urdf else shared.urdf
+    return dataclasses.replace(shared, urdf=urdf, motors=motors, contacts=contacts)
+
+
 def build_simulator(config: SimulatorConfig) -> tuple[Plant, Simulator]:
     """The plant and a simulator at the configured start (moved onto the contacts first if
     ``project_initial_position``); refuses an infeasible start."""
-    plant = Plant(config.plant_error.applied(config.shared), config.slip_epsilon, config.plant_error.mass_scale)
+    plant = Plant(
+        with_plant_error(config.shared, config.plant_error), config.slip_epsilon, config.plant_error.mass_scale
+    )
     q0 = plant.to_model_order(config.initial_position)
     dq0 = plant.to_model_order(config.initial_velocity)
     if config.project_initial_position:

@@ -8,7 +8,6 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from bracing_core import schema
@@ -16,7 +15,6 @@ from bracing_core.schema import Values
 
 if TYPE_CHECKING:
     import bracing_engine as engine
-    from bracing_core.config import SharedConfig
 
 
 @dataclass(frozen=True)
@@ -31,21 +29,10 @@ class PlantError:
     rotor_inertia_scale: float = 1.0
     urdf: str = ""  # the plant's own URDF (resolved path); empty: robot.urdf
 
-    def applied(self, shared: SharedConfig) -> SharedConfig:
-        """``shared`` as the plant has it (itself when there is no error: every number as it was)."""
-        if self == PlantError():
-            return shared
-        m = shared.motors
-        motors = dataclasses.replace(
-            m,
-            torque_constant=m.torque_constant * self.torque_constant_scale,
-            resistance=m.resistance * self.resistance_scale,
-            inductance=m.inductance * self.inductance_scale,
-            rotor_inertia=m.rotor_inertia * self.rotor_inertia_scale,
-        )
-        contacts = tuple(dataclasses.replace(c, friction=c.friction * self.friction_scale) for c in shared.contacts)
-        urdf = Path(self.urdf) if self.urdf else shared.urdf
-        return dataclasses.replace(shared, urdf=urdf, motors=motors, contacts=contacts)
+    @property
+    def none(self) -> bool:
+        """The plant is the scenario's: every number as it was."""
+        return self == PlantError()
 
 
 GROUND_TRUTH = "ground_truth/"
