@@ -164,10 +164,8 @@ class ControllerNode(Node):
         if self.measurements is not None:
             # the executor (spun between states) and the waiter (while a state waits) both hand them to on_measurement
             self.wrench_subs = {
-                self.create_subscription(
-                    WrenchStamped, f"contact_wrench/{name}", partial(self.on_wrench, name), SUBSCRIBE_QOS
-                ): name
-                for name in self.measurements.forces
+                self.create_subscription(WrenchStamped, topic, partial(self.on_wrench, name), SUBSCRIBE_QOS): name
+                for name, topic in zip(self.measurements.forces, self.measurements.topics, strict=True)
             }
             subs = list(self.wrench_subs)
             if self.measurements.temperature:
@@ -188,7 +186,7 @@ class ControllerNode(Node):
         """Keep a contact's measured force (contact_wrench/<contact>)."""
         assert self.measurements is not None
         f = msg.wrench.force
-        problem = self.measurements.take_force(contact, _stamp_ns(msg), np.array([f.x, f.y, f.z]))
+        problem = self.measurements.take_force(contact, _stamp_ns(msg), np.array([f.x, f.y, f.z]), msg.header.frame_id)
         if problem is not None:
             self.report("error", "measurement", f"ignored: {problem}")
 

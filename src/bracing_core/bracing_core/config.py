@@ -108,6 +108,7 @@ class ContactConfig:
     unilateral: bool = False  # the surface only pushes: release and touchdown (bilateral: the paper)
     feedback_kp: float = 0.0  # force_feedback.kp (dimensionless); 0 0: the paper's feed-forward law
     feedback_ki: float = 0.0  # force_feedback.ki [1/s]
+    feedback_topic: str = ""  # force_feedback.topic: a WrenchStamped in world axes; empty = contact_wrench/<name>
 
     @property
     def braced(self) -> bool:
@@ -152,6 +153,7 @@ class ContactConfig:
             unilateral=values["unilateral"] or desired is None,
             feedback_kp=feedback[0] if desired is not None else 0.0,
             feedback_ki=feedback[1] if desired is not None else 0.0,
+            feedback_topic=values["force_feedback.topic"] or f"contact_wrench/{name}",
         )
 
     def contact(self, enforced: bool = True) -> Contact:

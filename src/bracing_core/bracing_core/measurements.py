@@ -13,6 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from bracing_core.kinematics import WORLD_FRAME as WORLD
 from bracing_core.law import DecoupledController
 from bracing_core.types import Vector
 
@@ -20,8 +21,9 @@ from bracing_core.types import Vector
 class Measurements:
     """The latest measurement per source (a contact's force, the temperatures) with its stamp [ns]."""
 
-    def __init__(self, forces: Sequence[str], temperature: bool) -> None:
+    def __init__(self, forces: Sequence[str], temperature: bool, topics: Sequence[str] = ()) -> None:
         self.forces = list(forces)  # the braced contacts whose force is fed back, in the law's brace order
+        self.topics = list(topics) or [f"contact_wrench/{name}" for name in forces]  # where each force comes from
         self.temperature = temperature
         self._force: dict[str, tuple[int, Vector]] = {}
         self._temperature: tuple[int, Vector] | None = None
@@ -31,14 +33,18 @@ class Measurements:
         """What ``law`` reads (None: nothing; the paper's law)."""
         if not (law.uses_force_feedback or law.uses_temperature):
             return None
-        names = list(law.contact_set.names) if law.uses_force_feedback else []
-        return cls(names, law.uses_temperature)
+        braced = law.config.shared.braced_contacts if law.uses_force_feedback else ()
+        return cls([c.name for c in braced], law.uses_temperature, [c.feedback_topic for c in braced])
 
-    def take_force(self, contact: str, stamp_ns: int, force: Vector) -> str | None:
-        """Keep a contact's measured force [N] (world axes, on the robot); why not, if it is refused."""
+    def take_force(self, contact: str, stamp_ns: int, force: Vector, frame: str = WORLD) -> str | None:
+        """Keep a contact's measured force [N] on the robot, in ``frame`` (world axes only); why not, if it
+        is refused."""
+        topic = self.topics[self.forces.index(contact)] if contact in self.forces else contact
         value = np.asarray(force, dtype=float)
         if value.shape != (3,) or not np.isfinite(value).all():
-            return f"contact_wrench/{contact}: force {value.tolist()} is not 3 finite numbers"
+            return f"{topic}: force {value.tolist()} is not 3 finite numbers"
+        if frame not in (WORLD, ""):
+            return f"{topic}: frame_id {frame!r}: force feedback takes forces in world axes (frame_id {WORLD!r})"
         if contact in self.forces:
             self._force[contact] = (stamp_ns, value)
         return None
@@ -62,7 +68,11 @@ class Measurements:
 
     def missing(self, since_ns: int) -> list[str]:
         """The sources without a measurement stamped ``since_ns`` or later."""
-        out = [f"contact_wrench/{c}" for c in self.forces if c not in self._force or self._force[c][0] < since_ns]
+        out = [
+            t
+            for c, t in zip(self.forces, self.topics, strict=True)
+            if c not in self._force or self._force[c][0] < since_ns
+        ]
         if self.temperature and (self._temperature is None or self._temperature[0] < since_ns):
             out.append("motor_state")
         return out

@@ -464,6 +464,14 @@ CONTACT: tuple[Param, ...] = (
         nodes=("controller",),
     ),
     Param(
+        "force_feedback.topic",
+        Kind.STRING,
+        "",
+        "where force feedback reads f_meas: a geometry_msgs/WrenchStamped topic in world axes (frame_id world), e.g. "
+        "a force_torque_sensor_broadcaster's <name>/wrench; empty = contact_wrench/<name> (the simulator's)",
+        nodes=("controller",),
+    ),
+    Param(
         "force_feedback.ki",
         Kind.DOUBLE,
         0.0,

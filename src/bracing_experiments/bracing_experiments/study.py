@@ -3,6 +3,11 @@
     bracing-study paper --output DIR [--duration S] [--workers N] [--scheduler ADDRESS] [--set KEY=VALUE ...]
                         [--positions N] [--span M] [--trials N]
     bracing-study config/hyper_7link.yaml --output DIR
+    bracing-study robustness --output DIR [--duration S] [--workers N | --scheduler ADDRESS] [--set KEY=VALUE ...]
+
+``robustness`` is the robustness study (bracing_experiments.robustness: the paper scenario under model error,
+real sensing and command latency, with and without force feedback; ``bracing-study robustness --help``); the
+rest of this docstring is the paper study's.
 
 1. bracing: braced vs passive (make run's: no brace task, the surfaces kept as obstacles the arm can
    rest on) vs free (no contacts), voltage and torque input, with and without null-space gravity
@@ -40,14 +45,22 @@ from bracing_analysis.summary import HAND_ERROR_T_MIN_S
 from bracing_core import schema
 from bracing_core.config import SharedConfig
 from bracing_core.overrides import CONTROLLER, node_params, parse_single, route
-from bracing_core.params import ConfigError, resolve_file
+from bracing_core.params import ConfigError
 from bracing_core.rollout import build_scenario
 from bracing_core.variants import PASSIVE
 from bracing_experiments.executors import Executor, make_executor
-from bracing_experiments.experiment import FORCE_MAX_ERROR_KEY, STATUS_FAILED, STATUS_OK, RunSpec
+from bracing_experiments.experiment import FORCE_MAX_ERROR_KEY, STATUS_FAILED, RunSpec
 from bracing_experiments.optimize import Optimum, Problem, build_problem, changes, optimize
+from bracing_experiments.reporting import braced_forces as _braced_forces
+from bracing_experiments.reporting import fmt as _fmt
+from bracing_experiments.reporting import is_ok as _ok
+from bracing_experiments.reporting import markdown_table as _table
+from bracing_experiments.reporting import resolve_scenario
+from bracing_experiments.reporting import run_arrays as _arrays
+from bracing_experiments.reporting import warnings_section as _warnings_section
+from bracing_experiments.robustness import STUDY as ROBUSTNESS
+from bracing_experiments.robustness import main as robustness_main
 from bracing_experiments.sweep import (
-    ARRAYS_FILE,
     EXIT_CONFIG,
     EXIT_FAILED,
     EXIT_INTERRUPTED,
@@ -55,11 +68,9 @@ from bracing_experiments.sweep import (
     any_failed,
     handle_stop_signals,
     make_spec,
-    row_warnings,
     run_sweep,
 )
 
-SCENARIO_ALIASES = {"paper": "paper_4link.yaml"}
 PAPER_SCENARIO = "paper_4link"
 """The scenario whose figures the paper has: only its report cites them."""
 GAIN_SCALES = (1.0, 0.5, 0.2, 0.1)
@@ -113,15 +124,6 @@ class Study:
     def paper(self, text: str) -> str:
         """``text`` (a citation of the paper's figures) for the paper's scenario, else nothing."""
         return text if self.scenario == PAPER_SCENARIO else ""
-
-
-def resolve_scenario(name: str) -> Path:
-    """``paper`` or a scenario file (a path, or a name in the config directories)."""
-    path = Path(name)
-    if path.is_file():
-        return path
-    file = SCENARIO_ALIASES.get(name, name if name.endswith((".yaml", ".yml")) else f"{name}.yaml")
-    return resolve_file(file, "scenario", [Path.cwd() / "config"])
 
 
 def _scaled(values: Any, scale: float) -> list[float]:
@@ -372,34 +374,6 @@ def run_placement_search(
 
 
 # -- the report ------------------------------------------------------------------------------------
-def _fmt(value: Any, digits: int = 4) -> str:
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        return "n/a"
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if isinstance(value, float):
-        return f"{value:.{digits}g}"
-    return str(value)
-
-
-def _table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(_fmt(v) for v in row) + " |" for row in rows]
-    return "\n".join(lines)
-
-
-def _arrays(store: ResultsStore, run_id: str) -> dict[str, np.ndarray] | None:
-    path = store.run_dir(run_id) / ARRAYS_FILE
-    if not path.is_file():
-        return None
-    with np.load(path) as data:
-        return {key: data[key] for key in data.files}
-
-
-def _ok(row: dict[str, Any] | None) -> bool:
-    return row is not None and row.get("status") == STATUS_OK
-
-
 def _bracing_section(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any]]) -> list[str]:
     header = [
         "bracing",
@@ -601,12 +575,6 @@ def _voltage_force_errors(study: Study, store: ResultsStore, rows: dict[str, dic
         early = max(early, float(np.max(error[~after], initial=0.0)))
         late = max(late, float(np.max(error[after], initial=0.0)))
     return early, late
-
-
-def _braced_forces(data: dict[str, np.ndarray]) -> np.ndarray:
-    """f_n of the braced contacts (the columns of desired_normal_force), without the obstacle contacts'."""
-    names = [str(name) for name in data["contact_names"]]
-    return data["normal_force"][:, [names.index(str(name)) for name in data["braced_names"]]]
 
 
 def _draw_gains(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any]]) -> None:
@@ -908,19 +876,6 @@ def _draw_placement(
     fig.savefig(store.output / "placement.png", dpi=110)
 
 
-def _warnings_section(rows: dict[str, dict[str, Any]]) -> list[str]:
-    """The runs' warnings (summary.json's), each once with the number of runs that had it."""
-    counts = row_warnings(list(rows.values()))
-    if not counts:
-        return []
-    return [
-        "## Warnings",
-        "",
-        *[f"- {text} ({runs} run{'s' if runs > 1 else ''})" for text, runs in counts.items()],
-        "",
-    ]
-
-
 def write_report(
     study: Study,
     output: Path,
@@ -967,7 +922,10 @@ def _search_count(search: PlacementSearch | None) -> str:
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog="bracing-study", description=(__doc__ or "").split("\n\n")[0])
-    parser.add_argument("scenario", help="'paper' or a scenario params file")
+    parser.add_argument(
+        "scenario",
+        help=f"'paper' or a scenario params file; '{ROBUSTNESS}': the robustness study ({ROBUSTNESS} --help)",
+    )
     parser.add_argument("--output", required=True, type=Path, help="report directory (resumable)")
     parser.add_argument("--duration", type=float, default=None, help="sim time per run [s] (default: the file's)")
     parser.add_argument("--workers", type=int, default=None, help="local worker processes (default: cores)")
@@ -1000,6 +958,9 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == [ROBUSTNESS]:  # its own options (bracing_experiments.robustness)
+        return robustness_main(argv[1:])
     args = parse_args(argv)
     handle_stop_signals()
     start = time.perf_counter()
