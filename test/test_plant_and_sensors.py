@@ -211,6 +211,17 @@ def test_force_feedback_shrinks_the_force_error_of_heavier_links_tenfold() -> No
     assert after * 10.0 <= before, (before, after)
 
 
+def test_force_feedback_trusts_its_sensor_a_bias_moves_the_true_force() -> None:
+    """The loop drives the *measured* force to f_nd: with a 0.4 N sensor bias on the exact model the true
+    force settles at f_nd - 0.4 N (docs/model.md, the feedback's limits)."""
+    recording = run_recorded(
+        build_scenario({"input_mode": "torque"}, sim={"sensors.force_bias_n": 0.4}, ctl=FEEDBACK), 3.0
+    )
+    late = recording.normal_force[recording.time >= 2.0, 0]
+    assert float(late.mean()) == pytest.approx(10.0 - 0.4, abs=1e-3)
+    assert float(late.std()) < 1e-3
+
+
 def test_the_integral_holds_while_the_commands_saturate() -> None:
     """Anti-windup: with a torque limit every command reaches, the integral never grows from its start at
     zero, so an integral-only feedback asks for f_nd throughout; without the limit it does not."""
