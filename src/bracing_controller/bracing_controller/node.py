@@ -22,7 +22,7 @@ from rclpy.time import Time
 from sensor_msgs.msg import JointState
 
 from bracing_core import schema
-from bracing_core.checks import configuration_warnings, desired_force_warning
+from bracing_core.checks import configuration_warnings, desired_force_warning, null_space_warning
 from bracing_core.controller_config import ControllerConfig
 from bracing_core.law import DecoupledController
 from bracing_core.measurements import Measurements
@@ -111,6 +111,7 @@ class ControllerNode(Node):
         self.measurement_waiter: SubscriptionWaiter | None = None
         self.wrench_subs: dict[Subscription, str] = {}
         self.previous_ns: int | None = None  # the stamp of the last state answered (None: none yet)
+        self.null_space_warned = False
         self.report = RateLimitedLog(self, self.config.log_throttle_period)
         self.flow = AckWindow(self, [self.command_pub, self.state_pub], STREAM_QOS.depth)
         self.get_logger().info(
@@ -245,6 +246,12 @@ class ControllerNode(Node):
             return
         if out.damped:
             self.report("warning", "damped", "B is near-singular: using a damped inverse")
+        if not self.null_space_warned:  # said once
+            hand_error = float(np.linalg.norm(out.hand_desired - out.hand_actual))
+            warning = null_space_warning(out.null_space_speed, hand_error, t)
+            if warning is not None:
+                self.null_space_warned = True
+                self.get_logger().warning(warning)
         self.command_pub.publish(self.command_wire.encode(msg.stamp_ns, out.command))
         self.state_pub.publish(
             self.state_wire.encode(

@@ -75,6 +75,24 @@ def never_reached_warning(name: str) -> str:
     )
 
 
+NULL_SPACE_SPEED = 2.0
+"""[rad/s or m/s] joint speed that no task sees (``ControlOutput.null_space_speed``) above which, with the
+hand on its path, the null space is moving on its own: the paper's B^+ leaves such joints undamped."""
+TASKS_SATISFIED_M = 0.01
+"""[m] hand error below which the tasks count as satisfied for that warning."""
+
+
+def null_space_warning(speed: float, hand_error: float, t: float) -> str | None:
+    """The warning for joints moving fast where no task sees them while the hand is on its path (None if not)."""
+    if not (speed > NULL_SPACE_SPEED and hand_error < TASKS_SATISFIED_M):
+        return None
+    return (
+        f"at t = {t:.3f} s joints move at {speed:.3g} rad/s where no task sees them while the hand is on its path: "
+        "the paper's null space (B^+) leaves such joints undamped and a light wrist can run away; set "
+        "null_space_posture.kd (and .kp) to damp them, and consider null_space: dynamically_consistent"
+    )
+
+
 def slow_real_time_warning(achieved: float, requested: float) -> str | None:
     """The warning for real-time stepping that ran at ``achieved`` x real time when ``requested``
     was asked (None if it kept up, within ``REAL_TIME_SLACK``)."""

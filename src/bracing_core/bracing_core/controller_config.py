@@ -32,6 +32,10 @@ class ControllerConfig:
     wait_for_recorder: bool  # answer the first state only once a recorder subscribes to both outputs
     log_throttle_period: float  # [s] wall; at most one report per kind of bad input per period
     thermal_compensation: bool = False  # voltage_law.thermal_compensation: v = K_V tau R(T) / R_20
+    back_emf_compensation: bool = False  # voltage_law.back_emf_compensation: v = R tau / K_m + K_m dq
+    posture_kp: tuple[float, ...] = ()  # null_space_posture.kp, robot.joint_names order (empty: zeros)
+    posture_kd: tuple[float, ...] = ()  # null_space_posture.kd
+    posture_rest: tuple[float, ...] = ()  # null_space_posture.rest; empty: the first measured position
 
     @property
     def task_dimension(self) -> int:
@@ -63,6 +67,10 @@ class ControllerConfig:
             wait_for_recorder=values["wait_for_recorder"],
             log_throttle_period=values["log_throttle_period"],
             thermal_compensation=values["voltage_law.thermal_compensation"],
+            back_emf_compensation=values["voltage_law.back_emf_compensation"],
+            posture_kp=values["null_space_posture.kp"],
+            posture_kd=values["null_space_posture.kd"],
+            posture_rest=values["null_space_posture.rest"],
         )
         if config.task_dimension > n - p:
             raise ConfigError(

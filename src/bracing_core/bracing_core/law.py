@@ -39,6 +39,7 @@ class ControlOutput:
     desired_normal_force: Vector  # (p,) [N]
     damped: bool  # True when B was near-singular and a damped inverse was used
     force_command: Vector = field(default_factory=lambda: np.zeros(0))  # (p,) f_cmd [N]: f_nd without feedback
+    null_space_speed: float = 0.0  # max |(I - J^+ J) dq| [rad/s or m/s]: joint motion no task sees
 
 
 def axis_gains(axes: tuple[int, ...], gains: tuple[float, ...]) -> Vector:
@@ -94,6 +95,10 @@ class DecoupledController:
             float(self.contact_set.slip_epsilon),
             config.thermal_compensation,
             self.plant.motors.voltage_limit if self.mode.value == "voltage" else self.plant.motors.torque_limit,
+            config.back_emf_compensation,
+            self.plant.to_model_order(config.posture_kp),
+            self.plant.to_model_order(config.posture_kd),
+            self.plant.to_model_order(config.posture_rest) if config.posture_rest else np.zeros(0),
         )
 
     def retune(self, config: ControllerConfig) -> None:
@@ -147,6 +152,7 @@ class DecoupledController:
             self.desired_normal_force.copy(),
             bool(values[-1]),
             values[2 * n + 6 + 6 * b : 2 * n + 6 + 7 * b],
+            float(values[-2]),
         )
 
     @property

@@ -731,6 +731,42 @@ CONTROLLER: tuple[Param, ...] = (
         "current the law asks for does not fall as they warm (not in the paper)",
     ),
     Param(
+        "voltage_law.back_emf_compensation",
+        Kind.BOOL,
+        False,
+        "voltage input: the motor model inverted, v = R tau / K_m + K_m dq (R = R(T) with thermal_compensation, else "
+        "R_20), so the motor delivers the law's torque back-EMF and all (K_V unused); false = the paper's v = K_V tau",
+    ),
+    Param(
+        "null_space_posture.kp",
+        Kind.DOUBLE_ARRAY,
+        PerJoint(0.0),
+        "posture task in the null space of the tasks (not in the paper): stiffness toward null_space_posture.rest, "
+        "robot.joint_names order; 0 = the paper's null space",
+        "N m/rad or N/m",
+        length="robot.joint_names",
+        minimum=0.0,
+    ),
+    Param(
+        "null_space_posture.kd",
+        Kind.DOUBLE_ARRAY,
+        PerJoint(0.0),
+        "posture task damping, robot.joint_names order: damps the joints the paper's B^+ leaves free (a wrist that "
+        "moves no task point); 0 = none",
+        "N m s/rad or N s/m",
+        length="robot.joint_names",
+        minimum=0.0,
+    ),
+    Param(
+        "null_space_posture.rest",
+        Kind.DOUBLE_ARRAY,
+        [],
+        "the posture task's rest position, robot.joint_names order; empty = the first measured position",
+        "rad or m",
+        length="robot.joint_names",
+        may_be_empty=True,
+    ),
+    Param(
         "null_space",
         Kind.STRING,
         "paper",

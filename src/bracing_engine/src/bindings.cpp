@@ -269,28 +269,33 @@ NB_MODULE(_engine, m) {
           "__init__",
           [](Law* law, const Robot& robot, const Drive& drive, Vector voltage_gain, const Task& hand,
              std::vector<BracedContact> braces, bool gravity_compensation, double damping_lambda,
-             bool dynamically_consistent, double slip_epsilon, bool thermal_compensation, double command_limit) {
+             bool dynamically_consistent, double slip_epsilon, bool thermal_compensation, double command_limit,
+             bool back_emf_compensation, Vector posture_kp, Vector posture_kd, Vector posture_rest) {
             new (law) Law(LawSpec{robot, drive, std::move(voltage_gain), hand, std::move(braces), gravity_compensation,
                                   damping_lambda, dynamically_consistent, slip_epsilon, thermal_compensation,
-                                  command_limit});
+                                  command_limit, back_emf_compensation, std::move(posture_kp), std::move(posture_kd),
+                                  std::move(posture_rest)});
           },
           "robot"_a, "drive"_a, "voltage_gain"_a, "hand"_a, "braces"_a, "gravity_compensation"_a, "damping_lambda"_a,
-          "dynamically_consistent"_a, "slip_epsilon"_a, "thermal_compensation"_a = false, "command_limit"_a = 0.0)
+          "dynamically_consistent"_a, "slip_epsilon"_a, "thermal_compensation"_a = false, "command_limit"_a = 0.0,
+          "back_emf_compensation"_a = false, "posture_kp"_a = Vector(), "posture_kd"_a = Vector(),
+          "posture_rest"_a = Vector())
       .def(
           "update_packed",
           [](Law& law, double t, const Vector& q, const Vector& dq) {
             LawOutput o;
             law.update(t, q, dq, o);
             const Eigen::Index n = o.command.size(), b = o.brace_desired.rows();
-            Vector out(2 * n + 6 + 7 * b + 1);
+            Vector out(2 * n + 6 + 7 * b + 2);
             out << o.command, o.torque, o.hand_desired, o.hand_actual,
                 Eigen::Map<const Vector>(o.brace_desired.data(), 3 * b),
-                Eigen::Map<const Vector>(o.brace_actual.data(), 3 * b), o.force_command, o.damped ? 1.0 : 0.0;
+                Eigen::Map<const Vector>(o.brace_actual.data(), 3 * b), o.force_command, o.null_space_speed,
+                o.damped ? 1.0 : 0.0;
             return out;
           },
           "t"_a, "q"_a, "dq"_a,
           "update's answer in one array: command, torque (n each), hand desired, hand actual (3 each), brace desired, "
-          "brace actual (3b each, row-major), the force command f_cmd (b), damped (1/0)")
+          "brace actual (3b each, row-major), the force command f_cmd (b), the null-space speed, damped (1/0)")
       .def("reset", &Law::reset)
       .def("measure_force", &Law::measure_force, "brace"_a, "force"_a,
            "brace j's measured force on the robot [N], world axes (force feedback reads its normal component)")

@@ -56,6 +56,14 @@ Eigen::MatrixXd pseudo_inverse(const Eigen::MatrixXd& b, double damping_lambda, 
   return (gram + lambda * Eigen::MatrixXd::Identity(p, p)).partialPivLu().solve(b).transpose();
 }
 
+// max |(I - J^+ J) dq|: the joints' motion that no task row sees [rad/s or m/s].
+double null_space_speed(const Eigen::MatrixXd& rows, const Vector& dq) {
+  if (dq.size() == 0) return 0.0;
+  if (rows.rows() == 0) return dq.cwiseAbs().maxCoeff();
+  const Vector seen = rows.completeOrthogonalDecomposition().solve(rows * dq);  // J^+ J dq
+  return (dq - seen).cwiseAbs().maxCoeff();
+}
+
 }  // namespace
 
 void Path::sample(const Vector3& start, double t, Vector3& position, Vector3& velocity) const {
@@ -112,6 +120,26 @@ struct Law::Impl {
   double last_time = 0.0;
   bool saturated = false;
   Vector temperature;  // the windings' measured temperatures [degC]
+  Vector rest;         // the posture task's rest position (the first measured one unless configured)
+  bool posture = false;
+
+  // N^T (kp (rest - q) - kd dq), N^T = I - J^T (J Mc^-1 J^T)^-1 J Mc^-1 (Mc's Cholesky factor computed here).
+  Vector posture_torque(const Eigen::MatrixXd& rows, const Vector& q, const Vector& dq) {
+    const int n = model.nv;
+    Vector w = Vector::Zero(n);
+    if (spec.posture_kp.size()) w += spec.posture_kp.cwiseProduct(rest - q);
+    if (spec.posture_kd.size()) w -= spec.posture_kd.cwiseProduct(dq);
+    if (rows.rows() == 0) return w;
+    pin::cholesky::decompose(model, data);
+    Eigen::MatrixXd y(n, rows.rows());  // Mc^-1 J^T
+    for (Eigen::Index k = 0; k < rows.rows(); ++k) {
+      y_column = rows.row(k).transpose();
+      pin::cholesky::solve(model, data, y_column);
+      y.col(k) = y_column;
+    }
+    const Eigen::MatrixXd inverse_inertia = rows * y;  // J Mc^-1 J^T
+    return w - rows.transpose() * inverse_inertia.completeOrthogonalDecomposition().solve(y.transpose() * w);
+  }
 
   // f_cmd of brace j at the normal `normal` (f_nd without feedback gains or a measurement).
   double force_command(int j, const Vector3& normal, double dt) {
@@ -143,6 +171,10 @@ Law::Law(const LawSpec& spec) : impl_(std::make_unique<Impl>()) {
   m.frame_jacobian.setZero(6, n);
   m.y_column.setZero(n);
   m.measured_force.setZero(braces(), 3);
+  for (const Vector* v : {&spec.posture_kp, &spec.posture_kd, &spec.posture_rest})
+    if (v->size() != 0 && v->size() != n) throw std::invalid_argument("law: one posture value per joint expected");
+  m.posture = (spec.posture_kp.size() && spec.posture_kp.cwiseAbs().maxCoeff() > 0.0) ||
+              (spec.posture_kd.size() && spec.posture_kd.cwiseAbs().maxCoeff() > 0.0);
   reset();
 }
 
@@ -182,6 +214,24 @@ bool Law::uses_force_feedback() const {
   for (const auto& brace : impl_->spec.braces)
     if (brace.feedback_kp != 0.0 || brace.feedback_ki != 0.0) return true;
   return false;
+}
+
+Vector Law::voltage_command(const Vector& torque, const Vector& dq) const {
+  const LawSpec& s = impl_->spec;
+  if (!s.drive.voltage) return torque;
+  // R(T) / R_20 = 1 + alpha (T - 20 degC), from the measured temperatures (thermal compensation)
+  const bool warm = uses_temperature();
+  const Eigen::ArrayXd heating = 1.0 + s.drive.temperature_coefficient * (impl_->temperature.array() - 20.0);
+  if (s.back_emf_compensation) {  // the motor inverted: v = R i + K_m dq with K_m i = tau
+    const Eigen::ArrayXd resistance = warm ? Eigen::ArrayXd(s.drive.resistance.array() * heating)
+                                           : Eigen::ArrayXd(s.drive.resistance.array());
+    return (resistance * torque.array() / s.drive.torque_constant.array() +
+            s.drive.torque_constant.array() * dq.array())
+        .matrix();
+  }
+  Vector command = s.voltage_gain.cwiseProduct(torque);  // eq. 41
+  if (warm) command.array() *= heating;
+  return command;
 }
 
 bool Law::uses_temperature() const {
@@ -267,6 +317,7 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
       m.starts[k] = pin::updateFramePlacement(m.model, m.data, m.frames[k]).translation();
     m.started = true;
     m.last_time = t;
+    m.rest = s.posture_rest.size() ? s.posture_rest : q;
   }
   const double dt = t - m.last_time;  // since the last update (force feedback's integral)
   m.last_time = t;
@@ -276,6 +327,7 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
   // l: the PD tasks along their axes (eq. 39)
   Vector l = Vector::Zero(n);
   Eigen::MatrixXd brace_jacobians(3 * p, n);
+  Eigen::MatrixXd task_rows(0, n);  // the configured axes' Jacobian rows, stacked (the posture's null space)
   for (int k = 0; k <= p; ++k) {
     const Task& task = k ? s.braces[k - 1].task : s.hand;
     m.frame_jacobian.setZero();
@@ -287,6 +339,10 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
     task.path.sample(m.starts[k], t, desired, desired_velocity);
     const Vector3 force = task.kp.cwiseProduct(desired - position) + task.kd.cwiseProduct(desired_velocity - velocity);
     l.noalias() += m.jacobian.transpose() * force;
+    for (int axis : task.axes) {
+      task_rows.conservativeResize(task_rows.rows() + 1, n);
+      task_rows.row(task_rows.rows() - 1) = m.jacobian.row(axis);
+    }
     if (k == 0) {
       out.hand_desired = desired;
       out.hand_actual = position;
@@ -297,6 +353,8 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
     }
   }
   if (s.gravity_compensation) l += pin::computeGeneralizedGravity(m.model, m.data, q);
+  out.null_space_speed = null_space_speed(task_rows, dq);
+  if (m.posture) l += m.posture_torque(task_rows, q, dq);
   out.damped = false;
   if (p == 0) {
     out.torque = l;
@@ -422,9 +480,7 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
         out.torque -= g_inv_rows.completeOrthogonalDecomposition().solve(change);
     }
   }
-  out.command = s.drive.voltage ? Vector(s.voltage_gain.cwiseProduct(out.torque)) : out.torque;
-  if (uses_temperature())  // R(T) / R_20 = 1 + alpha (T - 20 degC)
-    out.command.array() *= 1.0 + s.drive.temperature_coefficient * (m.temperature.array() - 20.0);
+  out.command = voltage_command(out.torque, dq);
   m.saturated = s.command_limit > 0.0 && out.command.cwiseAbs().maxCoeff() >= s.command_limit;
 }
 

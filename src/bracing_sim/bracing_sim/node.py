@@ -141,6 +141,10 @@ class SimulatorNode(Node):
             f"{self.mode.value} input, {len(self.plant.contact_set)} contact(s), step {self.config.step} s, "
             f"{self.config.stepping}, duration {duration or 'unbounded'} s"
         )
+        if self.sim.substeps > self.config.substeps:
+            self.get_logger().info(
+                f"stiff motor circuits: {self.sim.substeps} RK4 sub-steps per step (substeps {self.config.substeps})"
+            )
         if self.config.project_initial_position:
             given = self.plant.to_model_order(self.config.initial_position)
             projected = dict(zip(self.joint_names, self.sim.position.round(9).tolist(), strict=True))

@@ -60,6 +60,13 @@ struct LawSpec {
   // current, and so the torque, the law asks for stays as the windings warm (not in the paper).
   bool thermal_compensation = false;
   double command_limit = 0.0;  // |command| where the motors saturate (0: none): force feedback's anti-windup
+  // The motor model inverted (voltage mode; not in the paper): v = R tau / K_m + K_m dq, R = R(T) with thermal
+  // compensation, else R_20: the motor delivers the law's torque in steady state, back-EMF and all (K_V unused).
+  bool back_emf_compensation = false;
+  // A posture task in the null space of the tasks (not in the paper; zeros: none): l += N^T (kp (rest - q) - kd dq),
+  // N^T = I - J^T (J Mc^-1 J^T)^-1 J Mc^-1 for the stacked task rows J, so it leaves the tasks' accelerations alone.
+  Vector posture_kp, posture_kd;  // per joint (empty: zeros) [N m/rad or N/m], [N m s/rad or N s/m]
+  Vector posture_rest;            // per joint [rad or m]; empty: the first measured position
 };
 
 struct LawOutput {
@@ -67,6 +74,7 @@ struct LawOutput {
   Vector3 hand_desired, hand_actual;
   RowMatrix brace_desired, brace_actual;  // b x 3
   Vector force_command;                   // b: f_cmd [N], the force the law asked for (f_nd without feedback)
+  double null_space_speed = 0.0;          // max |(I - J^+ J) dq| over the joints [rad/s or m/s]: motion the tasks do not see
   bool damped = false;
 };
 
@@ -89,6 +97,9 @@ class Law {
   void measure_temperature(const Vector& temperature);
   bool uses_force_feedback() const;  // a brace has a feedback gain
   bool uses_temperature() const;     // thermal compensation applies (voltage mode, thermal drive)
+  // The command of the law's torque at the measured velocity dq: tau (torque mode), K_V tau (eq. 41), or the
+  // motor inverted (back_emf_compensation); times R(T) / R_20 with thermal compensation.
+  Vector voltage_command(const Vector& torque, const Vector& dq) const;
   const std::string& brace_name(int brace) const;
   // The hand's and each brace point's positions at q (the law's kinematics): b + 1 rows.
   RowMatrix task_positions(const Vector& q);
