@@ -1,17 +1,29 @@
 """A URDF's meshes: ``package://`` paths found through the ament index, ``ROS_PACKAGE_PATH`` and
-``robot.package_paths``; published on robot_description as ``file://`` paths, the ones not found named.
+``robot.package_paths``; published on robot_description as ``file://`` paths; drawn by bracing-view (STL as
+an Asset3D, Collada through coal as a Mesh3D); the ones not found named in one warning, drawn as capsules.
 Every mesh file is written here (a unit cube as ASCII STL, a tetrahedron as Collada)."""
 
 from __future__ import annotations
 
 import re
 from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 import pytest
+import ros_helpers
 from conftest import PAPER_URDF, build_scenario
 
+from bracing_analysis.animation import LINK_COLOR, MESH_ALPHA, ArmAnimation
+from bracing_analysis.summary import read_series
 from bracing_core.meshes import find_package, resolve, resolved_description
+
+rr = pytest.importorskip("rerun")
+
+from rerun.chunk import RrdReader  # noqa: E402
+
+from bracing_bringup import view  # noqa: E402
 
 PACKAGE = "bracing_test_arm"
 STL_URI = f"package://{PACKAGE}/meshes/link.stl"
@@ -75,6 +87,21 @@ def write_arm(root: Path) -> Path:
     return urdf
 
 
+def _rows(rrd: Path, prefix: str) -> dict[str, dict[str, Any]]:
+    """The components (``Archetype:field``) last logged to each entity under ``prefix`` in a .rrd."""
+    rows: dict[str, dict[str, Any]] = {}
+    for chunk in RrdReader(rrd).store().stream():
+        if chunk.entity_path.startswith(prefix):
+            batch = chunk.to_record_batch()
+            components = [name for name in batch.schema.names if ":" in name]  # not the timelines
+            rows.setdefault(chunk.entity_path, {}).update({n: batch.column(n).to_pylist()[-1] for n in components})
+    return rows
+
+
+def _warnings(text: str) -> list[str]:
+    return [line for line in text.splitlines() if "not found" in line and "mesh" in line]
+
+
 # --------------------------------------------------------------------------- where a package is found
 
 
@@ -115,3 +142,73 @@ def test_robot_description_names_found_meshes_by_file_uri(tmp_path: Path) -> Non
     paper = build_scenario(with_controller=False).plant
     assert paper.description() == (PAPER_URDF.read_text(), [])
     assert resolved_description("<robot/>") == ("<robot/>", [])
+
+
+# --------------------------------------------------------------------------- bracing-view draws them
+
+
+def test_view_draws_package_meshes_and_warns_once(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A robot_description with package:// meshes (a foreign publisher's): found on ROS_PACKAGE_PATH,
+    the STL drawn as itself, the Collada file as its triangles, the missing ones in one warning and not drawn."""
+    urdf = write_arm(tmp_path)
+    monkeypatch.setenv("ROS_PACKAGE_PATH", str(tmp_path))
+    rrd = tmp_path / "robot.rrd"
+    recording = view.new_recording()
+    recording.save(str(rrd))
+    feed = view.Feed(recording, 0.0)
+    feed.message("robot_description", SimpleNamespace(data=urdf.read_text()))
+    recording.flush()
+    recording.disconnect()
+    rows = _rows(rrd, "/world/robot/")
+    stl = rows["/world/robot/link1/visual_0/shape"]
+    assert bytes(stl["Asset3D:blob"][0]) == (tmp_path / PACKAGE / "meshes" / "link.stl").read_bytes()
+    assert stl["Asset3D:media_type"] == ["model/stl"]
+    assert rows["/world/robot/link1/visual_0"]["Transform3D:scale"][0] == pytest.approx(STL_SCALE)
+    dae = rows["/world/robot/link2/visual_0/shape"]
+    vertices = np.array(dae["Mesh3D:vertex_positions"])
+    assert sorted(map(tuple, vertices.round(6).tolist())) == [(0, 0, 0), (0, 0, 0.5), (0, 0.05, 0), (0.05, 0, 0)]
+    assert len(dae["Mesh3D:triangle_indices"]) == 4
+    for link in ("link3", "link4"):  # not found: the skeleton's capsule only
+        assert not any(path.startswith(f"/world/robot/{link}/visual") for path in rows)
+    warned = _warnings(capsys.readouterr().err)
+    assert len(warned) == 1 and GONE_URI in warned[0] and OTHER_GONE_URI in warned[0]
+    assert feed.warnings == [warned[0].split("warning: ", 1)[1]]
+
+
+def test_a_run_with_meshes_is_drawn_with_them(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """bracing-pair with robot.package_paths: one warning in the simulator's log for the meshes it cannot
+    find; the bag's robot_description points at the files found, so bracing-view draws them from the bag
+    with no package index at all, and the animation shades each mesh's outline."""
+    urdf = write_arm(tmp_path / "arm")
+    out = tmp_path / "run"
+    extra = ("--duration", "0.1", "--set", f"robot.urdf={urdf}", "--set", "robot.package_paths=[..]")
+    done = ros_helpers.run(ros_helpers.pair_argv(out, *extra), timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    warned = _warnings((out / "logs" / "simulator.log").read_text())
+    assert len(warned) == 1 and GONE_URI in warned[0] and OTHER_GONE_URI in warned[0] and "link.stl" not in warned[0]
+    counts = view.write_rrd(out / "bag", tmp_path / "run.rrd", period_s=0.05)
+    assert counts["world/robot/link1/visual_0/shape"] == counts["world/robot/link2/visual_0/shape"] == 1
+    rows = _rows(tmp_path / "run.rrd", "/world/robot/")
+    stl = (tmp_path / "arm" / PACKAGE / "meshes" / "link.stl").read_bytes()
+    assert bytes(rows["/world/robot/link1/visual_0/shape"]["Asset3D:blob"][0]) == stl
+    assert "Mesh3D:vertex_positions" in rows["/world/robot/link2/visual_0/shape"]
+    assert len(_warnings(capsys.readouterr().err)) == 1  # the viewer's own, for the same two
+    # The animation: link1's box shades its outline, 20 cm wide, where the paper's arm has a line only.
+    assert (out / "animation.gif").is_file()
+    series = read_series(out / "bag")
+    meshed, plain = ArmAnimation(series), ArmAnimation(series, urdf=PAPER_URDF.read_text())
+    assert [m.row for m in meshed.outlines] == [meshed.poses.body_names.index(link) for link in ("link1", "link2")]
+    assert not plain.outlines
+    link1 = meshed.poses.body_names.index("link1")
+    meshed.poses.update(meshed.poses.configuration(series.joint_names, series.joint_position[0]))
+    placement = meshed.poses.data.oMf[meshed.poses.body_ids[link1]]
+    inside = placement.act(np.array([0.0, 0.07, 0.25]))  # 7 cm beside the link's axis, in the arm's plane
+    outside = placement.act(np.array([0.0, 0.13, 0.25]))  # 3 cm beyond the box
+    shaded = meshed.draw(0)[meshed.pixel(inside)[::-1]][:3].astype(int)
+    assert min(plain.draw(0)[plain.pixel(inside)[::-1]][:3]) >= 240  # white (or a grid line's grey)
+    blue = np.array([int(LINK_COLOR[i : i + 2], 16) for i in (1, 3, 5)])
+    faded = (1 - MESH_ALPHA) * 255 + MESH_ALPHA * blue  # the links' blue over white
+    assert shaded == pytest.approx(faded, abs=4)
+    assert min(meshed.draw(0)[meshed.pixel(outside)[::-1]][:3]) >= 240

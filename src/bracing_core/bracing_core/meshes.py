@@ -12,6 +12,9 @@ draw the meshes whatever package index they have (a package:// URI resolves only
 installed; a bag recorded here is then drawn with its meshes on this machine, not on one without
 the files). A URDF without meshes is returned unchanged. The meshes it cannot find are named in
 one warning (``missing_warning``); the viewers draw those links as capsules.
+
+``visual_meshes`` lists the URDF's mesh visuals (link, filename, origin, scale) and ``read_mesh`` reads a
+mesh file's triangles with coal (pinocchio's collision library; assimp: STL, OBJ, Collada, glTF, ...).
 """
 
 from __future__ import annotations
@@ -19,9 +22,14 @@ from __future__ import annotations
 import html
 import os
 import re
+import xml.etree.ElementTree as ET
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import unquote, urlparse
+
+import numpy as np
+from numpy.typing import NDArray
 
 PACKAGE = "package://"
 FILE = "file://"
@@ -120,3 +128,56 @@ def missing_warning(missing: Sequence[str]) -> str:
         "(a package://NAME/... path is looked up in the ament index, ROS_PACKAGE_PATH and robot.package_paths, "
         "a relative one next to the URDF)"
     )
+
+
+@dataclass(frozen=True)
+class VisualMesh:
+    """A ``<visual>`` of a URDF link whose geometry is a ``<mesh>``."""
+
+    link: str
+    uri: str  # its filename as written
+    xyz: tuple[float, float, float]  # the visual's origin in the link frame [m]
+    rpy: tuple[float, float, float]  # [rad]
+    scale: tuple[float, float, float]
+
+
+def visual_meshes(urdf: str) -> list[VisualMesh]:
+    """Every mesh visual of the URDF text, link by link in document order."""
+    out = []
+    for link in ET.fromstring(urdf).iter("link"):
+        for visual in link.iter("visual"):
+            mesh = visual.find("geometry/mesh")
+            if mesh is None:
+                continue
+            origin = visual.find("origin")
+            xyz, rpy = (origin.get("xyz"), origin.get("rpy")) if origin is not None else (None, None)
+            name, uri = link.get("name", ""), mesh.get("filename", "")
+            scale = _three(mesh.get("scale"), 1.0)
+            out.append(VisualMesh(name, uri, _three(xyz, 0.0), _three(rpy, 0.0), scale))
+    return out
+
+
+def _three(text: str | None, default: float) -> tuple[float, float, float]:
+    """A URDF triple ("x y z"); ``default`` each where it is missing."""
+    values = [float(v) for v in (text or "").split()]
+    x, y, z = values if len(values) == 3 else [default] * 3
+    return (x, y, z)
+
+
+def read_mesh(path: Path) -> tuple[NDArray[np.float64], NDArray[np.uint32]] | None:
+    """The vertices (n, 3) and triangles (m, 3) of a mesh file as coal's assimp reads it (STL, OBJ,
+    Collada, glTF, ...; unscaled); None if it cannot (or coal is not installed)."""
+    try:
+        import coal  # pinocchio's collision library: imported where a mesh is read
+    except ImportError:
+        return None
+    try:
+        model = coal.MeshLoader().load(str(path))
+    except Exception:  # assimp's refusals come as RuntimeError / ValueError
+        return None
+    vertices = np.asarray(model.vertices(), dtype=float).reshape(-1, 3)
+    corners = [model.tri_indices(i) for i in range(model.num_tris)]  # coal's Triangle: indexed, not iterable
+    triangles = np.array([[c[0], c[1], c[2]] for c in corners], dtype=np.uint32).reshape(-1, 3)
+    if not len(vertices) or not len(triangles):
+        return None
+    return vertices, triangles
