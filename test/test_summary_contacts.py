@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 from test_columns import JOINTS, BagBuilder, same_series
 
-from bracing_analysis.drawing import BRACE_MOVES_M, brace_axes, file_names, report_series
+from bracing_analysis.axes import BRACE_MOVES_M, brace_axes
+from bracing_analysis.drawing import file_names, report_series
 from bracing_analysis.summary import (
     CONTACT_KEYS,
     SUMMARY_EXTRA_KEYS,

@@ -8,6 +8,10 @@ as its line in the drawing plane, the solid side shaded; a sphere or a cylinder 
 bag holds (``surfaces``) as its outline seen along the third axis: a sphere a disc, a cylinder a
 band (or a disc, its axis along the view); one that the frame stays inside, as its outline only.
 
+A link whose URDF visual is a mesh the machine has (``bracing_core.meshes``: the file:// paths the
+simulator publishes, package:// through the ament index and ROS_PACKAGE_PATH) is also drawn as the
+mesh's outline in the plane (``MeshOutline``), shaded under its line; a mesh not found leaves the line.
+
 Frames are taken every ``interval`` seconds of sim time (frame k shows the recorded state
 nearest to t = k * interval) and play in real time. The drawing plane is the pair of world
 axes along which the links move most (y-z for the paper's arm).
@@ -26,6 +30,7 @@ from numpy.typing import NDArray
 from bracing_analysis.summary import BagSeries
 from bracing_analysis.surfaces import Shape, shape_of
 from bracing_core.kinematics import LinkPoses
+from bracing_core.meshes import read_mesh, resolve, visual_meshes
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -58,6 +63,12 @@ TARGET_COLOR = "#d62728"
 TRAIL_COLOR = "#2ca02c"
 POINT_COLOR = "#c0392b"
 AXIS_NAMES = ("x", "y", "z")
+MESH_ALPHA = 0.3
+"""A mesh's outline: the link's colour, this opaque."""
+SUPPORT_DIRECTIONS = 256
+"""A mesh is kept as its extreme points along this many directions (``MeshOutline``)."""
+OUTLINE_DIRECTIONS = 64
+"""A mesh's outline in the drawing plane: its extreme points along this many directions of the plane."""
 
 
 class AnimationError(ValueError):
@@ -88,6 +99,52 @@ def plane_axes(points: FloatArray) -> tuple[int, int]:
     spread = np.ptp(points.reshape(-1, 3), axis=0)
     first, second = sorted(np.argsort(spread)[-2:].tolist())
     return int(first), int(second)
+
+
+def _sphere_directions(count: int) -> FloatArray:
+    """``count`` unit vectors spread evenly over the sphere (a Fibonacci lattice)."""
+    k = np.arange(count) + 0.5
+    z = 1.0 - 2.0 * k / count
+    azimuth = np.pi * (1.0 + 5.0**0.5) * k
+    r = np.sqrt(1.0 - z * z)
+    return np.stack([r * np.cos(azimuth), r * np.sin(azimuth), z], axis=1)
+
+
+@dataclass
+class MeshOutline:
+    """A link's mesh visual, for its outline: its extreme points along ``SUPPORT_DIRECTIONS`` directions
+    (at most that many of its vertices), in the link's frame (the visual's origin and scale applied).
+    Seen in any plane, the outline of these points is the mesh's to a pixel or two at the animation's
+    size (an inner polygon of its convex outline)."""
+
+    row: int  # the link's row of LinkPoses.body_names
+    points: FloatArray  # (n, 3) [m]
+
+
+def mesh_outlines(description: str, poses: LinkPoses) -> list[MeshOutline]:
+    """The mesh visuals of ``description`` that this machine has and reads (``bracing_core.meshes``)."""
+    import pinocchio as pin  # imported where used: only for a URDF with meshes
+
+    rows = {name: row for row, name in enumerate(poses.body_names)}
+    directions = _sphere_directions(SUPPORT_DIRECTIONS).T
+    out = []
+    for visual in visual_meshes(description):
+        path = resolve(visual.uri)
+        read = read_mesh(path) if path is not None and visual.link in rows else None
+        if read is None:
+            continue
+        rotation = pin.rpy.rpyToMatrix(*visual.rpy)
+        vertices = (read[0] * np.asarray(visual.scale, dtype=float)) @ rotation.T + np.asarray(visual.xyz, dtype=float)
+        best = np.full(directions.shape[1], -np.inf)
+        chosen = np.zeros(directions.shape[1], dtype=np.intp)
+        for start in range(0, len(vertices), 8192):  # a big mesh's products a block at a time
+            along = vertices[start : start + 8192] @ directions
+            top = np.argmax(along, axis=0)
+            value = along[top, np.arange(along.shape[1])]
+            better = value > best
+            best[better], chosen[better] = value[better], top[better] + start
+        out.append(MeshOutline(rows[visual.link], vertices[np.unique(chosen)]))
+    return out
 
 
 @dataclass
@@ -292,9 +349,14 @@ class ArmAnimation:
         self.times = frame_times(float(series.joint_t[-1]), interval_s)
         states = nearest(series.joint_t, self.times)
         names = series.joint_names
-        self.links = np.array(
-            [self.poses.positions(self.poses.configuration(names, series.joint_position[k])) for k in states]
-        )  # (frames, bodies, 3)
+        self.outlines = mesh_outlines(description, self.poses) if "<mesh" in description else []
+        links, meshes = [], []
+        for k in states:
+            links.append(self.poses.positions(self.poses.configuration(names, series.joint_position[k])))
+            placed = [self.poses.data.oMf[self.poses.body_ids[m.row]] for m in self.outlines]
+            meshes.append([m.points @ o.rotation.T + o.translation for m, o in zip(self.outlines, placed, strict=True)])
+        self.links = np.array(links)  # (frames, bodies, 3)
+        self.meshes = meshes  # per frame, per outline: its points in the world [m]
         self.segments = self.poses.segments()
         self.contacts = [self._contact_frames(cs) for cs in series.contacts.values() if cs.t.size]
         self.axes = plane_axes(self.links)
@@ -319,6 +381,7 @@ class ArmAnimation:
 
     def _limits(self) -> tuple[tuple[float, float], tuple[float, float]]:
         pts = [self._2d(self.links).reshape(-1, 2)]
+        pts += [self._2d(points) for frame in self.meshes for points in frame]
         if self.series.hand_desired.size:
             pts.append(self._2d(self.series.hand_desired))
         for c in self.contacts:
@@ -336,6 +399,17 @@ class ArmAnimation:
             lines[:, 3 * i] = pts[:, parent]
             lines[:, 3 * i + 1] = pts[:, child]
         return lines
+
+    def _mesh_lines(self) -> list[list[FloatArray]]:
+        """Per frame, each mesh's outline in the plane: its extreme points along ``OUTLINE_DIRECTIONS``
+        directions of the plane, in their order around it (a convex polygon)."""
+        angles = np.linspace(0.0, 2.0 * np.pi, OUTLINE_DIRECTIONS, endpoint=False)
+        around = np.stack([np.cos(angles), np.sin(angles)])
+        out = []
+        for frame in self.meshes:
+            flat = [self._2d(points) for points in frame]
+            out.append([xy[np.argmax(xy @ around, axis=0)] for xy in flat])
+        return out
 
     # -- drawing -------------------------------------------------------------------------
     def figure(self) -> Figure:
@@ -394,6 +468,11 @@ class ArmAnimation:
             ax.plot(path[:, 0], path[:, 1], "--", color=TARGET_COLOR, lw=1.2, label="hand target path")
         # What changes per frame is "animated": left out of the full draw, drawn over a saved background.
         moving: list[Any] = []
+        for _ in self.outlines:  # under the links' lines
+            outline = Polygon(np.zeros((3, 2)), closed=True, color=LINK_COLOR, alpha=MESH_ALPHA, lw=0, animated=True)
+            ax.add_patch(outline)
+            moving.append(outline)
+        art["meshes"] = list(moving)
         (trail,) = ax.plot([], [], color=TRAIL_COLOR, lw=1.5, label="hand trail", animated=True)
         (target,) = ax.plot([], [], "x", color=TARGET_COLOR, ms=8, mew=2, animated=True)
         (links,) = ax.plot([], [], "-", color=LINK_COLOR, lw=4, solid_capstyle="round", label="links", animated=True)
@@ -421,6 +500,7 @@ class ArmAnimation:
         self._background = fig.canvas.copy_from_bbox(fig.bbox)  # type: ignore[attr-defined]
         self._fig, self._artists, self._ax, self._moving = fig, art, ax, moving
         self._link_xy = self._link_lines()
+        self._mesh_xy = self._mesh_lines()
         self._hand_xy = self._2d(self.series.hand_actual)
         self._target_xy = self._2d(self.series.hand_desired)
         return fig
@@ -469,6 +549,8 @@ class ArmAnimation:
         t = float(self.times[k])
         links = self._link_xy[k]
         art["links"].set_data(links[:, 0], links[:, 1])
+        for outline, xy in zip(art["meshes"], self._mesh_xy[k], strict=True):
+            outline.set_xy(xy)
         joints = self._2d(self.links[k])
         art["joints"].set_data(joints[:, 0], joints[:, 1])
         n = int(self.hand_count[k])

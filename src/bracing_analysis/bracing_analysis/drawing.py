@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from bracing_analysis.axes import brace_axes, hand_axes
 from bracing_analysis.summary import BagSeries, compute_summary
 
 SUMMARY_FILE = "summary.json"
@@ -100,32 +101,12 @@ def report_series(
     return summary
 
 
-BRACE_MOVES_M = 1e-6
-"""A brace point moves along an axis when its values there (desired and actual) span more than this [m]."""
-
-
-def brace_axes(series: BagSeries) -> list[str]:
-    """The axes ("x", "y", "z") along which some braced contact's brace point moves: the brace plots
-    a run gets (the paper's elbow: y only). Desired and actual count together: a steady offset
-    between them is worth a plot, one value along an axis is not."""
-    braced = [cs for cs in series.contacts.values() if cs.t_ctrl.size]
-    moving = []
-    for k, axis in enumerate("xyz"):
-        for cs in braced:
-            values = np.concatenate([cs.brace_desired[:, k], cs.brace_actual[:, k]])
-            values = values[np.isfinite(values)]
-            if values.size and np.ptp(values) > BRACE_MOVES_M:
-                moving.append(axis)
-                break
-    return moving
-
-
 def file_names(series: BagSeries, animation: bool) -> list[str]:
     """The report's files but summary.json that ``series`` allows, by name (``figures.draw_file``):
     the animation (the longest, first), then each plot that has data."""
     names = ["animation"] if animation else []
     if series.t.size:
-        names += ["hand_y", "hand_z"]
+        names += [f"hand_{axis}" for axis in hand_axes(series)]
     names += [f"brace_{axis}" for axis in brace_axes(series)]
     if any(cs.t_ctrl.size or cs.t.size for cs in series.contacts.values()):
         names.append("normal_force")

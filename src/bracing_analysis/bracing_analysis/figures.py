@@ -16,6 +16,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from bracing_analysis.animation import AnimationError, write_animation
+from bracing_analysis.axes import contact_brace_axes
 from bracing_analysis.summary import BagSeries, scenario_name
 from bracing_core.kinematics import DescriptionError
 
@@ -61,19 +62,23 @@ def mark_parameter_changes(ax: Axes, series: BagSeries) -> None:
         )
 
 
+_HAND_FIGURES = {"y": "Figs. 6, 9, 13", "z": "Figs. 7, 10, 14"}
+"""The paper's figures of the hand along each axis it has (its arm moves in the y-z plane)."""
+
+
 def _plot_hand(series: BagSeries, axis: int, name: str) -> tuple[Figure, Axes]:
-    figures = "Figs. 6, 9, 13" if axis == 1 else "Figs. 7, 10, 14"
-    fig, ax = figure(title(series, f"hand {name} position", figures), f"hand {name} [m]")
+    fig, ax = figure(title(series, f"hand {name} position", _HAND_FIGURES.get(name, "")), f"hand {name} [m]")
     ax.plot(series.t, series.hand_desired[:, axis], "--", color="tab:red", label=f"target {name}_dh")
     ax.plot(series.t, series.hand_actual[:, axis], color="tab:blue", label=f"hand {name}_h")
     return fig, ax
 
 
 def _plot_brace(series: BagSeries, axis: int, name: str) -> tuple[Figure, Axes]:
+    """Each braced contact drawn along ``name`` (``drawing.contact_brace_axes``: its task's axes)."""
     figures = "Figs. 11, 15" if name == "y" else ""
     fig, ax = figure(title(series, f"brace point {name} position", figures), f"brace point {name} [m]")
     for cs in series.contacts.values():
-        if cs.t_ctrl.size:  # braced (an obstacle has no brace point to follow)
+        if cs.t_ctrl.size and name in contact_brace_axes(series, cs):  # braced (an obstacle has no brace point)
             ax.plot(cs.t_ctrl, cs.brace_desired[:, axis], "--", label=f"{cs.name} target {name}")
             ax.plot(cs.t_ctrl, cs.brace_actual[:, axis], label=f"{cs.name} {name}")
     return fig, ax
@@ -109,6 +114,7 @@ def _plot_temperature(series: BagSeries) -> tuple[Figure, Axes]:
 
 
 PLOTS: dict[str, Callable[[BagSeries], tuple[Figure, Axes]]] = {
+    "hand_x": lambda series: _plot_hand(series, 0, "x"),
     "hand_y": lambda series: _plot_hand(series, 1, "y"),
     "hand_z": lambda series: _plot_hand(series, 2, "z"),
     "brace_x": lambda series: _plot_brace(series, 0, "x"),

@@ -1,15 +1,18 @@
 """``bracing-report DIR/bag [--output DIR]``: the paper's figures, an animation and summary.json.
 
 Writes into the output directory (default: the bag's parent directory):
-``hand_y.png``, ``hand_z.png`` (the paper's Figs. 6/7, 9/10, 13/14), ``brace_x.png``, ``brace_y.png``
-(Figs. 11/15), ``brace_z.png``, ``normal_force.png`` (Figs. 12/16), ``energy.png`` (Fig. 8),
+``hand_<axis>.png`` for each axis of the hand task (the paper's ``hand_y.png``, ``hand_z.png``: Figs. 6/7, 9/10,
+13/14), ``brace_<axis>.png`` for each axis of a brace task (the paper's ``brace_y.png``: Figs. 11/15),
+``normal_force.png`` (Figs. 12/16), ``energy.png`` (Fig. 8),
 ``motor_temperature.png`` (each motor's winding temperature; runs with the thermal model only),
 ``summary.json`` and ``animation.gif`` / ``animation.mp4`` (the arm moving, see ``animation``).
 Each title names the scenario (the bag's note of it, else the robot's name) and cites the paper's
 figures only for the paper's scenario; a dotted vertical line marks each parameter the controller
 was given while it ran (``ros2 param set``), with the new value.
-A brace plot is drawn for each axis along which a braced contact's brace point moves
-(``drawing.brace_axes``: the paper's elbow gets ``brace_y.png`` only); runs without contacts
+The axes are the tasks' (``hand.axes``, ``contacts.<name>.brace_axes``, which the recorder keeps in the
+bag's metadata); a bag without them, or a task with none, gets the axes its desired hand path moves along
+(y and z if none) and those along which a brace point moves (``axes.hand_axes``, ``axes.brace_axes``);
+each brace plot draws the contacts whose task has its axis. Runs without contacts
 skip the force plot; a bag without ``robot_description`` (recorded by an older version) gets
 no animation unless ``--urdf`` names the robot.
 

@@ -30,7 +30,15 @@ from rosbags.highlevel import AnyReader
 
 from bracing_analysis.columns import Layout, column, decode
 from bracing_analysis.surfaces import SCENARIO_KEY, SURFACES_KEY, Shape, from_json
-from bracing_analysis.truth import HAND, TASK_FRAMES_KEY, is_ground_truth, task_frames_from_json, true_positions
+from bracing_analysis.truth import (
+    HAND,
+    TASK_AXES_KEY,
+    TASK_FRAMES_KEY,
+    is_ground_truth,
+    task_axes_from_json,
+    task_frames_from_json,
+    true_positions,
+)
 from bracing_core import checks
 from bracing_core.typestore import (
     CONTACTS,
@@ -168,6 +176,10 @@ class BagSeries:
     scenario: str | None = None  # the scenario's name (bag metadata, the recorder's --scenario); None: unknown
     surfaces: dict[str, Shape] = field(default_factory=dict)  # each contact's surface (bag metadata)
     parameter_changes: list[ParameterChange] = field(default_factory=list)  # the controller's, in time order
+    # The world axes ("x", "y", "z") of the controller's tasks (bag metadata): the hand's (None: not said) and
+    # each braced contact's (a contact not listed: not said). The report draws each (drawing.hand_axes).
+    hand_axes: list[str] | None = None
+    brace_task_axes: dict[str, list[str]] = field(default_factory=dict)
 
 
 def _stamp_ns(msg: Any) -> int:
@@ -283,7 +295,7 @@ def _input_mode(reader: AnyReader) -> str | None:
 
 
 def _custom_data(path: Path) -> dict[str, str]:
-    """The bag's metadata ``custom_data`` (what the recorder noted: scenario, surfaces); {} if none."""
+    """The bag's metadata ``custom_data`` (what the recorder noted: scenario, surfaces, tasks); {} if none."""
     try:
         document = yaml.safe_load((path / "metadata.yaml").read_text(encoding="utf-8"))
         data = document["rosbag2_bagfile_information"].get("custom_data") or {}
@@ -293,10 +305,11 @@ def _custom_data(path: Path) -> dict[str, str]:
 
 
 def _describe(series: BagSeries, path: Path) -> None:
-    """The run's scenario and surfaces from the bag's metadata, into ``series``."""
+    """The run's scenario, surfaces and task axes from the bag's metadata, into ``series``."""
     data = _custom_data(path)
     series.scenario = data.get(SCENARIO_KEY) or None
     series.surfaces = from_json(data.get(SURFACES_KEY, "{}"))
+    series.hand_axes, series.brace_task_axes = task_axes_from_json(data.get(TASK_AXES_KEY, "{}"))
 
 
 _VALUE_FIELDS = {

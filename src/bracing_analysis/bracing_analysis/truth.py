@@ -6,7 +6,8 @@ the positions it received); the paper's metrics judge where they *are*. ``summar
 puts the true positions (the task frames' kinematics at the true joint positions, ``true_positions``)
 in the series' ``hand_actual`` and each contact's ``brace_actual``, and keeps the believed ones beside
 them (``hand_measured``, ``brace_measured``): the summary's metrics are then the truth's, as the rollout's are.
-The task frames come from the scenario (the recorder keeps them in the bag's metadata, ``TASK_FRAMES_KEY``).
+The task frames come from the scenario (the recorder keeps them in the bag's metadata, ``TASK_FRAMES_KEY``), as do
+the tasks' world axes (``TASK_AXES_KEY``: the report draws the hand and each brace point along each of them).
 """
 
 from __future__ import annotations
@@ -25,19 +26,46 @@ from bracing_core.sensing import GROUND_TRUTH
 
 TASK_FRAMES_KEY = "bracing.task_frames"
 """Bag metadata (custom_data): JSON {"hand": frame, "braces": {contact: frame}} of the controller's tasks."""
+TASK_AXES_KEY = "bracing.task_axes"
+"""Bag metadata (custom_data): JSON {"hand": [axis, ...], "braces": {contact: [axis, ...]}}, the world axes
+("x", "y", "z") of the controller's tasks (``hand.axes``, ``contacts.<name>.brace_axes``)."""
 HAND = "hand"
+AXES = ("x", "y", "z")
 
 
-def read_task_frames(files: Sequence[str | Path]) -> dict[str, Any]:
-    """The controller's task frames from these params files (later files win). Raises ConfigError."""
+def read_tasks(files: Sequence[str | Path]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The controller's task frames (``TASK_FRAMES_KEY``'s document) and task axes (``TASK_AXES_KEY``'s)
+    from these params files (later files win), read once. Raises ConfigError."""
     params: dict[str, Any] = {}
     for file in files:
         params.update(load_params_file(file, CONTROLLER))
     values = schema.read("controller", params)
-    braces = {
-        name: own["frame"] for name, own in values.contacts.items() if own.get("desired_normal_force") is not None
+    braced = {name: own for name, own in values.contacts.items() if own.get("desired_normal_force") is not None}
+    frames = {HAND: values["hand.frame"], "braces": {name: own["frame"] for name, own in braced.items()}}
+    axes = {
+        HAND: list(values["hand.axes"]),
+        "braces": {name: list(own.get("brace_axes") or ()) for name, own in braced.items()},
     }
-    return {HAND: values["hand.frame"], "braces": braces}
+    return frames, axes
+
+
+def task_axes_from_json(text: str) -> tuple[list[str] | None, dict[str, list[str]]]:
+    """``TASK_AXES_KEY``'s document: the hand task's axes (None: not said) and each braced contact's;
+    what is not a list of axes is left out (a bag written by something else)."""
+    try:
+        document = json.loads(text)
+    except ValueError:
+        return None, {}
+    if not isinstance(document, dict):
+        return None, {}
+    braces = document.get("braces")
+    own = {str(name): _axes(value) for name, value in (braces.items() if isinstance(braces, dict) else ())}
+    return _axes(document.get(HAND)), {name: axes for name, axes in own.items() if axes is not None}
+
+
+def _axes(value: Any) -> list[str] | None:
+    ok = isinstance(value, list) and all(isinstance(axis, str) and axis in AXES for axis in value)
+    return [str(axis) for axis in value] if ok else None
 
 
 def task_frames_from_json(text: str) -> dict[str, Any]:

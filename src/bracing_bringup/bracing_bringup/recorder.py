@@ -17,7 +17,8 @@ recorded messages (``bracing_bringup.scene``): ``/tf_static`` once and ``/tf`` p
 arrow from ``contact_wrench/<name>``). It derives them when idle and on stop (after the
 drain), so a lockstep run is not slowed; ``--no-scene`` leaves them out. ``--params-file`` names the
 params files the nodes run with (as many as they got, in order): the bag's metadata then holds the
-contact surfaces (``surfaces``), and the markers draw a sphere or a cylinder as one. ``--scenario``
+contact surfaces (``surfaces``) and the world axes of the controller's tasks (``truth.TASK_AXES_KEY``: the
+report plots each), and the markers draw a sphere or a cylinder as one. ``--scenario``
 names the scenario in the bag's metadata (default: the first params file's name), for the report.
 
 The controller's parameter changes while it runs (``ros2 param set``) are recorded from rclpy's
@@ -343,15 +344,16 @@ def _scenario_surfaces(files: Sequence[str]) -> dict[str, surfaces.Shape]:
         return {}
 
 
-def _task_frames(files: Sequence[str]) -> dict[str, Any]:
-    """The controller's task frames (the report judges the truth at them: truth.py); none if unreadable."""
+def _tasks(files: Sequence[str]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The controller's task frames (the report judges the truth at them: truth.py) and task axes (the
+    report draws each); none if unreadable."""
     if not files:
-        return {}
+        return {}, {}
     try:
-        return truth.read_task_frames(files)
+        return truth.read_tasks(files)
     except ValueError as exc:  # ConfigError: the nodes will say the same, more loudly
-        print(f"recorder: warning: no task frames from {', '.join(files)}: {exc}", file=sys.stderr, flush=True)
-        return {}
+        print(f"recorder: warning: no task frames or axes from {', '.join(files)}: {exc}", file=sys.stderr, flush=True)
+        return {}, {}
 
 
 def _parse(argv: Sequence[str]) -> argparse.Namespace:
@@ -457,8 +459,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         writer.set_custom_data(surfaces.SCENARIO_KEY, scenario)
     if shapes:
         writer.set_custom_data(surfaces.SURFACES_KEY, surfaces.to_json(shapes))
-    if args.ground_truth and (frames := _task_frames(args.params_files)):
-        writer.set_custom_data(truth.TASK_FRAMES_KEY, json.dumps(frames, sort_keys=True))
     writer.open()
     node: Recorder | None = None
     status: StatusPublisher | None = None
@@ -476,6 +476,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         status.say(RunStatus.READY)
         print(f"recorder subscribed at {time.time():.6f}", flush=True)
         print("recorder ready", flush=True)
+        # Read while the nodes start (custom_data is written when the bag closes): off the start's path.
+        frames, axes = _tasks(args.params_files)
+        if args.ground_truth and frames:
+            writer.set_custom_data(truth.TASK_FRAMES_KEY, json.dumps(frames, sort_keys=True))
+        if axes:
+            writer.set_custom_data(truth.TASK_AXES_KEY, json.dumps(axes, sort_keys=True))
         idle, complete = False, False
         wanted = (
             expected_counts(contacts, args.expect_states, node.get_namespace(), args.ground_truth)

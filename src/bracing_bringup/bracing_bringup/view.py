@@ -39,6 +39,8 @@ from bracing_analysis.surfaces import Shape, read_scenario, shape_of
 from bracing_bringup.scene import SURFACE_PATCH_M
 from bracing_bringup.viewurl import GRPC_PORT, WEB_PORT, view_url, wait_for_port
 from bracing_core.kinematics import LinkPoses, z_to
+from bracing_core.meshes import missing_warning, read_mesh
+from bracing_core.meshes import resolve as resolve_mesh
 from bracing_core.overrides import SIMULATOR
 from bracing_core.params import ConfigError
 from bracing_core.typestore import CONTACTS, CONTROLLER_STATE, JOINT_STATE, MOTOR_STATE, STRING, WRENCH_STAMPED
@@ -99,6 +101,7 @@ class Feed:
         self.first: dict[str, float] = {}  # per kind, the sim time [s] of the first state drawn
         self._forces: dict[str, np.ndarray] = {}
         self._surfaces: set[str] = set()
+        self.warnings: list[str] = []  # what the viewer could not draw (said once each on stderr)
 
     period_kinds = frozenset({"joint_states", "contacts", "controller_state", "motor_state"})
 
@@ -136,14 +139,18 @@ class Feed:
         if self.poses is not None or not str(msg.data):
             return
         self.poses = LinkPoses(str(msg.data))
-        for link, shapes in _urdf_visuals(str(msg.data)).items():
-            for k, (item, origin) in enumerate(shapes):
+        visuals = Visuals(str(msg.data))
+        for link, shapes in visuals.links.items():
+            for k, (item, origin, scale) in enumerate(shapes):
                 self._log(
                     f"world/robot/{link}/visual_{k}",
-                    rr.Transform3D(translation=origin[:3], quaternion=rr.Quaternion(xyzw=origin[3:])),
+                    rr.Transform3D(translation=origin[:3], quaternion=rr.Quaternion(xyzw=origin[3:]), scale=scale),
                     True,
                 )
                 self._log(f"world/robot/{link}/visual_{k}/shape", item, True)
+        for warning in visuals.warnings():  # one for the meshes not found, one for those it cannot read
+            self.warnings.append(warning)
+            print(f"bracing-view: warning: {warning}", file=sys.stderr, flush=True)
 
     def joint_states(self, msg: Any) -> None:
         if self.poses is None or not self._due("joint_states", _stamp_s(msg)):
@@ -250,25 +257,90 @@ def _surface(shape: Shape | None, on_surface: np.ndarray, normal: np.ndarray) ->
     )
 
 
-def _urdf_visuals(urdf: str) -> dict[str, list[tuple[Any, list[float]]]]:
-    """Per link, its URDF visuals (box, cylinder, sphere) as rerun shapes with their origin (xyz, quat)."""
-    out: dict[str, list[tuple[Any, list[float]]]] = {}
-    for link in ET.fromstring(urdf).iter("link"):
-        for visual in link.iter("visual"):
-            geometry = visual.find("geometry")
-            if geometry is None:
-                continue
-            origin = visual.find("origin")
-            xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
-            rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
-            shape = _shape(geometry)
-            if shape is not None:
-                out.setdefault(link.get("name", ""), []).append((shape, [*xyz, *_quat(rpy)]))
-    return out
+VISUAL_COLOR = [150, 170, 210]
+ASSET_SUFFIXES = (".stl", ".obj", ".glb", ".gltf")
+"""The mesh files rerun's Asset3D draws as they are; others (Collada .dae, ...) are read by coal (assimp)
+into a Mesh3D."""
+
+
+class Visuals:
+    """A URDF's visuals as rerun shapes: per link, (shape, origin (xyz, quaternion xyzw), scale or None).
+    Boxes, cylinders and spheres; meshes found (``bracing_core.meshes.resolve``: file://, package:// through
+    the ament index and ROS_PACKAGE_PATH) as an Asset3D, or a Mesh3D where rerun cannot read the file. A
+    link whose mesh is not found, or cannot be read, is drawn as the skeleton's capsule alone."""
+
+    def __init__(self, urdf: str) -> None:
+        self.links: dict[str, list[tuple[Any, list[float], list[float] | None]]] = {}
+        self.missing: list[str] = []  # mesh filenames not found
+        self.unread: list[str] = []  # mesh files found that nothing here reads
+        root = ET.fromstring(urdf)
+        self.materials = {m.get("name", ""): _rgba(m) for m in root.findall("material")}
+        for link in root.iter("link"):
+            for visual in link.iter("visual"):
+                geometry = visual.find("geometry")
+                if geometry is None:
+                    continue
+                origin = visual.find("origin")
+                xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
+                rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
+                shape, scale = self._shape(geometry, visual.find("material"))
+                if shape is not None:
+                    self.links.setdefault(link.get("name", ""), []).append((shape, [*xyz, *_quat(rpy)], scale))
+
+    def _shape(self, geometry: ET.Element, material: ET.Element | None) -> tuple[Any, list[float] | None]:
+        mesh = geometry.find("mesh")
+        if mesh is None:
+            return _shape(geometry), None
+        uri = mesh.get("filename", "")
+        path = resolve_mesh(uri)
+        if path is None:
+            self.missing.append(uri)
+            return None, None
+        color = self._color(material)
+        shape = _mesh_shape(path, color)
+        if shape is None:
+            self.unread.append(uri)
+            return None, None
+        return shape, [float(v) for v in mesh.get("scale", "1 1 1").split()]
+
+    def _color(self, material: ET.Element | None) -> list[int] | None:
+        """The visual's colour (its own, or the robot's named material), 0-255 RGBA; None if it has none."""
+        if material is None:
+            return None
+        return _rgba(material) or self.materials.get(material.get("name", ""))
+
+    def warnings(self) -> list[str]:
+        out = [missing_warning(self.missing)] if self.missing else []
+        if self.unread:
+            out.append(f"mesh file(s) not drawn (no reader for them here), drawn as capsules: {', '.join(self.unread)}")
+        return out
+
+
+def _rgba(material: ET.Element) -> list[int] | None:
+    color = material.find("color")
+    if color is None:
+        return None
+    values = [float(v) for v in color.get("rgba", "").split()]
+    return [round(255 * min(max(v, 0.0), 1.0)) for v in values] if len(values) == 4 else None
+
+
+def _mesh_shape(path: Path, color: list[int] | None) -> Any:
+    """A mesh file as rerun draws it: STL, OBJ, glTF as an Asset3D (its bytes), any other format coal's
+    assimp reads (Collada .dae, ...) as a Mesh3D of its triangles; None if it cannot be read."""
+    if path.suffix.lower() in ASSET_SUFFIXES:
+        plain = path.suffix.lower() == ".stl"  # no material of its own: the URDF's colour, else the capsules'
+        return rr.Asset3D(path=path, albedo_factor=color or (VISUAL_COLOR if plain else None))
+    read = read_mesh(path)
+    if read is None:
+        return None
+    vertices, triangles = read
+    return rr.Mesh3D(
+        vertex_positions=vertices.astype(np.float32), triangle_indices=triangles, albedo_factor=color or VISUAL_COLOR
+    )
 
 
 def _shape(geometry: ET.Element) -> Any:
-    color = [150, 170, 210]
+    color = VISUAL_COLOR
     box, cylinder, sphere = geometry.find("box"), geometry.find("cylinder"), geometry.find("sphere")
     if box is not None:
         size = [float(v) / 2 for v in box.get("size", "0 0 0").split()]

@@ -20,6 +20,7 @@ import pinocchio as pin
 from bracing_core import schema
 from bracing_core.contacts import Contact, ContactSet, Cylinder, Plane, Sphere, Surface
 from bracing_core.dynamics import ConstrainedDynamics, InputMode, thermal_applies
+from bracing_core.meshes import resolved_description
 from bracing_core.model import ModelError, RobotModel
 from bracing_core.motors import FIELDS as MOTOR_FIELDS
 from bracing_core.motors import MotorParams
@@ -179,6 +180,7 @@ class SharedConfig:
     collision_frames: tuple[str, ...] = ()
     bracing: bool = True
     free_space: bool = False  # the surfaces only watched
+    package_paths: tuple[str, ...] = ()  # robot.package_paths: where package://NAME/... meshes are looked up
 
     @property
     def braced_contacts(self) -> tuple[ContactConfig, ...]:
@@ -221,6 +223,7 @@ class SharedConfig:
             tuple(values["robot.collision_frames"]),
             values["bracing"],
             values["free_space"],
+            package_paths=tuple(values["robot.package_paths"]),
         )
 
 
@@ -297,6 +300,14 @@ class Plant:
             return self.robot.frame_id(name)
         except ModelError as exc:
             raise ConfigError(f"{parameter}: {exc}") from None
+
+    def description(self) -> tuple[str, list[str]]:
+        """What the simulator publishes on ``robot_description``: the robot as simulated
+        (``RobotModel.description``) with each mesh it finds as a ``file://`` path, and the mesh filenames
+        it cannot find (``meshes.resolved_description``; robot.package_paths from the URDF's directory)."""
+        here = self.config.urdf.parent
+        dirs = [here / Path(entry).expanduser() for entry in self.config.package_paths]
+        return resolved_description(self.robot.description(), dirs, here)
 
     @property
     def thermal(self) -> bool:

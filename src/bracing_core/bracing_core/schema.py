@@ -218,6 +218,14 @@ SHARED: tuple[Param, ...] = (
         "frames kept on the free side of every contact's surface (unilateral, inelastic touchdown)",
     ),
     Param(
+        "robot.package_paths",
+        Kind.STRING_ARRAY,
+        [],
+        "directories in which a package://NAME/... mesh path of the URDF is looked up (DIR/NAME/...), after the "
+        "ament index and ROS_PACKAGE_PATH; a relative one is taken from the URDF's directory. Meshes found are "
+        "published on robot_description as file:// paths; those not found are named in one warning",
+    ),
+    Param(
         "input_mode",
         Kind.STRING,
         "voltage",

@@ -25,6 +25,7 @@ from bracing_core import schema
 from bracing_core.checks import REAL_TIME_ACHIEVED, let_go_warning, never_reached_warning, slow_real_time_warning
 from bracing_core.config import SimulatorConfig, build_simulator
 from bracing_core.dynamics import Derivative, InputMode
+from bracing_core.meshes import missing_warning
 from bracing_core.sensing import GROUND_TRUTH
 from bracing_core.simulator import DivergenceError, Energy
 from bracing_core.types import Vector
@@ -97,7 +98,11 @@ class SimulatorNode(Node):
                 publisher(JointState, GROUND_TRUTH + "joint_states", STREAM_QOS),
                 publisher(MotorState, GROUND_TRUTH + "motor_state", STREAM_QOS),
             ]
-        self.description_pub.publish(String(data=self.plant.robot.description()))
+        # Its meshes as file:// paths of the files found here (robot.package_paths): viewers need no package index.
+        description, missing_meshes = self.plant.description()
+        if missing_meshes:
+            self.get_logger().warning(missing_warning(missing_meshes))
+        self.description_pub.publish(String(data=description))
         # Messages travel as CDR bytes built by ``wire`` (rclpy's message classes cost more than the DDS write).
         contacts = self.plant.contact_set.contacts
         self.joint_wire = wire.JointStateEncoder(self.joint_names)
