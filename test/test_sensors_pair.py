@@ -14,6 +14,8 @@ from conftest import build_scenario
 from ros_helpers import pair_argv, run
 from rosbags.highlevel import AnyReader
 
+from bracing_analysis.figures import plot_figure
+from bracing_analysis.summary import read_series
 from bracing_core.rollout import Recording, run_recorded
 
 DURATION_S = 2.2  # hand errors count from t = 2 s
@@ -94,3 +96,13 @@ def test_the_summary_judges_the_truth(sensed_run: tuple[Path, dict[str, list[obj
     states = by_stamp(messages["/controller_state"])
     believed = np.array([[m.hand_actual.x, m.hand_actual.y, m.hand_actual.z] for m in states])  # type: ignore[attr-defined]
     assert 0.0 < np.max(np.abs(believed - reference.hand_actual)) < 0.01  # a count's worth at the hand, not the truth
+
+
+def test_the_report_draws_measured_beside_true(sensed_run: tuple[Path, dict[str, list[object]], Recording]) -> None:
+    """The hand and brace figures draw what the controller believed (dotted) beside the truth."""
+    output, _, reference = sensed_run
+    series = read_series(output / "bag")
+    np.testing.assert_allclose(series.hand_actual, reference.hand_actual, rtol=0, atol=1e-9)
+    for name in ("hand_y", "brace_y"):
+        labels = [line.get_label() for line in plot_figure(name, series).axes[0].get_lines()]
+        assert any("as measured" in label for label in labels), (name, labels)

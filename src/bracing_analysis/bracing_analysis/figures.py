@@ -70,6 +70,9 @@ def _plot_hand(series: BagSeries, axis: int, name: str) -> tuple[Figure, Axes]:
     fig, ax = figure(title(series, f"hand {name} position", _HAND_FIGURES.get(name, "")), f"hand {name} [m]")
     ax.plot(series.t, series.hand_desired[:, axis], "--", color="tab:red", label=f"target {name}_dh")
     ax.plot(series.t, series.hand_actual[:, axis], color="tab:blue", label=f"hand {name}_h")
+    # with sensors: what the controller believed, beside the truth
+    if series.hand_measured.size and series.hand_measured.shape[0] == series.t.size:
+        ax.plot(series.t, series.hand_measured[:, axis], ":", color="tab:green", label=f"as measured {name}_h")
     return fig, ax
 
 
@@ -81,6 +84,8 @@ def _plot_brace(series: BagSeries, axis: int, name: str) -> tuple[Figure, Axes]:
         if cs.t_ctrl.size and name in contact_brace_axes(series, cs):  # braced (an obstacle has no brace point)
             ax.plot(cs.t_ctrl, cs.brace_desired[:, axis], "--", label=f"{cs.name} target {name}")
             ax.plot(cs.t_ctrl, cs.brace_actual[:, axis], label=f"{cs.name} {name}")
+            if cs.brace_measured.size and cs.brace_measured.shape[0] == cs.t_ctrl.size:  # with sensors: its view
+                ax.plot(cs.t_ctrl, cs.brace_measured[:, axis], ":", label=f"{cs.name} {name} as measured")
     return fig, ax
 
 
