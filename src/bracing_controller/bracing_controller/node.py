@@ -24,7 +24,7 @@ from sensor_msgs.msg import JointState
 from bracing_core import schema
 from bracing_core.checks import configuration_warnings, desired_force_warning, null_space_warning
 from bracing_core.controller_config import ControllerConfig
-from bracing_core.law import DecoupledController
+from bracing_core.law import ControlOutput, DecoupledController
 from bracing_core.measurements import Measurements
 from bracing_core.params import ConfigError
 from bracing_core.types import Vector
@@ -45,6 +45,8 @@ from bracing_ros.common import (
 from bracing_ros.status import StatusPublisher
 
 STAMP_RANGE_NS = (-(2**31) * 1_000_000_000, 2**31 * 1_000_000_000)
+NULL_SPACE_CHECK_EVERY = 20
+"""States between two looks at the null space's speed (1 us each in the engine; a runaway lasts 100s of steps)."""
 MEASUREMENT_WAIT_S = 0.5
 """[s] wall: how long a state waits for the force and temperature reports of the step before it
 (``Measurements``); past it the state is answered with the latest ones, and a warning says which lagged."""
@@ -112,6 +114,7 @@ class ControllerNode(Node):
         self.wrench_subs: dict[Subscription, str] = {}
         self.previous_ns: int | None = None  # the stamp of the last state answered (None: none yet)
         self.null_space_warned = False
+        self.answers = 0  # states answered (the null-space watch samples them)
         self.report = RateLimitedLog(self, self.config.log_throttle_period)
         self.flow = AckWindow(self, [self.command_pub, self.state_pub], STREAM_QOS.depth)
         self.get_logger().info(
@@ -211,6 +214,17 @@ class ControllerNode(Node):
             self.report("warning", "lagging", f"no report of the last step within {MEASUREMENT_WAIT_S} s: {lagging}")
         self.measurements.apply(self.law)
 
+    def watch_null_space(self, out: ControlOutput, dq: Vector, t: float) -> None:
+        """Every NULL_SPACE_CHECK_EVERY states, until said once: warn of joints running in the null space."""
+        self.answers += 1
+        if self.null_space_warned or self.answers % NULL_SPACE_CHECK_EVERY:
+            return
+        hand_error = float(np.linalg.norm(out.hand_desired - out.hand_actual))
+        warning = null_space_warning(self.law.null_space_speed(dq), hand_error, t)
+        if warning is not None:
+            self.null_space_warned = True
+            self.get_logger().warning(warning)
+
     def on_state(self, data: bytes) -> None:
         try:
             self.answer(data)
@@ -246,12 +260,7 @@ class ControllerNode(Node):
             return
         if out.damped:
             self.report("warning", "damped", "B is near-singular: using a damped inverse")
-        if not self.null_space_warned:  # said once
-            hand_error = float(np.linalg.norm(out.hand_desired - out.hand_actual))
-            warning = null_space_warning(out.null_space_speed, hand_error, t)
-            if warning is not None:
-                self.null_space_warned = True
-                self.get_logger().warning(warning)
+        self.watch_null_space(out, dq, t)
         self.command_pub.publish(self.command_wire.encode(msg.stamp_ns, out.command))
         self.state_pub.publish(
             self.state_wire.encode(

@@ -39,7 +39,6 @@ class ControlOutput:
     desired_normal_force: Vector  # (p,) [N]
     damped: bool  # True when B was near-singular and a damped inverse was used
     force_command: Vector = field(default_factory=lambda: np.zeros(0))  # (p,) f_cmd [N]: f_nd without feedback
-    null_space_speed: float = 0.0  # max |(I - J^+ J) dq| [rad/s or m/s]: joint motion no task sees
 
 
 def axis_gains(axes: tuple[int, ...], gains: tuple[float, ...]) -> Vector:
@@ -152,7 +151,6 @@ class DecoupledController:
             self.desired_normal_force.copy(),
             bool(values[-1]),
             values[2 * n + 6 + 6 * b : 2 * n + 6 + 7 * b],
-            float(values[-2]),
         )
 
     @property
@@ -164,6 +162,10 @@ class DecoupledController:
     def uses_temperature(self) -> bool:
         """Thermal compensation applies (voltage input, thermal motors): the law reads ``measure_temperature``."""
         return bool(self.engine.uses_temperature)
+
+    def null_space_speed(self, dq: Vector) -> float:
+        """max |(I - J^+ J) dq| [rad/s or m/s], J the task rows at the last update's q: motion no task sees."""
+        return float(self.engine.null_space_speed(np.asarray(dq, dtype=float)))
 
     def measure_force(self, contact: int, force: Vector) -> None:
         """Braced contact ``contact``'s measured force on the robot [N], world axes (contact_wrench/<name>)."""

@@ -286,16 +286,15 @@ NB_MODULE(_engine, m) {
             LawOutput o;
             law.update(t, q, dq, o);
             const Eigen::Index n = o.command.size(), b = o.brace_desired.rows();
-            Vector out(2 * n + 6 + 7 * b + 2);
+            Vector out(2 * n + 6 + 7 * b + 1);
             out << o.command, o.torque, o.hand_desired, o.hand_actual,
                 Eigen::Map<const Vector>(o.brace_desired.data(), 3 * b),
-                Eigen::Map<const Vector>(o.brace_actual.data(), 3 * b), o.force_command, o.null_space_speed,
-                o.damped ? 1.0 : 0.0;
+                Eigen::Map<const Vector>(o.brace_actual.data(), 3 * b), o.force_command, o.damped ? 1.0 : 0.0;
             return out;
           },
           "t"_a, "q"_a, "dq"_a,
           "update's answer in one array: command, torque (n each), hand desired, hand actual (3 each), brace desired, "
-          "brace actual (3b each, row-major), the force command f_cmd (b), the null-space speed, damped (1/0)")
+          "brace actual (3b each, row-major), the force command f_cmd (b), damped (1/0)")
       .def("reset", &Law::reset)
       .def("measure_force", &Law::measure_force, "brace"_a, "force"_a,
            "brace j's measured force on the robot [N], world axes (force feedback reads its normal component)")
@@ -304,6 +303,8 @@ NB_MODULE(_engine, m) {
       .def_prop_ro("uses_force_feedback", &Law::uses_force_feedback)
       .def_prop_ro("uses_temperature", &Law::uses_temperature)
       .def("task_positions", &Law::task_positions, "q"_a, "the hand's and each brace point's positions at q")
+      .def("null_space_speed", &Law::null_space_speed, "dq"_a,
+           "max |(I - J^+ J) dq| [rad/s or m/s], J the task rows at the last update's q")
       .def("first_rankless_axis", &Law::first_rankless_axis, "q0"_a,
            "(task: 0 the hand, 1 + j brace j; world axis) of the first axis adding no rank at q0, or (-1, -1)")
       .def("retune", &Law::retune, "hand_kp"_a, "hand_kd"_a, "brace_kp"_a, "brace_kd"_a, "desired_normal_force"_a,

@@ -123,6 +123,14 @@ struct Law::Impl {
   Vector rest;         // the posture task's rest position (the first measured one unless configured)
   bool posture = false;
 
+  // The rows of m.jacobian along `axes`, appended to `rows`.
+  void stack(Eigen::MatrixXd& rows, const std::vector<int>& axes) const {
+    for (int axis : axes) {
+      rows.conservativeResize(rows.rows() + 1, Eigen::NoChange);
+      rows.row(rows.rows() - 1) = jacobian.row(axis);
+    }
+  }
+
   // N^T (kp (rest - q) - kd dq), N^T = I - J^T (J Mc^-1 J^T)^-1 J Mc^-1 (Mc's Cholesky factor computed here).
   Vector posture_torque(const Eigen::MatrixXd& rows, const Vector& q, const Vector& dq) {
     const int n = model.nv;
@@ -221,6 +229,7 @@ Vector Law::voltage_command(const Vector& torque, const Vector& dq) const {
   if (!s.drive.voltage) return torque;
   // R(T) / R_20 = 1 + alpha (T - 20 degC), from the measured temperatures (thermal compensation)
   const bool warm = uses_temperature();
+  if (!warm && !s.back_emf_compensation) return s.voltage_gain.cwiseProduct(torque);  // eq. 41
   const Eigen::ArrayXd heating = 1.0 + s.drive.temperature_coefficient * (impl_->temperature.array() - 20.0);
   if (s.back_emf_compensation) {  // the motor inverted: v = R i + K_m dq with K_m i = tau
     const Eigen::ArrayXd resistance = warm ? Eigen::ArrayXd(s.drive.resistance.array() * heating)
@@ -237,6 +246,18 @@ Vector Law::voltage_command(const Vector& torque, const Vector& dq) const {
 bool Law::uses_temperature() const {
   const LawSpec& s = impl_->spec;
   return s.thermal_compensation && s.drive.voltage && s.drive.thermal;
+}
+
+double Law::null_space_speed(const Vector& dq) {
+  Impl& m = *impl_;
+  Eigen::MatrixXd rows(0, m.model.nv);
+  for (std::size_t k = 0; k < m.frames.size(); ++k) {  // the Jacobians of the last update's pass
+    m.frame_jacobian.setZero();
+    pin::getFrameJacobian(m.model, m.data, m.frames[k], pin::LOCAL_WORLD_ALIGNED, m.frame_jacobian);
+    m.jacobian = m.frame_jacobian.topRows<3>();
+    m.stack(rows, k ? m.spec.braces[k - 1].task.axes : m.spec.hand.axes);
+  }
+  return bracing_engine::null_space_speed(rows, dq);
 }
 
 const std::string& Law::brace_name(int brace) const { return impl_->spec.braces.at(brace).contact.name; }
@@ -328,6 +349,7 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
   Vector l = Vector::Zero(n);
   Eigen::MatrixXd brace_jacobians(3 * p, n);
   Eigen::MatrixXd task_rows(0, n);  // the configured axes' Jacobian rows, stacked (the posture's null space)
+  const bool stack_rows = m.posture;
   for (int k = 0; k <= p; ++k) {
     const Task& task = k ? s.braces[k - 1].task : s.hand;
     m.frame_jacobian.setZero();
@@ -339,10 +361,7 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
     task.path.sample(m.starts[k], t, desired, desired_velocity);
     const Vector3 force = task.kp.cwiseProduct(desired - position) + task.kd.cwiseProduct(desired_velocity - velocity);
     l.noalias() += m.jacobian.transpose() * force;
-    for (int axis : task.axes) {
-      task_rows.conservativeResize(task_rows.rows() + 1, n);
-      task_rows.row(task_rows.rows() - 1) = m.jacobian.row(axis);
-    }
+    if (stack_rows) m.stack(task_rows, task.axes);
     if (k == 0) {
       out.hand_desired = desired;
       out.hand_actual = position;
@@ -353,7 +372,6 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
     }
   }
   if (s.gravity_compensation) l += pin::computeGeneralizedGravity(m.model, m.data, q);
-  out.null_space_speed = null_space_speed(task_rows, dq);
   if (m.posture) l += m.posture_torque(task_rows, q, dq);
   out.damped = false;
   if (p == 0) {

@@ -74,7 +74,6 @@ struct LawOutput {
   Vector3 hand_desired, hand_actual;
   RowMatrix brace_desired, brace_actual;  // b x 3
   Vector force_command;                   // b: f_cmd [N], the force the law asked for (f_nd without feedback)
-  double null_space_speed = 0.0;          // max |(I - J^+ J) dq| over the joints [rad/s or m/s]: motion the tasks do not see
   bool damped = false;
 };
 
@@ -101,6 +100,9 @@ class Law {
   // motor inverted (back_emf_compensation); times R(T) / R_20 with thermal compensation.
   Vector voltage_command(const Vector& torque, const Vector& dq) const;
   const std::string& brace_name(int brace) const;
+  // max |(I - J^+ J) dq| over the joints [rad/s or m/s], J the task rows at the last update's q: joint motion
+  // that no task sees (the controller asks now and then, not every update: 1 us each).
+  double null_space_speed(const Vector& dq);
   // The hand's and each brace point's positions at q (the law's kinematics): b + 1 rows.
   RowMatrix task_positions(const Vector& q);
   // The tunable values: task gains (per world axis), f_nd and K_V.
