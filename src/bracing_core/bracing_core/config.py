@@ -393,14 +393,38 @@ def build_simulator(config: SimulatorConfig) -> tuple[Plant, Simulator]:
     return plant, simulator
 
 
+UNILATERAL_PROJECTION_M = 0.05
+"""A braced unilateral contact that starts at most this far above its surface [m] is put on it by
+``project_initial_position``: a posture measured or guessed by hand is off by millimetres to
+centimetres, and the controller braces the contact, so it is meant to be on it. Further up, the
+start is in the air on purpose (a drop onto the surface): left as given."""
+
+
+def projected_contacts(plant: Plant, metric: ConstrainedDynamics, q0: Vector) -> list[int]:
+    """The contacts (rows of ``plant.contact_set``) ``project_initial_position`` puts on their surfaces
+    at ``q0``: every bilateral one, and every braced unilateral one that starts through its surface, on
+    it (kept there while the others move the arm), or above it by at most ``UNILATERAL_PROJECTION_M``.
+    An obstacle (no desired_normal_force) and a collision frame are left alone: nothing asks them to
+    touch, and one that starts through its surface is refused by ``check_start``. ``metric``: the
+    plant's dynamics, for the residuals."""
+    contacts = plant.contact_set.contacts
+    braced = {c.name for c in plant.config.braced_contacts}
+    rows = [j for j, c in enumerate(contacts) if not c.unilateral]
+    candidates = [j for j, c in enumerate(contacts) if c.unilateral and c.enforced and c.name in braced]
+    if not candidates:
+        return rows  # the paper's case: bilateral contacts only, as before
+    residual = metric.terms(q0, np.zeros(plant.robot.nv)).residual
+    return sorted(rows + [j for j in candidates if residual[j] <= UNILATERAL_PROJECTION_M])
+
+
 def project_initial_position(plant: Plant, q0: Vector) -> Vector:
-    """The posture nearest ``q0`` (joint-space metric M) where every bilateral contact holds."""
-    contacts = plant.contact_set
-    bilateral = [j for j, c in enumerate(contacts.contacts) if not c.unilateral]
+    """The posture nearest ``q0`` (joint-space metric M) where the contacts of ``projected_contacts``
+    hold: every bilateral one, and each braced unilateral one that starts through, on or just above
+    its surface (``UNILATERAL_PROJECTION_M``)."""
     # in the metric of M (torque mode: no rotor inertia), whatever the input mode
-    metric = ConstrainedDynamics(plant.robot, plant.motors, contacts, InputMode.TORQUE)
+    metric = ConstrainedDynamics(plant.robot, plant.motors, plant.contact_set, InputMode.TORQUE)
     try:
-        return metric.project(q0, bilateral)
+        return metric.project(q0, projected_contacts(plant, metric, q0))
     except ValueError as exc:
         raise ConfigError(f"project_initial_position: {exc}") from None
 

@@ -619,7 +619,8 @@ SIMULATOR: tuple[Param, ...] = (
         Kind.BOOL,
         False,
         "true: initial_position is a guess, moved to the nearest posture (metric M) where every bilateral contact "
-        "holds; the result is logged",
+        "holds, and every braced unilateral one that starts through, on or at most 0.05 m above its surface (an "
+        "obstacle is left alone); the result is logged",
     ),
     Param(
         "stepping",
