@@ -204,9 +204,9 @@ class SharedConfig:
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
         joint_names = values["robot.joint_names"]
-        for joint in values["robot.locked_joints"]:
-            if joint not in joint_names:
-                raise ConfigError(f"robot.locked_joints: {joint!r} is not in robot.joint_names {list(joint_names)}")
+        # A locked joint may be listed in robot.joint_names (its entry in every per-joint list then stays,
+        # unused) or not (a joint the configuration never drives, such as a gripper's finger: no entry
+        # anywhere); whether it is a joint of the model at all, the model says (Plant).
         return cls(
             urdf,
             joint_names,
@@ -220,6 +220,32 @@ class SharedConfig:
             values["bracing"],
             values["free_space"],
         )
+
+
+def joint_names_mismatch(actuated: Sequence[str], model: Sequence[str], listed: Sequence[str]) -> str | None:
+    """Why robot.joint_names (``listed``; ``actuated``: less the locked joints) cannot be the model's moving
+    joints (``model``, the locked ones removed), pointing at the fix; None if they are the same names."""
+    if sorted(actuated) == sorted(model) and len(set(actuated)) == len(actuated):
+        return None
+    problems = []
+    twice = sorted({name for name in actuated if actuated.count(name) > 1})
+    if twice:
+        problems.append(f"{', '.join(map(repr, twice))} listed twice")
+    unknown = [name for name in actuated if name not in model]
+    if unknown:
+        problems.append(
+            f"{', '.join(map(repr, unknown))} {'is' if len(unknown) == 1 else 'are'} not a moving joint of it"
+        )
+    extra = [name for name in model if name not in actuated]
+    if extra:
+        them = ", ".join(extra)
+        problems.append(
+            f"it also moves {', '.join(map(repr, extra))}: to hold {'it' if len(extra) == 1 else 'them'} fixed, set "
+            f"robot.locked_joints: [{them}] (a locked joint not in robot.joint_names needs no entry in any per-joint "
+            "list; robot.locked_positions says where, default 0), or add "
+            f"{'it' if len(extra) == 1 else 'them'} to robot.joint_names with a value in every per-joint list"
+        )
+    return f"robot.joint_names {list(listed)} do not match the model's joints {list(model)}: {'; '.join(problems)}"
 
 
 class Plant:
@@ -237,6 +263,9 @@ class Plant:
             )
             # Index array taking configuration-ordered data to model order (locked joints dropped).
             actuated = [name for name in config.joint_names if name not in config.locked_joints]
+            mismatch = joint_names_mismatch(actuated, self.robot.joint_names, config.joint_names)
+            if mismatch:
+                raise ConfigError(mismatch)
             order = self.robot.joint_permutation(actuated)
         except ModelError as exc:
             raise ConfigError(str(exc)) from None
