@@ -654,7 +654,8 @@ SIMULATOR: tuple[Param, ...] = (
         "min_status_subscribers",
         Kind.INTEGER,
         0,
-        "run_status subscribers to wait for before the first state (bracing-pair sets 1: it follows the run there)",
+        "run_status subscribers to wait for before the first state (bracing-pair sets 2: it follows the run there, "
+        "and the recorder keeps the warnings; 3 with --view)",
         minimum=0,
     ),
     Param(
