@@ -622,7 +622,7 @@ SIMULATOR: tuple[Param, ...] = (
         False,
         "true: initial_position is a guess, moved to the nearest posture (metric M) where every bilateral contact "
         "holds, and every braced unilateral one that starts through, on or at most 0.05 m above its surface (an "
-        "obstacle is left alone); the result is logged",
+        "obstacle is left alone); the result is logged, and a joint moved more than 0.1 rad (0.01 m) is warned about",
     ),
     Param(
         "stepping",
