@@ -40,7 +40,7 @@ def test_a_locked_joint_is_pinocchios_reduced_model() -> None:
     for _ in range(200):
         d = sim.step(ctl.update(sim.time, sim.position, sim.velocity).command)
         assert abs(d.contacts.residual[0]) < 1e-9
-    with pytest.raises(ConfigError, match=r"robot\.locked_joints: 'wrist' is not in robot\.joint_names"):
+    with pytest.raises(ConfigError, match=r"robot\.locked_joints: 'wrist' is not a joint of"):  # named or not
         build_scenario({"robot.locked_joints": ["wrist"]})
     base = {"robot.locked_joints": ["joint1"], "robot.locked_positions": [float(PAPER_Q0[0])]}
     with pytest.raises(ConfigError, match=r"contacts\.elbow\.brace_axes: frame 'elbow' cannot move along y"):

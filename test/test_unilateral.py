@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 from conftest import build_scenario
 
+from bracing_core.config import UNILATERAL_PROJECTION_M
 from bracing_core.model import RobotModel
 from bracing_core.params import ConfigError
+from bracing_core.rollout import Scenario
 
 UNILATERAL = {"contacts.elbow.unilateral": True}
 
@@ -77,3 +79,40 @@ def mechanical(robot: RobotModel, q: np.ndarray, dq: np.ndarray) -> float:
 def test_a_penetrating_start_is_still_refused() -> None:
     with pytest.raises(ConfigError, match="infeasible start: contact 'elbow'"):
         build_scenario({**UNILATERAL, "contacts.elbow.offset": 0.05}, with_controller=False)
+
+
+# -- a one-sided table starts on the table (issue 35) ------------------------------------------------
+PROJECTED = {**UNILATERAL, "project_initial_position": True}
+
+
+def elbow_height(sc: Scenario) -> float:
+    """The elbow's signed distance to its plane at the simulator's position [m] (> 0: above)."""
+    terms = sc.sim.dynamics.terms(sc.sim.position, np.zeros(sc.sim.n))
+    return float(terms.residual[0])
+
+
+def test_a_unilateral_contact_4_mm_above_its_surface_is_projected_onto_it() -> None:
+    """The issue's table: the elbow 4 mm above the floor, braced and one-sided. With
+    project_initial_position it starts on the floor, holding (it touched down 29 ms in before), and the
+    start is where the bilateral contact's projection puts it: the same nearest posture."""
+    above = {**PROJECTED, "contacts.elbow.offset": -0.004}
+    sc = build_scenario(above, with_controller=False)
+    assert abs(elbow_height(sc)) < 1e-12 and sc.sim.active[0]
+    bilateral = build_scenario({**above, "contacts.elbow.unilateral": False}, with_controller=False)
+    np.testing.assert_array_equal(sc.sim.position, bilateral.sim.position)
+    # Without the projection it starts in the air, as before.
+    given = build_scenario({**UNILATERAL, "contacts.elbow.offset": -0.004}, with_controller=False)
+    assert elbow_height(given) == pytest.approx(0.004, abs=1e-12) and not given.sim.active[0]
+    # Through the surface is off too: put on it rather than refused (a guess, as for a bilateral one).
+    through = build_scenario({**PROJECTED, "contacts.elbow.offset": 0.05}, with_controller=False)
+    assert abs(elbow_height(through)) < 1e-12 and through.sim.active[0]
+
+
+def test_an_obstacle_or_a_contact_far_above_is_left_where_it_starts() -> None:
+    """Only a braced contact is meant to be on its surface, and only within UNILATERAL_PROJECTION_M of it:
+    an obstacle (no brace: --no-bracing) 4 mm above, and a braced contact 0.3 m above, start in the air."""
+    obstacle = build_scenario({**PROJECTED, "contacts.elbow.offset": -0.004, "bracing": False}, with_controller=False)
+    assert elbow_height(obstacle) == pytest.approx(0.004, abs=1e-12) and not obstacle.sim.active[0]
+    far = -(UNILATERAL_PROJECTION_M + 0.25)
+    dropped = build_scenario({**PROJECTED, "contacts.elbow.offset": far}, with_controller=False)
+    assert elbow_height(dropped) == pytest.approx(-far, abs=1e-12) and not dropped.sim.active[0]

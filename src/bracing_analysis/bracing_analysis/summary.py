@@ -47,6 +47,7 @@ from bracing_core.typestore import (
     MOTOR_COMMAND,
     MOTOR_STATE,
     PARAMETER_EVENT,
+    RUN_STATUS,
     STRING,
     WRENCH_STAMPED,
     motor_command_modes,
@@ -180,6 +181,7 @@ class BagSeries:
     # each braced contact's (a contact not listed: not said). The report draws each (drawing.hand_axes).
     hand_axes: list[str] | None = None
     brace_task_axes: dict[str, list[str]] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)  # what the nodes warned about (run_status), in time order
 
 
 def _stamp_ns(msg: Any) -> int:
@@ -348,6 +350,20 @@ def _parameter_events(reader: AnyReader) -> list[tuple[int, str, dict[str, Any]]
     return sorted(out, key=lambda e: e[0])
 
 
+def _recorded_warnings(reader: AnyReader) -> list[str]:
+    """The warnings the nodes said on run_status (the recorder keeps only those), in time order, decoded
+    by rosbags (a few per run); both read paths call this."""
+    connections = [c for c in reader.connections if c.msgtype == RUN_STATUS]
+    if not connections:  # (an empty list would make reader.messages read every topic)
+        return []
+    out = []
+    for conn, stamp, raw in reader.messages(connections=connections):
+        status: Any = reader.deserialize(raw, conn.msgtype)
+        if status.text:
+            out.append((stamp, str(status.text)))
+    return [text for _, text in sorted(out, key=lambda w: w[0])]
+
+
 def _changes(events: list[tuple[int, str, dict[str, Any]]], t0: int) -> list[ParameterChange]:
     return [ParameterChange((stamp - t0) * 1e-9, node, values) for stamp, node, values in events]
 
@@ -366,6 +382,7 @@ def _read_general(path: Path) -> BagSeries:
             wanted = _wanted(reader, counts)
             mode = _input_mode(reader)
             events = _parameter_events(reader)
+            warnings = _recorded_warnings(reader)
             for conn, _, raw in reader.messages(connections=wanted):
                 msg: Any = reader.deserialize(raw, conn.msgtype)
                 if conn.msgtype == STRING:
@@ -406,6 +423,7 @@ def _read_general(path: Path) -> BagSeries:
 
     series = BagSeries(t0_ns=t0, topic_counts=counts, robot_description=description, input_mode=mode)
     series.parameter_changes = _changes(events, t0)
+    series.warnings = warnings
     _describe(series, path)
     series.joint_t = np.array([sec(s) for s, _ in joint], dtype=float)
     if joint:
@@ -615,6 +633,7 @@ def _read_columnar(path: Path) -> BagSeries:
             wanted = _wanted(reader, counts)
             mode = _input_mode(reader)
             events = _parameter_events(reader)
+            warnings = _recorded_warnings(reader)
             for conn, _, raw in reader.messages(connections=wanted):
                 raws.setdefault(_kind(conn), []).append(raw)
             store = reader.typestore
@@ -642,6 +661,7 @@ def _read_columnar(path: Path) -> BagSeries:
     description = filled[0][1] if filled else "" if texts else None
     series = BagSeries(t0_ns=t0, topic_counts=counts, robot_description=description, input_mode=mode)
     series.parameter_changes = _changes(events, t0)
+    series.warnings = warnings
     _describe(series, path)
     series.joint_t = sec(joint.stamp[joint.order])
     if joint.count:
@@ -770,8 +790,8 @@ def compute_summary(
     contacts only (None for a run without any), the constraint residual every contact while
     active (None if none ever is); a torque-input run has no copper loss (None).
     ``contacts`` has every contact of the ``contacts`` topic (``contact_metrics``). ``warnings``:
-    the given ones (what the data cannot show: a target out of reach, slow real-time stepping),
-    then ``data_warnings``, each once.
+    the given ones (what the data cannot show: a target out of reach), then ``data_warnings``, then
+    what the nodes warned about during the run (``series.warnings``: the bag's run_status), each once.
     """
     out: dict[str, Any] = dict.fromkeys(SUMMARY_KEYS + SUMMARY_EXTRA_KEYS)
 
@@ -815,14 +835,14 @@ def compute_summary(
     out["max_penetration_m"] = max(penetrations) if penetrations else None
     out["input_mode"] = series.input_mode
     out["bracing"] = bool(braced) if series.t.size else None
-    out["warnings"] = list(dict.fromkeys([*warnings, *data_warnings(series)]))
+    out["warnings"] = list(dict.fromkeys([*warnings, *data_warnings(series), *series.warnings]))
     return out
 
 
 def data_warnings(series: BagSeries) -> list[str]:
-    """What the recorded data shows to be amiss, once per contact (the texts of ``bracing_core.checks``,
-    as the nodes log them): a braced contact's desired force <= 0, a braced contact that lets go of its
-    surface or never touches it."""
+    """What the controller's recorded data shows to be amiss, once per contact (the texts of
+    ``bracing_core.checks``, as the controller logs them): a braced contact's desired force <= 0, from
+    the start or once retuned so. (What the simulator warns about it says itself: ``series.warnings``.)"""
     out = []
     for cs in series.contacts.values():
         if not _braced(cs):
@@ -832,15 +852,6 @@ def data_warnings(series: BagSeries) -> list[str]:
         if low.size:
             k = int(low[0])
             out.append(str(checks.desired_force_warning(cs.name, float(desired[k]), float(cs.t_ctrl[k]))))
-        active = _active(cs)
-        if not active.size:
-            continue
-        if not active.any():
-            out.append(checks.never_reached_warning(cs.name))
-            continue
-        released = np.flatnonzero(~active[int(np.argmax(active)) :])  # after it first held
-        if released.size:
-            out.append(checks.let_go_warning(cs.name, float(cs.t[int(np.argmax(active)) + int(released[0])])))
     return out
 
 

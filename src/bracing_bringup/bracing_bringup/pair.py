@@ -105,11 +105,18 @@ def pair_needs(options: RunOptions, urdf: Path) -> dict[str, Any]:
 
     Both nodes publish their first message only once the recorder has matched every topic they
     publish, and the simulator once the controller has too (joint_states: the controller and the
-    recorder; bracing-view subscribes once the run steps) and this process's run_status watcher.
+    recorder; bracing-view subscribes once the run steps) and run_status has its subscribers: this
+    process's watcher and the recorder (it keeps the run's warnings), and bracing-view's with --view
+    (it is up before the nodes start; counting it makes sure the watcher is one of those matched).
     The nodes resolve a relative URDF from their working directory, so it is pinned to the file
     found now (``urdf``).
     """
-    needs: dict[str, Any] = {"wait_for_recorder": True, "min_subscribers": 2, "min_status_subscribers": 1}
+    status_subscribers = 2 + int(options.view)
+    needs: dict[str, Any] = {
+        "wait_for_recorder": True,
+        "min_subscribers": 2,
+        "min_status_subscribers": status_subscribers,
+    }
     if options.duration is not None:
         needs["duration"] = options.duration
     if options.real_time:
@@ -160,7 +167,6 @@ class Pair:
         self.seen: set[str] = set()  # the timeline's events so far (FINISHED, RECORDER_CLOSED, ...)
         self.events: list[tuple[float, str]] = []  # (wall time, what): the first of each
         self.sim_time: float | None = None  # [s] the simulator's last status
-        self.real_time_achieved: float | None = None  # real-time stepping: the simulator's FINISHED status says
         self._followers: dict[str, threading.Thread] = {}
 
     def say(self, text: str, end: str = "\n") -> None:
@@ -189,8 +195,6 @@ class Pair:
         """A process's run_status message, from the watcher's thread."""
         if status.node == SIMULATOR and math.isfinite(status.sim_time):
             self.sim_time = status.sim_time
-        if status.node == SIMULATOR and status.event == "finished" and math.isfinite(status.real_time_factor):
-            self.real_time_achieved = status.real_time_factor
         moment = status_event(status.node, status.event, status.wall_time_s)
         if moment is not None and moment[1] not in self.seen:
             self.events.append(moment)
@@ -366,7 +370,6 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
     start_wall = time.monotonic()
     out = options.output
     plan = plan_run(options)  # checked against the schemas; the configurations' checks follow while processes import
-    sim_values = plan.sim_values
     duration, contacts = plan.duration, plan.contacts
     bag = out / "bag"
     if bag.exists():
@@ -388,7 +391,7 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
         signal.signal(sig, on_signal)
     message, code, finished = "", 0, False
     watcher = None  # the run_status watcher, once the processes are started
-    warnings: list[str] = []  # what the run's summary says and the bag cannot show (see _check_configs)
+    warnings: list[str] = []  # the controller's configuration warnings (_check_configs); the simulator's: the bag
     try:
         pair.say(f"bracing-pair: ROS_DOMAIN_ID={domain}, output {out}")
         # All three at once: each imports and discovers the others while the rest start. No state
@@ -490,7 +493,6 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
     if code == 0:
         timeline.mark(BAG_CLOSED, timeline.at("recorder closed the bag"))
         # The report is drawn while the processes finish exiting (their exit codes are checked after).
-        warnings += _real_time_warnings(pair.real_time_achieved, float(sim_values["real_time_factor"]))
         summary, code, message = _report(bag, out, plan, wall, timeline, warnings)
         for name, process_code in pair.stop_all(ask=False).items():
             if process_code != 0 and code == 0 and name != "viewer":  # a viewer's end is no run's failure
@@ -533,15 +535,6 @@ def _check_configs(plan: RunPlan) -> list[str]:
     scenario = build_scenario_from_params(plan.node_params[SIMULATOR], plan.node_params[CONTROLLER], plan.search)
     assert scenario.controller is not None  # built with the controller's parameters
     return reach_warnings(scenario.controller.config, scenario.controller.plant)
-
-
-def _real_time_warnings(achieved: float | None, requested: float) -> list[str]:
-    """Real-time stepping slower than asked, from the factor the simulator's FINISHED status gave
-    (none in lockstep)."""
-    from bracing_core.checks import slow_real_time_warning
-
-    warning = slow_real_time_warning(achieved, requested) if achieved is not None else None
-    return [warning] if warning is not None else []
 
 
 FINISHED = "simulator finished"

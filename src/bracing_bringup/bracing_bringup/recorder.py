@@ -25,6 +25,12 @@ The controller's parameter changes while it runs (``ros2 param set``) are record
 ``/parameter_events``: the events of the run's controller that change a value, stamped by it with the
 sim time of the last state it answered with the old values (see bracing_controller.node).
 
+The run's warnings are recorded from ``run_status``: its WARNING messages (what the simulator warns
+about, also in its log), stamped with their sim time; the topic is in the bag from the first warning
+(a run without any has none), and the summary reads them there. With ``--expect-states`` the bag is
+closed once every topic has its messages and, if a simulator speaks on run_status, once it has said
+FINISHED (after its last warning: one writer, in order).
+
 Prints ``recorder ready`` on stdout once every subscription exists. SIGINT or SIGTERM
 stops it: pending messages are drained (until nothing arrives for ``--drain-idle``
 seconds, at most ``--drain-timeout`` seconds) and the bag is closed cleanly.
@@ -76,6 +82,7 @@ from bracing_bringup.topics import (
 )
 from bracing_bringup.topics import expected_counts as expected_counts  # re-exported: the check lives in topics
 from bracing_core.kinematics import DescriptionError
+from bracing_core.overrides import SIMULATOR
 from bracing_core.typestore import BRACING_MSGS as BRACING_MSGS  # re-exported: the typestore lives in bracing_core
 from bracing_core.typestore import (
     CLOCK,
@@ -85,6 +92,7 @@ from bracing_core.typestore import (
     MOTOR_COMMAND,
     MOTOR_STATE,
     PARAMETER_EVENT,
+    RUN_STATUS,
     STRING,
     WRENCH_STAMPED,
     bracing_typestore,
@@ -93,7 +101,7 @@ from bracing_core.typestore import bracing_msgs_dir as bracing_msgs_dir
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState, RunStatus
 from bracing_ros.common import SubscriptionWaiter, use_fastdds_profile
 from bracing_ros.lifetime import stop_with_parent
-from bracing_ros.status import StatusPublisher
+from bracing_ros.status import STATUS_QOS, STATUS_TOPIC, StatusPublisher
 
 BAG_VERSION: Literal[8] = 8
 """rosbag2 metadata version written (8 is read by every Jazzy rosbag2)."""
@@ -222,7 +230,13 @@ class Recorder(Node):
         self._events_connection: Connection | None = None
         self._roles[self._events] = "parameter_events"
         self._controller = self.resolve_topic_name(CONTROLLER_NODE)  # its fully qualified name
-        self._waiter = SubscriptionWaiter(self, [*self._connections, self._events])
+        # The run's warnings, from run_status (see ``_record_status``); the bag gets the topic with the first.
+        self._status = self.create_subscription(RunStatus, STATUS_TOPIC, _never_called, STATUS_QOS, raw=True)
+        self._status_connection: Connection | None = None
+        self._roles[self._status] = "run_status"
+        self.simulator_heard = False  # a simulator speaks on run_status (its CONFIGURED is kept for late subscribers)
+        self.simulator_finished = False  # its FINISHED status came: nothing more from it
+        self._waiter = SubscriptionWaiter(self, [*self._connections, self._events, self._status])
         self.scene = SceneBuilder(typestore, contacts, shapes) if scene else None
         self._scene_inputs: deque[tuple[str, bytes]] = deque()
         self._scene_roles = {"joint_states", "contacts", "description", *(f"contact_wrench/{c}" for c in contacts)}
@@ -246,6 +260,9 @@ class Recorder(Node):
         for sub, data in taken:
             if sub is self._events:
                 skipped += not self._record_event(data)
+                continue
+            if sub is self._status:
+                skipped += not self._record_status(data)
                 continue
             connection = connections[sub]
             stamp = 0 if self._roles[sub] == "description" else cdr_stamp_ns(data)
@@ -276,6 +293,32 @@ class Recorder(Node):
         self.writer.write(self._events_connection, cdr_stamp_ns(data), data)
         self.counts[self._events_connection.topic] += 1
         return True
+
+    def _record_status(self, data: bytes) -> bool:
+        """Write a run_status message if it is a warning (stamped with its sim time, 0 if it has none);
+        note the simulator's FINISHED. Whether it was written."""
+        try:
+            status: Any = self.typestore.deserialize_cdr(data, RUN_STATUS)
+        except (SerdeError, ValueError, IndexError, KeyError):
+            return False
+        if status.node == SIMULATOR:
+            self.simulator_heard = True
+            self.simulator_finished |= status.event == status.FINISHED
+        if status.event != status.WARNING:
+            return False
+        if self._status_connection is None:
+            topic = self._status.topic_name
+            self._status_connection = self.writer.add_connection(topic, RUN_STATUS, typestore=self.typestore)
+            self.counts[topic] = 0
+        stamp = round(status.sim_time * 1e9) if math.isfinite(status.sim_time) else 0
+        self.writer.write(self._status_connection, max(stamp, 0), data)
+        self.counts[self._status_connection.topic] += 1
+        return True
+
+    @property
+    def simulator_done(self) -> bool:
+        """Nothing more to come from the simulator on run_status: it said FINISHED, or none speaks there."""
+        return self.simulator_finished or not self.simulator_heard
 
     def has_every_message(self, wanted: Mapping[str, int]) -> bool:
         """Whether every subscribed topic has ``wanted[topic]`` messages (``topics.expected_counts``)."""
@@ -491,8 +534,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         while not stop["requested"]:
             got = node.record(0.0 if idle and node.scene_backlog else 0.1)
             idle = not got
-            if got and wanted is not None and node.has_every_message(wanted):
-                complete = True  # nothing more will come: no drain
+            if got and wanted is not None and node.simulator_done and node.has_every_message(wanted):
+                complete = True  # nothing more will come (the simulator's last warning came before FINISHED): no drain
                 break
             if node.scene_backlog and (idle or node.scene_backlog > MAX_SCENE_BACKLOG):
                 node.derive(0.05)  # idle (nothing came for 0.1 s), or the queue would grow too large

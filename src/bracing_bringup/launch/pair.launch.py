@@ -24,6 +24,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from bracing_bringup.pair import PARAMS_FILE, parse_args, plan_run, write_params
+from bracing_core.overrides import SIMULATOR
 
 
 def launch_setup(context: LaunchContext) -> list[object]:
@@ -39,6 +40,8 @@ def launch_setup(context: LaunchContext) -> list[object]:
     if (options.output / "bag").exists():
         raise ValueError(f"output: {options.output / 'bag'} exists already; choose a new output directory")
     plan = plan_run(options)
+    # No bracing-pair here to follow run_status: the recorder is its one subscriber (it keeps the warnings).
+    plan.node_params[SIMULATOR]["min_status_subscribers"] = 1
     options.output.mkdir(parents=True, exist_ok=True)
     write_params(options.output / PARAMS_FILE, plan.node_params)
     nodes = {

@@ -2,8 +2,9 @@
 
 A configuration can pass every check and still ask for nonsense: a braced contact pushed with
 f_nd <= 0 N, a target the arm cannot reach, a real-time run the machine cannot keep up with, a
-braced contact that lets go. Each is said once, in the node's log and in summary.json's
-``warnings``; the texts are made here, so that both say the same.
+braced contact that lets go or never arrives, a table that pulls, a start the projection moved far.
+Each is said once, in the node's log and in summary.json's ``warnings``; the texts are made here, so
+that both say the same (the simulator's are chosen by ``watch.RunWatch``).
 
 The reach check is cheap and sound (it never warns about a point the arm can reach): a frame
 moved by a chain of joints is never further from the first joint's origin than the sum of the
@@ -67,11 +68,16 @@ def let_go_warning(name: str, t: float) -> str:
     )
 
 
+ON_THE_SURFACE = (
+    "project_initial_position: true puts a braced unilateral contact that starts at most 0.05 m above its surface on it"
+)
+
+
 def never_reached_warning(name: str) -> str:
-    """A braced contact that never touched its surface during the run."""
+    """A braced contact that never held on its surface during the run."""
     return (
         f"contact {name!r} never touched its surface although the controller braces it: the run had no brace "
-        "(a unilateral contact that starts above its surface must be brought down onto it)"
+        f"(a unilateral contact that starts above its surface must be brought down onto it; {ON_THE_SURFACE})"
     )
 
 
@@ -91,6 +97,56 @@ def null_space_warning(speed: float, hand_error: float, t: float) -> str | None:
         "the paper's null space (B^+) leaves such joints undamped and a light wrist can run away; set "
         "null_space_posture.kd (and .kp) to damp them, and consider null_space: dynamically_consistent"
     )
+
+
+def late_reach_warning(name: str, t: float) -> str:
+    """A braced contact that started off its surface and first held on it at ``t`` [s]."""
+    return (
+        f"contact {name!r} started off its surface and first held on it at t = {t:.3f} s although the controller "
+        f"braces it from the start: until then its force law acted on a contact that was not there ({ON_THE_SURFACE})"
+    )
+
+
+def pull_warning(name: str, share: float, since: float, lowest: float, mean: float) -> str:
+    """A bilateral contact whose normal force was negative in ``share`` of the run's states, the first
+    at ``since`` [s], down to ``lowest`` [N], ``mean`` [N] over those states."""
+    return (
+        f"contact {name!r} pulled on its surface (f_n < 0) in {100.0 * share:.0f} % of the run from t = {since:.3f} s, "
+        f"down to {lowest:.3g} N (mean {mean:.3g} N while pulling): a table cannot pull: set unilateral: true "
+        f"(contacts.{name}.unilateral) and the contact lets go instead"
+    )
+
+
+def projection_warning(moves: Sequence[tuple[str, float, float, bool, float, float]], limit_text: str) -> str:
+    """``project_initial_position`` moved joints far: (joint, given, projected, prismatic, lower, upper) of
+    each, ``limit_text`` the threshold as said (e.g. "0.1 rad (0.01 m)")."""
+    parts = []
+    for joint, given, projected, prismatic, lower, upper in moves:
+        unit = "m" if prismatic else "rad"
+        text = f"joint {joint!r} by {projected - given:+.3g} {unit} ({given:.3f} -> {projected:.3f} {unit}"
+        room = min(projected - lower, upper - projected)
+        if room < (0.01 if prismatic else 0.1):
+            side = "lower" if projected - lower <= upper - projected else "upper"
+            text += f", {room:.3g} {unit} from its {side} limit"
+        parts.append(text + ")")
+    return (
+        f"project_initial_position moved {', '.join(parts)} to put the contacts on their surfaces, more than "
+        f"{limit_text}: the run starts far from initial_position; give an initial_position near the surfaces "
+        "(the projected one is in the simulator's log)"
+    )
+
+
+def drift_warning(name: str, residual: float, t: float, baumgarte: float) -> str:
+    """A held contact ``residual`` [m] off its surface at ``t`` [s], with Baumgarte gain ``baumgarte`` [1/s]."""
+    return (
+        f"held contact {name!r} has drifted {residual:.3g} m off its surface at t = {t:.3f} s "
+        f"(baumgarte = {baumgarte:g} 1/s; raise it, e.g. 10-200 1/s, to hold the contacts)"
+    )
+
+
+def first_report_warning(message: str, t: float) -> str:
+    """The first of a kind of report the simulator's log repeats (rate-limited), as the summary has it."""
+    return f"{message} (first at t = {t:.3f} s; the simulator's log says how often)"
 
 
 def slow_real_time_warning(achieved: float, requested: float) -> str | None:

@@ -208,9 +208,9 @@ class SharedConfig:
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
         joint_names = values["robot.joint_names"]
-        for joint in values["robot.locked_joints"]:
-            if joint not in joint_names:
-                raise ConfigError(f"robot.locked_joints: {joint!r} is not in robot.joint_names {list(joint_names)}")
+        # A locked joint may be listed in robot.joint_names (its entry in every per-joint list then stays,
+        # unused) or not (a joint the configuration never drives, such as a gripper's finger: no entry
+        # anywhere); whether it is a joint of the model at all, the model says (Plant).
         return cls(
             urdf,
             joint_names,
@@ -225,6 +225,32 @@ class SharedConfig:
             values["free_space"],
             package_paths=tuple(values["robot.package_paths"]),
         )
+
+
+def joint_names_mismatch(actuated: Sequence[str], model: Sequence[str], listed: Sequence[str]) -> str | None:
+    """Why robot.joint_names (``listed``; ``actuated``: less the locked joints) cannot be the model's moving
+    joints (``model``, the locked ones removed), pointing at the fix; None if they are the same names."""
+    if sorted(actuated) == sorted(model) and len(set(actuated)) == len(actuated):
+        return None
+    problems = []
+    twice = sorted({name for name in actuated if actuated.count(name) > 1})
+    if twice:
+        problems.append(f"{', '.join(map(repr, twice))} listed twice")
+    unknown = [name for name in actuated if name not in model]
+    if unknown:
+        problems.append(
+            f"{', '.join(map(repr, unknown))} {'is' if len(unknown) == 1 else 'are'} not a moving joint of it"
+        )
+    extra = [name for name in model if name not in actuated]
+    if extra:
+        them = ", ".join(extra)
+        problems.append(
+            f"it also moves {', '.join(map(repr, extra))}: to hold {'it' if len(extra) == 1 else 'them'} fixed, set "
+            f"robot.locked_joints: [{them}] (a locked joint not in robot.joint_names needs no entry in any per-joint "
+            "list; robot.locked_positions says where, default 0), or add "
+            f"{'it' if len(extra) == 1 else 'them'} to robot.joint_names with a value in every per-joint list"
+        )
+    return f"robot.joint_names {list(listed)} do not match the model's joints {list(model)}: {'; '.join(problems)}"
 
 
 class Plant:
@@ -242,6 +268,9 @@ class Plant:
             )
             # Index array taking configuration-ordered data to model order (locked joints dropped).
             actuated = [name for name in config.joint_names if name not in config.locked_joints]
+            mismatch = joint_names_mismatch(actuated, self.robot.joint_names, config.joint_names)
+            if mismatch:
+                raise ConfigError(mismatch)
             order = self.robot.joint_permutation(actuated)
         except ModelError as exc:
             raise ConfigError(str(exc)) from None
@@ -451,16 +480,38 @@ def circuit_substeps(plant: Plant, q0: Vector, step: float) -> int:
     if step * fastest <= STIFF_STEP:
         return 1
     return math.ceil(step * fastest / RK4_ACCURATE_STEP)
+UNILATERAL_PROJECTION_M = 0.05
+"""A braced unilateral contact that starts at most this far above its surface [m] is put on it by
+``project_initial_position``: a posture measured or guessed by hand is off by millimetres to
+centimetres, and the controller braces the contact, so it is meant to be on it. Further up, the
+start is in the air on purpose (a drop onto the surface): left as given."""
+
+
+def projected_contacts(plant: Plant, metric: ConstrainedDynamics, q0: Vector) -> list[int]:
+    """The contacts (rows of ``plant.contact_set``) ``project_initial_position`` puts on their surfaces
+    at ``q0``: every bilateral one, and every braced unilateral one that starts through its surface, on
+    it (kept there while the others move the arm), or above it by at most ``UNILATERAL_PROJECTION_M``.
+    An obstacle (no desired_normal_force) and a collision frame are left alone: nothing asks them to
+    touch, and one that starts through its surface is refused by ``check_start``. ``metric``: the
+    plant's dynamics, for the residuals."""
+    contacts = plant.contact_set.contacts
+    braced = {c.name for c in plant.config.braced_contacts}
+    rows = [j for j, c in enumerate(contacts) if not c.unilateral]
+    candidates = [j for j, c in enumerate(contacts) if c.unilateral and c.enforced and c.name in braced]
+    if not candidates:
+        return rows  # the paper's case: bilateral contacts only, as before
+    residual = metric.terms(q0, np.zeros(plant.robot.nv)).residual
+    return sorted(rows + [j for j in candidates if residual[j] <= UNILATERAL_PROJECTION_M])
 
 
 def project_initial_position(plant: Plant, q0: Vector) -> Vector:
-    """The posture nearest ``q0`` (joint-space metric M) where every bilateral contact holds."""
-    contacts = plant.contact_set
-    bilateral = [j for j, c in enumerate(contacts.contacts) if not c.unilateral]
+    """The posture nearest ``q0`` (joint-space metric M) where the contacts of ``projected_contacts``
+    hold: every bilateral one, and each braced unilateral one that starts through, on or just above
+    its surface (``UNILATERAL_PROJECTION_M``)."""
     # in the metric of M (torque mode: no rotor inertia), whatever the input mode
-    metric = ConstrainedDynamics(plant.robot, plant.motors, contacts, InputMode.TORQUE)
+    metric = ConstrainedDynamics(plant.robot, plant.motors, plant.contact_set, InputMode.TORQUE)
     try:
-        return metric.project(q0, bilateral)
+        return metric.project(q0, projected_contacts(plant, metric, q0))
     except ValueError as exc:
         raise ConfigError(f"project_initial_position: {exc}") from None
 

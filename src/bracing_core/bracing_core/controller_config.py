@@ -50,7 +50,8 @@ class ControllerConfig:
     @classmethod
     def from_values(cls, values: schema.Values, search_dirs: Sequence[Path] = ()) -> ControllerConfig:
         shared = SharedConfig.from_values(values, search_dirs)
-        n, p = len(shared.joint_names) - len(shared.locked_joints), len(shared.braced_contacts)
+        n = len([name for name in shared.joint_names if name not in shared.locked_joints])  # the moving ones
+        p = len(shared.braced_contacts)
         axes = axes_indices("hand.axes", values["hand.axes"])
         trajectory = trajectory_from_values("hand.trajectory.", values.values, values["hand.trajectory.point"])
         hand = HandTaskConfig(values["hand.frame"], axes, values["hand.kp"], values["hand.kd"], trajectory)

@@ -123,18 +123,38 @@ class DecoupledController:
         """Refuse a task direction the arm cannot move along at the start ``q0`` (model order): each
         configured axis (hand axes, then each brace's) must add a rank to the stacked task Jacobian
         within the motions the braced contacts allow (the null space of J_c; the engine's
-        ``Law.first_rankless_axis``). ConfigError names the first axis that adds none."""
-        task, axis = self.engine.first_rankless_axis(np.asarray(q0, dtype=float))
+        ``Law.first_rankless_axis``). ConfigError names the first axis that adds none, and what fails:
+        the axis itself (the frame cannot move along it), the task's axes together (fewer free
+        directions along them than axes: keep that many), or the tasks before it (they take the
+        directions it needs), counting free directions with ``Law.task_rank``."""
+        q0 = np.asarray(q0, dtype=float)
+        task, axis = self.engine.first_rankless_axis(q0)
         if task < 0:
             return
-        if task == 0:
-            parameter, frame = "hand.axes", self.config.hand.frame
-        else:
-            contact = self.config.shared.braced_contacts[task - 1]
-            parameter, frame = f"contacts.{contact.name}.brace_axes", contact.frame
+        contacts = self.config.shared.braced_contacts
+        tasks = [("hand.axes", self.config.hand.frame, self.config.hand.axes)]
+        tasks += [(f"contacts.{c.name}.brace_axes", c.frame, c.brace_axes) for c in contacts]
+        parameter, frame, axes = tasks[task]
+        if self.engine.task_rank(q0, [(task, axis)]) == 0:
+            raise ConfigError(
+                f"{parameter}: frame {frame!r} cannot move along {'xyz'[axis]} at the start (that direction adds "
+                "no rank to the task Jacobian, within the motions the braced contacts allow); remove the axis"
+            )
+        own = list(axes[: axes.index(axis) + 1])  # this task's axes so far: each alone is free
+        free = self.engine.task_rank(q0, [(task, a) for a in own])
+        if free < len(own):
+            keep = {1: "one", 2: "two"}.get(free, str(free))
+            raise ConfigError(
+                f"{parameter}: {_axes_text(own)} needs {len(own)} free directions beside the contacts; frame "
+                f"{frame!r} has {free} along them at the start (each axis alone has one): keep {keep} of them"
+            )
+        before = [(k, a) for k, (_, _, task_axes) in enumerate(tasks[:task]) for a in task_axes]
+        rows = [*before, *((task, a) for a in own)]
+        others = "; ".join(f"{name} {_axes_text(task_axes)}" for name, _, task_axes in tasks[:task] if task_axes)
         raise ConfigError(
-            f"{parameter}: frame {frame!r} cannot move along {'xyz'[axis]} at the start (that direction adds "
-            "no rank to the task Jacobian, within the motions the braced contacts allow); remove the axis"
+            f"{parameter}: {_axes_text(own)} with {others} needs {len(rows)} free directions beside the contacts; "
+            f"the arm has {self.engine.task_rank(q0, rows)} for them at the start (each task alone has enough): "
+            "remove an axis from one of them"
         )
 
     def update(self, t: float, q: Vector, dq: Vector) -> ControlOutput:
@@ -174,6 +194,11 @@ class DecoupledController:
     def measure_temperature(self, temperature: Vector) -> None:
         """The windings' measured temperatures [degC], model joint order (motor_state)."""
         self.engine.measure_temperature(np.asarray(temperature, dtype=float))
+
+
+def _axes_text(axes: list[int] | tuple[int, ...]) -> str:
+    """World axis indices as the configuration writes them: [x, y]."""
+    return "[" + ", ".join("xyz"[a] for a in axes) + "]"
 
 
 def check_task_rank(config: ControllerConfig, plant: Plant, q0: Vector) -> None:

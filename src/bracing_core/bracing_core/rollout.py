@@ -26,6 +26,7 @@ from bracing_core.controller_config import ControllerConfig
 from bracing_core.law import DecoupledController
 from bracing_core.overrides import CONTROLLER, SIMULATOR, NodeOverrides, node_params
 from bracing_core.simulator import Energy, Simulator
+from bracing_core.watch import RunWatch
 
 Overrides = Mapping[str, Any] | None
 
@@ -142,6 +143,7 @@ class Recording:
     braced_names: tuple[str, ...]  # the controller's: the contacts it keeps a force on
     joint_names: tuple[str, ...]  # model order (the columns of position, ...)
     input_mode: str
+    warnings: tuple[str, ...] = ()  # the simulator's warnings about the run (watch.RunWatch), as its node says them
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Every field as an array (for an .npz; the names as string arrays, no pickles)."""
@@ -159,6 +161,9 @@ def run_recorded(scenario: Scenario, duration: float, divergence_checks: bool = 
     Stops where the simulator node refuses to go on (``divergence_checks``, with the scenario's
     simulator configuration): DivergenceError for a non-finite state or force, a joint faster
     than ``divergence_speed`` or a held contact further than ``divergence_residual`` off its surface.
+    The simulator's warnings about the run (``watch.RunWatch`` over the recorded states, as the node
+    watches the states it reports) are the recording's ``warnings`` (none without the scenario's
+    simulator configuration).
     """
     sim, controller = scenario.sim, scenario.controller
     if controller is None:
@@ -166,8 +171,17 @@ def run_recorded(scenario: Scenario, duration: float, divergence_checks: bool = 
     steps = round(duration / sim.step_size)
     config = scenario.sim_config if divergence_checks else None
     limits = (config.divergence_speed, config.divergence_residual) if config is not None else (np.inf, np.inf)
+    watch = None
+    if scenario.sim_config is not None:
+        watch = RunWatch(scenario.plant, scenario.sim_config, sim, at_start=sim.steps_taken == 0)
+    events = len(sim.events)
     out = sim.rollout(controller.engine, steps, *limits, sensors=scenario.sensors())
     rows, p, braced = steps + 1, len(scenario.plant.contact_set), len(controller.contact_set)
+    warnings: list[str] = []
+    if watch is not None:
+        watch.events(sim.events[events:])
+        warnings = watch.start() + watch.states(out["time"], out["active"], out["normal_force"], out["residual"])
+        warnings += watch.finish()
     return Recording(
         time=out["time"],
         position=out["position"],
@@ -197,4 +211,5 @@ def run_recorded(scenario: Scenario, duration: float, divergence_checks: bool = 
         braced_names=tuple(controller.contact_set.names),
         joint_names=tuple(scenario.plant.joint_names),
         input_mode=scenario.plant.mode.value,
+        warnings=tuple(warnings),
     )

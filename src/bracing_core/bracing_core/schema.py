@@ -14,7 +14,7 @@ controller runs; every other parameter is read-only once a node has started.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from enum import Enum
 from typing import Any
@@ -193,14 +193,16 @@ SHARED: tuple[Param, ...] = (
         "robot.joint_names",
         Kind.STRING_ARRAY,
         REQUIRED,
-        "the actuated joints: the order of every per-joint list in the configuration",
+        "the actuated joints: the order of every per-joint list in the configuration (a locked joint listed here "
+        "counts too, its values unused)",
     ),
     Param("robot.gravity", Kind.DOUBLE_ARRAY, [0.0, 0.0, -9.81], "gravity, world frame", "m/s^2", length=3),
     Param(
         "robot.locked_joints",
         Kind.STRING_ARRAY,
         [],
-        "joints of robot.joint_names held fixed (pinocchio's reduced model): no motor, not in the messages",
+        "joints of the model held fixed (pinocchio's reduced model): no motor, not in the messages; one not in "
+        "robot.joint_names needs no entry in any per-joint list (a gripper's fingers)",
     ),
     Param(
         "robot.locked_positions",
@@ -627,7 +629,8 @@ SIMULATOR: tuple[Param, ...] = (
         Kind.BOOL,
         False,
         "true: initial_position is a guess, moved to the nearest posture (metric M) where every bilateral contact "
-        "holds; the result is logged",
+        "holds, and every braced unilateral one that starts through, on or at most 0.05 m above its surface (an "
+        "obstacle is left alone); the result is logged, and a joint moved more than 0.1 rad (0.01 m) is warned about",
     ),
     Param(
         "stepping",
@@ -659,7 +662,8 @@ SIMULATOR: tuple[Param, ...] = (
         "min_status_subscribers",
         Kind.INTEGER,
         0,
-        "run_status subscribers to wait for before the first state (bracing-pair sets 1: it follows the run there)",
+        "run_status subscribers to wait for before the first state (bracing-pair sets 2: it follows the run there, "
+        "and the recorder keeps the warnings; 3 with --view)",
         minimum=0,
     ),
     Param(
@@ -822,11 +826,25 @@ def contact_name(name: str, field: str) -> str:
     return f"contacts.{name}.{field}"
 
 
-_HINTS = {
-    "robot.joint_names": lambda values: f"one per joint of robot.joint_names ({len(values)})",
-    "hand.axes": lambda values: f"one per hand axis {list(values)}",
-    "brace_axes": lambda values: f"one per brace axis {list(values)}",
-    "robot.locked_joints": lambda values: f"one per locked joint {list(values)}",
+def _joint_hint(values: Sequence[str], read: Mapping[str, Any]) -> str:
+    """What a per-joint list's length counts. Per-joint lists follow robot.joint_names, locked joints
+    listed there included (their values unused): a list then stays as it is when a joint is locked
+    or unlocked for a run (``--set robot.locked_joints=[...]``). A joint locked without being listed
+    there (a gripper's fingers) needs no entry: the hint says which listed ones count though locked."""
+    locked = [name for name in values if name in (read.get("robot.locked_joints") or ())]
+    if not locked:
+        return f"one per joint of robot.joint_names ({len(values)})"
+    return (
+        f"one per joint of robot.joint_names ({len(values)}), the locked {', '.join(locked)} included (values "
+        "unused; a joint in robot.locked_joints but not in robot.joint_names needs none)"
+    )
+
+
+_HINTS: dict[str, Callable[[Sequence[str], Mapping[str, Any]], str]] = {
+    "robot.joint_names": _joint_hint,
+    "hand.axes": lambda values, read: f"one per hand axis {list(values)}",
+    "brace_axes": lambda values, read: f"one per brace axis {list(values)}",
+    "robot.locked_joints": lambda values, read: f"one per locked joint {list(values)}",
 }
 
 
@@ -866,7 +884,7 @@ def _read_floats(param: Param, name: str, params: Params, read: Mapping[str, Any
     hint = ""
     if isinstance(param.length, str):
         reference = read[param.length]
-        length, hint = len(reference), _HINTS[param.length](reference)
+        length, hint = len(reference), _HINTS[param.length](reference, read)
     value = get_floats(params, name, default)
     if param.default is not REQUIRED and param.may_be_empty and not value:
         if isinstance(param.default, PerJoint):  # empty: the per-joint default
@@ -874,7 +892,8 @@ def _read_floats(param: Param, name: str, params: Params, read: Mapping[str, Any
         return ()
     if length is not None and len(value) != length:
         if param.may_be_empty:
-            raise ConfigError(f"{name}: expected {length} values or an empty list, got {list(value)}")
+            what = f" ({hint})" if hint else ""
+            raise ConfigError(f"{name}: expected {length} values{what} or an empty list, got {list(value)}")
         value = get_floats(params, name, default, length=length, length_hint=hint)  # raises, naming the length
     if param.positive and any(v <= 0.0 for v in value):
         raise ConfigError(f"{name}: values must be > 0, got {list(value)}")

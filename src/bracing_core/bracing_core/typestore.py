@@ -15,7 +15,7 @@ from typing import Any
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
-BRACING_MSGS = ("ContactState", "Contacts", "ControllerState", "MotorCommand", "MotorState")
+BRACING_MSGS = ("ContactState", "Contacts", "ControllerState", "MotorCommand", "MotorState", "RunStatus")
 
 # The message types a run sends, records and derives, named as the typestore and a bag's metadata name them.
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -30,6 +30,7 @@ CONTACTS = "bracing_msgs/msg/Contacts"
 CONTROLLER_STATE = "bracing_msgs/msg/ControllerState"
 MOTOR_COMMAND = "bracing_msgs/msg/MotorCommand"
 MOTOR_STATE = "bracing_msgs/msg/MotorState"
+RUN_STATUS = "bracing_msgs/msg/RunStatus"
 
 
 def bracing_msgs_dir() -> Path:

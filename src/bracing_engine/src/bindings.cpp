@@ -307,6 +307,9 @@ NB_MODULE(_engine, m) {
            "max |(I - J^+ J) dq| [rad/s or m/s], J the task rows at the last update's q")
       .def("first_rankless_axis", &Law::first_rankless_axis, "q0"_a,
            "(task: 0 the hand, 1 + j brace j; world axis) of the first axis adding no rank at q0, or (-1, -1)")
+      .def("task_rank", &Law::task_rank, "q0"_a, "rows"_a,
+           "the rank at q0 of the rows [(task: 0 the hand, 1 + j brace j; world axis)] within the motions the "
+           "braced contacts allow")
       .def("retune", &Law::retune, "hand_kp"_a, "hand_kd"_a, "brace_kp"_a, "brace_kd"_a, "desired_normal_force"_a,
            "voltage_gain"_a)
       .def_prop_ro("desired_normal_force", &Law::desired_normal_force);

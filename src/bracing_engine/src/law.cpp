@@ -271,7 +271,7 @@ RowMatrix Law::task_positions(const Vector& q) {
   return out;
 }
 
-std::pair<int, int> Law::first_rankless_axis(const Vector& q0) {
+Eigen::MatrixXd Law::allowed_task_rows(const Vector& q0, const std::vector<std::pair<int, int>>& rows) {
   Impl& m = *impl_;
   const int n = m.model.nv, p = braces();
   const Vector zero = Vector::Zero(n);
@@ -295,20 +295,44 @@ std::pair<int, int> Law::first_rankless_axis(const Vector& q0) {
     }
     allowed -= jc.completeOrthogonalDecomposition().pseudoInverse() * jc;
   }
-  Eigen::MatrixXd rows(0, n);
+  Eigen::MatrixXd out(static_cast<Eigen::Index>(rows.size()), n);
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const auto [task, axis] = rows[i];
+    if (task < 0 || task > p || axis < 0 || axis > 2) throw std::invalid_argument("allowed_task_rows: no such row");
+    out.row(static_cast<Eigen::Index>(i)) = translational(static_cast<std::size_t>(task)).row(axis) * allowed;
+  }
+  return out;
+}
+
+namespace {
+// Whether the smallest singular value of `rows` is negligible (the rank check's tolerance).
+bool rank_deficient(const Eigen::MatrixXd& rows) {
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(rows);
+  const auto& sigma = svd.singularValues();
+  return sigma[sigma.size() - 1] <= 1e-6 * std::max(sigma[0], 1.0);
+}
+}  // namespace
+
+std::pair<int, int> Law::first_rankless_axis(const Vector& q0) {
+  const Impl& m = *impl_;
+  std::vector<std::pair<int, int>> configured;
   for (std::size_t k = 0; k < m.frames.size(); ++k) {
     const Task& task = k ? m.spec.braces[k - 1].task : m.spec.hand;
-    const Eigen::MatrixXd jacobian = translational(k);
-    for (int axis : task.axes) {
-      Eigen::MatrixXd candidate(rows.rows() + 1, n);
-      candidate << rows, jacobian.row(axis) * allowed;
-      const Eigen::JacobiSVD<Eigen::MatrixXd> svd(candidate);
-      const auto& sigma = svd.singularValues();
-      if (sigma[sigma.size() - 1] <= 1e-6 * std::max(sigma[0], 1.0)) return {static_cast<int>(k), axis};
-      rows = candidate;
-    }
+    for (int axis : task.axes) configured.emplace_back(static_cast<int>(k), axis);
   }
+  const Eigen::MatrixXd rows = allowed_task_rows(q0, configured);
+  for (Eigen::Index i = 0; i < rows.rows(); ++i)
+    if (rank_deficient(rows.topRows(i + 1))) return configured[static_cast<std::size_t>(i)];
   return {-1, -1};
+}
+
+int Law::task_rank(const Vector& q0, const std::vector<std::pair<int, int>>& rows) {
+  if (rows.empty()) return 0;
+  const Eigen::MatrixXd stacked = allowed_task_rows(q0, rows);
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(stacked);
+  const auto& sigma = svd.singularValues();
+  const double tolerance = 1e-6 * std::max(sigma[0], 1.0);
+  return static_cast<int>((sigma.array() > tolerance).count());
 }
 
 void Law::retune(const Vector3& hand_kp, const Vector3& hand_kd, const std::vector<Vector3>& brace_kp,

@@ -65,6 +65,7 @@ def series_from_recording(rec: Recording) -> BagSeries:
         copper_loss=rec.copper_loss,
         motor_names=list(rec.joint_names),
         motor_temperature=rec.temperature,
+        warnings=list(rec.warnings),  # what the simulator node would have said on run_status
         input_mode=rec.input_mode,
     )
     braced = {name: b for b, name in enumerate(rec.braced_names)}

@@ -84,6 +84,10 @@ class RateLimitedLog:
         else:
             self._logger.info(text)
 
+    def mark(self, kind: str) -> None:
+        """A report of ``kind`` was just made elsewhere (said in full): the next waits its period, as after one."""
+        self._last[kind] = time.monotonic()
+
 
 def create_waking_publisher(node: Node, msg_type: type, topic: str, qos: QoSProfile) -> Publisher:
     """``node.create_publisher``, for a publisher whose matches ``wait_until`` waits for: a match

@@ -2,7 +2,9 @@
 
 The simulator, the controller and the recorder say each moment of their run here (configured,
 ready, stepping, progress, finished, bag closed); bracing-pair supervises a run and builds its
-timeline from these messages (``StatusWatcher``), never from log text. The topic is reliable and
+timeline from these messages (``StatusWatcher``), never from log text. The simulator also says each
+warning about its run here (``warn``, also in its log): the recorder keeps those in the bag, and the
+summary (bracing-pair's and bracing-report's alike) takes them from there. The topic is reliable and
 transient local, so a watcher that joins late gets every process's history, and a process waits
 until its last status is acknowledged before it exits (``StatusPublisher.flush``).
 """
@@ -30,7 +32,7 @@ from bracing_ros.fastdds import PROFILE_ENV, RANGE_ENV, use_fastdds_profile
 STATUS_TOPIC = "run_status"
 STATUS_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
-    depth=100,  # a run's few events and its latest progress, for a late subscriber
+    depth=100,  # a run's few events and warnings and its latest progress, for a late subscriber
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
@@ -41,6 +43,7 @@ EVENT_NAMES = {
     RunStatus.PROGRESS: "progress",
     RunStatus.FINISHED: "finished",
     RunStatus.BAG_CLOSED: "bag closed",
+    RunStatus.WARNING: "warning",
 }
 
 
@@ -48,15 +51,17 @@ class Status(NamedTuple):
     """A run_status message as plain values (what a watcher hands on)."""
 
     node: str
-    event: str  # EVENT_NAMES' words: configured, ready, stepping, progress, finished, bag closed
+    event: str  # EVENT_NAMES' words: configured, ready, stepping, progress, finished, bag closed, warning
     wall_time_s: float  # [s] since the epoch
     sim_time: float  # [s], NaN where none
     real_time_factor: float  # NaN but in a real-time run's FINISHED
+    text: str = ""  # a warning's
 
     @classmethod
     def of(cls, msg: RunStatus) -> Status:
         wall = msg.wall_time.sec + 1e-9 * msg.wall_time.nanosec
-        return cls(msg.node, EVENT_NAMES.get(msg.event, str(msg.event)), wall, msg.sim_time, msg.real_time_factor)
+        event = EVENT_NAMES.get(msg.event, str(msg.event))
+        return cls(msg.node, event, wall, msg.sim_time, msg.real_time_factor, msg.text)
 
 
 class StatusPublisher:
@@ -66,11 +71,17 @@ class StatusPublisher:
         self._name = node.get_name()
         self._publisher = create_waking_publisher(node, RunStatus, STATUS_TOPIC, STATUS_QOS)  # see subscribers()
 
-    def say(self, event: int, sim_time: float = math.nan, real_time_factor: float = math.nan) -> None:
-        msg = RunStatus(node=self._name, event=event, sim_time=float(sim_time), real_time_factor=real_time_factor)
+    def say(self, event: int, sim_time: float = math.nan, real_time_factor: float = math.nan, text: str = "") -> None:
+        msg = RunStatus(
+            node=self._name, event=event, sim_time=float(sim_time), real_time_factor=real_time_factor, text=text
+        )
         msg.wall_time.sec, nanosec = divmod(time.time_ns(), 10**9)
         msg.wall_time.nanosec = nanosec
         self._publisher.publish(msg)
+
+    def warn(self, text: str, sim_time: float) -> None:
+        """A warning about the run at ``sim_time`` [s] (the recorder keeps it for the summary)."""
+        self.say(RunStatus.WARNING, sim_time, text=text)
 
     def subscribers(self) -> int:
         """How many subscribers have matched run_status (a match wakes ``common.wait_until``)."""

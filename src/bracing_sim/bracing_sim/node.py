@@ -22,13 +22,14 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
 from bracing_core import schema
-from bracing_core.checks import REAL_TIME_ACHIEVED, let_go_warning, never_reached_warning, slow_real_time_warning
+from bracing_core.checks import REAL_TIME_ACHIEVED
 from bracing_core.config import SimulatorConfig, build_simulator
 from bracing_core.dynamics import Derivative, InputMode
 from bracing_core.meshes import missing_warning
 from bracing_core.sensing import GROUND_TRUTH
 from bracing_core.simulator import DivergenceError, Energy
 from bracing_core.types import Vector
+from bracing_core.watch import RunWatch
 from bracing_msgs.msg import Contacts, MotorCommand, MotorState, RunStatus
 from bracing_ros import parameters, wire
 from bracing_ros.commands import MODE_CODES, CommandError, command_vector
@@ -53,10 +54,6 @@ DESCRIPTION_QOS = QoSProfile(
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 """robot_description as robot_state_publisher offers it: one message, kept for late subscribers."""
-
-
-DRIFT_WARNING_M = 1e-7
-"""A held contact further than this off its surface: a warning that points at ``baumgarte``."""
 
 
 class SimulatorNode(Node):
@@ -135,12 +132,9 @@ class SimulatorNode(Node):
         self._next_progress = 0.0  # wall time of the next progress line
         self.max_residual = 0.0  # [m], over the run so far (contacts holding a force)
         self._events_logged = 0
-        # Braced contacts (the controller keeps a force on them) should hold: letting go, or never
-        # touching down, is warned about once each (an obstacle does either as it likes).
-        braced = {c.name for c in self.config.shared.braced_contacts}
-        names = [c.name for c in self.plant.contact_set.contacts]
-        self.braced_unreached = {n for n, on in zip(names, self.sim.active, strict=True) if n in braced and not on}
-        self.braced_held = braced - self.braced_unreached  # touching, not let go yet
+        # What the run should be warned about (policy in the core: the in-process rollout says the same);
+        # each warning goes to the log and to run_status, whence the recorder puts it in the bag (``say``).
+        self.watch = RunWatch(self.plant, self.config, self.sim)
         self.refusal = ""  # why the last refused step was refused
         self.get_logger().info(
             f"{self.mode.value} input, {len(self.plant.contact_set)} contact(s), step {self.config.step} s, "
@@ -157,7 +151,24 @@ class SimulatorNode(Node):
             self.get_logger().info(
                 f"initial position projected onto the contacts: {projected} (moved {moved:.3g} at most)"
             )
+        self.say(self.watch.start())
         self.status.say(RunStatus.CONFIGURED, self.sim.time)
+
+    def say(self, warnings: list[str]) -> None:
+        """Each warning about the run in the log and on run_status (the recorder keeps it for the summary)."""
+        for warning in warnings:
+            self.get_logger().warning(warning)
+            self.status.warn(warning, self.sim.time)
+
+    def warn_report(self, kind: str, message: str) -> None:
+        """A warning the log repeats (rate-limited per kind): the first of its kind is said in full (``say``),
+        the rest are counted by the log."""
+        first = self.watch.once(kind, message, self.sim.time)
+        if first:
+            self.say(first)
+            self.report.mark(kind)  # the limiter counts on from this one
+        else:
+            self.report("warning", kind, message)
 
     # -- commands -------------------------------------------------------------------
     def on_command(self, data: bytes) -> None:
@@ -188,7 +199,7 @@ class SimulatorNode(Node):
             )
             return
         if saturated:  # said only of a command that is applied
-            self.report("warning", "saturated", f"motor_command saturated to +/-{self.limit}")
+            self.warn_report("saturated", f"motor_command saturated to +/-{self.limit}")
         if self.config.stepping == "real_time":
             self.latest_command = (time.monotonic(), u)
         else:
@@ -279,22 +290,19 @@ class SimulatorNode(Node):
             self.refusal = str(exc)
             return False
         self.command = command
-        if residual > DRIFT_WARNING_M >= self.max_residual:  # said once, when the drift first gets there
-            self.get_logger().warning(
-                f"a held contact has drifted {residual:.3g} m off its surface at t = {self.sim.time:.3f} s "
-                f"(baumgarte = {self.config.baumgarte:g} 1/s; raise it, e.g. 10-200 1/s, to hold the contacts)"
-            )
         self.max_residual = max(self.max_residual, residual)
         self.publish_state(effort)
         self.publish_step(t_ns, command, d, current, temperature, energy)
         self.flow.sent()
-        for event in self.sim.events[self._events_logged :]:
+        events = self.sim.events[self._events_logged :]
+        for event in events:
             extra = f", {event.impact_loss:.4g} J lost in the impact" if event.kind == "touchdown" else ""
             if event.kind in ("stick", "slip"):  # Coulomb friction: frequent, and not news
                 continue
             self.get_logger().info(f"contact {event.contact!r}: {event.kind} at t = {event.time:.6f} s{extra}")
-            self.warn_braced(event.contact, event.kind, event.time)
         self._events_logged = len(self.sim.events)
+        self.watch.events(events)
+        self.watch_state(t_ns, d)
         now = time.monotonic()
         if now >= self._next_progress:
             self._next_progress = now + 0.5
@@ -302,14 +310,11 @@ class SimulatorNode(Node):
             self.status.say(RunStatus.PROGRESS, self.sim.time)
         return True
 
-    def warn_braced(self, contact: str, kind: str, t: float) -> None:
-        """Warn when a braced contact lets go (once per contact); a first touchdown reaches it."""
-        if kind == "touchdown" and contact in self.braced_unreached:
-            self.braced_unreached.discard(contact)
-            self.braced_held.add(contact)
-        elif kind == "release" and contact in self.braced_held:
-            self.braced_held.discard(contact)  # for good: said once, whatever it does next
-            self.get_logger().warning(let_go_warning(contact, t))
+    def watch_state(self, t_ns: int, d: Derivative) -> None:
+        """Give the watch the state a step's reports described (as ``contacts`` has it), and say its warnings."""
+        terms = d.contacts
+        active = d.active if d.active is not None else np.ones(terms.count, dtype=bool)
+        self.say(self.watch.states([t_ns * 1e-9], active, d.normal_force, terms.residual))
 
     def refuse(self, command: Vector) -> None:
         """Say that ``command`` was refused because its step is not finite, naming its largest value."""
@@ -348,8 +353,8 @@ class SimulatorNode(Node):
         else:
             self.command = command  # type: ignore[assignment]  # not None here
         self.publish_step(t_ns, self.command, d, self.sim.current, self.sim.temperature, self.sim.energy)
-        for contact in sorted(self.braced_unreached):
-            self.get_logger().warning(never_reached_warning(contact))
+        self.watch_state(t_ns, d)
+        self.say(self.watch.finish())  # on run_status before FINISHED: the recorder has them when it closes the bag
         self.flow.wait()  # every subscriber has every message before this process ends
         self.get_logger().info(f"progress t={self.sim.time:.3f} max_residual={self.max_residual:.3e}")
         self.get_logger().info(f"finished at t = {self.sim.time:.6f} s")
@@ -442,8 +447,7 @@ def watchdog_command(node: SimulatorNode) -> Vector:
     cfg = node.config
     expected = node.sim.steps_taken * node.step_ns
     policy = cfg.watchdog_policy
-    node.report(
-        "warning",
+    node.warn_report(
         "watchdog",
         f"no valid motor_command for t = {expected * 1e-9:.6f} s within {cfg.command_timeout} s: "
         f"{'holding the last command' if policy == 'hold' else 'applying zero'}",
@@ -461,7 +465,7 @@ def spin_real_time(node: SimulatorNode, executor: SingleThreadedExecutor) -> Non
         latest = node.latest_command
         if latest is None or time.monotonic() - latest[0] > cfg.command_timeout:
             if latest is not None:
-                node.report("warning", "watchdog", "motor_command stale: applying zero")
+                node.warn_report("watchdog", "motor_command stale: applying zero")
             command = np.zeros(node.sim.n)
         else:
             command = latest[1]
@@ -491,9 +495,7 @@ def report_real_time(node: SimulatorNode, wall_s: float) -> None:
     node.real_time_achieved = achieved
     asked = node.config.real_time_factor
     node.get_logger().info(f"{REAL_TIME_ACHIEVED}{achieved:.4f}x real time (asked {asked:g}x)")
-    warning = slow_real_time_warning(achieved, asked)
-    if warning is not None:
-        node.get_logger().warning(warning)
+    node.say(node.watch.real_time(achieved, asked))
 
 
 def _finite(*arrays: Vector) -> bool:

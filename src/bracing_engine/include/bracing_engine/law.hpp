@@ -112,11 +112,18 @@ class Law {
   // task Jacobian at q0 within the motions the braced contacts allow (the null space of J_c):
   // (task index: 0 the hand, 1 + j brace j; world axis), or (-1, -1) if every axis adds one.
   std::pair<int, int> first_rankless_axis(const Vector& q0);
+  // The rank of those rows (task index, world axis: any of 0-2, configured or not) at q0 within the
+  // motions the braced contacts allow, with first_rankless_axis's tolerance: how many free directions
+  // they have (what its messages count).
+  int task_rank(const Vector& q0, const std::vector<std::pair<int, int>>& rows);
   int nv() const;
   int braces() const;
   Vector desired_normal_force() const;
 
  private:
+  // Rows (task index: 0 the hand, 1 + j brace j; world axis) of the translational task Jacobians at q0,
+  // times I - J_c^+ J_c (the motions the braced contacts allow).
+  Eigen::MatrixXd allowed_task_rows(const Vector& q0, const std::vector<std::pair<int, int>>& rows);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
