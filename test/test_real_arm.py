@@ -9,12 +9,14 @@ it moves no task point, so the paper's law gives it no torque of its own.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 from conftest import CONFIG_DIR, build_scenario
+from ros_helpers import pair_argv, run
 
 from bracing_core.checks import NULL_SPACE_SPEED, null_space_warning
 from bracing_core.config import circuit_substeps
@@ -117,7 +119,8 @@ WRIST = """  <joint name="wrist" type="revolute">
 REST = 0.3  # [rad] the wrist's start
 
 
-def wrist_arm(tmp_path: Path, ctl: dict[str, Any]) -> Recording:
+def wrist_params(tmp_path: Path, ctl: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+    """(shared, simulator, controller) overrides of the paper scenario for the arm with a free wrist."""
     urdf = tmp_path / "wrist.urdf"
     urdf.write_text((CONFIG_DIR / "paper_4link.urdf").read_text().replace("</robot>", WRIST))
 
@@ -133,7 +136,12 @@ def wrist_arm(tmp_path: Path, ctl: dict[str, Any]) -> Recording:
     start = [-0.6283185307179586, -1.8849555921538759, 2.5132741228718345, -1.2566370614359172, REST]
     sim = {"initial_position": start, "initial_velocity": five(0.0)}
     own = {"voltage_gain": five(1.0), "null_space_posture.kp": five(0.0), "null_space_posture.kd": five(0.0), **ctl}
-    return run_recorded(build_scenario({**shared, **motors, "input_mode": "torque"}, sim=sim, ctl=own), 3.0)
+    return {**shared, **motors, "input_mode": "torque"}, sim, own
+
+
+def wrist_arm(tmp_path: Path, ctl: dict[str, Any]) -> Recording:
+    shared, sim, own = wrist_params(tmp_path, ctl)
+    return run_recorded(build_scenario(shared, sim=sim, ctl=own), 3.0)
 
 
 def test_a_free_wrist_runs_away_without_a_posture_task_and_stays_with_one(tmp_path: Path) -> None:
@@ -160,3 +168,15 @@ def test_a_null_space_running_on_its_own_is_warned_about() -> None:
     assert warning is not None and "null_space_posture.kd" in warning and "0.250" in warning
     assert null_space_warning(NULL_SPACE_SPEED * 0.5, 0.001, 0.1) is None  # slow: no news
     assert null_space_warning(10.0, 0.05, 0.1) is None  # the hand is off its path: the tasks are moving it
+
+
+def test_the_pair_says_so_in_its_summary(tmp_path: Path) -> None:
+    """Through the nodes: the hand held where it starts (on its path from the first state), the wrist in the
+    dynamically consistent null space runs away, and the controller's warning reaches summary.json."""
+    shared, sim, own = wrist_params(tmp_path, {"null_space": "dynamically_consistent", "hand.trajectory.type": "hold"})
+    sets = [f"--set={key}={json.dumps(value)}" for key, value in {**shared, **sim, **own}.items()]
+    output = tmp_path / "run"
+    done = run(pair_argv(output, "--duration", "0.25", "--no-animation", *sets), timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    warnings = json.loads((output / "summary.json").read_text())["warnings"]
+    assert any("no task sees them" in w and "null_space_posture.kd" in w for w in warnings), warnings

@@ -224,6 +224,7 @@ class ControllerNode(Node):
         if warning is not None:
             self.null_space_warned = True
             self.get_logger().warning(warning)
+            self.status.warn(warning, t)  # the recorder keeps it for the summary, as the simulator's
 
     def on_state(self, data: bytes) -> None:
         try:

@@ -94,8 +94,8 @@ def null_space_warning(speed: float, hand_error: float, t: float) -> str | None:
         return None
     return (
         f"at t = {t:.3f} s joints move at {speed:.3g} rad/s where no task sees them while the hand is on its path: "
-        "the paper's null space (B^+) leaves such joints undamped and a light wrist can run away; set "
-        "null_space_posture.kd (and .kp) to damp them, and consider null_space: dynamically_consistent"
+        "the null space leaves such joints undamped and a light wrist can run away; set null_space_posture.kd "
+        "(and .kp) to damp them (with null_space: dynamically_consistent the contact torques leave them alone too)"
     )
 
 

@@ -97,8 +97,6 @@ class SimulatorNode(Node):
             ]
         # Its meshes as file:// paths of the files found here (robot.package_paths): viewers need no package index.
         description, missing_meshes = self.plant.description()
-        if missing_meshes:
-            self.get_logger().warning(missing_warning(missing_meshes))
         self.description_pub.publish(String(data=description))
         # Messages travel as CDR bytes built by ``wire`` (rclpy's message classes cost more than the DDS write).
         contacts = self.plant.contact_set.contacts
@@ -151,7 +149,7 @@ class SimulatorNode(Node):
             self.get_logger().info(
                 f"initial position projected onto the contacts: {projected} (moved {moved:.3g} at most)"
             )
-        self.say(self.watch.start())
+        self.say(([missing_warning(missing_meshes)] if missing_meshes else []) + self.watch.start())
         self.status.say(RunStatus.CONFIGURED, self.sim.time)
 
     def say(self, warnings: list[str]) -> None:
