@@ -73,6 +73,28 @@ def test_stiff_circuits_run_at_1_ms_and_converge_to_16_sub_steps(inductance: flo
     assert abs(default.energy_consumed[-1] / fine.energy_consumed[-1] - 1.0) < 1e-4
 
 
+def test_the_energy_books_of_a_stiff_geared_arm_close() -> None:
+    """With the sub-steps its circuits need: int v i = copper + d(L i^2 / 2) + d(KE + PE) + d(rotor KE) +
+    viscous + friction + impacts - constraint work, over 1 s of the inverted-motor law."""
+    scenario = build_scenario(geared(), ctl=BEMF)
+    sim, plant, controller = scenario.sim, scenario.plant, scenario.controller
+    assert controller is not None and sim.substeps == 12
+    motors, robot = plant.motors, plant.robot
+
+    def stored() -> float:
+        q, dq, i = sim.position, sim.velocity, sim.current
+        mechanical = robot.kinetic_energy(q, dq) + robot.potential_energy(q)
+        return mechanical + 0.5 * float(dq @ (motors.reflected_inertia * dq)) + 0.5 * float(i @ (motors.inductance * i))
+
+    start = stored()
+    for _ in range(1000):
+        sim.step(controller.update(sim.time, sim.position, sim.velocity).command)
+    e = sim.energy
+    books = e.copper_loss + (stored() - start) + e.viscous_loss + e.friction_loss + e.impact_loss - e.constraint_work
+    assert e.net == pytest.approx(books, rel=2e-4, abs=1e-6)
+    assert e.consumed > 1.0
+
+
 # -- the motor inverted ---------------------------------------------------------------------------------------
 def test_the_back_emf_law_is_the_motor_model_inverted() -> None:
     """v = R tau / K_m + K_m dq per joint (R_20 without thermal compensation), K_V unused."""
