@@ -1,0 +1,105 @@
+"""command_output effort_forward: the controller drives a ros2_control robot.
+
+The torque law's efforts go out as std_msgs/Float64MultiArray on ``effort_command_topic``, one value
+per joint in the order of ``effort_command_joints`` (a JointGroupEffortController's ``joints``), on a
+timer at ``control_rate`` on the node's clock (``use_sim_time``: /clock), computed from the latest
+``joint_states`` of any publisher (joint_state_broadcaster's, or our simulator's). A state with a joint
+missing or not finite is refused, with a rate-limited warning, and nothing is sent from it.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from bracing_controller.states import StateError, joint_vectors
+from bracing_core.types import Vector
+from bracing_msgs.msg import RunStatus
+from bracing_ros import wire
+from bracing_ros.common import read_joint_state
+
+if TYPE_CHECKING:
+    from bracing_controller.node import ControllerNode
+
+COMMAND_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+"""forward_command_controller subscribes <name>/commands with SystemDefaultsQoS (reliable, volatile)."""
+
+STATE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.BEST_EFFORT,
+    durability=DurabilityPolicy.VOLATILE,
+)
+"""Best effort: matches joint_state_broadcaster (reliable) and a SensorDataQoS publisher alike; the latest counts."""
+
+
+class EffortForward:
+    """The effort publisher, the latest joint_states, and the order the efforts go out in."""
+
+    def __init__(self, node: ControllerNode) -> None:
+        config = node.config
+        joints = list(config.effort_command_joints) or list(config.shared.joint_names)
+        names = node.joint_names  # the law's (model) order
+        self.order = np.array([names.index(j) for j in joints], dtype=int)
+        self.joints = joints
+        self.publisher = node.create_publisher(Float64MultiArray, config.effort_command_topic, COMMAND_QOS)
+        self.latest: bytes | None = None
+        self.used: bytes | None = None
+
+    def on_state(self, data: bytes) -> None:
+        self.latest = data
+
+    def send(self, command: Vector) -> None:
+        """The law's efforts (model order) as the forward controller takes them."""
+        self.publisher.publish(Float64MultiArray(data=[float(v) for v in np.asarray(command)[self.order]]))
+
+
+def tick(node: ControllerNode) -> None:
+    """One control period: the law on the latest state, unless it is refused (or there is none yet)."""
+    effort = node.effort
+    assert effort is not None
+    data = effort.latest
+    if data is None:
+        return
+    try:
+        msg = read_joint_state(data, node.state_reader)
+        q, dq = joint_vectors(msg, node.joint_names)
+    except wire.DecodeError as exc:
+        node.report("warning", "malformed", f"joint_states refused: {exc}; no command sent")
+        return
+    except StateError as exc:
+        node.report("warning", str(exc).split(" ")[0], f"joint_states refused: {exc}; no command sent")
+        return
+    try:
+        node.respond(msg.stamp_ns, q, dq)
+    except Exception as exc:  # the last line of defence: no state may stop the controller
+        node.report("error", "internal", f"joint_states ignored: {type(exc).__name__}: {exc}")
+
+
+def spin_effort_forward(node: ControllerNode) -> int:
+    """Subscribe joint_states, then send the law's efforts at control_rate until stopped."""
+    effort = node.effort
+    assert effort is not None
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    node.create_subscription(JointState, "joint_states", effort.on_state, STATE_QOS, raw=True)
+    node.create_timer(1.0 / node.config.control_rate, lambda: tick(node))
+    node.get_logger().info(
+        f"effort_forward: {node.config.effort_command_topic} at {node.config.control_rate:g} Hz, joints {effort.joints}"
+    )
+    node.status.say(RunStatus.STEPPING)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    return 0
