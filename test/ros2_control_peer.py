@@ -2,15 +2,28 @@
 documented to (ros-controls/topic_based_hardware_interfaces, ros-controls/ros2_controllers), printing
 what they saw as JSON.
 
+What each one does is read from the sources (HEAD of ros-controls/topic_based_hardware_interfaces
+main, ros-controls/ros2_controllers jazzy):
+- joint_state_topic_hardware_interface/src/joint_state_topic_hardware_interface.cpp: parameters
+  joint_commands_topic (default /robot_joint_commands), joint_states_topic (/robot_joint_states),
+  trigger_joint_command_threshold (1e-5; -1 sends every cycle); commands published with rclcpp::QoS(1)
+  (reliable, volatile, depth 1), header.stamp = now, name[] of every joint in its order, only the
+  declared command interfaces filled; state read with SensorDataQoS, joints by name.
+- forward_command_controller/src/forward_controllers_base.cpp: ``~/commands`` with SystemDefaultsQoS,
+  a message with a non-finite value dropped, a length other than its joints' an update error.
+- joint_state_broadcaster/src/joint_state_broadcaster.cpp: ``joint_states`` with SystemDefaultsQoS,
+  frame_id base_link, NaN for an interface a joint lacks.
+
 python ros2_control_peer.py topic-system N PARAMS_JSON
-    joint_state_topic_hardware_interface/JointStateTopicSystem with our torque law behind it: reads
-    robot_joint_states with SensorDataQoS semantics (latest message), answers each state with our law's
-    torques as sensor_msgs/JointState on robot_joint_commands (reliable, depth 1; names in its own,
-    shuffled joint order, only `effort` filled), N states.
+    JointStateTopicSystem with our torque law behind it (joints declared in a shuffled order, effort
+    command interfaces only, trigger_joint_command_threshold -1 as the README sets it): answers each
+    state on /robot_joint_states with our law's torques on /robot_joint_commands, N states.
 python ros2_control_peer.py effort-controller N
-    effort_controllers/JointGroupEffortController: subscribes effort_controller/commands (reliable);
-    publishes a state on joint_states (best effort, as SensorDataQoS), then one with NaN, then one
-    missing a joint, and collects the Float64MultiArray commands (length, values) after each.
+    effort_controllers/JointGroupEffortController with joint_state_broadcaster: subscribes
+    effort_controller/commands (SystemDefaultsQoS, refusing as the controller does) and publishes
+    states on joint_states as the broadcaster does (SystemDefaultsQoS, NaN efforts) and as a
+    SensorDataQoS publisher would, then one with NaN, then one missing a joint, and collects the
+    accepted Float64MultiArray commands after each.
 python ros2_control_peer.py target T_PUB X Y Z [FRAME]
     a script sending the hand a target: waits for controller_state at t >= T_PUB, publishes a
     PointStamped on hand_target, and records the controller_state's hand (desired, actual) until the run ends.
@@ -26,7 +39,14 @@ import time
 import numpy as np
 import rclpy
 from geometry_msgs.msg import PointStamped
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_sensor_data,
+    qos_profile_system_default,
+)
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
@@ -34,7 +54,13 @@ from bracing_msgs.msg import ControllerState
 
 JOINTS = ["joint1", "joint2", "joint3", "joint4"]
 SHUFFLED = [2, 0, 3, 1]
-RELIABLE_1 = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE)
+RELIABLE_1 = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+"""rclcpp::QoS(1): JointStateTopicSystem's command publisher."""
 
 
 def _stamp(msg: JointState | ControllerState) -> float:
@@ -47,7 +73,8 @@ def topic_system(node: rclpy.node.Node, steps: int, params: dict[str, object]) -
 
     law = DecoupledController(ControllerConfig.from_params(params))
     names = list(law.plant.joint_names)
-    pub = node.create_publisher(JointState, "robot_joint_commands", RELIABLE_1)
+    pub = node.create_publisher(JointState, "/robot_joint_commands", RELIABLE_1)
+    threshold = -1.0  # trigger_joint_command_threshold, as the README sets it
     states: list[dict[str, object]] = []
     best_effort: list[float] = []
 
@@ -57,14 +84,17 @@ def topic_system(node: rclpy.node.Node, steps: int, params: dict[str, object]) -
         dq = np.array([msg.velocity[index[n]] for n in names])
         states.append({"t": _stamp(msg), "position": q.tolist(), "velocity": dq.tolist(), "effort": list(msg.effort)})
         tau = law.update(_stamp(msg), q, dq).command
+        # write(): skipped when sum |effort state - effort command| <= threshold
+        if np.abs(np.array([msg.effort[index[n]] for n in names]) - tau).sum() <= threshold:
+            return
         command = JointState(name=[names[j] for j in SHUFFLED], effort=[float(tau[j]) for j in SHUFFLED])
-        command.header.stamp = msg.header.stamp
+        command.header.stamp = node.get_clock().now().to_msg()
         pub.publish(command)
 
     # reliable for the physics check (no state may be lost); a SensorDataQoS subscription must match too
-    node.create_subscription(JointState, "robot_joint_states", on_state, QoSProfile(depth=100))
+    node.create_subscription(JointState, "/robot_joint_states", on_state, QoSProfile(depth=100))
     node.create_subscription(
-        JointState, "robot_joint_states", lambda m: best_effort.append(_stamp(m)), qos_profile_sensor_data
+        JointState, "/robot_joint_states", lambda m: best_effort.append(_stamp(m)), qos_profile_sensor_data
     )
     deadline = time.monotonic() + 120
     while len(states) < steps and time.monotonic() < deadline:
@@ -72,20 +102,40 @@ def topic_system(node: rclpy.node.Node, steps: int, params: dict[str, object]) -
     return {"states": states, "best_effort_received": len(best_effort)}
 
 
+def forward_controller(node: rclpy.node.Node, joints: int) -> tuple[list[list[float]], list[str]]:
+    """The forward controller's ``~/commands`` subscription: the accepted commands, and what it refused."""
+    accepted: list[list[float]] = []
+    refused: list[str] = []
+
+    def on_command(msg: Float64MultiArray) -> None:
+        data = list(msg.data)
+        if not all(math.isfinite(v) for v in data):
+            refused.append("non-finite")  # "Non-finite value received. Dropping message"
+        elif len(data) != joints:
+            refused.append("size")  # update(): "command size (%zu) does not match number of interfaces"
+        else:
+            accepted.append(data)
+
+    node.create_subscription(Float64MultiArray, "effort_controller/commands", on_command, qos_profile_system_default)
+    return accepted, refused
+
+
 def effort_controller(node: rclpy.node.Node, _: int) -> dict[str, object]:
-    commands: list[list[float]] = []
-    node.create_subscription(
-        Float64MultiArray, "effort_controller/commands", lambda m: commands.append(list(m.data)), 10
-    )
-    pub = node.create_publisher(JointState, "joint_states", qos_profile_sensor_data)
-    while pub.get_subscription_count() < 1:
+    commands, refused = forward_controller(node, len(JOINTS))
+    broadcaster = node.create_publisher(JointState, "joint_states", qos_profile_system_default)
+    sensor_data = node.create_publisher(JointState, "joint_states", qos_profile_sensor_data)
+    while broadcaster.get_subscription_count() < 1 or sensor_data.get_subscription_count() < 1:
         rclpy.spin_once(node, timeout_sec=0.05)
     q = [-0.6283185307179586, -1.8849555921538759, 2.5132741228718345, -1.2566370614359172]
-    good = JointState(name=[JOINTS[j] for j in SHUFFLED], position=[q[j] for j in SHUFFLED], velocity=[0.0] * 4)
+    good = JointState(
+        name=[JOINTS[j] for j in SHUFFLED], position=[q[j] for j in SHUFFLED], velocity=[0.0] * 4, effort=[math.nan] * 4
+    )
+    good.header.frame_id = "base_link"
     bad_nan = JointState(name=JOINTS, position=[math.nan, *q[1:]], velocity=[0.0] * 4)
     missing = JointState(name=JOINTS[:3], position=q[:3], velocity=[0.0] * 3)
     seen: dict[str, list[list[float]]] = {}
-    for label, msg in (("good", good), ("nan", bad_nan), ("missing", missing)):
+    cases = (("broadcaster", broadcaster, good), ("sensor_data", sensor_data, good))
+    for label, pub, msg in (*cases, ("nan", broadcaster, bad_nan), ("missing", broadcaster, missing)):
         commands.clear()
         end = time.monotonic() + 1.0
         while time.monotonic() < end:
@@ -100,7 +150,7 @@ def effort_controller(node: rclpy.node.Node, _: int) -> dict[str, object]:
         seen[label] = list(commands)
     infos = node.get_publishers_info_by_topic("/effort_controller/commands")
     reliability = [str(i.qos_profile.reliability.name) for i in infos]
-    return {"commands": seen, "publisher_reliability": reliability}
+    return {"commands": seen, "refused": refused, "publisher_reliability": reliability}
 
 
 def target(node: rclpy.node.Node, t_pub: float, point: list[float], frame: str) -> dict[str, object]:

@@ -176,7 +176,8 @@ def test_simulator_under_joint_state_efforts_reproduces_the_lockstep_torque_run(
 def test_controller_sends_a_forward_controllers_float64multiarray(tmp_path: Path) -> None:
     """effort_forward: one value per joint in a shuffled effort_command_joints order (the law's torque
     for the state, joints matched by name), a reliable publisher; a NaN state or one missing a joint
-    gets no command (and a warning)."""
+    gets no command (and a warning). States come as joint_state_broadcaster sends them (SystemDefaultsQoS,
+    NaN efforts: a joint without an effort state interface) and from a SensorDataQoS publisher."""
     order = ["joint3", "joint1", "joint4", "joint2"]
     ctl = {
         "input_mode": "torque",
@@ -191,7 +192,7 @@ def test_controller_sends_a_forward_controllers_float64multiarray(tmp_path: Path
     finally:
         log = _stop(process)
     commands = seen["commands"]
-    assert commands["good"], log
+    assert commands["broadcaster"], log
     assert seen["publisher_reliability"] == ["RELIABLE"]
     from bracing_core.controller_config import ControllerConfig
     from bracing_core.law import DecoupledController
@@ -200,9 +201,11 @@ def test_controller_sends_a_forward_controllers_float64multiarray(tmp_path: Path
     q0 = np.array([-0.6283185307179586, -1.8849555921538759, 2.5132741228718345, -1.2566370614359172])
     tau = law.update(0.0, q0, np.zeros(4)).command
     expected = [tau[JOINTS.index(j)] for j in order]
-    for command in commands["good"]:
+    for command in commands["broadcaster"] + commands["sensor_data"]:
         assert len(command) == 4
         np.testing.assert_allclose(command, expected, rtol=0, atol=1e-12)
+    assert commands["sensor_data"], log  # a SensorDataQoS publisher is served too
+    assert seen["refused"] == []  # nothing the forward controller drops or errors on
     assert commands["nan"] == [] and commands["missing"] == [], log
     assert "joint_states refused: non-finite position or velocity" in log
     assert "joint_states refused: missing joints ['joint4']" in log

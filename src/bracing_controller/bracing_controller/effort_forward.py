@@ -32,7 +32,12 @@ COMMAND_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
-"""forward_command_controller subscribes <name>/commands with SystemDefaultsQoS (reliable, volatile)."""
+"""ros-controls/ros2_controllers forward_command_controller/src/forward_controllers_base.cpp (which
+effort_controllers/JointGroupEffortController derives from on Jazzy; on Rolling it is gone: a
+ForwardCommandController with interface_name effort) subscribes ``~/commands`` with SystemDefaultsQoS:
+the RMW's own choice (rmw_fastrtps_cpp here: a best-effort, volatile reader). A reliable, volatile
+publisher matches it whatever it resolves to. It drops a message with a non-finite value and fails its
+update on a length other than its ``joints``; we never send either."""
 
 STATE_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
@@ -40,7 +45,10 @@ STATE_QOS = QoSProfile(
     reliability=ReliabilityPolicy.BEST_EFFORT,
     durability=DurabilityPolicy.VOLATILE,
 )
-"""Best effort: matches joint_state_broadcaster (reliable) and a SensorDataQoS publisher alike; the latest counts."""
+"""Best effort: matches joint_state_broadcaster's ``joint_states`` publisher (ros2_controllers
+joint_state_broadcaster/src/joint_state_broadcaster.cpp: SystemDefaultsQoS, under rmw_fastrtps_cpp a
+reliable, transient-local writer; NaN for an interface a joint lacks) and a SensorDataQoS publisher
+alike; the latest counts."""
 
 
 class EffortForward:

@@ -339,8 +339,8 @@ class SimulatorConfig:
     plant_error: PlantError = field(default_factory=PlantError)
     sensors: SensorConfig = field(default_factory=SensorConfig)
     command_source: str = "motor_command"  # | joint_commands (ros2_control's JointStateTopicSystem)
-    joint_commands_topic: str = "robot_joint_commands"
-    joint_states_topic: str = "robot_joint_states"
+    joint_commands_topic: str = "/robot_joint_commands"
+    joint_states_topic: str = "/robot_joint_states"
     motor_drive: DriveConfig = field(default_factory=lambda: DriveConfig())
 
     @classmethod

@@ -641,14 +641,16 @@ SIMULATOR: tuple[Param, ...] = (
     Param(
         "joint_commands_topic",
         Kind.STRING,
-        "robot_joint_commands",
-        "command_source joint_commands: the JointState whose effort [N m or N, link side] is applied",
+        "/robot_joint_commands",
+        "command_source joint_commands: the JointState whose effort [N m or N, link side] is applied "
+        "(JointStateTopicSystem's joint_commands_topic, same default)",
     ),
     Param(
         "joint_states_topic",
         Kind.STRING,
-        "robot_joint_states",
-        "command_source joint_commands: the full JointState (position, velocity, effort) published there too",
+        "/robot_joint_states",
+        "command_source joint_commands: the full JointState (position, velocity, effort) published there too "
+        "(JointStateTopicSystem's joint_states_topic, same default)",
     ),
     Param(
         "motor_drive.bandwidth",

@@ -63,8 +63,13 @@ JOINT_COMMANDS_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
-"""robot_joint_commands / robot_joint_states: JointStateTopicSystem publishes its commands reliable (depth 1)
-and reads states with SensorDataQoS (best effort), which a reliable publisher serves too."""
+"""robot_joint_commands / robot_joint_states, as ros-controls/topic_based_hardware_interfaces'
+joint_state_topic_hardware_interface/src/joint_state_topic_hardware_interface.cpp has them: its
+commands go out with rclcpp::QoS(1) (reliable, volatile, depth 1), one JointState with every joint's
+name in its own order and only the declared command interfaces filled (here `effort`), unless
+trigger_joint_command_threshold holds them back; it reads the state with SensorDataQoS (best effort,
+the latest message kept), joints matched by name, only finite position/velocity/effort used. A
+reliable subscription matches its publisher, a reliable publisher its best-effort reader."""
 
 
 DRIFT_WARNING_M = 1e-7
