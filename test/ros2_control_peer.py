@@ -24,6 +24,10 @@ python ros2_control_peer.py effort-controller N
     states on joint_states as the broadcaster does (SystemDefaultsQoS, NaN efforts) and as a
     SensorDataQoS publisher would, then one with NaN, then one missing a joint, and collects the
     accepted Float64MultiArray commands after each.
+python ros2_control_peer.py path T_PUB PATH_JSON BRACE_DY
+    a script at t >= T_PUB sending a nav_msgs/Path on hand_path (PATH_JSON: [[t, x, y, z], ...], each
+    pose stamped t [s] in the controller's time, frame world) and the elbow's brace point moved by
+    BRACE_DY along y on brace_target/elbow; records the controller_state's hand and elbow brace point.
 python ros2_control_peer.py target T_PUB X Y Z [FRAME]
     a script sending the hand a target: waits for controller_state at t >= T_PUB, publishes a
     PointStamped on hand_target, and records the controller_state's hand (desired, actual) until the run ends.
@@ -38,7 +42,8 @@ import time
 
 import numpy as np
 import rclpy
-from geometry_msgs.msg import PointStamped
+from geometry_msgs.msg import PointStamped, PoseStamped
+from nav_msgs.msg import Path
 from rclpy.qos import (
     DurabilityPolicy,
     HistoryPolicy,
@@ -183,12 +188,57 @@ def target(node: rclpy.node.Node, t_pub: float, point: list[float], frame: str) 
     return {"sent_at": sent, "rows": rows}
 
 
+def _time_msg(t: float) -> object:
+    from builtin_interfaces.msg import Time
+
+    ns = round(t * 1e9)
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def path_and_brace(node: rclpy.node.Node, t_pub: float, poses: list[list[float]], dy: float) -> dict[str, object]:
+    path_pub = node.create_publisher(Path, "hand_path", 10)
+    brace_pub = node.create_publisher(PointStamped, "brace_target/elbow", 10)
+    rows: list[list[float]] = []
+    sent: list[list[float]] = []
+
+    def on_state(msg: ControllerState) -> None:
+        t = _stamp(msg)
+        d, a, bd, ba = msg.hand_desired, msg.hand_actual, msg.brace_desired[0], msg.brace_actual[0]
+        rows.append([t, d.x, d.y, d.z, a.x, a.y, a.z, bd.x, bd.y, bd.z, ba.x, ba.y, ba.z])
+        if sent or t < t_pub:
+            return
+        path = Path()
+        path.header.frame_id = "world"
+        for tp, x, y, z in poses:
+            pose = PoseStamped()
+            pose.header.frame_id, pose.header.stamp = "world", _time_msg(tp)
+            pose.pose.position.x, pose.pose.position.y, pose.pose.position.z = x, y, z
+            pose.pose.orientation.w = 1.0
+            path.poses.append(pose)
+        brace = PointStamped()
+        brace.header.frame_id = "world"
+        brace.point.x, brace.point.y, brace.point.z = bd.x, bd.y + dy, bd.z
+        path_pub.publish(path)
+        brace_pub.publish(brace)
+        sent.append([t, brace.point.x, brace.point.y, brace.point.z])
+
+    node.create_subscription(ControllerState, "controller_state", on_state, QoSProfile(depth=10000))
+    deadline, quiet = time.monotonic() + 120, 0.0
+    while time.monotonic() < deadline and quiet < 3.0:  # until the run has ended (3 s without a state)
+        count = len(rows)
+        rclpy.spin_once(node, timeout_sec=0.1)
+        quiet = quiet + 0.1 if rows and len(rows) == count else 0.0
+    return {"sent": sent, "rows": rows}
+
+
 def main() -> None:
     rclpy.init()
     node = rclpy.create_node("ros2_control_peer")
     kind = sys.argv[1]
     if kind == "topic-system":
         out = topic_system(node, int(sys.argv[2]), json.loads(sys.argv[3]))
+    elif kind == "path":
+        out = path_and_brace(node, float(sys.argv[2]), json.loads(sys.argv[3]), float(sys.argv[4]))
     elif kind == "effort-controller":
         out = effort_controller(node, int(sys.argv[2]))
     else:

@@ -247,3 +247,69 @@ def test_hand_target_mid_run_moves_the_hand_there(tmp_path: Path) -> None:
     assert error.max() < 5e-3, (error.max(), where)
     speeds = np.linalg.norm(np.diff(rows[:, 1:4], axis=0), axis=1) / 0.001
     assert speeds[rows[1:, 0] > sent + 0.01].max() <= 0.3 + 1e-9
+
+
+def _start_recorder(bag: Path, env: dict[str, str]) -> subprocess.Popen[str]:
+    argv = [sys.executable, "-m", "bracing_bringup.recorder", "--output", str(bag), "--contacts", "elbow", "--no-scene"]
+    recorder = start(argv, env)
+    assert recorder.stdout is not None
+    for line in recorder.stdout:  # prints it once every subscription exists
+        if "recorder ready" in line:
+            return recorder
+    raise AssertionError("the recorder ended before it was ready")
+
+
+def test_hand_path_and_brace_target_mid_run_recorded_and_drawn(tmp_path: Path) -> None:
+    """The paper scenario in lockstep, recorded. At t = 0.5 s a script sends a nav_msgs/Path on
+    hand_path (poses stamped 1.5 s and 2.5 s: hold the first, then 0.05 m/s to the second) and moves
+    the elbow's brace point 2 cm along y on brace_target/elbow. The reference (<= 0.3 m/s, 1.5 m/s^2)
+    reaches the path's first pose ~1 s after it is sent (0.25 m away), so from 2.0 s it rides the path:
+    the desired hand is the path's interpolation to 0.1 mm (it corrects a_max dt = 1.5 mm/s a step),
+    the last pose exactly from 3.0 s; the desired brace point is the target exactly 1 s after it is
+    sent (0.02 m takes ~0.25 s). The bag holds one message per target, at the sim time it came, and the
+    hand figure marks the path's poses at their stamps."""
+    from bracing_analysis.figures import plot_figure
+    from bracing_analysis.summary import read_series
+    from bracing_core.targets import path_goal
+
+    poses = [[1.5, 0.0, 1.0, 0.7], [2.5, 0.0, 1.05, 0.72]]
+    t_pub, dy, duration = 0.5, 0.02, 3.5
+    env = isolated_env()
+    bag = tmp_path / "bag"
+    recorder = _start_recorder(bag, env)
+    ctl = {"targets.max_velocity": 0.3, "targets.max_acceleration": 1.5}
+    controller = start(node_argv("bracing_controller.node", params_file(tmp_path, "bracing_controller", ctl)), env)
+    sim = {"duration": duration, "wait_for_recorder": True}
+    simulator = start(node_argv("bracing_sim.node", params_file(tmp_path, "bracing_simulator", sim)), env)
+    try:
+        seen = _peer(["path", str(t_pub), json.dumps(poses), str(dy)], env)
+        simulator.wait(60)
+    finally:
+        sim_log, ctl_log = _stop(simulator), _stop(controller)
+        recorder.send_signal(2)  # SIGINT: drained and closed
+        rec_log = recorder.communicate(timeout=60)[0]
+    assert seen["sent"], sim_log + ctl_log
+    rows = np.array(seen["rows"])
+    t, sent = rows[:, 0], seen["sent"][0]
+    goal = path_goal([p[0] for p in poses], [np.array(p[1:]) for p in poses])
+    riding = rows[(t >= 2.0) & (t <= 2.5)]
+    expected = np.array([goal.at(tk)[0] for tk in riding[:, 0]])
+    assert np.abs(riding[:, 1:4] - expected).max() < 1e-4
+    np.testing.assert_array_equal(rows[t >= 3.0][:, 1:4], np.tile(poses[-1][1:], ((t >= 3.0).sum(), 1)))
+    braced = rows[t >= sent[0] + 1.0]
+    np.testing.assert_array_equal(braced[:, 7:10], np.tile(sent[1:], (len(braced), 1)))
+    assert "hand_path: 2 poses from t = 1.500 s to 2.500 s" in ctl_log
+    # the bag, the report
+    series = read_series(bag)
+    assert series.topic_counts["/hand_path"] == 1 and series.topic_counts["/brace_target/elbow"] == 1, rec_log
+    hand, elbow = sorted(series.targets, key=lambda s: s.task)[::-1]
+    assert (hand.task, elbow.task) == ("hand", "elbow")
+    np.testing.assert_array_equal(hand.points, [p[1:] for p in poses])
+    np.testing.assert_allclose(hand.times, [1.5, 2.5], rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(elbow.points, [sent[1:]])
+    for target in (hand, elbow):  # recorded at the sim time it came (the last /clock before it)
+        assert t_pub - 0.05 <= target.t <= sent[0] + 0.05, target.t
+    figure = plot_figure("hand_y", series)
+    marks = [line for line in figure.axes[0].lines if line.get_label() == "hand_target / hand_path sent"]
+    assert len(marks) == 1 and list(marks[0].get_xdata()) == pytest.approx([1.5, 2.5])
+    assert list(marks[0].get_ydata()) == [1.0, 1.05]

@@ -61,11 +61,24 @@ def mark_parameter_changes(ax: Axes, series: BagSeries) -> None:
         )
 
 
+def mark_targets(ax: Axes, series: BagSeries, task: str, axis: int, label: str) -> None:
+    """Each target sent to ``task`` while the run went: a marker where and when it arrived (a point), or
+    the path's poses at their stamps joined to the arrival (a path). A run without any draws nothing."""
+    for k, sent in enumerate(s for s in series.targets if s.task == task):
+        first = label if k == 0 else None
+        if len(sent.points) == 1 and sent.times[0] == sent.t:
+            ax.plot([sent.t], sent.points[:, axis], "x", color="black", ms=8, mew=2, label=first)
+        else:
+            ax.plot(sent.times, sent.points[:, axis], "x:", color="black", ms=6, mew=1.5, label=first)
+            ax.axvline(sent.t, color="black", ls=":", lw=0.8)
+
+
 def _plot_hand(series: BagSeries, axis: int, name: str) -> tuple[Figure, Axes]:
     figures = "Figs. 6, 9, 13" if axis == 1 else "Figs. 7, 10, 14"
     fig, ax = figure(title(series, f"hand {name} position", figures), f"hand {name} [m]")
     ax.plot(series.t, series.hand_desired[:, axis], "--", color="tab:red", label=f"target {name}_dh")
     ax.plot(series.t, series.hand_actual[:, axis], color="tab:blue", label=f"hand {name}_h")
+    mark_targets(ax, series, "hand", axis, "hand_target / hand_path sent")
     return fig, ax
 
 
@@ -76,6 +89,7 @@ def _plot_brace(series: BagSeries, axis: int, name: str) -> tuple[Figure, Axes]:
         if cs.t_ctrl.size:  # braced (an obstacle has no brace point to follow)
             ax.plot(cs.t_ctrl, cs.brace_desired[:, axis], "--", label=f"{cs.name} target {name}")
             ax.plot(cs.t_ctrl, cs.brace_actual[:, axis], label=f"{cs.name} {name}")
+            mark_targets(ax, series, cs.name, axis, f"brace_target/{cs.name} sent")
     return fig, ax
 
 

@@ -39,6 +39,8 @@ from bracing_core.typestore import (
     MOTOR_COMMAND,
     MOTOR_STATE,
     PARAMETER_EVENT,
+    PATH,
+    POINT_STAMPED,
     STRING,
     WRENCH_STAMPED,
     motor_command_modes,
@@ -168,6 +170,7 @@ class BagSeries:
     scenario: str | None = None  # the scenario's name (bag metadata, the recorder's --scenario); None: unknown
     surfaces: dict[str, Shape] = field(default_factory=dict)  # each contact's surface (bag metadata)
     parameter_changes: list[ParameterChange] = field(default_factory=list)  # the controller's, in time order
+    targets: list[TargetSent] = field(default_factory=list)  # sent while it ran, in time order
 
 
 def _stamp_ns(msg: Any) -> int:
@@ -313,6 +316,52 @@ _VALUE_FIELDS = {
 """rcl_interfaces/ParameterType -> the ParameterValue field that holds it."""
 
 
+@dataclass(frozen=True)
+class TargetSent:
+    """A target sent to the controller while it ran (hand_target, hand_path, brace_target/<contact>)."""
+
+    t: float  # [s], the run's time base: when the recorder got it (the sim time of the last /clock)
+    task: str  # "hand" or the contact's name
+    points: FloatArray  # (poses, 3) [m], world (one row for a point)
+    times: FloatArray  # (poses,) [s], the run's time base: a path's pose stamps; a point's = t
+
+
+def _targets(reader: AnyReader) -> list[tuple[int, str, list[_Xyz], list[int]]]:
+    """(bag time [ns], task, points, pose stamps [ns]) of each recorded target, in time order."""
+    connections = [
+        c
+        for c in reader.connections
+        if (c.msgtype == POINT_STAMPED and c.topic.rsplit("/", 1)[-1] == "hand_target")
+        or (c.msgtype == POINT_STAMPED and "brace_target/" in c.topic)
+        or (c.msgtype == PATH and c.topic.endswith("hand_path"))
+    ]
+    if not connections:  # (an empty list would make reader.messages read every topic)
+        return []
+    out = []
+    for conn, stamp, raw in reader.messages(connections=connections):
+        msg: Any = reader.deserialize(raw, conn.msgtype)
+        task = conn.topic.split("brace_target/", 1)[1] if "brace_target/" in conn.topic else "hand"
+        if conn.msgtype == PATH:
+            points = [_xyz(pose.pose.position) for pose in msg.poses]
+            times = [_stamp_ns(pose) for pose in msg.poses]
+        else:
+            points, times = [_xyz(msg.point)], [stamp]
+        out.append((stamp, task, points, times))
+    return sorted(out, key=lambda e: e[0])
+
+
+def _sent(targets: list[tuple[int, str, list[_Xyz], list[int]]], t0: int) -> list[TargetSent]:
+    return [
+        TargetSent(
+            (stamp - t0) * 1e-9,
+            task,
+            np.array(points, dtype=float).reshape(-1, 3),
+            (np.array(times, dtype=np.int64) - t0) * 1e-9,
+        )
+        for stamp, task, points, times in targets
+    ]
+
+
 def _parameter_value(value: Any) -> Any:
     held = getattr(value, _VALUE_FIELDS.get(int(value.type), ""), None)
     return held.tolist() if isinstance(held, np.ndarray) else list(held) if isinstance(held, list) else held
@@ -353,6 +402,7 @@ def _read_general(path: Path) -> BagSeries:
             wanted = _wanted(reader, counts)
             mode = _input_mode(reader)
             events = _parameter_events(reader)
+            targets = _targets(reader)
             for conn, _, raw in reader.messages(connections=wanted):
                 msg: Any = reader.deserialize(raw, conn.msgtype)
                 if conn.msgtype == STRING:
@@ -393,6 +443,7 @@ def _read_general(path: Path) -> BagSeries:
 
     series = BagSeries(t0_ns=t0, topic_counts=counts, robot_description=description, input_mode=mode)
     series.parameter_changes = _changes(events, t0)
+    series.targets = _sent(targets, t0)
     _describe(series, path)
     series.joint_t = np.array([sec(s) for s, _ in joint], dtype=float)
     if joint:
@@ -602,6 +653,7 @@ def _read_columnar(path: Path) -> BagSeries:
             wanted = _wanted(reader, counts)
             mode = _input_mode(reader)
             events = _parameter_events(reader)
+            targets = _targets(reader)
             for conn, _, raw in reader.messages(connections=wanted):
                 raws.setdefault(_kind(conn), []).append(raw)
             store = reader.typestore
@@ -629,6 +681,7 @@ def _read_columnar(path: Path) -> BagSeries:
     description = filled[0][1] if filled else "" if texts else None
     series = BagSeries(t0_ns=t0, topic_counts=counts, robot_description=description, input_mode=mode)
     series.parameter_changes = _changes(events, t0)
+    series.targets = _sent(targets, t0)
     _describe(series, path)
     series.joint_t = sec(joint.stamp[joint.order])
     if joint.count:

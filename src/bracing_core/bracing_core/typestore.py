@@ -30,6 +30,8 @@ CONTACTS = "bracing_msgs/msg/Contacts"
 CONTROLLER_STATE = "bracing_msgs/msg/ControllerState"
 MOTOR_COMMAND = "bracing_msgs/msg/MotorCommand"
 MOTOR_STATE = "bracing_msgs/msg/MotorState"
+POINT_STAMPED = "geometry_msgs/msg/PointStamped"
+PATH = "nav_msgs/msg/Path"
 
 
 def bracing_msgs_dir() -> Path:
