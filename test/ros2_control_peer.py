@@ -28,6 +28,12 @@ python ros2_control_peer.py path T_PUB PATH_JSON BRACE_DY
     a script at t >= T_PUB sending a nav_msgs/Path on hand_path (PATH_JSON: [[t, x, y, z], ...], each
     pose stamped t [s] in the controller's time, frame world) and the elbow's brace point moved by
     BRACE_DY along y on brace_target/elbow; records the controller_state's hand and elbow brace point.
+python ros2_control_peer.py sim-clock
+    the forward controller's side of a use_sim_time run: publishes /clock (frozen at 5 s for 1 s of wall
+    time, then 10 ms a tick for 50 ticks) and joint_states, and counts the commands in each phase.
+python ros2_control_peer.py constant-effort TAU_JSON
+    JointStateTopicSystem holding one effort command (TAU_JSON, robot.joint_names order): sends it until
+    the run ends, recording /clock, /robot_joint_states and motor_state.
 python ros2_control_peer.py target T_PUB X Y Z [FRAME]
     a script sending the hand a target: waits for controller_state at t >= T_PUB, publishes a
     PointStamped on hand_target, and records the controller_state's hand (desired, actual) until the run ends.
@@ -231,12 +237,73 @@ def path_and_brace(node: rclpy.node.Node, t_pub: float, poses: list[list[float]]
     return {"sent": sent, "rows": rows}
 
 
+def sim_clock(node: rclpy.node.Node) -> dict[str, object]:
+    from rosgraph_msgs.msg import Clock
+
+    commands, _ = forward_controller(node, len(JOINTS))
+    clock = node.create_publisher(Clock, "/clock", 10)
+    states = node.create_publisher(JointState, "joint_states", qos_profile_system_default)
+    while states.get_subscription_count() < 1 or clock.get_subscription_count() < 1:
+        rclpy.spin_once(node, timeout_sec=0.05)
+    q = [-0.6283185307179586, -1.8849555921538759, 2.5132741228718345, -1.2566370614359172]
+    counts = []
+    for ticks, period, step in ((50, 0.02, 0.0), (50, 0.02, 0.01)):
+        commands.clear()
+        t = 5.0 if not counts else 5.0 + 0.0  # both phases start at 5 s
+        for k in range(ticks):
+            t_now = t + step * (k + 1) if step else t
+            clock.publish(Clock(clock=_time_msg(t_now)))
+            state = JointState(name=JOINTS, position=q, velocity=[0.0] * 4)
+            state.header.stamp = _time_msg(t_now)
+            states.publish(state)
+            end = time.monotonic() + period
+            while time.monotonic() < end:
+                rclpy.spin_once(node, timeout_sec=0.005)
+        end = time.monotonic() + 0.2
+        while time.monotonic() < end:
+            rclpy.spin_once(node, timeout_sec=0.01)
+        counts.append(len(commands))
+    return {"frozen": counts[0], "advancing": counts[1]}
+
+
+def constant_effort(node: rclpy.node.Node, tau: list[float]) -> dict[str, object]:
+    from rosgraph_msgs.msg import Clock
+
+    from bracing_msgs.msg import MotorState
+
+    deep = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
+    clocks: list[float] = []
+    efforts: list[list[float]] = []
+    energy: list[list[float]] = []
+    currents: list[list[float]] = []
+    node.create_subscription(Clock, "/clock", lambda m: clocks.append(m.clock.sec + m.clock.nanosec * 1e-9), deep)
+    node.create_subscription(JointState, "/robot_joint_states", lambda m: efforts.append([_stamp(m), *m.effort]), deep)
+    node.create_subscription(
+        MotorState, "motor_state", lambda m: energy.append([_stamp(m), m.energy_consumed, m.copper_loss]), deep
+    )
+    node.create_subscription(MotorState, "motor_state", lambda m: currents.append([_stamp(m), *m.current]), deep)
+    pub = node.create_publisher(JointState, "/robot_joint_commands", RELIABLE_1)
+    command = JointState(name=JOINTS, effort=tau)
+    deadline, quiet = time.monotonic() + 120, 0.0
+    while time.monotonic() < deadline and quiet < 2.0:  # until the run has ended (2 s without a clock)
+        count = len(clocks)
+        command.header.stamp = node.get_clock().now().to_msg()
+        pub.publish(command)
+        rclpy.spin_once(node, timeout_sec=0.01)
+        quiet = quiet + 0.01 if clocks and len(clocks) == count else 0.0
+    return {"clock": clocks, "efforts": efforts, "energy": energy, "current": currents}
+
+
 def main() -> None:
     rclpy.init()
     node = rclpy.create_node("ros2_control_peer")
     kind = sys.argv[1]
     if kind == "topic-system":
         out = topic_system(node, int(sys.argv[2]), json.loads(sys.argv[3]))
+    elif kind == "sim-clock":
+        out = sim_clock(node)
+    elif kind == "constant-effort":
+        out = constant_effort(node, json.loads(sys.argv[2]))
     elif kind == "path":
         out = path_and_brace(node, float(sys.argv[2]), json.loads(sys.argv[3]), float(sys.argv[4]))
     elif kind == "effort-controller":

@@ -326,7 +326,10 @@ class TargetSent:
     times: FloatArray  # (poses,) [s], the run's time base: a path's pose stamps; a point's = t
 
 
-def _targets(reader: AnyReader) -> list[tuple[int, str, list[_Xyz], list[int]]]:
+_Target = tuple[int, str, list[tuple[float, float, float]], list[int]]
+
+
+def _targets(reader: AnyReader) -> list[_Target]:
     """(bag time [ns], task, points, pose stamps [ns]) of each recorded target, in time order."""
     connections = [
         c
@@ -337,7 +340,7 @@ def _targets(reader: AnyReader) -> list[tuple[int, str, list[_Xyz], list[int]]]:
     ]
     if not connections:  # (an empty list would make reader.messages read every topic)
         return []
-    out = []
+    out: list[_Target] = []
     for conn, stamp, raw in reader.messages(connections=connections):
         msg: Any = reader.deserialize(raw, conn.msgtype)
         task = conn.topic.split("brace_target/", 1)[1] if "brace_target/" in conn.topic else "hand"
@@ -350,13 +353,13 @@ def _targets(reader: AnyReader) -> list[tuple[int, str, list[_Xyz], list[int]]]:
     return sorted(out, key=lambda e: e[0])
 
 
-def _sent(targets: list[tuple[int, str, list[_Xyz], list[int]]], t0: int) -> list[TargetSent]:
+def _sent(targets: list[_Target], t0: int) -> list[TargetSent]:
     return [
         TargetSent(
             (stamp - t0) * 1e-9,
             task,
             np.array(points, dtype=float).reshape(-1, 3),
-            (np.array(times, dtype=np.int64) - t0) * 1e-9,
+            ((np.array(times, dtype=np.int64) - t0) * 1e-9).astype(np.float64),
         )
         for stamp, task, points, times in targets
     ]
