@@ -64,6 +64,16 @@ def mark_parameter_changes(ax: Axes, series: BagSeries) -> None:
 
 _HAND_FIGURES = {"y": "Figs. 6, 9, 13", "z": "Figs. 7, 10, 14"}
 """The paper's figures of the hand along each axis it has (its arm moves in the y-z plane)."""
+def mark_targets(ax: Axes, series: BagSeries, task: str, axis: int, label: str) -> None:
+    """Each target sent to ``task`` while the run went: a marker where and when it arrived (a point), or
+    the path's poses at their stamps joined to the arrival (a path). A run without any draws nothing."""
+    for k, sent in enumerate(s for s in series.targets if s.task == task):
+        first = label if k == 0 else None
+        if len(sent.points) == 1 and sent.times[0] == sent.t:
+            ax.plot([sent.t], sent.points[:, axis], "x", color="black", ms=8, mew=2, label=first)
+        else:
+            ax.plot(sent.times, sent.points[:, axis], "x:", color="black", ms=6, mew=1.5, label=first)
+            ax.axvline(sent.t, color="black", ls=":", lw=0.8)
 
 
 def _plot_hand(series: BagSeries, axis: int, name: str) -> tuple[Figure, Axes]:
@@ -73,6 +83,7 @@ def _plot_hand(series: BagSeries, axis: int, name: str) -> tuple[Figure, Axes]:
     # with sensors: what the controller believed, beside the truth
     if series.hand_measured.size and series.hand_measured.shape[0] == series.t.size:
         ax.plot(series.t, series.hand_measured[:, axis], ":", color="tab:green", label=f"as measured {name}_h")
+    mark_targets(ax, series, "hand", axis, "hand_target / hand_path sent")
     return fig, ax
 
 
@@ -86,6 +97,7 @@ def _plot_brace(series: BagSeries, axis: int, name: str) -> tuple[Figure, Axes]:
             ax.plot(cs.t_ctrl, cs.brace_actual[:, axis], label=f"{cs.name} {name}")
             if cs.brace_measured.size and cs.brace_measured.shape[0] == cs.t_ctrl.size:  # with sensors: its view
                 ax.plot(cs.t_ctrl, cs.brace_measured[:, axis], ":", label=f"{cs.name} {name} as measured")
+            mark_targets(ax, series, cs.name, axis, f"brace_target/{cs.name} sent")
     return fig, ax
 
 

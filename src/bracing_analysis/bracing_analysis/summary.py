@@ -47,6 +47,8 @@ from bracing_core.typestore import (
     MOTOR_COMMAND,
     MOTOR_STATE,
     PARAMETER_EVENT,
+    PATH,
+    POINT_STAMPED,
     RUN_STATUS,
     STRING,
     WRENCH_STAMPED,
@@ -182,6 +184,7 @@ class BagSeries:
     hand_axes: list[str] | None = None
     brace_task_axes: dict[str, list[str]] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)  # what the nodes warned about (run_status), in time order
+    targets: list[TargetSent] = field(default_factory=list)  # sent while it ran, in time order
 
 
 def _stamp_ns(msg: Any) -> int:
@@ -328,6 +331,55 @@ _VALUE_FIELDS = {
 """rcl_interfaces/ParameterType -> the ParameterValue field that holds it."""
 
 
+@dataclass(frozen=True)
+class TargetSent:
+    """A target sent to the controller while it ran (hand_target, hand_path, brace_target/<contact>)."""
+
+    t: float  # [s], the run's time base: when the recorder got it (the sim time of the last /clock)
+    task: str  # "hand" or the contact's name
+    points: FloatArray  # (poses, 3) [m], world (one row for a point)
+    times: FloatArray  # (poses,) [s], the run's time base: a path's pose stamps; a point's = t
+
+
+_Target = tuple[int, str, list[tuple[float, float, float]], list[int]]
+
+
+def _targets(reader: AnyReader) -> list[_Target]:
+    """(bag time [ns], task, points, pose stamps [ns]) of each recorded target, in time order."""
+    connections = [
+        c
+        for c in reader.connections
+        if (c.msgtype == POINT_STAMPED and c.topic.rsplit("/", 1)[-1] == "hand_target")
+        or (c.msgtype == POINT_STAMPED and "brace_target/" in c.topic)
+        or (c.msgtype == PATH and c.topic.endswith("hand_path"))
+    ]
+    if not connections:  # (an empty list would make reader.messages read every topic)
+        return []
+    out: list[_Target] = []
+    for conn, stamp, raw in reader.messages(connections=connections):
+        msg: Any = reader.deserialize(raw, conn.msgtype)
+        task = conn.topic.split("brace_target/", 1)[1] if "brace_target/" in conn.topic else "hand"
+        if conn.msgtype == PATH:
+            points = [_xyz(pose.pose.position) for pose in msg.poses]
+            times = [_stamp_ns(pose) for pose in msg.poses]
+        else:
+            points, times = [_xyz(msg.point)], [stamp]
+        out.append((stamp, task, points, times))
+    return sorted(out, key=lambda e: e[0])
+
+
+def _sent(targets: list[_Target], t0: int) -> list[TargetSent]:
+    return [
+        TargetSent(
+            (stamp - t0) * 1e-9,
+            task,
+            np.array(points, dtype=float).reshape(-1, 3),
+            ((np.array(times, dtype=np.int64) - t0) * 1e-9).astype(np.float64),
+        )
+        for stamp, task, points, times in targets
+    ]
+
+
 def _parameter_value(value: Any) -> Any:
     held = getattr(value, _VALUE_FIELDS.get(int(value.type), ""), None)
     return held.tolist() if isinstance(held, np.ndarray) else list(held) if isinstance(held, list) else held
@@ -383,6 +435,7 @@ def _read_general(path: Path) -> BagSeries:
             mode = _input_mode(reader)
             events = _parameter_events(reader)
             warnings = _recorded_warnings(reader)
+            targets = _targets(reader)
             for conn, _, raw in reader.messages(connections=wanted):
                 msg: Any = reader.deserialize(raw, conn.msgtype)
                 if conn.msgtype == STRING:
@@ -424,6 +477,7 @@ def _read_general(path: Path) -> BagSeries:
     series = BagSeries(t0_ns=t0, topic_counts=counts, robot_description=description, input_mode=mode)
     series.parameter_changes = _changes(events, t0)
     series.warnings = warnings
+    series.targets = _sent(targets, t0)
     _describe(series, path)
     series.joint_t = np.array([sec(s) for s, _ in joint], dtype=float)
     if joint:
@@ -634,6 +688,7 @@ def _read_columnar(path: Path) -> BagSeries:
             mode = _input_mode(reader)
             events = _parameter_events(reader)
             warnings = _recorded_warnings(reader)
+            targets = _targets(reader)
             for conn, _, raw in reader.messages(connections=wanted):
                 raws.setdefault(_kind(conn), []).append(raw)
             store = reader.typestore
@@ -662,6 +717,7 @@ def _read_columnar(path: Path) -> BagSeries:
     series = BagSeries(t0_ns=t0, topic_counts=counts, robot_description=description, input_mode=mode)
     series.parameter_changes = _changes(events, t0)
     series.warnings = warnings
+    series.targets = _sent(targets, t0)
     _describe(series, path)
     series.joint_t = sec(joint.stamp[joint.order])
     if joint.count:

@@ -21,6 +21,10 @@ contact surfaces (``surfaces``) and the world axes of the controller's tasks (``
 report plots each), and the markers draw a sphere or a cylinder as one. ``--scenario``
 names the scenario in the bag's metadata (default: the first params file's name), for the report.
 
+The targets sent to the controller while it runs (``hand_target``, ``hand_path``,
+``brace_target/<contact>``) are recorded as they come, at the sim time of the last ``/clock`` recorded
+before each (their own stamps are the sender's); a run without any has none of these topics.
+
 The controller's parameter changes while it runs (``ros2 param set``) are recorded from rclpy's
 ``/parameter_events``: the events of the run's controller that change a value, stamped by it with the
 sim time of the last state it answered with the old values (see bracing_controller.node).
@@ -54,7 +58,8 @@ from types import FrameType
 from typing import Any, Literal
 
 import rclpy
-from geometry_msgs.msg import WrenchStamped
+from geometry_msgs.msg import PointStamped, WrenchStamped
+from nav_msgs.msg import Path as PathMsg
 from rcl_interfaces.msg import ParameterEvent
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -79,6 +84,7 @@ from bracing_bringup.topics import (
     SCENE_TOPICS,
     missing_from_counts,
     recorded_topics,
+    target_topics,
 )
 from bracing_bringup.topics import expected_counts as expected_counts  # re-exported: the check lives in topics
 from bracing_core.kinematics import DescriptionError
@@ -92,6 +98,8 @@ from bracing_core.typestore import (
     MOTOR_COMMAND,
     MOTOR_STATE,
     PARAMETER_EVENT,
+    PATH,
+    POINT_STAMPED,
     RUN_STATUS,
     STRING,
     WRENCH_STAMPED,
@@ -142,7 +150,9 @@ PARAMETER_EVENTS_QOS = QoSProfile(
     durability=DurabilityPolicy.VOLATILE,
 )
 """rclpy's own for /parameter_events: its publishers are volatile, which a transient-local
-subscription would not match."""
+subscription would not match. The targets' too (a script's, RViz's, MoveIt's publishers are volatile)."""
+
+_TARGET_TYPES: dict[str, type] = {POINT_STAMPED: PointStamped, PATH: PathMsg}
 
 
 _RCLPY_TYPES: dict[str, type] = {
@@ -236,7 +246,17 @@ class Recorder(Node):
         self._roles[self._status] = "run_status"
         self.simulator_heard = False  # a simulator speaks on run_status (its CONFIGURED is kept for late subscribers)
         self.simulator_finished = False  # its FINISHED status came: nothing more from it
-        self._waiter = SubscriptionWaiter(self, [*self._connections, self._events, self._status])
+        # The targets, likewise: each topic enters the bag with its first message.
+        self._targets: dict[Subscription, str] = {}
+        self._target_connections: dict[Subscription, Connection] = {}
+        for topic, type_name in target_topics(contacts):
+            sub = self.create_subscription(
+                _TARGET_TYPES[type_name], topic, _never_called, PARAMETER_EVENTS_QOS, raw=True
+            )
+            self._targets[sub] = type_name
+            self._roles[sub] = "target"
+        self._sim_time_ns = 0  # the last /clock recorded: when a target arrived, on the bag's time axis
+        self._waiter = SubscriptionWaiter(self, [*self._connections, self._events, self._status, *self._targets])
         self.scene = SceneBuilder(typestore, contacts, shapes) if scene else None
         self._scene_inputs: deque[tuple[str, bytes]] = deque()
         self._scene_roles = {"joint_states", "contacts", "description", *(f"contact_wrench/{c}" for c in contacts)}
@@ -264,8 +284,13 @@ class Recorder(Node):
             if sub is self._status:
                 skipped += not self._record_status(data)
                 continue
+            if sub in self._targets:
+                self._record_target(sub, data)
+                continue
             connection = connections[sub]
             stamp = 0 if self._roles[sub] == "description" else cdr_stamp_ns(data)
+            if self._roles[sub] == "/clock":
+                self._sim_time_ns = stamp
             write(connection, stamp, data)
             counts[connection.topic] += 1
         if taken:
@@ -319,6 +344,16 @@ class Recorder(Node):
     def simulator_done(self) -> bool:
         """Nothing more to come from the simulator on run_status: it said FINISHED, or none speaks there."""
         return self.simulator_finished or not self.simulator_heard
+    def _record_target(self, sub: Subscription, data: bytes) -> None:
+        """Write a target as it came, at the sim time of the last /clock recorded (the bag's time axis);
+        its topic enters the bag with its first message."""
+        connection = self._target_connections.get(sub)
+        if connection is None:
+            connection = self.writer.add_connection(sub.topic_name, self._targets[sub], typestore=self.typestore)
+            self._target_connections[sub] = connection
+            self.counts[connection.topic] = 0
+        self.writer.write(connection, self._sim_time_ns, data)
+        self.counts[connection.topic] += 1
 
     def has_every_message(self, wanted: Mapping[str, int]) -> bool:
         """Whether every subscribed topic has ``wanted[topic]`` messages (``topics.expected_counts``)."""

@@ -18,6 +18,8 @@ from bracing_core.typestore import (
     MARKER_ARRAY,
     MOTOR_COMMAND,
     MOTOR_STATE,
+    PATH,
+    POINT_STAMPED,
     TF_MESSAGE,
     WRENCH_STAMPED,
 )
@@ -26,6 +28,18 @@ DESCRIPTION_TOPIC = "robot_description"
 PARAMETER_EVENTS_TOPIC = "/parameter_events"
 """rclpy's parameter events: the recorder keeps the controller's changes (as many as there are)."""
 CONTROLLER_NODE = CONTROLLER
+
+
+def target_topics(contacts: Sequence[str]) -> list[tuple[str, str]]:
+    """(relative topic, ROS 2 type name) of the controller's targets while running: sent by anyone at any
+    time on volatile publishers, recorded as they come (a run without any has none of these topics)."""
+    return [
+        ("hand_target", POINT_STAMPED),
+        ("hand_path", PATH),
+        *((f"brace_target/{name}", POINT_STAMPED) for name in contacts),
+    ]
+
+
 RECORDER_NODE = "bracing_recorder"
 
 SCENE_TOPICS = {

@@ -21,6 +21,9 @@ from rclpy.subscription import Subscription
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
 
+from bracing_controller.effort_forward import STATE_QOS, EffortForward
+from bracing_controller.states import StateError, joint_vectors
+from bracing_controller.targets import TargetTopics, task_targets
 from bracing_core import schema
 from bracing_core.checks import configuration_warnings, desired_force_warning, null_space_warning
 from bracing_core.controller_config import ControllerConfig
@@ -52,33 +55,6 @@ MEASUREMENT_WAIT_S = 0.5
 (``Measurements``); past it the state is answered with the latest ones, and a warning says which lagged."""
 
 
-class StateError(ValueError):
-    """A joint_states message the controller cannot use."""
-
-
-def joint_vectors(msg: wire.JointStateData, joint_names: list[str]) -> tuple[Vector, Vector]:
-    """(q, dq) in ``joint_names`` order from a JointState matched by name."""
-    names = msg.name
-    if len(msg.position) != len(names) or len(msg.velocity) != len(names):
-        raise StateError(f"{len(names)} names, {len(msg.position)} positions, {len(msg.velocity)} velocities")
-    if names == joint_names:  # the simulator's order: nothing to match
-        q, dq = msg.position, msg.velocity
-    else:
-        if len(set(names)) != len(names):
-            raise StateError("duplicate joint names")
-        index = {name: k for k, name in enumerate(names)}
-        missing = [j for j in joint_names if j not in index]
-        if missing:
-            raise StateError(f"missing joints {missing}")
-        order = [index[j] for j in joint_names]
-        q, dq = msg.position[order], msg.velocity[order]
-    if not (np.isfinite(q).all() and np.isfinite(dq).all()):
-        raise StateError("non-finite position or velocity")
-    if not STAMP_RANGE_NS[0] <= msg.stamp_ns < STAMP_RANGE_NS[1]:  # a nanosec field >= 1e9 can push it out
-        raise StateError(f"stamp {msg.stamp_ns} ns cannot be answered (builtin_interfaces/Time: int32 seconds)")
-    return q, dq
-
-
 class ControllerNode(Node):
     def __init__(self, **kwargs: object) -> None:
         super().__init__("bracing_controller", **kwargs)  # type: ignore[arg-type]
@@ -93,7 +69,9 @@ class ControllerNode(Node):
         clock = self.get_clock()
         assert isinstance(clock, ROSClock)  # a node's clock is
         self.clock = clock
-        self.clock._set_ros_time_is_active(True)
+        self.effort_forward = self.config.command_output == "effort_forward"
+        if not self.effort_forward:  # effort_forward: its timer keeps the node's clock (use_sim_time: /clock)
+            self.clock._set_ros_time_is_active(True)
         parameters.declare(self, "controller", values)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.retuned: ControllerConfig | None = None  # applied at the next update
@@ -123,11 +101,23 @@ class ControllerNode(Node):
         )
         for warning in configuration_warnings(self.config, self.law.plant):  # before the run, once
             self.get_logger().warning(warning)
+        self.effort = EffortForward(self, self.config, self.joint_names) if self.effort_forward else None
+        self.targets = task_targets(self.law)
+        self.target_topics = TargetTopics(self, self.targets, self.contact_names)
         self.status = StatusPublisher(self)  # what bracing-pair follows
         self.status.say(RunStatus.CONFIGURED)
 
+    def follow_targets(self, t: float) -> None:
+        """Feed the law each retargeted task's reference at t (hand_target, hand_path, brace_target/<contact>)."""
+        if not self.targets.goals or self.previous_ns is None:  # no target, or the law has no path start yet
+            return
+        for task, (position, velocity) in self.targets.advance(t, self.law.engine.path_sample).items():
+            self.law.engine.set_reference(task, position, velocity)
+
     def sync_clock(self) -> None:
         """Set this node's clock to the sim time of the last state answered (see ``__init__``)."""
+        if self.effort_forward:
+            return
         self.clock.set_ros_time_override(Time(nanoseconds=self.answered_ns, clock_type=ClockType.ROS_TIME))
 
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
@@ -243,11 +233,16 @@ class ControllerNode(Node):
         except StateError as exc:
             self.report("error", str(exc).split(" ")[0], f"joint_states ignored: {exc}")
             return
+        self.respond(msg.stamp_ns, q, dq)
+
+    def respond(self, stamp_ns: int, q: Vector, dq: Vector) -> None:
+        """The law's answer to the state (q, dq) stamped ``stamp_ns``: the command and the controller_state."""
         if self.retuned is not None:
             self.law.retune(self.retuned)
             self.config, self.retuned = self.retuned, None
-        t = msg.stamp_ns * 1e-9
+        t = stamp_ns * 1e-9
         self.measure()
+        self.follow_targets(t)
         start = time.perf_counter()
         try:
             out = self.law.update(t, q, dq)
@@ -262,10 +257,13 @@ class ControllerNode(Node):
         if out.damped:
             self.report("warning", "damped", "B is near-singular: using a damped inverse")
         self.watch_null_space(out, dq, t)
-        self.command_pub.publish(self.command_wire.encode(msg.stamp_ns, out.command))
+        if self.effort is not None:
+            self.effort.send(out.command)
+        else:
+            self.command_pub.publish(self.command_wire.encode(stamp_ns, out.command))
         self.state_pub.publish(
             self.state_wire.encode(
-                msg.stamp_ns,
+                stamp_ns,
                 out.hand_desired,
                 out.hand_actual,
                 out.desired_normal_force,
@@ -275,7 +273,7 @@ class ControllerNode(Node):
                 compute_time,
             )
         )
-        self.answered_ns = self.previous_ns = msg.stamp_ns
+        self.answered_ns = self.previous_ns = stamp_ns
         self.flow.sent()
 
 
@@ -285,6 +283,8 @@ def _stamp_ns(msg: WrenchStamped | MotorState) -> int:
 
 def spin(node: ControllerNode) -> int:
     """Answer states as they come (a wait set on joint_states), serving the executor in between."""
+    if node.effort is not None:
+        return spin_effort_forward(node)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     answered = 0
@@ -308,6 +308,7 @@ def spin(node: ControllerNode) -> int:
             for msg in messages:
                 node.on_state(msg)
             answered += len(messages)
+            node.target_topics.poll()  # a target is followed from the next state on
             if not messages or answered >= 100:
                 answered = 0
                 node.sync_clock()  # a parameter change is stamped with it
@@ -320,6 +321,47 @@ def spin(node: ControllerNode) -> int:
         return 0
     except ExternalShutdownException:
         return 0
+
+
+def effort_tick(node: ControllerNode) -> None:
+    """One control period: the law on the latest state, unless it is refused (or there is none yet)."""
+    effort = node.effort
+    assert effort is not None
+    data = effort.latest
+    if data is None:
+        return
+    try:
+        msg = read_joint_state(data, node.state_reader)
+        q, dq = joint_vectors(msg, node.joint_names)
+    except wire.DecodeError as exc:
+        node.report("warning", "malformed", f"joint_states refused: {exc}; no command sent")
+        return
+    except StateError as exc:
+        node.report("warning", str(exc).split(" ")[0], f"joint_states refused: {exc}; no command sent")
+        return
+    try:
+        node.respond(msg.stamp_ns, q, dq)
+    except Exception as exc:  # the last line of defence: no state may stop the controller
+        node.report("error", "internal", f"joint_states ignored: {type(exc).__name__}: {exc}")
+
+
+def spin_effort_forward(node: ControllerNode) -> int:
+    """Subscribe joint_states, then send the law's efforts at control_rate until stopped."""
+    effort = node.effort
+    assert effort is not None
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    node.create_subscription(JointState, "joint_states", effort.on_state, STATE_QOS, raw=True)
+    node.create_timer(1.0 / node.config.control_rate, lambda: effort_tick(node))
+    node.get_logger().info(
+        f"effort_forward: {node.config.effort_command_topic} at {node.config.control_rate:g} Hz, joints {effort.joints}"
+    )
+    node.status.say(RunStatus.STEPPING)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    return 0
 
 
 def main(args: list[str] | None = None) -> int:

@@ -378,6 +378,10 @@ class SimulatorConfig:
     log_throttle_period: float
     plant_error: PlantError = field(default_factory=PlantError)
     sensors: SensorConfig = field(default_factory=SensorConfig)
+    command_source: str = "motor_command"  # | joint_commands (ros2_control's JointStateTopicSystem)
+    joint_commands_topic: str = "/robot_joint_commands"
+    joint_states_topic: str = "/robot_joint_states"
+    motor_drive: DriveConfig = field(default_factory=lambda: DriveConfig())
 
     @classmethod
     def from_params(cls, params: Params, search_dirs: Sequence[Path] = ()) -> SimulatorConfig:
@@ -387,7 +391,12 @@ class SimulatorConfig:
     @classmethod
     def from_values(cls, values: Values, search_dirs: Sequence[Path] = ()) -> SimulatorConfig:
         nested = {p.name for p in (*schema.PLANT_ERROR, *schema.SENSORS)}
-        own = {p.name: values[p.name] for p in schema.SIMULATOR if p.name not in nested}
+        own = {p.name: values[p.name] for p in schema.SIMULATOR if p.name not in nested and "." not in p.name}
+        if own["command_source"] == "joint_commands" and own["stepping"] == "lockstep":
+            raise ConfigError(
+                "command_source: joint_commands does not lockstep (a ros2_control loop never waits for a simulator): "
+                "set stepping to real_time or free_run"
+            )
         error = prefixed(values, schema.PLANT_ERROR, "plant_error.")
         if error["urdf"]:
             error["urdf"] = str(resolve_file(error["urdf"], "plant_error.urdf", search_dirs))
@@ -395,8 +404,20 @@ class SimulatorConfig:
             shared=SharedConfig.from_values(values, search_dirs),
             plant_error=PlantError(**error),
             sensors=SensorConfig.from_values(values),
+            motor_drive=DriveConfig(
+                values["motor_drive.bandwidth"], list(values["motor_drive.kp"]), list(values["motor_drive.ki"])
+            ),
             **own,
         )
+
+
+@dataclass(frozen=True)
+class DriveConfig:
+    """motor_drive.*: the current loop that turns a joint_commands effort into a voltage (``bracing_core.drive``)."""
+
+    bandwidth: float = 100.0  # [rad/s]
+    kp: list[float] = field(default_factory=list)  # [V/A], robot.joint_names order; empty: L * bandwidth
+    ki: list[float] = field(default_factory=list)  # [V/(A s)]; empty: R_20 * bandwidth
 
 
 def with_plant_error(shared: SharedConfig, error: PlantError) -> SharedConfig:

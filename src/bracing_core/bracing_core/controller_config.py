@@ -36,6 +36,12 @@ class ControllerConfig:
     posture_kp: tuple[float, ...] = ()  # null_space_posture.kp, robot.joint_names order (empty: zeros)
     posture_kd: tuple[float, ...] = ()  # null_space_posture.kd
     posture_rest: tuple[float, ...] = ()  # null_space_posture.rest; empty: the first measured position
+    command_output: str = "motor_command"  # | effort_forward (std_msgs/Float64MultiArray, ros2_control)
+    effort_command_topic: str = "effort_controller/commands"
+    effort_command_joints: tuple[str, ...] = ()  # the published order; empty: robot.joint_names
+    control_rate: float = 1000.0  # [Hz] effort_forward's timer
+    target_max_velocity: float = 0.05  # [m/s] targets.max_velocity
+    target_max_acceleration: float = 0.2  # [m/s^2] targets.max_acceleration
 
     @property
     def task_dimension(self) -> int:
@@ -72,7 +78,14 @@ class ControllerConfig:
             posture_kp=values["null_space_posture.kp"],
             posture_kd=values["null_space_posture.kd"],
             posture_rest=values["null_space_posture.rest"],
+            command_output=values["command_output"],
+            effort_command_topic=values["effort_command_topic"],
+            effort_command_joints=tuple(values["effort_command_joints"]),
+            control_rate=values["control_rate"],
+            target_max_velocity=values["targets.max_velocity"],
+            target_max_acceleration=values["targets.max_acceleration"],
         )
+        check_effort_forward(config)
         if config.task_dimension > n - p:
             raise ConfigError(
                 f"task dimension {config.task_dimension} (hand {len(axes)} + brace "
@@ -80,3 +93,19 @@ class ControllerConfig:
                 "the null space of B cannot hold them; remove hand.axes or contacts.<name>.brace_axes"
             )
         return config
+
+
+def check_effort_forward(config: ControllerConfig) -> None:
+    """effort_forward sends the torque law's efforts: torque input, and joints that are the arm's moving ones."""
+    if config.command_output != "effort_forward":
+        return
+    if config.shared.input_mode.value != "torque":
+        raise ConfigError("command_output: effort_forward sends efforts (eq. 38): set robot.input_mode to torque")
+    joints = config.effort_command_joints
+    if not joints:
+        return
+    moving = [j for j in config.shared.joint_names if j not in config.shared.locked_joints]
+    if len(set(joints)) != len(joints) or sorted(joints) != sorted(moving):
+        raise ConfigError(
+            f"effort_command_joints: {list(joints)} must name each moving joint once, in any order ({moving})"
+        )

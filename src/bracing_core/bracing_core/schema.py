@@ -636,8 +636,60 @@ SIMULATOR: tuple[Param, ...] = (
         "stepping",
         Kind.STRING,
         "lockstep",
-        "lockstep: one step per command answering the last state; real_time: a wall-clock timer, latest command held",
-        choices=("lockstep", "real_time"),
+        "lockstep: one step per command answering the last state; real_time: a wall-clock timer, latest command "
+        "held; free_run: as fast as it can, latest command held (use_sim_time nodes follow /clock)",
+        choices=("lockstep", "real_time", "free_run"),
+    ),
+    Param(
+        "command_source",
+        Kind.STRING,
+        "motor_command",
+        "motor_command: bracing_msgs/MotorCommand (lockstep or not); joint_commands: sensor_msgs/JointState efforts "
+        "on joint_commands_topic, as ros2_control's JointStateTopicSystem sends them (real_time or free_run), the "
+        "state also on joint_states_topic",
+        choices=("motor_command", "joint_commands"),
+    ),
+    Param(
+        "joint_commands_topic",
+        Kind.STRING,
+        "/robot_joint_commands",
+        "command_source joint_commands: the JointState whose effort [N m or N, link side] is applied "
+        "(JointStateTopicSystem's joint_commands_topic, same default)",
+    ),
+    Param(
+        "joint_states_topic",
+        Kind.STRING,
+        "/robot_joint_states",
+        "command_source joint_commands: the full JointState (position, velocity, effort) published there too "
+        "(JointStateTopicSystem's joint_states_topic, same default)",
+    ),
+    Param(
+        "motor_drive.bandwidth",
+        Kind.DOUBLE,
+        100.0,
+        "joint_commands in voltage mode: the current loop's bandwidth w (kp = L w, ki = R w: i/i* = w/(s + w))",
+        "rad/s",
+        positive=True,
+    ),
+    Param(
+        "motor_drive.kp",
+        Kind.DOUBLE_ARRAY,
+        [],
+        "the current loop's proportional gain, robot.joint_names order; empty = L * motor_drive.bandwidth",
+        "V/A",
+        length="robot.joint_names",
+        may_be_empty=True,
+        minimum=0.0,
+    ),
+    Param(
+        "motor_drive.ki",
+        Kind.DOUBLE_ARRAY,
+        [],
+        "the current loop's integral gain, robot.joint_names order; empty = R_20 * motor_drive.bandwidth",
+        "V/(A s)",
+        length="robot.joint_names",
+        may_be_empty=True,
+        minimum=0.0,
     ),
     Param("real_time_factor", Kind.DOUBLE, 1.0, "real_time stepping: sim seconds per wall second", positive=True),
     Param(
@@ -798,6 +850,45 @@ CONTROLLER: tuple[Param, ...] = (
         Kind.BOOL,
         False,
         "answer the first state only once a recorder subscribes to both outputs (bracing-pair sets true)",
+    ),
+    Param(
+        "command_output",
+        Kind.STRING,
+        "motor_command",
+        "motor_command: answer each joint_states with a stamped bracing_msgs/MotorCommand; effort_forward (torque "
+        "input): std_msgs/Float64MultiArray efforts on effort_command_topic at control_rate, for ros2_control's "
+        "JointGroupEffortController",
+        choices=("motor_command", "effort_forward"),
+    ),
+    Param(
+        "effort_command_topic",
+        Kind.STRING,
+        "effort_controller/commands",
+        "effort_forward: the forward controller's command topic (<controller_name>/commands)",
+    ),
+    Param(
+        "effort_command_joints",
+        Kind.STRING_ARRAY,
+        [],
+        "effort_forward: the order of the published efforts (the forward controller's joints list); "
+        "empty = robot.joint_names",
+    ),
+    Param("control_rate", Kind.DOUBLE, 1000.0, "effort_forward: the command timer's rate", "Hz", positive=True),
+    Param(
+        "targets.max_velocity",
+        Kind.DOUBLE,
+        0.05,
+        "hand_target / hand_path / brace_target/<contact>: the reference's speed toward a new target, at most",
+        "m/s",
+        positive=True,
+    ),
+    Param(
+        "targets.max_acceleration",
+        Kind.DOUBLE,
+        0.2,
+        "the reference's acceleration toward a new target, at most (no kick: position and velocity stay continuous)",
+        "m/s^2",
+        positive=True,
     ),
     LOG_THROTTLE_PERIOD,
 )

@@ -31,6 +31,8 @@ CONTROLLER_STATE = "bracing_msgs/msg/ControllerState"
 MOTOR_COMMAND = "bracing_msgs/msg/MotorCommand"
 MOTOR_STATE = "bracing_msgs/msg/MotorState"
 RUN_STATUS = "bracing_msgs/msg/RunStatus"
+POINT_STAMPED = "geometry_msgs/msg/PointStamped"
+PATH = "nav_msgs/msg/Path"
 
 
 def bracing_msgs_dir() -> Path:

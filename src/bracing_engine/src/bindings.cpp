@@ -296,6 +296,10 @@ NB_MODULE(_engine, m) {
           "update's answer in one array: command, torque (n each), hand desired, hand actual (3 each), brace desired, "
           "brace actual (3b each, row-major), the force command f_cmd (b), damped (1/0)")
       .def("reset", &Law::reset)
+      .def("set_reference", &Law::set_reference, "task"_a, "position"_a, "velocity"_a,
+           "task k (0 the hand, 1 + j brace j) follows this desired position and velocity instead of its path")
+      .def("clear_reference", &Law::clear_reference, "task"_a, "task k follows its path again")
+      .def("path_sample", &Law::path_sample, "task"_a, "t"_a, "task k's configured path at t: (position, velocity)")
       .def("measure_force", &Law::measure_force, "brace"_a, "force"_a,
            "brace j's measured force on the robot [N], world axes (force feedback reads its normal component)")
       .def("measure_temperature", &Law::measure_temperature, "temperature"_a,

@@ -17,6 +17,7 @@
 #include <Eigen/SVD>
 
 #include <cmath>
+#include <stdexcept>
 
 namespace bracing_engine {
 
@@ -109,6 +110,9 @@ struct Law::Impl {
   std::vector<pin::FrameIndex> frames;  // hand, then each brace
   std::vector<Vector3> starts;          // the tasks' first measured positions
   bool started = false;
+  // A reference given from outside (targets while running, set_reference): per task, used instead of its path.
+  std::vector<bool> overridden;
+  std::vector<Vector3> reference_position, reference_velocity;
   Eigen::Matrix<double, 3, Eigen::Dynamic> jacobian;
   pin::Data::Matrix6x frame_jacobian;
   Vector y_column;
@@ -175,6 +179,9 @@ Law::Law(const LawSpec& spec) : impl_(std::make_unique<Impl>()) {
   m.frames.push_back(frame(spec.hand.frame));
   for (const auto& brace : spec.braces) m.frames.push_back(frame(brace.contact.frame));
   m.starts.assign(m.frames.size(), Vector3::Zero());
+  m.overridden.assign(m.frames.size(), false);
+  m.reference_position.assign(m.frames.size(), Vector3::Zero());
+  m.reference_velocity.assign(m.frames.size(), Vector3::Zero());
   m.jacobian.setZero(3, n);
   m.frame_jacobian.setZero(6, n);
   m.y_column.setZero(n);
@@ -200,10 +207,35 @@ Vector Law::desired_normal_force() const {
 void Law::reset() {
   Impl& m = *impl_;
   m.started = false;
+  m.overridden.assign(m.frames.size(), false);
   m.measured.assign(m.spec.braces.size(), false);
   m.integral.setZero(braces());
   m.saturated = false;
   m.temperature = Vector::Constant(m.model.nv, m.spec.drive.ambient);
+}
+
+void Law::set_reference(int task, const Vector3& position, const Vector3& velocity) {
+  Impl& m = *impl_;
+  if (task < 0 || task > braces()) throw std::out_of_range("set_reference: no such task");
+  m.overridden[task] = true;
+  m.reference_position[task] = position;
+  m.reference_velocity[task] = velocity;
+}
+
+void Law::clear_reference(int task) {
+  Impl& m = *impl_;
+  if (task < 0 || task > braces()) throw std::out_of_range("clear_reference: no such task");
+  m.overridden[task] = false;
+}
+
+std::pair<Vector3, Vector3> Law::path_sample(int task, double t) const {
+  const Impl& m = *impl_;
+  if (task < 0 || task > braces()) throw std::out_of_range("path_sample: no such task");
+  if (!m.started) throw std::logic_error("path_sample: the law has not seen a state yet");
+  const Task& spec = task ? m.spec.braces[task - 1].task : m.spec.hand;
+  Vector3 position, velocity;
+  spec.path.sample(m.starts[task], t, position, velocity);
+  return {position, velocity};
 }
 
 void Law::measure_force(int brace, const Vector3& force) {
@@ -382,7 +414,12 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
     const Vector3 position = pin::updateFramePlacement(m.model, m.data, m.frames[k]).translation();
     const Vector3 velocity = m.jacobian * dq;
     Vector3 desired, desired_velocity;
-    task.path.sample(m.starts[k], t, desired, desired_velocity);
+    if (m.overridden[k]) {
+      desired = m.reference_position[k];
+      desired_velocity = m.reference_velocity[k];
+    } else {
+      task.path.sample(m.starts[k], t, desired, desired_velocity);
+    }
     const Vector3 force = task.kp.cwiseProduct(desired - position) + task.kd.cwiseProduct(desired_velocity - velocity);
     l.noalias() += m.jacobian.transpose() * force;
     if (stack_rows) m.stack(task_rows, task.axes);

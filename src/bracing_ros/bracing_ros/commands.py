@@ -69,3 +69,25 @@ def _by_name(names: Sequence[str], values: Sequence[float] | Vector, joint_names
         )
     by_name = dict(zip(names, values, strict=True))
     return np.array([by_name[j] for j in joint_names], dtype=float)
+
+
+def effort_vector(
+    names: Sequence[str], efforts: Sequence[float] | Vector, joint_names: Sequence[str], limit: float = 0.0
+) -> tuple[Vector, bool]:
+    """A sensor_msgs/JointState command's efforts (ros2_control's JointStateTopicSystem: joints by
+    name, the effort interface filled) in ``joint_names`` order, and whether they were saturated to
+    ``limit`` (0 = none). CommandError names what is wrong: lengths, names, non-finite values."""
+    if len(efforts) != len(names):
+        raise CommandError("length", f"{len(names)} names but {len(efforts)} efforts (an effort per joint is needed)")
+    if list(names) == list(joint_names):
+        u = np.array(efforts, dtype=float)
+    else:
+        u = _by_name(names, efforts, joint_names)
+    if not np.isfinite(u).all():
+        bad = [j for j, v in zip(joint_names, u, strict=True) if not np.isfinite(v)]
+        raise CommandError("non-finite", f"non-finite efforts for {bad}")
+    saturated = False
+    if limit > 0.0 and np.any(np.abs(u) > limit):
+        u = np.clip(u, -limit, limit)
+        saturated = True
+    return u, saturated

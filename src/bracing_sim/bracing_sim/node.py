@@ -16,7 +16,9 @@ import numpy as np
 from geometry_msgs.msg import WrenchStamped
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.subscription import Subscription
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
@@ -24,6 +26,7 @@ from std_msgs.msg import String
 from bracing_core import schema
 from bracing_core.checks import REAL_TIME_ACHIEVED
 from bracing_core.config import SimulatorConfig, build_simulator
+from bracing_core.drive import CurrentLoopDrive, DriveGains
 from bracing_core.dynamics import Derivative, InputMode
 from bracing_core.meshes import missing_warning
 from bracing_core.sensing import GROUND_TRUTH
@@ -32,7 +35,7 @@ from bracing_core.types import Vector
 from bracing_core.watch import RunWatch
 from bracing_msgs.msg import Contacts, MotorCommand, MotorState, RunStatus
 from bracing_ros import parameters, wire
-from bracing_ros.commands import MODE_CODES, CommandError, command_vector
+from bracing_ros.commands import MODE_CODES, CommandError, command_vector, effort_vector
 from bracing_ros.common import (
     EXIT_DIVERGED,
     STREAM_QOS,
@@ -54,6 +57,22 @@ DESCRIPTION_QOS = QoSProfile(
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 """robot_description as robot_state_publisher offers it: one message, kept for late subscribers."""
+
+
+JOINT_COMMANDS_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+"""robot_joint_commands / robot_joint_states, as ros-controls/topic_based_hardware_interfaces'
+joint_state_topic_hardware_interface/src/joint_state_topic_hardware_interface.cpp has them: its
+commands go out with rclcpp::QoS(1) (reliable, volatile, depth 1), one JointState with every joint's
+name in its own order and only the declared command interfaces filled (here `effort`), unless
+trigger_joint_command_threshold holds them back; it reads the state with SensorDataQoS (best effort,
+the latest message kept), joints matched by name, only finite position/velocity/effort used. A
+reliable subscription matches its publisher, a reliable publisher its best-effort reader."""
+
 
 
 class SimulatorNode(Node):
@@ -106,9 +125,15 @@ class SimulatorNode(Node):
         self.contacts_wire = wire.ContactsEncoder([c.name for c in contacts], [c.frame for c in contacts])
         self.motor_wire = wire.MotorStateEncoder(self.joint_names)
         self.command_reader = wire.MotorCommandDecoder(self.joint_names, MODE_CODES[self.mode])
-        self.command_sub = self.create_subscription(
-            MotorCommand, "motor_command", self.on_command, SUBSCRIBE_QOS, raw=True
-        )
+        self.command_sub: Subscription | None = None  # motor_command (command_source motor_command)
+        if self.config.command_source == "motor_command":
+            self.command_sub = self.create_subscription(
+                MotorCommand, "motor_command", self.on_command, SUBSCRIBE_QOS, raw=True
+            )
+        self.drive: CurrentLoopDrive | None = None  # joint_commands in voltage mode: effort -> voltage
+        self.joint_command_pubs: list[Publisher] = []  # joint_commands: robot_joint_states
+        if self.config.command_source == "joint_commands":
+            self.listen_joint_commands()
         self.report = RateLimitedLog(self, self.config.log_throttle_period)
         # robot_description too: a short run could otherwise end before the recorder has it.
         self.publishers_ = [
@@ -168,6 +193,49 @@ class SimulatorNode(Node):
         else:
             self.report("warning", kind, message)
 
+    def listen_joint_commands(self) -> None:
+        """command_source joint_commands: efforts as ros2_control's JointStateTopicSystem sends them (a
+        current-loop drive turns them into voltages in voltage mode), the state published for it too."""
+        cfg = self.config
+        self.create_subscription(JointState, cfg.joint_commands_topic, self.on_joint_command, JOINT_COMMANDS_QOS)
+        self.joint_command_pubs = [self.create_publisher(JointState, cfg.joint_states_topic, JOINT_COMMANDS_QOS)]
+        if self.mode is InputMode.VOLTAGE:
+            motors = self.plant.motors
+            gains = DriveGains.from_bandwidth(
+                cfg.motor_drive.bandwidth,
+                motors.inductance,
+                motors.resistance,
+                self.plant.to_model_order(cfg.motor_drive.kp) if cfg.motor_drive.kp else (),
+                self.plant.to_model_order(cfg.motor_drive.ki) if cfg.motor_drive.ki else (),
+            )
+            self.drive = CurrentLoopDrive(gains, motors.reflected_constant, motors.voltage_limit)
+        self.get_logger().info(
+            f"joint_commands: efforts from {cfg.joint_commands_topic}, state also on {cfg.joint_states_topic}"
+            + (f", current loop {cfg.motor_drive.bandwidth:g} rad/s" if self.drive is not None else "")
+        )
+
+    def on_joint_command(self, msg: JointState) -> None:
+        """Keep the latest valid JointState effort command [N m or N, link side] (real-time: held)."""
+        try:
+            torque_limit = self.plant.motors.torque_limit if self.drive is None else 0.0
+            u, saturated = effort_vector(list(msg.name), list(msg.effort), self.joint_names, torque_limit)
+        except CommandError as exc:
+            self.report("error", exc.kind, f"{self.config.joint_commands_topic} rejected: {exc}")
+            return
+        except Exception as exc:  # the last line of defence: no message may stop the simulator
+            self.report("error", "internal", f"joint command rejected: {type(exc).__name__}: {exc}")
+            return
+        if saturated:
+            self.report("warning", "saturated", f"{self.config.joint_commands_topic} saturated to +/-{torque_limit}")
+        self.latest_command = (time.monotonic(), u)
+
+    def applied(self, request: Vector) -> Vector:
+        """What the plant gets for a held request: the request itself, or with the drive (joint_commands in
+        voltage mode) the voltage its current loop sets for this step."""
+        if self.drive is None:
+            return request
+        return self.drive.voltage(request, self.sim.current, self.sim.velocity, self.config.step)
+
     # -- commands -------------------------------------------------------------------
     def on_command(self, data: bytes) -> None:
         try:
@@ -213,6 +281,8 @@ class SimulatorNode(Node):
             measured_position, measured_velocity = self.sensors.joints(position, velocity)
             self.joint_pub.publish(self.joint_wire.encode(t_ns, measured_position, measured_velocity, effort))
             self.truth_pubs[0].publish(self.joint_wire.encode(t_ns, position, velocity, effort))
+        for pub in self.joint_command_pubs:  # the ros2_control face: the full truth, as a robot's driver gives it
+            pub.publish(self.joint_wire.encode(t_ns, position, velocity, effort))
         self.clock_pub.publish(self.clock_wire.encode(t_ns))
 
     def publish_step(
@@ -383,6 +453,22 @@ def wait_for_status_subscribers(node: SimulatorNode, executor: SingleThreadedExe
     )
 
 
+def wait_for_ros2_control(node: SimulatorNode, executor: SingleThreadedExecutor) -> None:
+    """joint_commands: the first state goes out once min_subscribers listen on joint_states_topic and a
+    publisher of joint_commands_topic is matched (a JointStateTopicSystem does both from its start)."""
+    cfg = node.config
+    wait_until(
+        node,
+        executor,
+        lambda: (
+            node.joint_command_pubs[0].get_subscription_count() >= cfg.min_subscribers
+            and node.count_publishers(cfg.joint_commands_topic) >= 1
+        ),
+        f"waiting for {cfg.min_subscribers} subscriber(s) of {cfg.joint_states_topic} and a publisher of "
+        f"{cfg.joint_commands_topic} (start the ros2_control side)",
+    )
+
+
 def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None:
     cfg = node.config
     since = time.monotonic()
@@ -399,6 +485,7 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
     wait_for_status_subscribers(node, executor)
     node.get_logger().info(f"lockstep: stepping (subscribers matched in {time.monotonic() - since:.3f} s)")
     node.status.say(RunStatus.STEPPING, node.sim.time)
+    assert node.command_sub is not None  # lockstep: motor_command (joint_commands does not lockstep)
     waiter = SubscriptionWaiter(node, node.command_sub)
     node.publish_state(node.state_effort())
     node.flow.sent()
@@ -463,25 +550,39 @@ def spin_real_time(node: SimulatorNode, executor: SingleThreadedExecutor) -> Non
         latest = node.latest_command
         if latest is None or time.monotonic() - latest[0] > cfg.command_timeout:
             if latest is not None:
-                node.warn_report("watchdog", "motor_command stale: applying zero")
-            command = np.zeros(node.sim.n)
+                source = "motor_command" if cfg.command_source == "motor_command" else cfg.joint_commands_topic
+                node.warn_report("watchdog", f"{source} stale: applying zero")
+            request = np.zeros(node.sim.n)
         else:
-            command = latest[1]
+            request = latest[1]
+        command = node.applied(request)
         if node.advance(command):
+            if node.drive is not None:
+                node.drive.commit()
             return
         node.refuse(command)
         node.latest_command = None  # never again: a stale command becomes zero
-        if not node.advance(np.zeros(node.sim.n)):
+        if not node.advance(node.applied(np.zeros(node.sim.n))):
             raise DivergenceError(f"{node.refusal} (under a zero command)")
+        if node.drive is not None:
+            node.drive.commit()
 
     wait_for_status_subscribers(node, executor)
-    node.get_logger().info("real-time: stepping")
+    if node.joint_command_pubs:
+        wait_for_ros2_control(node, executor)
+    free = cfg.stepping == "free_run"
+    node.get_logger().info("free run: stepping as fast as it can" if free else "real-time: stepping")
     node.status.say(RunStatus.STEPPING, node.sim.time)
     node.publish_state(node.state_effort())
     started = time.monotonic()
-    node.create_timer(period, tick)
-    while not node.done():
-        executor.spin_once(timeout_sec=0.1)
+    if free:  # as fast as it can; /clock tells use_sim_time nodes the time
+        while not node.done():
+            executor.spin_once(timeout_sec=0.0)
+            tick()
+    else:
+        node.create_timer(period, tick)
+        while not node.done():
+            executor.spin_once(timeout_sec=0.1)
     report_real_time(node, time.monotonic() - started)
     node.finish()
 
@@ -493,7 +594,8 @@ def report_real_time(node: SimulatorNode, wall_s: float) -> None:
     node.real_time_achieved = achieved
     asked = node.config.real_time_factor
     node.get_logger().info(f"{REAL_TIME_ACHIEVED}{achieved:.4f}x real time (asked {asked:g}x)")
-    node.say(node.watch.real_time(achieved, asked))
+    if node.config.stepping == "real_time":  # free_run asks for no pace
+        node.say(node.watch.real_time(achieved, asked))
 
 
 def _finite(*arrays: Vector) -> bool:

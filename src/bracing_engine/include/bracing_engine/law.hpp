@@ -94,6 +94,12 @@ class Law {
   void measure_force(int brace, const Vector3& force);
   // The windings' measured temperatures [degC] (thermal compensation; ambient until the first).
   void measure_temperature(const Vector& temperature);
+  // Targets while running: task k (0 the hand, 1 + j brace j) follows this desired position and velocity
+  // instead of its path from the next update on, until clear_reference(k) or reset().
+  void set_reference(int task, const Vector3& position, const Vector3& velocity);
+  void clear_reference(int task);
+  // Task k's configured path at t (desired position, velocity), from its first measured position.
+  std::pair<Vector3, Vector3> path_sample(int task, double t) const;
   bool uses_force_feedback() const;  // a brace has a feedback gain
   bool uses_temperature() const;     // thermal compensation applies (voltage mode, thermal drive)
   // The command of the law's torque at the measured velocity dq: tau (torque mode), K_V tau (eq. 41), or the

@@ -1,0 +1,62 @@
+"""command_output effort_forward: the controller drives a ros2_control robot.
+
+The torque law's efforts go out as std_msgs/Float64MultiArray on ``effort_command_topic``, one value
+per joint in the order of ``effort_command_joints`` (a JointGroupEffortController's ``joints``), on a
+timer at ``control_rate`` on the node's clock (``use_sim_time``: /clock), computed from the latest
+``joint_states`` of any publisher (joint_state_broadcaster's, or our simulator's). A state with a joint
+missing or not finite is refused, with a rate-limited warning, and nothing is sent from it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Float64MultiArray
+
+from bracing_core.controller_config import ControllerConfig
+from bracing_core.types import Vector
+
+COMMAND_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+"""ros-controls/ros2_controllers forward_command_controller/src/forward_controllers_base.cpp (which
+effort_controllers/JointGroupEffortController derives from on Jazzy; on Rolling it is gone: a
+ForwardCommandController with interface_name effort) subscribes ``~/commands`` with SystemDefaultsQoS:
+the RMW's own choice (rmw_fastrtps_cpp here: a best-effort, volatile reader). A reliable, volatile
+publisher matches it whatever it resolves to. It drops a message with a non-finite value and fails its
+update on a length other than its ``joints``; we never send either."""
+
+STATE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.BEST_EFFORT,
+    durability=DurabilityPolicy.VOLATILE,
+)
+"""Best effort: matches joint_state_broadcaster's ``joint_states`` publisher (ros2_controllers
+joint_state_broadcaster/src/joint_state_broadcaster.cpp: SystemDefaultsQoS, under rmw_fastrtps_cpp a
+reliable, transient-local writer; NaN for an interface a joint lacks) and a SensorDataQoS publisher
+alike; the latest counts."""
+
+
+class EffortForward:
+    """The effort publisher, the latest joint_states, and the order the efforts go out in."""
+
+    def __init__(self, node: Node, config: ControllerConfig, names: list[str]) -> None:
+        """``names``: the law's (model) joint order."""
+        joints = list(config.effort_command_joints) or list(config.shared.joint_names)
+        self.order = np.array([names.index(j) for j in joints], dtype=int)
+        self.joints = joints
+        self.publisher = node.create_publisher(Float64MultiArray, config.effort_command_topic, COMMAND_QOS)
+        self.latest: bytes | None = None
+        self.used: bytes | None = None
+
+    def on_state(self, data: bytes) -> None:
+        self.latest = data
+
+    def send(self, command: Vector) -> None:
+        """The law's efforts (model order) as the forward controller takes them."""
+        self.publisher.publish(Float64MultiArray(data=[float(v) for v in np.asarray(command)[self.order]]))
