@@ -358,7 +358,10 @@ def spin_effort_forward(node: ControllerNode) -> int:
     )
     node.status.say(RunStatus.STEPPING)
     try:
-        executor.spin()
+        # Never one endless wait: under use_sim_time with /clock stopped, rclpy's wait would not return,
+        # and the Python signal handlers (SIGINT, SIGTERM: bracing_ros.common.run) would never run.
+        while True:
+            executor.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     return 0
