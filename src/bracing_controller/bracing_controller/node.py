@@ -224,16 +224,23 @@ class ControllerNode(Node):
 
     def answer(self, data: bytes) -> None:
         """Answer one joint_states (CDR bytes) with a motor_command and a controller_state."""
+        state = self.read_state(data, "error", "ignored")
+        if state is not None:
+            self.respond(*state)
+
+    def read_state(self, data: bytes, severity: str, verdict: str, then: str = "") -> tuple[int, Vector, Vector] | None:
+        """(stamp [ns], q, dq) of one joint_states (CDR bytes) in the law's joint order, or None after
+        reporting, at ``severity``, why it is ``verdict`` (malformed, a joint missing, non-finite, ...)."""
         try:
             msg = read_joint_state(data, self.state_reader)
             q, dq = joint_vectors(msg, self.joint_names)
         except wire.DecodeError as exc:
-            self.report("error", "malformed", f"joint_states ignored: {exc}")
-            return
+            self.report(severity, "malformed", f"joint_states {verdict}: {exc}{then}")
+            return None
         except StateError as exc:
-            self.report("error", str(exc).split(" ")[0], f"joint_states ignored: {exc}")
-            return
-        self.respond(msg.stamp_ns, q, dq)
+            self.report(severity, str(exc).split(" ")[0], f"joint_states {verdict}: {exc}{then}")
+            return None
+        return msg.stamp_ns, q, dq
 
     def respond(self, stamp_ns: int, q: Vector, dq: Vector) -> None:
         """The law's answer to the state (q, dq) stamped ``stamp_ns``: the command and the controller_state."""
@@ -330,17 +337,11 @@ def effort_tick(node: ControllerNode) -> None:
     data = effort.latest
     if data is None:
         return
-    try:
-        msg = read_joint_state(data, node.state_reader)
-        q, dq = joint_vectors(msg, node.joint_names)
-    except wire.DecodeError as exc:
-        node.report("warning", "malformed", f"joint_states refused: {exc}; no command sent")
-        return
-    except StateError as exc:
-        node.report("warning", str(exc).split(" ")[0], f"joint_states refused: {exc}; no command sent")
+    state = node.read_state(data, "warning", "refused", "; no command sent")
+    if state is None:
         return
     try:
-        node.respond(msg.stamp_ns, q, dq)
+        node.respond(*state)
     except Exception as exc:  # the last line of defence: no state may stop the controller
         node.report("error", "internal", f"joint_states ignored: {type(exc).__name__}: {exc}")
 
