@@ -358,7 +358,8 @@ def spin_effort_forward(node: ControllerNode) -> int:
     )
     node.status.say(RunStatus.STEPPING)
     try:
-        executor.spin()
+        while True:  # not executor.spin(): with /clock stopped it would never return to take a SIGINT
+            executor.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     return 0
