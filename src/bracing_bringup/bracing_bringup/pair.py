@@ -581,6 +581,11 @@ def _report(
         return None, EXIT_FAILED, f"error: {exc}"
     timeline.mark("bag read")
     options, expected_states = plan.options, plan.expected_states
+    if options.engine == MUJOCO:  # no `contacts` topic: each contact's forces and residual from its wrench
+        from bracing_analysis.wrench_contacts import contacts_from_wrenches
+
+        contacts_from_wrenches(series)
+        series.input_mode = "torque"  # what MUJOCO_NEEDS set (no motor_command tells it)
     if expected_states:  # lockstep
         problems = missing_from_counts(series.topic_counts, plan.contacts, expected_states, "", plan.ground_truth)
         timeline.mark("bag checked")
