@@ -140,14 +140,15 @@ class MujocoRobotNode(Node):
 
 
 def wait_for_peers(node: MujocoRobotNode, executor: SingleThreadedExecutor) -> None:
-    """Before the first state: the recorder on every topic, min_subscribers on joint_states (the controller
-    too), a publisher of the commands (the controller), and run_status's subscribers (bracing-pair)."""
+    """Before the first state: the recorder on every topic (wait_for_recorder), min_subscribers on
+    joint_states (the controller too), a publisher of the commands (the controller), and run_status's
+    subscribers (bracing-pair)."""
     cfg = node.config
     wait_until(
         node,
         executor,
         lambda: (
-            all(p.get_subscription_count() >= 1 for p in node.publishers_)
+            (not cfg.wait_for_recorder or all(p.get_subscription_count() >= 1 for p in node.publishers_))
             and node.joint_pub.get_subscription_count() >= cfg.min_subscribers
             and node.command_sub.get_publisher_count() >= 1
             and node.status.subscribers() >= cfg.min_status_subscribers
