@@ -344,7 +344,6 @@ class Recorder(Node):
     def simulator_done(self) -> bool:
         """Nothing more to come from the simulator on run_status: it said FINISHED, or none speaks there."""
         return self.simulator_finished or not self.simulator_heard
-
     def _record_target(self, sub: Subscription, data: bytes) -> None:
         """Write a target as it came, at the sim time of the last /clock recorded (the bag's time axis);
         its topic enters the bag with its first message."""
