@@ -17,7 +17,7 @@ gravity compensation at the initial pose plus J_elbow^T (0, 0, -10 N), i.e. the
 elbow is pressed on the floor with the paper's desired force, so the contact stays
 active during the whole timing.
 
-Benchmark-only dependency: ``mujoco`` (requirements-bench.lock).
+Dependency: ``mujoco`` (requirements.lock, also bracing-pair --engine mujoco's).
 """
 
 from __future__ import annotations

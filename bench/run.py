@@ -23,8 +23,8 @@ in one run on this machine, with medians of repeats. Prints a table, writes benc
 
 ``--quick`` cuts every figure to about a second or less (runs of 0.01 s of sim time, few
 steps, one repeat): it checks that every key is produced (``make test`` runs it,
-test/test_bench.py), its numbers are not measurements. Without ``mujoco`` (requirements-bench.lock,
-which ``make bench`` installs) a quick run writes the MuJoCo keys as null and says why; a full run
+test/test_bench.py), its numbers are not measurements. Without ``mujoco`` (requirements.lock,
+which the set-up installs) a quick run writes the MuJoCo keys as null and says why; a full run
 stops.
 """
 
@@ -357,9 +357,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         from mujoco_paper import mujoco_steps_per_s
-    except ImportError as exc:  # a benchmark-only dependency (requirements-bench.lock)
+    except ImportError as exc:  # requirements.lock's (an environment set up before it)
         if not args.quick:
-            print(f"error: {exc}: pip install -r requirements-bench.lock (make bench does)", file=sys.stderr)
+            print(f"error: {exc}: pip install -r requirements.lock (make setup does)", file=sys.stderr)
             return 2
         mujoco_steps_per_s = None
         mujoco_missing: str | None = f"mujoco not installed ({exc}): the MuJoCo keys are null"

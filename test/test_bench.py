@@ -2,8 +2,9 @@
 
 ``python bench/run.py --quick`` runs every figure for about a second or less (its numbers are not
 measurements), so a bench broken by a change elsewhere fails ``make test`` and not only the next
-``make bench``. MuJoCo is a benchmark-only dependency (requirements-bench.lock, installed by
-``make bench``, not by the set-up): without it the MuJoCo keys are null and the output says why.
+``make bench``. MuJoCo (requirements.lock, installed by the set-up for bracing-pair --engine mujoco)
+may still be missing from an older environment: without it the MuJoCo keys are null and the output
+says why.
 """
 
 from __future__ import annotations

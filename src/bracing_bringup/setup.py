@@ -27,6 +27,7 @@ setup(
             "recorder=bracing_bringup.recorder:main",
             "bracing-recorder=bracing_bringup.recorder:main",
             "bracing-pair=bracing_bringup.pair:main",
+            "bracing-mujoco-robot=bracing_bringup.mujoco_robot:main",
             "view=bracing_bringup.view:main",
             "bracing-view=bracing_bringup.view:main",
         ],

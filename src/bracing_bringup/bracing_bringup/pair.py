@@ -2,13 +2,18 @@
 
     bracing-pair --config F [--duration S] [--output DIR] [--mode voltage|torque]
                  [--no-bracing | --free-space] [--real-time] [--domain-id N] [--set KEY=VALUE ...]
-                 [--no-animation] [--timeline] [--network]
+                 [--no-animation] [--timeline] [--network] [--engine bracing|mujoco]
 
 Writes DIR/params.yaml (every parameter the nodes ran with), DIR/bag/ (mcap), DIR/logs/*.log,
 DIR/summary.json, the report's PNGs and animation, and DIR/timeline.json (where the wall time
 went: see ``timeline``). Exit 0 on success; non-zero with the failing process's log tail
 otherwise. Ctrl-C stops the nodes and still leaves a readable bag. A run that fails (or is
 stopped) before its first step keeps only its logs, so the same --output works again.
+
+``--engine mujoco``: the robot is MuJoCo's (``bracing_bringup.mujoco_robot``, a mujoco_ros2_control
+robot's topic face) and the controller runs unchanged with ``command_output: effort_forward``,
+``input_mode: torque`` and ``use_sim_time`` (it follows the robot's /clock); the same bag, summary and
+report, with n/a where a metric needs a topic only our simulator has (``contacts``, ``motor_state``).
 """
 
 from __future__ import annotations
@@ -56,6 +61,9 @@ EXIT_CONFIG = 2
 PARAMS_FILE = "params.yaml"
 """DIR/params.yaml: every parameter each node ran with (``bracing-simulator --ros-args --params-file``
 runs it again)."""
+MUJOCO = "mujoco"
+MUJOCO_NEEDS = {"command_output": "effort_forward", "input_mode": "torque"}
+"""--engine mujoco: the controller's torque law sent as a JointGroupEffortController takes it."""
 VIEWER_START_S = 60.0  # [s] --view: how long the viewer may take to serve its page before the run goes on without
 
 
@@ -78,6 +86,7 @@ class RunOptions:
     network: bool = False  # --network: DDS sockets on every interface (default: loopback and shared memory)
     view: bool = False  # --view: bracing-view beside the nodes (a process of its own, best-effort subscriber)
     rrd: bool = False  # --rrd: DIR/run.rrd, the run for rerun's viewer, written from the bag
+    engine: str = "bracing"  # --engine: bracing (our simulator) | mujoco (MuJoCo through ros2_control's topics)
 
 
 @dataclass
@@ -97,6 +106,8 @@ def command_line(options: RunOptions) -> dict[str, Any]:
     if options.mode is not None:
         values["input_mode"] = options.mode
     values.update(variant_overrides(options.bracing, options.free_space))
+    if options.engine == MUJOCO:
+        values.update(MUJOCO_NEEDS)
     return values
 
 
@@ -341,6 +352,18 @@ class RunPlan:
         if self.expected_states:
             recorder += ["--expect-states", str(self.expected_states)]  # it closes the bag once it has them all
         nodes = ("--params-file", params_file)
+        if self.options.engine == MUJOCO:
+            controller = (*nodes, "-p", "use_sim_time:=true")  # it follows MuJoCo's /clock
+            mujoco_robot = ("bracing_bringup", "bracing-mujoco-robot", "bracing_bringup.mujoco_robot", (), nodes)
+            return [
+                RunProcess(
+                    "recorder", "bracing_bringup", "bracing-recorder", "bracing_bringup.recorder", tuple(recorder)
+                ),
+                RunProcess(
+                    "controller", "bracing_controller", "bracing-controller", "bracing_controller.node", (), controller
+                ),
+                RunProcess("simulator", *mujoco_robot),
+            ]
         return [
             RunProcess("recorder", "bracing_bringup", "bracing-recorder", "bracing_bringup.recorder", tuple(recorder)),
             RunProcess("controller", "bracing_controller", "bracing-controller", "bracing_controller.node", (), nodes),
@@ -360,6 +383,7 @@ def plan_run(options: RunOptions) -> RunPlan:
     duration = options.duration if options.duration is not None else float(sim_values["duration"])
     step = float(sim_values["step"])
     lockstep = sim_values["stepping"] == "lockstep" and not options.real_time and duration > 0
+    lockstep = lockstep and options.engine != MUJOCO  # MuJoCo's robot promises no message count
     expected_states = round(duration / step) + 1 if lockstep else 0
     every = with_layers(given, pair_needs(options, urdf))
     return RunPlan(options, sim_values, every, duration, expected_states)
@@ -557,6 +581,11 @@ def _report(
         return None, EXIT_FAILED, f"error: {exc}"
     timeline.mark("bag read")
     options, expected_states = plan.options, plan.expected_states
+    if options.engine == MUJOCO:  # no `contacts` topic: each contact's forces and residual from its wrench
+        from bracing_analysis.wrench_contacts import contacts_from_wrenches
+
+        contacts_from_wrenches(series)
+        series.input_mode = "torque"  # what MUJOCO_NEEDS set (no motor_command tells it)
     if expected_states:  # lockstep
         problems = missing_from_counts(series.topic_counts, plan.contacts, expected_states, "", plan.ground_truth)
         timeline.mark("bag checked")
@@ -619,11 +648,20 @@ def parse_args(argv: Sequence[str] | None) -> RunOptions:
     parser.add_argument("--view", action="store_true", help="watch the run in a browser (bracing-view, 127.0.0.1)")
     parser.add_argument("--rrd", action="store_true", help="also write DIR/run.rrd (open with bracing-view or rerun)")
     parser.add_argument(
+        "--engine",
+        choices=("bracing", MUJOCO),
+        default="bracing",
+        help="the physics: bracing (our simulator) or mujoco (MuJoCo as a ros2_control robot; torque input, "
+        "the controller's effort_forward output)",
+    )
+    parser.add_argument(
         "--set", dest="sets", action="append", default=[], metavar="KEY=VALUE", help="override a scenario parameter"
     )
     args = parser.parse_args(argv)
     if args.duration is not None and args.duration <= 0:
         parser.error("--duration must be > 0")
+    if args.engine == MUJOCO and args.mode == "voltage":
+        parser.error("--engine mujoco drives the joints' torques (a JointGroupEffortController): no --mode voltage")
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         parser.error("--domain-id must be in 0-232 (ROS documents 0-101 as safe on Linux)")
     try:
@@ -647,6 +685,7 @@ def parse_args(argv: Sequence[str] | None) -> RunOptions:
         network=args.network,
         view=args.view,
         rrd=args.rrd,
+        engine=args.engine,
     )
 
 

@@ -1,0 +1,183 @@
+"""bracing-mujoco-robot: the scenario's robot in MuJoCo, with a mujoco_ros2_control robot's topic face.
+
+As a mujoco_ros2_control robot running a ``JointGroupEffortController`` named ``effort_controller``,
+a ``joint_state_broadcaster`` and a ``force_torque_sensor_broadcaster`` per contact: it subscribes
+``effort_controller/commands`` (std_msgs/Float64MultiArray, one effort per joint of robot.joint_names
+in that order; a wrong length or a non-finite value is refused with a rate-limited error and the
+held command kept) and publishes ``joint_states``, ``/clock`` and ``contact_wrench/<contact>``
+(geometry_msgs/WrenchStamped, frame ``world``: MuJoCo's contact force on the robot at the contact
+sphere), and ``robot_description`` (latched) for the recorder's /tf. Node name and parameters are the
+simulator's (``bracing_simulator``: robot, contacts, gravity, step, duration), so bracing-pair follows
+it on run_status as it follows our simulator (``bracing-pair --engine mujoco``).
+
+Stepping: MuJoCo at ``step`` with the latest command held. Like mujoco_ros2_control's loop (read, the
+controllers' update, write, mj_step in one thread) each state waits for the controller's answer, here
+over DDS: a step is taken once a command has come since the state before it, or after
+``COMMAND_WAIT_S`` of wall time without one (then with the held command), so a slow machine slows the
+run down instead of starving the controller.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from functools import partial
+
+import numpy as np
+from geometry_msgs.msg import WrenchStamped
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, String
+
+from bracing_bringup.mujoco_plant import MujocoRobot
+from bracing_core import schema
+from bracing_core.config import SimulatorConfig
+from bracing_msgs.msg import RunStatus
+from bracing_ros import parameters, wire
+from bracing_ros.common import STREAM_QOS, AckWindow, RateLimitedLog, create_waking_publisher, run, wait_until
+from bracing_ros.status import StatusPublisher
+
+COMMAND_TOPIC = "effort_controller/commands"
+COMMAND_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)  # fmt: skip
+"""forward_command_controller's ``~/commands`` subscription (reliable here: it matches our controller's
+reliable publisher and keeps every command)."""
+DESCRIPTION_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)  # fmt: skip
+COMMAND_WAIT_S = 0.05  # [s] wall: the longest a step waits for the controller's answer to the last state
+
+
+def command_error(values: list[float], n: int) -> str | None:
+    """Why a Float64MultiArray's values cannot be ``n`` joint efforts (None: they can)."""
+    if len(values) != n:
+        return f"{len(values)} values for {n} joints"
+    bad = [i for i, v in enumerate(values) if not math.isfinite(v)]
+    return f"non-finite value at index {bad[0]} ({values[bad[0]]})" if bad else None
+
+
+class MujocoRobotNode(Node):
+    def __init__(self, **kwargs: object) -> None:
+        super().__init__("bracing_simulator", **kwargs)  # type: ignore[arg-type]
+        values = schema.read("simulator", parameters.given_parameters(self))
+        self.config = SimulatorConfig.from_values(values)
+        parameters.declare(self, "simulator", values)
+        self.robot = MujocoRobot.build(self.config)
+        self.joint_names = self.robot.joint_names
+        self.step_ns = round(self.config.step * 1e9)
+        self.total_steps = round(self.config.duration / self.config.step) if self.config.duration > 0 else None
+        self.steps = 0
+        publisher = partial(create_waking_publisher, self)
+        self.joint_pub = publisher(JointState, "joint_states", STREAM_QOS)
+        self.clock_pub = publisher(Clock, "/clock", STREAM_QOS)
+        self.wrench_pubs = [publisher(WrenchStamped, f"contact_wrench/{c}", STREAM_QOS) for c in self.robot.contacts]
+        self.description_pub = publisher(String, "robot_description", DESCRIPTION_QOS)
+        self.description_pub.publish(String(data=self.robot.description))
+        self.publishers_ = [self.joint_pub, self.clock_pub, *self.wrench_pubs, self.description_pub]
+        self.flow = AckWindow(self, self.publishers_, STREAM_QOS.depth)
+        self.joint_wire = wire.JointStateEncoder(self.joint_names)
+        self.clock_wire = wire.ClockEncoder()
+        self.wrench_wire = wire.WrenchStampedEncoder("world")
+        self.command = np.zeros(len(self.joint_names))  # held until a valid one replaces it
+        self.commands = 0  # valid commands taken so far
+        self.command_sub = self.create_subscription(Float64MultiArray, COMMAND_TOPIC, self.on_command, COMMAND_QOS)
+        self.report = RateLimitedLog(self, self.config.log_throttle_period)
+        self.status = StatusPublisher(self)
+        self._next_progress = 0.0
+        self.get_logger().info(
+            f"MuJoCo {self.robot.version}: {len(self.joint_names)} joints {self.joint_names}, contacts "
+            f"{self.robot.contacts or 'none'}, step {self.config.step} s, "
+            f"duration {self.config.duration or 'unbounded'} s"
+        )
+        self.status.say(RunStatus.CONFIGURED, 0.0)
+
+    def on_command(self, msg: Float64MultiArray) -> None:
+        """Hold a valid effort command; refuse (rate-limited error) a wrong length or a non-finite value."""
+        values = [float(v) for v in msg.data]
+        problem = command_error(values, len(self.joint_names))
+        if problem is not None:
+            kind = "length" if problem.endswith("joints") else "non-finite"
+            self.report("error", kind, f"{COMMAND_TOPIC} refused: {problem} (joints {self.joint_names})")
+            return
+        self.command = np.array(values)
+        self.commands += 1
+
+    def publish_state(self) -> None:
+        """joint_states (effort: the held command), /clock, then each contact's wrench, at MuJoCo's time."""
+        t_ns = self.steps * self.step_ns
+        position, velocity = self.robot.state()
+        self.joint_pub.publish(self.joint_wire.encode(t_ns, position, velocity, self.command))
+        self.clock_pub.publish(self.clock_wire.encode(t_ns))
+        for pub, force in zip(self.wrench_pubs, self.robot.contact_forces(), strict=True):
+            pub.publish(self.wrench_wire.encode(t_ns, force))
+        self.flow.sent()
+
+    def advance(self) -> None:
+        self.robot.step(self.command)
+        self.steps += 1
+        self.publish_state()
+        now = time.monotonic()
+        if now >= self._next_progress:
+            self._next_progress = now + 0.5
+            self.status.say(RunStatus.PROGRESS, self.steps * self.config.step)
+
+    def done(self) -> bool:
+        return self.total_steps is not None and self.steps >= self.total_steps
+
+    def finish(self) -> None:
+        self.flow.wait()
+        depth = self.robot.max_penetration
+        self.get_logger().info(f"finished at t = {self.steps * self.config.step:.6f} s, deepest penetration {depth}")
+        self.status.say(RunStatus.FINISHED, self.steps * self.config.step)
+        self.status.flush()
+
+
+def wait_for_peers(node: MujocoRobotNode, executor: SingleThreadedExecutor) -> None:
+    """Before the first state: the recorder on every topic (wait_for_recorder), min_subscribers on
+    joint_states (the controller too), a publisher of the commands (the controller), and run_status's
+    subscribers (bracing-pair)."""
+    cfg = node.config
+    wait_until(
+        node,
+        executor,
+        lambda: (
+            (not cfg.wait_for_recorder or all(p.get_subscription_count() >= 1 for p in node.publishers_))
+            and node.joint_pub.get_subscription_count() >= cfg.min_subscribers
+            and node.command_sub.get_publisher_count() >= 1
+            and node.status.subscribers() >= cfg.min_status_subscribers
+        ),
+        f"waiting for the recorder, the controller ({COMMAND_TOPIC}) and run_status's subscribers",
+    )
+
+
+def spin(node: MujocoRobotNode) -> int:
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        wait_for_peers(node, executor)
+        node.status.say(RunStatus.STEPPING, 0.0)
+        node.publish_state()
+        while not node.done():
+            seen, deadline = node.commands, time.monotonic() + COMMAND_WAIT_S
+            while node.commands == seen and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=max(0.0, deadline - time.monotonic()))
+            node.advance()
+        node.finish()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    return 0
+
+
+def main(args: list[str] | None = None) -> int:
+    sys.exit(run(MujocoRobotNode, spin, args))  # type: ignore[arg-type]
+
+
+if __name__ == "__main__":
+    main()
