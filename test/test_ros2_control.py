@@ -270,6 +270,7 @@ def test_hand_path_and_brace_target_mid_run_recorded_and_drawn(tmp_path: Path) -
     hand figure marks the path's poses at their stamps."""
     from bracing_analysis.figures import plot_figure
     from bracing_analysis.summary import read_series
+    from bracing_bringup.view import write_rrd
     from bracing_core.targets import path_goal
 
     poses = [[1.5, 0.0, 1.0, 0.7], [2.5, 0.0, 1.05, 0.72]]
@@ -313,6 +314,10 @@ def test_hand_path_and_brace_target_mid_run_recorded_and_drawn(tmp_path: Path) -
     marks = [line for line in figure.axes[0].lines if line.get_label() == "hand_target / hand_path sent"]
     assert len(marks) == 1 and list(marks[0].get_xdata()) == pytest.approx([1.5, 2.5])
     assert list(marks[0].get_ydata()) == [1.0, 1.05]
+    # bracing-view draws them too: the path's poses joined, the brace target a point
+    counts = write_rrd(bag, tmp_path / "run.rrd")
+    assert counts.get("world/targets/hand") == 1 and counts.get("world/targets/hand/path") == 1, counts
+    assert counts.get("world/targets/elbow") == 1, counts
 
 
 def test_effort_forward_under_use_sim_time_follows_clock(tmp_path: Path) -> None:

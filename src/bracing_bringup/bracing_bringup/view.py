@@ -43,7 +43,16 @@ from bracing_core.meshes import missing_warning, read_mesh
 from bracing_core.meshes import resolve as resolve_mesh
 from bracing_core.overrides import SIMULATOR
 from bracing_core.params import ConfigError
-from bracing_core.typestore import CONTACTS, CONTROLLER_STATE, JOINT_STATE, MOTOR_STATE, STRING, WRENCH_STAMPED
+from bracing_core.typestore import (
+    CONTACTS,
+    CONTROLLER_STATE,
+    JOINT_STATE,
+    MOTOR_STATE,
+    PATH,
+    POINT_STAMPED,
+    STRING,
+    WRENCH_STAMPED,
+)
 
 DEFAULT_PERIOD_S = 1.0 / 30.0  # [s] of sim time between drawn states: a browser's frame at real time
 FORCE_M_PER_N = 0.01  # arrow length per newton [m/N], as the recorder's markers
@@ -55,7 +64,10 @@ _TYPES = {
     "contacts": CONTACTS,
     "controller_state": CONTROLLER_STATE,
     "motor_state": MOTOR_STATE,
+    "hand_target": POINT_STAMPED,
+    "hand_path": PATH,
 }
+TARGET_COLOR = [0, 0, 0]  # a target sent while the run goes: black, as the report's marks
 
 
 def blueprint() -> rrb.Blueprint:
@@ -129,6 +141,9 @@ class Feed:
         name = topic.lstrip("/")
         if "contact_wrench/" in name:
             self.wrench(name.rsplit("/", 1)[-1], msg)
+            return
+        if "brace_target/" in name:
+            self._target(f"world/targets/{name.rsplit('/', 1)[-1]}", [msg.point])
             return
         name = name.rsplit("/", 1)[-1]
         handler = getattr(self, name, None)
@@ -214,6 +229,22 @@ class Feed:
         self._log("plots/energy/copper_loss", rr.Scalars(float(msg.copper_loss)))
         for name, temperature in zip(msg.name, getattr(msg, "temperature", []), strict=False):
             self._log(f"plots/temperature/{name}", rr.Scalars(float(temperature)))
+
+    def hand_target(self, msg: Any) -> None:
+        self._target("world/targets/hand", [msg.point])
+
+    def hand_path(self, msg: Any) -> None:
+        self._target("world/targets/hand", [pose.pose.position for pose in msg.poses])
+
+    def _target(self, path: str, points: Sequence[Any]) -> None:
+        """A target sent while the run goes (targets while running), at the sim time of the last state drawn:
+        its point, or its path's poses joined."""
+        xyz = np.array([[p.x, p.y, p.z] for p in points], dtype=float).reshape(-1, 3)
+        if not len(xyz):
+            return
+        self._log(path, rr.Points3D(xyz, radii=0.012, colors=[TARGET_COLOR]))
+        if len(xyz) > 1:
+            self._log(f"{path}/path", rr.LineStrips3D([xyz], radii=0.002, colors=[TARGET_COLOR]))
 
     def drawn(self) -> str:
         """What was drawn of the robot: how many states, from and to which sim time."""
@@ -476,6 +507,7 @@ class Live:
         self._types = _rclpy_types()
         self._later = [(t, ty) for t, ty in _TYPES.items() if t != "robot_description"]
         self._later += [(f"contact_wrench/{c}", WRENCH_STAMPED) for c in contacts]
+        self._later += [(f"brace_target/{c}", POINT_STAMPED) for c in contacts]
         self.topics: dict[Any, tuple[str, str]] = {}
         self._subscribe("robot_description", _TYPES["robot_description"], latched)
         self.status = None
@@ -547,7 +579,8 @@ class Live:
 
 
 def _rclpy_types() -> dict[str, Any]:
-    from geometry_msgs.msg import WrenchStamped
+    from geometry_msgs.msg import PointStamped, WrenchStamped
+    from nav_msgs.msg import Path as PathMessage
     from sensor_msgs.msg import JointState
     from std_msgs.msg import String
 
@@ -560,6 +593,8 @@ def _rclpy_types() -> dict[str, Any]:
         CONTROLLER_STATE: ControllerState,
         MOTOR_STATE: MotorState,
         WRENCH_STAMPED: WrenchStamped,
+        POINT_STAMPED: PointStamped,
+        PATH: PathMessage,
     }
 
 
