@@ -102,6 +102,7 @@ class StatusWatcher:
         self._on_status = on_status
         self._environment = dict(environment)
         self._context = rclpy.Context()
+        self._stopping = threading.Event()
         self._thread = threading.Thread(target=self._spin, name="run-status", daemon=True)
 
     def start(self) -> StatusWatcher:
@@ -131,17 +132,23 @@ class StatusWatcher:
         executor = SingleThreadedExecutor(context=self._context)
         executor.add_node(node)
         try:
-            while self._context.ok():
+            while self._context.ok() and not self._stopping.is_set():
                 executor.spin_once(timeout_sec=0.1)
         except ExternalShutdownException:
             pass
         finally:
+            # rclpy's own order, all in this thread: the executor, the node, then the context. A node
+            # destroyed after another thread shut its context down waited for good inside rclpy
+            # (destroy_when_not_in_use, holding the GIL: bracing-pair hung at a run's end, measured).
             executor.shutdown()
             node.destroy_node()
+            self._context.try_shutdown()
 
     def stop(self) -> None:
-        self._context.try_shutdown()
+        self._stopping.set()
         self._thread.join(timeout=5.0)
+        if self._thread.is_alive():  # not seen: the loop ends within its 0.1 s wait
+            self._context.try_shutdown()
 
 
 _NO_SIGNALS = SignalHandlerOptions.NO  # Ctrl-C is bracing-pair's: it stops the run itself
