@@ -59,12 +59,7 @@ class Measurements:
 
     def ready(self, since_ns: int | None) -> bool:
         """Every source has a measurement stamped ``since_ns`` or later (None: the first state, nothing to wait for)."""
-        if since_ns is None:
-            return True
-        stamps = [self._force[c][0] if c in self._force else None for c in self.forces]
-        if self.temperature:
-            stamps.append(self._temperature[0] if self._temperature is not None else None)
-        return all(stamp is not None and stamp >= since_ns for stamp in stamps)
+        return since_ns is None or not self.missing(since_ns)
 
     def missing(self, since_ns: int) -> list[str]:
         """The sources without a measurement stamped ``since_ns`` or later."""

@@ -40,15 +40,24 @@ def command_vector(
     if mode_code != expected_code:
         got = {v: k.value for k, v in MODE_CODES.items()}.get(mode_code, f"unknown ({mode_code})")
         raise CommandError(f"mode-{mode_code}", f"mode {got} but the simulator is configured for {mode.value} input")
+    return _in_order(names, values, joint_names, "values", limit)
+
+
+def _in_order(
+    names: Sequence[str], values: Sequence[float] | Vector, joint_names: Sequence[str], noun: str, limit: float
+) -> tuple[Vector, bool]:
+    """``values`` named by ``names`` in ``joint_names`` order, checked finite and saturated to ``limit``
+    (0 = none): the command and whether it was saturated. ``noun`` names the values in the errors."""
     if len(names) != len(values):
-        raise CommandError("length", f"{len(names)} names but {len(values)} values")
-    if list(names) == list(joint_names):  # the controller's order: nothing to match
+        hint = " (an effort per joint is needed)" if noun == "efforts" else ""
+        raise CommandError("length", f"{len(names)} names but {len(values)} {noun}{hint}")
+    if list(names) == list(joint_names):  # the sender's order is ours: nothing to match
         u = np.array(values, dtype=float)
     else:
         u = _by_name(names, values, joint_names)
     if not np.isfinite(u).all():
         bad = [j for j, v in zip(joint_names, u, strict=True) if not np.isfinite(v)]
-        raise CommandError("non-finite", f"non-finite values for {bad}")
+        raise CommandError("non-finite", f"non-finite {noun} for {bad}")
     saturated = False
     if limit > 0.0 and np.any(np.abs(u) > limit):
         u = np.clip(u, -limit, limit)
@@ -77,17 +86,4 @@ def effort_vector(
     """A sensor_msgs/JointState command's efforts (ros2_control's JointStateTopicSystem: joints by
     name, the effort interface filled) in ``joint_names`` order, and whether they were saturated to
     ``limit`` (0 = none). CommandError names what is wrong: lengths, names, non-finite values."""
-    if len(efforts) != len(names):
-        raise CommandError("length", f"{len(names)} names but {len(efforts)} efforts (an effort per joint is needed)")
-    if list(names) == list(joint_names):
-        u = np.array(efforts, dtype=float)
-    else:
-        u = _by_name(names, efforts, joint_names)
-    if not np.isfinite(u).all():
-        bad = [j for j, v in zip(joint_names, u, strict=True) if not np.isfinite(v)]
-        raise CommandError("non-finite", f"non-finite efforts for {bad}")
-    saturated = False
-    if limit > 0.0 and np.any(np.abs(u) > limit):
-        u = np.clip(u, -limit, limit)
-        saturated = True
-    return u, saturated
+    return _in_order(names, efforts, joint_names, "efforts", limit)
