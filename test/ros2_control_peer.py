@@ -37,6 +37,8 @@ python ros2_control_peer.py constant-effort TAU_JSON
 python ros2_control_peer.py target T_PUB X Y Z [FRAME]
     a script sending the hand a target: waits for controller_state at t >= T_PUB, publishes a
     PointStamped on hand_target, and records the controller_state's hand (desired, actual) until the run ends.
+The path and target scripts subscribe to joint_states once matched with the controller: the simulator
+waits for them with min_subscribers 2.
 """
 
 from __future__ import annotations
@@ -164,6 +166,15 @@ def effort_controller(node: rclpy.node.Node, _: int) -> dict[str, object]:
     return {"commands": seen, "refused": refused, "publisher_reliability": reliability}
 
 
+
+def _join_run(node: rclpy.node.Node, listens: object, speaks: list[object]) -> None:
+    """Once this script hears the controller (``listens`` matched) and is heard by it (each of ``speaks``
+    matched), subscribe to joint_states: a simulator with min_subscribers 2 steps only then, so the
+    script cannot miss the run's start on a busy machine (it did once in CI: it saw no state at all)."""
+    while listens.get_publisher_count() < 1 or any(pub.get_subscription_count() < 1 for pub in speaks):
+        rclpy.spin_once(node, timeout_sec=0.05)
+    node.create_subscription(JointState, "joint_states", lambda _msg: None, 10)
+
 def target(node: rclpy.node.Node, t_pub: float, point: list[float], frame: str) -> dict[str, object]:
     pub = node.create_publisher(PointStamped, "hand_target", 10)
     rows: list[list[float]] = []
@@ -185,7 +196,8 @@ def target(node: rclpy.node.Node, t_pub: float, point: list[float], frame: str) 
             pub.publish(target_msg)
             sent.append(t)
 
-    node.create_subscription(ControllerState, "controller_state", on_state, QoSProfile(depth=10000))
+    states = node.create_subscription(ControllerState, "controller_state", on_state, QoSProfile(depth=10000))
+    _join_run(node, states, [pub])
     deadline, quiet = time.monotonic() + 120, 0.0
     while time.monotonic() < deadline and quiet < 3.0:  # until the run has ended (3 s without a state)
         count = len(rows)
@@ -228,7 +240,8 @@ def path_and_brace(node: rclpy.node.Node, t_pub: float, poses: list[list[float]]
         brace_pub.publish(brace)
         sent.append([t, brace.point.x, brace.point.y, brace.point.z])
 
-    node.create_subscription(ControllerState, "controller_state", on_state, QoSProfile(depth=10000))
+    states = node.create_subscription(ControllerState, "controller_state", on_state, QoSProfile(depth=10000))
+    _join_run(node, states, [path_pub, brace_pub])
     deadline, quiet = time.monotonic() + 120, 0.0
     while time.monotonic() < deadline and quiet < 3.0:  # until the run has ended (3 s without a state)
         count = len(rows)

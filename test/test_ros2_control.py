@@ -219,7 +219,7 @@ def test_hand_target_mid_run_moves_the_hand_there(tmp_path: Path) -> None:
     where the same law holds that point when the YAML asks for it from the start (the paper's law, with
     no integral action, holds a point a few cm off it: that offset is the law's, not the target's)."""
     target, t_pub, settle, duration = [0.0, 1.0, 0.7], 1.0, 2.5, 4.0
-    sim = {"duration": duration}
+    sim = {"duration": duration, "min_subscribers": 2}  # the controller and the script
     ctl = {"targets.max_velocity": 0.3, "targets.max_acceleration": 1.5}
     env = isolated_env()
     controller = start(node_argv("bracing_controller.node", params_file(tmp_path, "bracing_controller", ctl)), env)
@@ -280,7 +280,7 @@ def test_hand_path_and_brace_target_mid_run_recorded_and_drawn(tmp_path: Path) -
     recorder = _start_recorder(bag, env)
     ctl = {"targets.max_velocity": 0.3, "targets.max_acceleration": 1.5}
     controller = start(node_argv("bracing_controller.node", params_file(tmp_path, "bracing_controller", ctl)), env)
-    sim = {"duration": duration, "wait_for_recorder": True}
+    sim = {"duration": duration, "wait_for_recorder": True, "min_subscribers": 2}  # the controller and the script
     simulator = start(node_argv("bracing_sim.node", params_file(tmp_path, "bracing_simulator", sim)), env)
     try:
         seen = _peer(["path", str(t_pub), json.dumps(poses), str(dy)], env)

@@ -307,6 +307,15 @@ def spin(node: ControllerNode) -> int:
                 lambda: node.command_pub.get_subscription_count() >= 2 and node.state_pub.get_subscription_count() >= 1,
                 "waiting for the recorder to subscribe to the command and state topics",
             )
+        # An answer published before this writer has matched the simulator's reader is lost (volatile
+        # durability), and the lockstep simulator would wait its command_timeout for it (seen in CI:
+        # the simulator matched both endpoints first and stalled 5 s on its first state).
+        wait_until(
+            node,
+            executor,
+            lambda: node.command_pub.get_subscription_count() >= 1,
+            "waiting for a subscriber of motor_command (start the simulator)",
+        )
         waiter = SubscriptionWaiter(node, node.listen())
         node.get_logger().info("answering joint_states")
         node.status.say(RunStatus.STEPPING)

@@ -477,8 +477,13 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
     wait_until(
         node,
         executor,
-        lambda: node.joint_pub.get_subscription_count() >= cfg.min_subscribers,
-        f"lockstep: waiting for {cfg.min_subscribers} subscriber(s) of joint_states (start the controller)",
+        lambda: (
+            node.joint_pub.get_subscription_count() >= cfg.min_subscribers
+            # and the controller's motor_command writer, or its first answer may be lost to this reader
+            and (cfg.min_subscribers == 0 or node.command_sub is None or node.command_sub.get_publisher_count() >= 1)
+        ),
+        f"lockstep: waiting for {cfg.min_subscribers} subscriber(s) of joint_states and a publisher of "
+        "motor_command (start the controller)",
     )
     if cfg.wait_for_recorder:
         wait_for_recorder(node, executor)
