@@ -4,13 +4,14 @@ SHELL := /bin/bash
 IN_ENV := source env.sh &&
 PY_SRC := src/bracing_engine/bracing_engine src/bracing_core/bracing_core src/bracing_ros/bracing_ros src/bracing_sim/bracing_sim src/bracing_controller/bracing_controller src/bracing_analysis/bracing_analysis src/bracing_experiments/bracing_experiments src/bracing_bringup/bracing_bringup
 
-.PHONY: help setup test test-slow lint typecheck pytest run bench lock clean
+.PHONY: help setup test test-slow lint typecheck docs docs-check pytest run bench lock clean
 
 help:
 	@echo "make run    - set up if needed, run the paper scenario braced, passive and in free space, print the table"
-	@echo "make test   - set up if needed, then ruff, mypy and the pytest suite"
+	@echo "make test   - set up if needed, then ruff, mypy and the pytest suite (the docs site built, warnings as errors)"
 	@echo "make test-slow - the long runs: 10 min of sim time; 3 pairs at once x 10 rounds; make run x 10 and in two clones at once"
 	@echo "make bench  - benchmarks (engine vs MuJoCo, pair vs DDS bound, controller latency, scaling)"
+	@echo "make docs   - the documentation site (Sphinx, MyST Markdown) into docs/_build/html (index.html)"
 	@echo "make setup  - only the set-up (.venv, CMake fix, colcon build); idempotent"
 
 setup:
@@ -24,6 +25,18 @@ typecheck: setup
 
 pytest: setup
 	@$(IN_ENV) python -m pytest test $(PYTEST_ARGS)
+
+# The site; its reference pages are generated (tools/docs_reference.py) and committed.
+SPHINX := sphinx-build -b html -q docs docs/_build/html
+
+docs: setup
+	@$(IN_ENV) $(SPHINX)
+	@echo "docs/_build/html/index.html"
+
+# As `make test` builds it (test/test_docs.py): from scratch (-E), every warning an error (-W, all of
+# them shown: --keep-going), every cross-reference checked (-n): a broken link or a stray page fails.
+docs-check: setup
+	@$(IN_ENV) $(SPHINX) -E -W --keep-going -n
 
 test: lint typecheck pytest
 
@@ -45,4 +58,4 @@ lock:
 	python3 tools/lock.py /tmp/bracing-lock-report.json > requirements.lock
 
 clean:
-	rm -rf build install log build.log out
+	rm -rf build install log build.log out docs/_build

@@ -16,7 +16,7 @@ main, ros-controls/ros2_controllers jazzy):
 
 python ros2_control_peer.py topic-system N PARAMS_JSON
     JointStateTopicSystem with our torque law behind it (joints declared in a shuffled order, effort
-    command interfaces only, trigger_joint_command_threshold -1 as the README sets it): answers each
+    command interfaces only, trigger_joint_command_threshold -1 as docs/guides/ros2-control.md sets it): answers each
     state on /robot_joint_states with our law's torques on /robot_joint_commands, N states.
 python ros2_control_peer.py effort-controller N
     effort_controllers/JointGroupEffortController with joint_state_broadcaster: subscribes
@@ -87,7 +87,7 @@ def topic_system(node: rclpy.node.Node, steps: int, params: dict[str, object]) -
     law = DecoupledController(ControllerConfig.from_params(params))
     names = list(law.plant.joint_names)
     pub = node.create_publisher(JointState, "/robot_joint_commands", RELIABLE_1)
-    threshold = -1.0  # trigger_joint_command_threshold, as the README sets it
+    threshold = -1.0  # trigger_joint_command_threshold, as docs/guides/ros2-control.md sets it
     states: list[dict[str, object]] = []
     best_effort: list[float] = []
 

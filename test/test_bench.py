@@ -50,7 +50,7 @@ SPEC_KEYS = (
     "pair_real_time_factor_no_recorder",
     "optimize_trials_per_min",
 )
-# What the bench's table and the README's Performance section report besides.
+# What the bench's table and the docs' Performance page (docs/results/performance.md) report besides.
 REPORTED_KEYS = (
     "pair_real_time_factor_whole_run",
     "recorder_share_of_step",

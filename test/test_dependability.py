@@ -25,7 +25,7 @@ MAKE_RUN_ROUNDS = int(os.environ.get("BRACING_MAKE_RUN_ROUNDS", "10"))
 @pytest.mark.slow
 def test_three_pairs_at_once_round_after_round(tmp_path: Path) -> None:
     """3 bracing-pair runs at once on 2 cores, ROUNDS rounds: every bag complete, every summary
-    equal to the same run done alone (tools/stress_pairs.py, which the README names)."""
+    equal to the same run done alone (tools/stress_pairs.py, which docs/concepts/dependability.md names)."""
     argv = [sys.executable, str(REPO_ROOT / "tools" / "stress_pairs.py"), "--runs", "3"]
     argv += ["--rounds", str(ROUNDS), "--duration", str(SECONDS), "--output", str(tmp_path)]
     done = subprocess.run(argv, cwd=REPO_ROOT, capture_output=True, text=True, timeout=3600)

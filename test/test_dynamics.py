@@ -139,7 +139,7 @@ def _open_loop_voltage(t: float, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
 
 # Near zero slip the regularised friction (default slip_epsilon = 1e-4 m/s) acts like a damper
 # mu f_n / eps ~ 1e5 N s/m on the elbow: explicit RK4 at h = 1 ms is outside its stability region
-# there, so stick phases chatter and the books close only to ~5e-4 (a known limit, in the README).
+# there, so stick phases chatter and the books close only to ~5e-4 (a known limit, in docs/concepts/dependability.md).
 # Sub-steps (or a larger eps) are the remedy; both are asserted here.
 REGULARIZED = {"contacts.elbow.friction": 0.3, "contacts.elbow.friction_model": "regularized"}
 BALANCE_CASES = {

@@ -1,6 +1,6 @@
-"""The packages by job (README, Layout): dependencies run one way, no module imports itself back
-through others, the ROS-free packages load no ROS, and each package.xml names the project's
-packages its code imports (and no other)."""
+"""The packages by job (docs/concepts/architecture.md, the package graph): dependencies run one way,
+no module imports itself back through others, the ROS-free packages load no ROS, and each package.xml
+names the project's packages its code imports (and no other)."""
 
 from __future__ import annotations
 

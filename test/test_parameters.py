@@ -23,6 +23,9 @@ from bracing_core.law import DecoupledController
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SRC = REPO_ROOT / "src"
+sys.path.insert(0, str(REPO_ROOT / "tools"))
+import docs_reference  # noqa: E402  (tools/ is no package)
+
 NODE_PACKAGES = ("bracing_sim", "bracing_controller", "bracing_bringup")
 
 
@@ -86,14 +89,11 @@ def test_the_scenario_file_comments_every_parameter(node: str) -> None:
     assert not uncommented, f"no comment in {PAPER_YAML.name}: {uncommented}"
 
 
-def test_the_readme_reference_is_the_schema() -> None:
-    readme = (REPO_ROOT / "README.md").read_text()
-    begin, end = "<!-- parameters: begin (tools/param_reference.py) -->\n", "<!-- parameters: end -->"
-    assert begin in readme and end in readme
-    block = readme.split(begin)[1].split(end)[0]
-    assert block == schema.reference_markdown(), "README's parameter reference is stale: run tools/param_reference.py"
+def test_the_docs_reference_is_the_schema() -> None:
+    page = (REPO_ROOT / "docs" / "reference" / "parameters.md").read_text()
+    assert page == docs_reference.parameters_page(), "stale: run tools/docs_reference.py"
     for param in (*schema.SHARED, *schema.SIMULATOR, *schema.CONTROLLER, *schema.CONTACT):
-        assert f"`{param.name}`" in block
+        assert f"`{param.name}`" in page
 
 
 def test_each_default_is_the_one_the_configuration_uses() -> None:

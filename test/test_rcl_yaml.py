@@ -121,8 +121,8 @@ def test_what_we_write_the_real_rcl_reads_back_unchanged(tmp_path: Path) -> None
 
 
 def test_every_default_the_reference_shows_pastes_into_yaml(tmp_path: Path) -> None:
-    """The README's reference (schema.default_text) shows values as they are written in a scenario
-    file: pasted as is, the real rcl reads each as the parameter's own type."""
+    """The parameter reference (docs/reference/parameters.md, schema.default_text) shows values as they
+    are written in a scenario file: pasted as is, the real rcl reads each as the parameter's own type."""
     pasted: dict[str, tuple[schema.Param, str]] = {}
     for param in (*schema.SHARED, *schema.SIMULATOR, *schema.CONTROLLER, *schema.CONTACT):
         text = param.default_text()

@@ -1,6 +1,7 @@
-"""The README's examples do what they say (issue 29, item 5): the nodes started by hand run the
-duration their second params file gives (a ``-p duration:=2.0`` ran the file's 10 s), in a domain
-of their own, recorded by the project's recorder; and ``make run`` is told one way."""
+"""The README's and the docs' examples do what they say (issue 29, item 5): the nodes started by hand
+(docs/tutorials/by-hand.md) run the duration their second params file gives (a ``-p duration:=2.0``
+ran the file's 10 s), in a domain of their own, recorded by the project's recorder; and ``make run``
+is told one way."""
 
 from __future__ import annotations
 
@@ -14,20 +15,24 @@ from ros_helpers import hold_test_domain
 from bracing_analysis.summary import read_series
 
 README = REPO_ROOT / "README.md"
+BY_HAND = REPO_ROOT / "docs" / "tutorials" / "by-hand.md"
+PAGES = [README, *sorted(page for page in (REPO_ROOT / "docs").rglob("*.md") if "_build" not in page.parts)]
+"""The README and every page of the docs site (their examples are read as one)."""
 BEGIN, END = "<!-- by-hand: begin", "<!-- by-hand: end -->"
 
 
 def by_hand_block() -> str:
-    """The shell block between the README's by-hand markers."""
-    text = README.read_text()
-    assert BEGIN in text and END in text, "the README has no runnable by-hand block"
+    """The shell block between the by-hand tutorial's markers."""
+    text = BY_HAND.read_text()
+    assert BEGIN in text and END in text, "the by-hand tutorial has no runnable block"
     block = text.split(BEGIN)[1].split(END)[0]
     return block.split("```sh\n")[1].split("```")[0]
 
 
 def code_lines() -> list[str]:
-    """Every line of the README's code blocks."""
-    blocks = re.findall(r"```[a-z]*\n(.*?)```", README.read_text(), flags=re.DOTALL)
+    """Every line of the code blocks of the README and the docs."""
+    text = "\n".join(page.read_text() for page in PAGES)
+    blocks = re.findall(r"```[a-z]*\n(.*?)```", text, flags=re.DOTALL)
     return [line for block in blocks for line in block.splitlines()]
 
 
@@ -49,17 +54,20 @@ def test_the_nodes_by_hand_run_and_record_what_the_readme_says(tmp_path: Path) -
 
 
 def test_no_readme_example_overrides_the_nodes_with_p() -> None:
-    """rcl lets a node's own section of the params file win over a global ``-p``: the README's node
-    examples use a second params file instead."""
+    """rcl lets a node's own section of the params file win over a global ``-p``: the node examples
+    of the README and the docs use a second params file instead."""
     nodes = ("bracing-simulator", "bracing-controller", "ros2 run bracing_sim", "ros2 run bracing_controller")
     lines = [line for line in code_lines() if any(node in line for node in nodes)]
-    assert lines, "the README starts no node"
+    assert lines, "neither the README nor the docs start a node"
     assert [line for line in lines if re.search(r"\s-p\s", line)] == []
 
 
 def test_make_run_is_told_one_way() -> None:
-    """``make run`` makes three runs (bracing_bringup.paper_run.RUNS), wherever the README says it."""
-    text = README.read_text()
-    assert not re.search(r"both runs|two runs'|the two runs\b", text)
-    assert "make run     # set up if needed, run the paper scenario braced, passive and in free space" in text
-    assert "`make run` runs the paper's task three times" in text
+    """``make run`` makes three runs (bracing_bringup.paper_run.RUNS), wherever the README or the docs
+    say it."""
+    for page in PAGES:
+        assert not re.search(r"both runs|two runs'|the two runs\b", page.read_text()), page
+    for page in (README, REPO_ROOT / "docs" / "getting-started.md"):
+        text = page.read_text()
+        assert "make run     # set up if needed, run the paper scenario braced, passive and in free space" in text
+        assert "`make run` runs the paper's task three times" in text

@@ -1,5 +1,5 @@
 """bracing-study: the paper's three comparisons in one report (short runs: the claims that hold from
-the first seconds on; the full 10 s study is in the README): braced / passive / free, the gains, the
+the first seconds on; the full 10 s study is in docs/results/index.md): braced / passive / free, the gains, the
 placement grid and the optimiser's answer beside it."""
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ A :class:`Param` is a name, a type, a default, a unit, a description and its bou
 choices, or length). From these tables everything else is derived: the nodes declare typed
 ROS parameters with a ``ParameterDescriptor`` (``bracing_ros.parameters``), :func:`read`
 validates a flat parameter dict into typed values for the configuration classes
-(``bracing_core.config``), and ``tools/param_reference.py`` writes the README's reference.
+(``bracing_core.config``), and ``tools/docs_reference.py`` writes the docs site's reference.
 
 Scenario files have a ``/**`` section read by both nodes (:data:`SHARED`, and the per-contact
 fields :data:`CONTACT` under ``contacts.<name>.``) and one section per node
@@ -1042,7 +1042,7 @@ def find(node: str, name: str) -> Param | None:
 
 
 def reference_markdown() -> str:
-    """The README's parameter reference (``tools/param_reference.py`` writes it there)."""
+    """The parameter reference (``tools/docs_reference.py`` writes it to docs/reference/parameters.md)."""
     sections = (
         ("`/**` (both nodes)", SHARED),
         ("`/**`, per contact: `contacts.<name>.`", CONTACT),
