@@ -4,7 +4,7 @@ python tools/docs_reference.py          # rewrite every generated page
 python tools/docs_reference.py --check  # exit 1, naming the stale pages, if one differs
 
 - parameters.md: every parameter from the schema (bracing_core.schema.reference_markdown);
-- messages.md: every message definition of src/bracing_msgs/msg;
+- messages.md: the topics a run records (bracing_bringup.topics) and every definition of src/bracing_msgs/msg;
 - commands.md: each bracing-* command's --help (the console scripts of src/*/setup.py);
 - outputs.md: summary.json's keys (bracing_analysis.summary) and bench/latest.json's (bench/run.py).
 """
@@ -22,6 +22,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 from bracing_analysis import summary
+from bracing_bringup import topics
+from bracing_core import typestore
 from bracing_core.schema import reference_markdown
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -50,13 +52,31 @@ def parameters_page() -> str:
     )
 
 
+def recorded_topics_table() -> str:
+    """What a run's bag holds, per topic (bracing_bringup.topics: what the recorder subscribes to and
+    derives, and what the pair checks a lockstep bag for), for one contact ``<contact>``."""
+    contact = "<contact>"
+    once = {topics.DESCRIPTION_TOPIC, topics.SCENE_TOPICS["tf_static"][0]}
+    rows = [(name, kind, "one per state") for name, kind in topics.recorded_topics([contact], ground_truth=True)]
+    rows.append((topics.DESCRIPTION_TOPIC, typestore.STRING, "once"))
+    rows += [(name, kind, "once" if name in once else "one per state") for name, kind in topics.SCENE_TOPICS.values()]
+    rows += [(name, kind, "as sent") for name, kind in topics.target_topics([contact])]
+    rows.append((topics.PARAMETER_EVENTS_TOPIC, typestore.PARAMETER_EVENT, "the controller's changes"))
+    lines = ["| topic | type | in a lockstep bag |", "|---|---|---|"]
+    lines += [f"| `{name}` | `{kind}` | {count} |" for name, kind, count in rows]
+    return "\n".join(lines) + "\n"
+
+
 def messages_page() -> str:
     out = [
-        "# Messages\n\n" + GENERATED + "The `bracing_msgs` definitions (`src/bracing_msgs/msg/`), comments and all.\n"
-        "Which topic carries which: [Topics](topics.md).\n"
+        "# Messages\n\n" + GENERATED + "## The topics a run records\n\n"
+        "From `bracing_bringup/topics.py` (what the recorder subscribes to and derives; `ground_truth/*` only\n"
+        "with `sensors.*` set; `run_status` warnings are kept too). Who publishes each, and why:\n"
+        "[Topics](topics.md).\n\n" + recorded_topics_table() + "\n## The message definitions\n\n"
+        "The `bracing_msgs` definitions (`src/bracing_msgs/msg/`), comments and all.\n"
     ]
     for path in sorted((ROOT / "src" / "bracing_msgs" / "msg").glob("*.msg")):
-        out.append(f"\n## {path.stem}\n\n```text\n{path.read_text().rstrip()}\n```\n")
+        out.append(f"\n### {path.stem}\n\n```text\n{path.read_text().rstrip()}\n```\n")
     return "".join(out)
 
 
