@@ -13,7 +13,7 @@ copyright = "the bracing project, Apache-2.0"
 extensions = ["myst_parser"]
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
-exclude_patterns = ["_build", "rosdoc2.yaml", "paper_study/*.png"]
+exclude_patterns = ["_build", "paper_study/*.png"]
 
 # Links to a page's sections by their titles ([text](page.md#a-section-title)), as GitHub renders them.
 myst_heading_anchors = 3
