@@ -158,10 +158,12 @@ def test_pair_reports_divergence_and_keeps_the_bag(tmp_path: Path) -> None:
 def test_real_time_mode_zeroes_a_stale_command(tmp_path: Path) -> None:
     """Real-time stepping holds the latest command; once the controller falls silent for
     command_timeout, the simulator applies zero (with a warning) and keeps time."""
-    overrides = {"stepping": "real_time", "duration": 1.0, "command_timeout": 0.05}
+    # 3 s: the driver answers 50 states, then the run must go on for command_timeout without it; with
+    # 1 s a loaded CI machine once spread the 50 answers over the whole run (no warning: CI failure).
+    overrides = {"stepping": "real_time", "duration": 3.0, "command_timeout": 0.05}
     extra = params_file(tmp_path, "bracing_simulator", overrides)
     driver, node, log = drive(node_argv("bracing_sim.node", extra), ["sim", "50"], wait_for_node=True)
     assert driver.returncode == 0, driver.stdout + driver.stderr + log
     assert node.returncode == 0, log
     assert "motor_command stale: applying zero" in log
-    assert "finished at t = 1.000000 s" in log
+    assert "finished at t = 3.000000 s" in log
