@@ -344,6 +344,7 @@ class Recorder(Node):
     def simulator_done(self) -> bool:
         """Nothing more to come from the simulator on run_status: it said FINISHED, or none speaks there."""
         return self.simulator_finished or not self.simulator_heard
+
     def _record_target(self, sub: Subscription, data: bytes) -> None:
         """Write a target as it came, at the sim time of the last /clock recorded (the bag's time axis);
         its topic enters the bag with its first message."""
@@ -497,6 +498,93 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
     return parser.parse_args(list(argv))
 
 
+class StopRequest:
+    """SIGINT/SIGTERM: the first asks the recorder to drain and close the bag, a second to close it
+    at once (still a readable bag)."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        self.urgent = False
+
+    def on_signal(self, signum: int, frame: FrameType | None) -> None:
+        del signum, frame
+        if self.requested:
+            self.urgent = True  # second signal: skip the drain, still close the bag
+        self.requested = True
+
+
+def _open_writer(output: Path, scenario: str | None, shapes: Mapping[str, surfaces.Shape]) -> Writer:
+    writer = Writer(output, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
+    if scenario:
+        writer.set_custom_data(surfaces.SCENARIO_KEY, scenario)
+    if shapes:
+        writer.set_custom_data(surfaces.SURFACES_KEY, surfaces.to_json(shapes))
+    writer.open()
+    return writer
+
+
+def _write_task_metadata(writer: Writer, params_files: list[str], ground_truth: bool) -> None:
+    """Read while the nodes start (custom_data is written when the bag closes): off the start's path."""
+    frames, axes = _tasks(params_files)
+    if ground_truth and frames:
+        writer.set_custom_data(truth.TASK_FRAMES_KEY, json.dumps(frames, sort_keys=True))
+    if axes:
+        writer.set_custom_data(truth.TASK_AXES_KEY, json.dumps(axes, sort_keys=True))
+
+
+def _record_until_stopped(node: Recorder, args: argparse.Namespace, stop: StopRequest, contacts: list[str]) -> bool:
+    """Record until a stop signal, or until every expected message is in; True in the latter case."""
+    idle = False
+    wanted = (
+        expected_counts(contacts, args.expect_states, node.get_namespace(), args.ground_truth)
+        if args.expect_states
+        else None
+    )
+    while not stop.requested:
+        got = node.record(0.0 if idle and node.scene_backlog else 0.1)
+        idle = not got
+        if got and wanted is not None and node.simulator_done and node.has_every_message(wanted):
+            return True  # nothing more will come (the simulator's last warning came before FINISHED): no drain
+        if node.scene_backlog and (idle or node.scene_backlog > MAX_SCENE_BACKLOG):
+            node.derive(0.05)  # idle (nothing came for 0.1 s), or the queue would grow too large
+        elif got and args.batch > 0.0:
+            time.sleep(args.batch)  # messages wait in the subscriptions' queues (deep, reliable)
+    return False
+
+
+def _drain(node: Recorder, args: argparse.Namespace, stop: StopRequest, complete: bool) -> None:
+    """Receive what is still in flight until idle for drain_idle (bounded), then derive the rest of
+    the scene: the bag has /tf and markers for every state it holds."""
+    start = time.monotonic()
+    node.last_receive = start
+    while not stop.urgent and not complete:
+        now = time.monotonic()
+        if now - node.last_receive >= args.drain_idle or now - start >= args.drain_timeout:
+            break
+        node.record(0.05)
+        node.derive(0.01)
+    while not stop.urgent and node.derive(0.1):
+        pass
+
+
+def _close(writer: Writer, node: Recorder | None, status: StatusPublisher | None, output: Path) -> None:
+    writer.close()
+    print(f"recorder closed the bag at {time.time():.6f}", flush=True)
+    if status is not None:
+        status.say(RunStatus.BAG_CLOSED)
+        status.flush()  # bracing-pair has it before this process ends
+    total = node.received if node is not None else 0
+    print(f"recorder wrote {total} messages to {output}", flush=True)
+    if node is not None and node.derived:
+        states = node.counts.get("/tf", 0)
+        cost = f", {node.scene_time / states * 1e6:.0f} us of CPU per state" if states else ""
+        print(f"recorder derived {node.derived} messages (/tf, /tf_static, contact_markers){cost}", flush=True)
+    if node is not None:
+        node.destroy_node()
+    if rclpy.ok():
+        rclpy.shutdown()
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the recorder until SIGINT/SIGTERM; returns the exit code."""
     faulthandler.enable()  # a crash in native code (DDS, pinocchio) leaves its Python stack on stderr
@@ -507,19 +595,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     if output.exists():
         print(f"recorder: error: {output} exists already, not overwriting", file=sys.stderr)
         return 2
-
-    stop = {"requested": False, "urgent": False}
-
-    def on_signal(signum: int, frame: FrameType | None) -> None:
-        del frame
-        if stop["requested"]:
-            stop["urgent"] = True  # second signal: skip the drain, still close the bag
-        stop["requested"] = True
-
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
+    stop = StopRequest()
+    signal.signal(signal.SIGINT, stop.on_signal)
+    signal.signal(signal.SIGTERM, stop.on_signal)
     stop_with_parent()  # a SIGKILLed bracing-pair still gets its bag closed
-
     try:
         typestore = bracing_typestore()
     except (FileNotFoundError, OSError) as exc:
@@ -527,17 +606,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     shapes = _scenario_surfaces(args.params_files)
     scenario = args.scenario or (Path(args.params_files[0]).stem if args.params_files else None)
-
     if args.niceness:
         os.nice(args.niceness)
     use_fastdds_profile()  # the nodes' discovery settings: matched at once when started together
     rclpy.init(args=["recorder", *full], signal_handler_options=SignalHandlerOptions.NO)
-    writer = Writer(output, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
-    if scenario:
-        writer.set_custom_data(surfaces.SCENARIO_KEY, scenario)
-    if shapes:
-        writer.set_custom_data(surfaces.SURFACES_KEY, surfaces.to_json(shapes))
-    writer.open()
+    writer = _open_writer(output, scenario, shapes)
     node: Recorder | None = None
     status: StatusPublisher | None = None
     try:
@@ -554,55 +627,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         status.say(RunStatus.READY)
         print(f"recorder subscribed at {time.time():.6f}", flush=True)
         print("recorder ready", flush=True)
-        # Read while the nodes start (custom_data is written when the bag closes): off the start's path.
-        frames, axes = _tasks(args.params_files)
-        if args.ground_truth and frames:
-            writer.set_custom_data(truth.TASK_FRAMES_KEY, json.dumps(frames, sort_keys=True))
-        if axes:
-            writer.set_custom_data(truth.TASK_AXES_KEY, json.dumps(axes, sort_keys=True))
-        idle, complete = False, False
-        wanted = (
-            expected_counts(contacts, args.expect_states, node.get_namespace(), args.ground_truth)
-            if args.expect_states
-            else None
-        )
-        while not stop["requested"]:
-            got = node.record(0.0 if idle and node.scene_backlog else 0.1)
-            idle = not got
-            if got and wanted is not None and node.simulator_done and node.has_every_message(wanted):
-                complete = True  # nothing more will come (the simulator's last warning came before FINISHED): no drain
-                break
-            if node.scene_backlog and (idle or node.scene_backlog > MAX_SCENE_BACKLOG):
-                node.derive(0.05)  # idle (nothing came for 0.1 s), or the queue would grow too large
-            elif got and args.batch > 0.0:
-                time.sleep(args.batch)  # messages wait in the subscriptions' queues (deep, reliable)
-        # Drain what is still in flight: receive until idle for drain_idle (bounded).
-        start = time.monotonic()
-        node.last_receive = start
-        while not stop["urgent"] and not complete:
-            now = time.monotonic()
-            if now - node.last_receive >= args.drain_idle or now - start >= args.drain_timeout:
-                break
-            node.record(0.05)
-            node.derive(0.01)
-        while not stop["urgent"] and node.derive(0.1):
-            pass  # the rest of the scene: the bag has /tf and markers for every state it holds
+        _write_task_metadata(writer, args.params_files, args.ground_truth)
+        complete = _record_until_stopped(node, args, stop, contacts)
+        _drain(node, args, stop, complete)
     finally:
-        writer.close()
-        print(f"recorder closed the bag at {time.time():.6f}", flush=True)
-        if status is not None:
-            status.say(RunStatus.BAG_CLOSED)
-            status.flush()  # bracing-pair has it before this process ends
-        total = node.received if node is not None else 0
-        print(f"recorder wrote {total} messages to {output}", flush=True)
-        if node is not None and node.derived:
-            states = node.counts.get("/tf", 0)
-            cost = f", {node.scene_time / states * 1e6:.0f} us of CPU per state" if states else ""
-            print(f"recorder derived {node.derived} messages (/tf, /tf_static, contact_markers){cost}", flush=True)
-        if node is not None:
-            node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
+        _close(writer, node, status, output)
     return 0
 
 
