@@ -418,11 +418,28 @@ class ArmAnimation:
             return self._fig
         from matplotlib.backends.backend_agg import FigureCanvasAgg  # matplotlib ~460 ms, where used
         from matplotlib.figure import Figure  # imported where used: matplotlib ~460 ms (python -X importtime)
-        from matplotlib.patches import FancyArrowPatch, Polygon  # matplotlib ~460 ms, where used
 
         fig = Figure(figsize=FRAME_SIZE_IN, dpi=FRAME_DPI)
         FigureCanvasAgg(fig)  # frames are read from the Agg buffer
-        # Fixed margins (no layout engine): the same data maps to the same pixel in every frame.
+        ax, size = self._axes(fig)
+        self._draw_surfaces(ax, size)
+        if self.series.hand_desired.size:
+            path = self._2d(self.series.hand_desired)
+            ax.plot(path[:, 0], path[:, 1], "--", color=TARGET_COLOR, lw=1.2, label="hand target path")
+        art, moving = self._moving_artists(ax)
+        ax.legend(loc="lower right", fontsize=7, framealpha=0.8)
+        fig.canvas.draw()
+        self._background = fig.canvas.copy_from_bbox(fig.bbox)  # type: ignore[attr-defined]
+        self._fig, self._artists, self._ax, self._moving = fig, art, ax, moving
+        self._link_xy = self._link_lines()
+        self._mesh_xy = self._mesh_lines()
+        self._hand_xy = self._2d(self.series.hand_actual)
+        self._target_xy = self._2d(self.series.hand_desired)
+        return fig
+
+    def _axes(self, fig: Figure) -> tuple[Axes, float]:
+        """The plane's axes with fixed margins (no layout engine: the same data maps to the same pixel
+        in every frame), and the drawing's size [m]."""
         ax = fig.add_axes((0.1, 0.1, 0.85, 0.8))
         (x0, x1), (y0, y1) = self._limits()
         ax.set_xlim(x0, x1)
@@ -432,8 +449,12 @@ class ArmAnimation:
         ax.set_xlabel(f"{AXIS_NAMES[a]} [m]")
         ax.set_ylabel(f"{AXIS_NAMES[b]} [m]")
         ax.grid(True, alpha=0.3)
-        art: dict[str, Any] = {}
-        size = max(x1 - x0, y1 - y0)
+        return ax, max(x1 - x0, y1 - y0)
+
+    def _draw_surfaces(self, ax: Axes, size: float) -> None:
+        """Each contact's surface: a curved solid's outline, or a plane as a band under its line."""
+        from matplotlib.patches import Polygon  # imported where used: matplotlib ~460 ms (python -X importtime)
+
         solids: set[Shape] = set()
         for c in self.contacts:
             shape = shape_of(self.series.surfaces, c.name)
@@ -445,14 +466,12 @@ class ArmAnimation:
             ok = np.isfinite(c.normal).all(axis=1)
             if not ok.any():
                 continue
-            n3 = c.normal[ok][0]
-            p3 = c.position[ok][0]
-            n2 = self._2d(n3)
+            n2 = self._2d(c.normal[ok][0])
             if np.linalg.norm(n2) < 1e-9:
                 continue  # the surface is parallel to the drawing plane
             n2 = n2 / np.linalg.norm(n2)
             along = np.array([-n2[1], n2[0]])
-            centre = self._2d(p3)
+            centre = self._2d(c.position[ok][0])
             span = 10.0 * size
             depth = 0.04 * size
             corners = [
@@ -463,10 +482,12 @@ class ArmAnimation:
             ]
             ax.add_patch(Polygon(np.array(corners), closed=True, color=SURFACE_COLOR, alpha=0.5, lw=0))
             ax.axline(tuple(centre), tuple(centre + along), color=SURFACE_COLOR, lw=2)
-        if self.series.hand_desired.size:
-            path = self._2d(self.series.hand_desired)
-            ax.plot(path[:, 0], path[:, 1], "--", color=TARGET_COLOR, lw=1.2, label="hand target path")
-        # What changes per frame is "animated": left out of the full draw, drawn over a saved background.
+
+    def _moving_artists(self, ax: Axes) -> tuple[dict[str, Any], list[Any]]:
+        """What changes per frame is "animated": left out of the full draw, drawn over a saved background."""
+        from matplotlib.patches import FancyArrowPatch, Polygon  # matplotlib ~460 ms, where used
+
+        art: dict[str, Any] = {}
         moving: list[Any] = []
         for _ in self.outlines:  # under the links' lines
             outline = Polygon(np.zeros((3, 2)), closed=True, color=LINK_COLOR, alpha=MESH_ALPHA, lw=0, animated=True)
@@ -495,15 +516,7 @@ class ArmAnimation:
             ax.plot([], [], "-", color=FORCE_COLOR, lw=2.5, label=f"contact force ({ARROW_M_PER_N * 100:g} cm/N)")
         art["text"] = GlyphText(ax, 0.02, 0.97)
         moving.append(art["text"].patch)
-        ax.legend(loc="lower right", fontsize=7, framealpha=0.8)
-        fig.canvas.draw()
-        self._background = fig.canvas.copy_from_bbox(fig.bbox)  # type: ignore[attr-defined]
-        self._fig, self._artists, self._ax, self._moving = fig, art, ax, moving
-        self._link_xy = self._link_lines()
-        self._mesh_xy = self._mesh_lines()
-        self._hand_xy = self._2d(self.series.hand_actual)
-        self._target_xy = self._2d(self.series.hand_desired)
-        return fig
+        return art, moving
 
     def _draw_solid(self, ax: Axes, shape: Shape, span: float) -> None:
         """A sphere or a cylinder as seen along the axis normal to the drawing plane (its outline):
