@@ -186,7 +186,7 @@ NB_MODULE(_engine, m) {
           "refusal",
           [](const Simulator& s, double speed_limit, double residual_limit) {
             double measured = 0.0;
-            const int code = s.refusal(speed_limit, residual_limit, measured);
+            const int code = static_cast<int>(s.refusal(speed_limit, residual_limit, measured));
             return std::make_pair(code, measured);
           },
           "speed_limit"_a, "residual_limit"_a,
