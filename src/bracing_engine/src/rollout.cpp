@@ -48,7 +48,8 @@ void size_recording(long rows, int n, int p, int b, bool sensed, Recording& out)
   for (RowMatrix* a : {&out.normal_force, &out.friction_force, &out.residual, &out.active}) a->setZero(rows, p);
   out.force_command.setZero(rows, b);
   out.rows = 0;
-  out.status = 0;
+  out.step_status = StepStatus::ok;
+  out.refusal = Refusal::none;
 }
 
 // The law's answer to the true state (q, dq) at t, read through the sensors if any (row k then records
@@ -123,7 +124,7 @@ void rollout(Law& law, Simulator& simulator, long steps, double t0, double diver
       const StepStatus status = simulator.step(applied);
       if (status != StepStatus::ok) {
         out.rows = k;
-        out.status = static_cast<int>(status);
+        out.step_status = status;
         return;
       }
     } else {
@@ -133,8 +134,8 @@ void rollout(Law& law, Simulator& simulator, long steps, double t0, double diver
     out.rows = k + 1;
     measure_report(law, simulator, braced, temperature, sensors);
     // where the simulator node refuses a step (the node asks the same function)
-    out.status = static_cast<int>(simulator.refusal(divergence_speed, divergence_residual, out.measured));
-    if (out.status) return;
+    out.refusal = simulator.refusal(divergence_speed, divergence_residual, out.measured);
+    if (out.refusal != Refusal::none) return;
   }
 }
 
