@@ -72,10 +72,10 @@ def engine_steps_per_s(steps: int = 3000, repeats: int = 5, scenario: Any = None
     def once() -> float:
         sim = (scenario() if scenario else build_scenario(PAPER, with_controller=False)).sim
         command = np.full(sim.n, 1.0)
-        # The compiled step through its binding, its report as one array: the analogue of mj_step
-        # in a Python loop (Simulator.step, which also builds the report's Python objects, is
+        # The compiled step through its binding, its report as the engine's answer: the analogue of
+        # mj_step in a Python loop (Simulator.step, which also builds the report's Python objects, is
         # simulator_step_us).
-        step = sim.engine.step_packed
+        step = sim.engine.step
         for _ in range(50):  # warm-up
             step(command)
         start = time.perf_counter()
@@ -96,7 +96,7 @@ def engine_step_us(config: Path, steps: int = 3000, segment: int = 500, python_f
 
     sim = build_scenario(config, with_controller=False).sim
     command = np.full(sim.n, 1.0)
-    step = sim.step if python_face else sim.engine.step_packed
+    step = sim.step if python_face else sim.engine.step
     start = sim.checkpoint()
     for _ in range(50):  # warm-up
         step(command)

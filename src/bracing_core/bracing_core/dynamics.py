@@ -17,7 +17,6 @@ and its contacts to the engine and turns its answers into ``Derivative``s.
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from enum import Enum
@@ -126,55 +125,33 @@ def engine_contact(contact: Contact) -> engine.Contact:
     )
 
 
-@functools.cache
-def _packed_layout(n: int, p: int) -> tuple[slice, ...]:
-    """The parts of a packed answer (bindings.cpp ``packed``) for n joints and p contacts."""
-    sizes = (n, n, p, n, 2, 3 * p, 3 * p * n, p * n, p * n, p, p, 3 * p, 3 * p, 3 * p, 3 * p, p, p, p)
-    ends = np.cumsum(sizes).tolist()
-    return tuple(slice(end - size, end) for size, end in zip(sizes, ends, strict=True))
-
-
-def unpack(values: Vector, n: int, contacts: ContactSet) -> tuple[Derivative, float, float]:
-    """(Derivative, friction power, constraint power) from the engine's packed answer (one array, so
-    that a step's report crosses from C++ in one allocation; layout in bindings.cpp ``packed``)."""
-    p = len(contacts)
-    (
-        ddq,
-        di,
-        force,
-        effort,
-        powers,
-        positions,
-        jacobians,
-        normal,
-        tangent,
-        drift,
-        residual,
-        slip,
-        direction,
-        normals,
-        tangential,
-        friction,
-        held,
-        sticking,
-    ) = (values[part] for part in _packed_layout(n, p))
+def derivative_of(answer: engine.Answer, contacts: ContactSet) -> Derivative:
+    """The engine's answer (its named arrays) as a Derivative for ``contacts``."""
+    p, n = len(contacts), answer.ddq.size
     terms = ContactTerms(
-        positions.reshape(p, 3),
-        jacobians.reshape(p, 3, n),
-        normal.reshape(p, n),
-        tangent.reshape(p, n),
-        drift,
-        residual,
-        slip.reshape(p, 3),
-        direction.reshape(p, 3),
+        answer.positions,
+        answer.jacobians.reshape(p, 3, n),
+        answer.normal_jacobian,
+        answer.tangent_jacobian,
+        answer.drift,
+        answer.residual,
+        answer.slip,
+        answer.direction,
         contacts.friction,
-        normals.reshape(p, 3),
+        answer.normals,
     )
-    active = None if held.all() else held.astype(bool)
-    derivative = Derivative(
-        ddq, di, force, effort, terms, active, friction, tangential.reshape(p, 3), sticking.astype(bool)
+    held = answer.held
+    return Derivative(
+        answer.ddq,
+        answer.di,
+        answer.force,
+        answer.effort,
+        terms,
+        None if held.all() else held,
+        answer.friction,
+        answer.tangential_force,
+        answer.sticking,
     )
-    return derivative, float(powers[0]), float(powers[1])
 
 
 class ConstrainedDynamics:
@@ -238,7 +215,7 @@ class ConstrainedDynamics:
         if temperature is None:
             temperature = np.full(n, self.motors.ambient_temperature)
         try:
-            values = self.engine.evaluate_packed(
+            answer = self.engine.evaluate(
                 np.asarray(q, dtype=float),
                 np.asarray(dq, dtype=float),
                 current,
@@ -248,12 +225,12 @@ class ConstrainedDynamics:
             )
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
-        return unpack(values, n, self.contacts)[0]
+        return derivative_of(answer, self.contacts)
 
     def terms(self, q: Vector, dq: Vector) -> ContactTerms:
         """Every contact's terms at (q, dq) (positions, Jacobians, residuals, slip)."""
-        values = self.engine.terms_packed(np.asarray(q, dtype=float), np.asarray(dq, dtype=float))
-        return unpack(values, self.n, self.contacts)[0].contacts
+        answer = self.engine.terms(np.asarray(q, dtype=float), np.asarray(dq, dtype=float))
+        return derivative_of(answer, self.contacts).contacts
 
     def project(self, q: Vector, rows: Sequence[int], tolerance: float = 1e-13) -> Vector:
         """The posture near ``q`` where the contacts at ``rows`` hold (C = 0), by Newton steps in the

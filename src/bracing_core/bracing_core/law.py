@@ -159,18 +159,17 @@ class DecoupledController:
 
     def update(self, t: float, q: Vector, dq: Vector) -> ControlOutput:
         """The command for the measured state (q, dq) at time t [s] (model joint order)."""
-        values = self.engine.update_packed(float(t), np.asarray(q, dtype=float), np.asarray(dq, dtype=float))
-        n, b = self.robot.nv, self.desired_normal_force.size  # layout: bindings.cpp, Law.update_packed
+        out = self.engine.update(float(t), np.asarray(q, dtype=float), np.asarray(dq, dtype=float))
         return ControlOutput(
-            values[:n],
-            values[n : 2 * n],
-            values[2 * n : 2 * n + 3],
-            values[2 * n + 3 : 2 * n + 6],
-            values[2 * n + 6 : 2 * n + 6 + 3 * b].reshape(b, 3),
-            values[2 * n + 6 + 3 * b : 2 * n + 6 + 6 * b].reshape(b, 3),
+            out.command,
+            out.torque,
+            out.hand_desired,
+            out.hand_actual,
+            out.brace_desired,
+            out.brace_actual,
             self.desired_normal_force.copy(),
-            bool(values[-1]),
-            values[2 * n + 6 + 6 * b : 2 * n + 6 + 7 * b],
+            out.damped,
+            out.force_command,
         )
 
     @property

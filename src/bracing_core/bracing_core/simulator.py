@@ -19,26 +19,25 @@ from dataclasses import dataclass
 import numpy as np
 
 import bracing_engine as engine
-from bracing_core.dynamics import ConstrainedDynamics, Derivative, unpack
+from bracing_core.dynamics import ConstrainedDynamics, Derivative, derivative_of
 from bracing_core.types import Vector
 
 # The state vector is [q, dq, i, T] (STATE_BLOCKS blocks of n) and then the energy integrals, in this order.
-STATE_BLOCKS = 4
-ENERGY_KEYS = ("consumed", "net", "copper_loss", "viscous_loss", "friction_loss", "constraint_work", "impact_loss")
-# Status codes of bracing_engine.Simulator.step and of bracing_engine.rollout (0: ok): the step
-# diverged or hit a joint limit (state kept); after a step (rollout only), where the simulator
-# node refuses to go on (Simulator.check): non-finite forces, too fast, a held
-# contact too far off its surface, a winding hotter than WINDING_TEMPERATURE_LIMIT.
-_DIVERGED, _JOINT_LIMIT, _NON_FINITE_FORCES, _TOO_FAST, _OFF_SURFACE, _TOO_HOT = 1, 2, 3, 4, 5, 6
+STATE_BLOCKS: int = engine.STATE_BLOCKS
+ENERGY_KEYS = tuple(slot.name for slot in engine.EnergySlot)
 WINDING_TEMPERATURE_LIMIT: float = engine.WINDING_TEMPERATURE_LIMIT  # [degC] (copper melts at 1085 degC)
 
 
-def _refusal_reason(code: int, measured: float, divergence_speed: float, divergence_residual: float) -> str:
-    if code == _TOO_FAST:
+def _refusal_reason(
+    refusal: engine.Refusal, measured: float, divergence_speed: float, divergence_residual: float
+) -> str:
+    """Why the simulator node refuses a step (``bracing_engine.Refusal``: after it, in the rollout and
+    ``Simulator.check``)."""
+    if refusal is engine.Refusal.too_fast:
         return f"joint speed exceeds divergence_speed {divergence_speed}: {measured:.3g}"
-    if code == _TOO_HOT:
+    if refusal is engine.Refusal.too_hot:
         return f"a motor winding would reach {measured:.3g} degC, beyond {WINDING_TEMPERATURE_LIMIT:g} degC (it burns)"
-    if code == _OFF_SURFACE:
+    if refusal is engine.Refusal.off_surface:
         return f"constraint residual {measured:.3g} m exceeds divergence_residual {divergence_residual} m"
     return "non-finite forces or effort"
 
@@ -71,9 +70,6 @@ class Energy:
     impact_loss: float = 0.0
 
 
-EVENT_KINDS = ("release", "touchdown", "stick", "slip")  # bracing_engine's event kind codes, in order
-
-
 @dataclass(frozen=True)
 class ContactEvent:
     """A unilateral contact letting go (``release``) or landing (``touchdown``); a Coulomb contact
@@ -93,7 +89,7 @@ class Checkpoint:
     steps_taken: int
     active: np.ndarray  # which contacts hold a force
     events: int  # length of the event log
-    modes: tuple[list[bool], list[bool], np.ndarray, np.ndarray]  # the engine's contact modes (held, sticking, ...)
+    modes: engine.ContactModes  # the engine's contact modes (held, sticking, slide direction, sign of f_n)
 
 
 class Simulator:
@@ -155,24 +151,24 @@ class Simulator:
 
     @property
     def position(self) -> Vector:
-        return self.engine.state[: self.n]
+        return self.engine.position
 
     @property
     def velocity(self) -> Vector:
-        return self.engine.state[self.n : 2 * self.n]
+        return self.engine.velocity
 
     @property
     def current(self) -> Vector:
-        return self.engine.state[2 * self.n : 3 * self.n]
+        return self.engine.current
 
     @property
     def temperature(self) -> Vector:
         """The motor windings' temperatures [degC] (ambient throughout without the thermal model)."""
-        return self.engine.state[3 * self.n : STATE_BLOCKS * self.n]
+        return self.engine.temperature
 
     @property
     def energy(self) -> Energy:
-        return Energy(*self.engine.state[STATE_BLOCKS * self.n :].tolist())
+        return Energy(*self.engine.energy.tolist())
 
     @property
     def active(self) -> np.ndarray:
@@ -182,16 +178,16 @@ class Simulator:
     @property
     def sticking(self) -> np.ndarray:
         """(p,) bool: the Coulomb contacts that stick now (their tangential motion held)."""
-        return np.array(self.engine.modes[1], dtype=bool)
+        return np.array(self.engine.modes.sticking, dtype=bool)
 
     # -- model answers ----------------------------------------------------------------
     def evaluate(self, command: Vector) -> Derivative:
         """The model at the current state under ``command`` (no time passes)."""
         try:
-            values = self.engine.evaluate_packed(np.asarray(command, dtype=float))
+            answer = self.engine.evaluate(np.asarray(command, dtype=float))
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
-        return unpack(values, self.n, self.dynamics.contacts)[0]
+        return derivative_of(answer, self.dynamics.contacts)
 
     # -- checkpoints --------------------------------------------------------------------
     def checkpoint(self) -> Checkpoint:
@@ -205,7 +201,7 @@ class Simulator:
         self.steps_taken = checkpoint.steps_taken
         del self.events[checkpoint.events :]
         self.engine.truncate_events(checkpoint.events)
-        self.engine.set_modes(*checkpoint.modes)
+        self.engine.set_modes(checkpoint.modes)
 
     # -- integration ------------------------------------------------------------------
     def step(self, command: Vector) -> Derivative:
@@ -221,14 +217,14 @@ class Simulator:
             raise ValueError(f"command: expected {self.n} finite values, got {np.ravel(u).tolist()}")
         time = self.time
         try:
-            status, values = self.engine.step_packed(u)
+            status, answer = self.engine.step(u)
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
         finally:
             if self.engine.event_count != len(self.events):
                 self._take_events()
         self._raise_for(status, time)
-        return unpack(values, self.n, self.dynamics.contacts)[0]
+        return derivative_of(answer, self.dynamics.contacts)
 
     def rollout(
         self,
@@ -237,7 +233,7 @@ class Simulator:
         divergence_speed: float = np.inf,
         divergence_residual: float = np.inf,
         sensors: engine.Sensors | None = None,
-    ) -> dict[str, np.ndarray]:
+    ) -> engine.Recording:
         """The closed loop with ``law`` (a ``bracing_engine.Law``) for ``steps`` steps, in the engine:
         per state k = 0..steps what the nodes publish in lockstep (``bracing_engine.rollout``; the
         last state answered and evaluated without a step). Raises as ``step`` does, and
@@ -250,11 +246,10 @@ class Simulator:
             raise np.linalg.LinAlgError(str(exc)) from None
         finally:
             self._take_events()
-        status = int(out["status"])
-        self._raise_for(status, self.time)  # a step refused: the state is the one it started from
-        if status:  # a step taken whose result the node refuses: the last row's
-            reason = _refusal_reason(status, float(out["measured"]), divergence_speed, divergence_residual)
-            raise DivergenceError(f"{reason} after the step at t = {out['time'][-1]:.3f} s")
+        self._raise_for(out.step_status, self.time)  # a step refused: the state is the one it started from
+        if out.refusal is not engine.Refusal.none:  # a step taken whose result the node refuses: the last row's
+            reason = _refusal_reason(out.refusal, out.measured, divergence_speed, divergence_residual)
+            raise DivergenceError(f"{reason} after the step at t = {out.time[-1]:.3f} s")
         return out
 
     def check(self, divergence_speed: float, divergence_residual: float) -> float:
@@ -263,16 +258,16 @@ class Simulator:
         too): non-finite forces, a joint faster than ``divergence_speed`` [rad/s] (finite, but a
         state no arm reaches: RK4 overflows a few steps later under any input), a held contact
         further than ``divergence_residual`` [m] off its surface."""
-        code, measured = self.engine.refusal(divergence_speed, divergence_residual)
-        if code:
-            raise DivergenceError(_refusal_reason(code, measured, divergence_speed, divergence_residual))
+        refusal, measured = self.engine.refusal(divergence_speed, divergence_residual)
+        if refusal is not engine.Refusal.none:
+            raise DivergenceError(_refusal_reason(refusal, measured, divergence_speed, divergence_residual))
         return float(measured)
 
-    def _raise_for(self, status: int, time: float) -> None:
-        """The error of a step from ``time`` that the engine refused (status 1 or 2), if any."""
-        if status == _DIVERGED:
+    def _raise_for(self, status: engine.StepStatus, time: float) -> None:
+        """The error of a step from ``time`` that the engine refused (diverged or a joint limit), if any."""
+        if status is engine.StepStatus.diverged:
             raise DivergenceError(f"non-finite state after the step at t = {time:.6f} s; state kept")
-        if status == _JOINT_LIMIT:
+        if status is engine.StepStatus.joint_limit:
             robot, j = self.dynamics.robot, self.engine.failed_joint
             unit = "m" if robot.prismatic[j] else "rad"
             raise JointLimitError(
@@ -283,9 +278,9 @@ class Simulator:
 
     def _take_events(self) -> None:
         """The engine's new release and touchdown events into ``events``."""
-        for steps, offset, j, kind, loss in self.engine.events_since(len(self.events)):
-            time = self.t0 + steps * self.step_size + offset
-            self.events.append(ContactEvent(time, self._names[j], EVENT_KINDS[kind], loss))
+        for event in self.engine.events_since(len(self.events)):
+            time = self.t0 + event.step * self.step_size + event.offset
+            self.events.append(ContactEvent(time, self._names[event.contact], event.kind.name, event.energy_loss))
 
     # -- unilateral contacts ----------------------------------------------------------
     def set_active(self, active: np.ndarray) -> None:

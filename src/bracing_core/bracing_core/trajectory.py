@@ -11,8 +11,6 @@ import numpy as np
 import bracing_engine as engine
 from bracing_core.types import Vector
 
-_KINDS = {"hold": 0, "circle": 1, "waypoints": 2}  # bracing_engine.Path's kind codes
-
 
 class Trajectory:
     """A task point's desired path from its first measured position ``start``, sampled by the
@@ -53,7 +51,7 @@ class TrajectoryConfig:
         seconds on the minimum-jerk profile s(u) = 10 u^3 - 15 u^4 + 6 u^5, then the last held."""
         u, v = self.plane
         return engine.Path(
-            _KINDS[self.kind],
+            engine.PathKind[self.kind],
             np.asarray(self.center, dtype=float),
             self.radius,
             self.period,

@@ -2,24 +2,37 @@
 robot + motor-circuit model, ``Simulator`` integrates it (RK4, energy integrals, unilateral
 contacts), ``Law`` is the decoupled control law with its task ``Path``s, and ``rollout`` runs the
 closed loop (law + simulator) for many steps without coming back to Python; ``Sensors`` is what a
-real arm's controller measures and how late its commands land. ``bracing_core``'s
+real arm's controller measures and how late its commands land. Answers cross as structures with
+named fields (``Answer``, ``LawOutput``, ``Recording``, ``ContactEvent``, ``ContactModes``), kinds as
+enums (``StepStatus``, ``Refusal``, ``EventKind``, ``PathKind``, ``EnergySlot``). ``bracing_core``'s
 dynamics, simulator, law and trajectory modules are its readable Python face."""
 
 import pinocchio  # first: the engine links the libpinocchio this loads (one copy in the process)
 
 from bracing_engine._engine import (
     PINOCCHIO_VERSION,
+    STATE_BLOCKS,
     WINDING_TEMPERATURE_LIMIT,
+    Answer,
     BracedContact,
     Contact,
+    ContactEvent,
+    ContactModes,
     Drive,
     Dynamics,
+    EnergySlot,
+    EventKind,
     Law,
+    LawOutput,
     Path,
+    PathKind,
+    Recording,
+    Refusal,
     Robot,
     Sensors,
     Simulator,
     SingularError,
+    StepStatus,
     Surface,
     Task,
     rollout,
@@ -32,17 +45,28 @@ if PINOCCHIO_VERSION != pinocchio.__version__:
     )
 
 __all__ = [
+    "STATE_BLOCKS",
     "WINDING_TEMPERATURE_LIMIT",
+    "Answer",
     "BracedContact",
     "Contact",
+    "ContactEvent",
+    "ContactModes",
     "Drive",
     "Dynamics",
+    "EnergySlot",
+    "EventKind",
     "Law",
+    "LawOutput",
     "Path",
+    "PathKind",
+    "Recording",
+    "Refusal",
     "Robot",
     "Sensors",
     "Simulator",
     "SingularError",
+    "StepStatus",
     "Surface",
     "Task",
     "rollout",

@@ -3,6 +3,8 @@
 //   B = J_c Mc^-1,  A = B (J_c - mu J_t)^T,  a = B (h + g + Dc dq) - gamma
 //   tau = B^+ (a - A f_nd) + (I - B^+ B) l,   v = K_V tau (voltage mode)
 //   l = sum over the tasks of J^T [Kp (r_d - r) + Kd (dr_d - dr)] (+ g(q))
+//
+// and, with a Coulomb contact at rest, its point-constraint form (docs/model.md, Control law under stick).
 #include "bracing_engine/law.hpp"
 
 #include "model.hpp"
@@ -27,16 +29,6 @@ namespace pin = pinocchio;
 constexpr double kSingularRatio = 1e-8;
 
 namespace {
-
-// Python's float floor division (t // step), so a segment switches at the same sample.
-double floor_div(double t, double step) {
-  double mod = std::fmod(t, step);
-  double div = (t - mod) / step;
-  if (mod != 0.0 && ((step < 0.0) != (mod < 0.0))) div -= 1.0;
-  double floor_value = std::floor(div);
-  if (div - floor_value > 0.5) floor_value += 1.0;
-  return floor_value;
-}
 
 // B^+ = B^T (B B^T)^-1, damped (B^T (B B^T + lambda I)^-1, `damped` set) when B's smallest singular
 // value is below kSingularRatio of its largest.
@@ -67,41 +59,16 @@ double null_space_speed(const Eigen::MatrixXd& rows, const Vector& dq) {
 
 }  // namespace
 
-void Path::sample(const Vector3& start, double t, Vector3& position, Vector3& velocity) const {
-  velocity.setZero();
-  switch (kind) {
-    case PathKind::hold:
-      position = has_point ? point : start;
-      return;
-    case PathKind::circle: {
-      const double rate = direction * 2.0 * M_PI / period;
-      const double angle = rate * t + phase;
-      position = center;
-      position[u] += radius * std::cos(angle);
-      position[v] += radius * std::sin(angle);
-      velocity[u] = -radius * rate * std::sin(angle);
-      velocity[v] = radius * rate * std::cos(angle);
-      return;
-    }
-    case PathKind::waypoints: {
-      // rest to rest through each waypoint, minimum jerk s(x) = 10 x^3 - 15 x^4 + 6 x^5 per segment
-      const long segment = t > 0.0 ? static_cast<long>(floor_div(t, segment_time)) : 0;
-      const long count = static_cast<long>(waypoints.size());
-      if (segment >= count) {
-        position = count ? waypoints.back() : start;
-        return;
-      }
-      const double x = t / segment_time - static_cast<double>(segment);
-      const double s = x * x * x * (10.0 + x * (-15.0 + 6.0 * x));
-      const double ds = 30.0 * x * x * (1.0 - x) * (1.0 - x) / segment_time;
-      const Vector3& a = segment ? waypoints[segment - 1] : start;
-      const Vector3& b = waypoints[segment];
-      position = a + s * (b - a);
-      velocity = ds * (b - a);
-      return;
-    }
-  }
-}
+// The braced contacts' rows at the law's state, per brace j: J_c, the row its force acts through,
+// W = J_c - mu e^T J (sliding: e the slip direction, regularised as the paper's or Coulomb's unit one;
+// sticking: W = J_c, the friction being tangential constraint forces instead, rows t^T J), gamma, f_cmd,
+// and the Coulomb braces at rest (they stick, and the law keeps them stuck).
+struct BraceRows {
+  Eigen::MatrixXd jc, w;
+  Vector gamma, f_nd;
+  std::vector<Vector3> accelerations, normals;
+  std::vector<int> sticking;
+};
 
 struct Law::Impl {
   LawSpec spec;
@@ -127,7 +94,7 @@ struct Law::Impl {
   Vector rest;         // the posture task's rest position (the first measured one unless configured)
   bool posture = false;
 
-  // The rows of m.jacobian along `axes`, appended to `rows`.
+  // The rows of `jacobian` along `axes`, appended to `rows`.
   void stack(Eigen::MatrixXd& rows, const std::vector<int>& axes) const {
     for (int axis : axes) {
       rows.conservativeResize(rows.rows() + 1, Eigen::NoChange);
@@ -144,11 +111,7 @@ struct Law::Impl {
     if (rows.rows() == 0) return w;
     pin::cholesky::decompose(model, data);
     Eigen::MatrixXd y(n, rows.rows());  // Mc^-1 J^T
-    for (Eigen::Index k = 0; k < rows.rows(); ++k) {
-      y_column = rows.row(k).transpose();
-      pin::cholesky::solve(model, data, y_column);
-      y.col(k) = y_column;
-    }
+    mass_inverse_rows(model, data, rows, y_column, y.transpose());
     const Eigen::MatrixXd inverse_inertia = rows * y;  // J Mc^-1 J^T
     return w - rows.transpose() * inverse_inertia.completeOrthogonalDecomposition().solve(y.transpose() * w);
   }
@@ -162,6 +125,21 @@ struct Law::Impl {
     if (!saturated) integral[j] += error * dt;
     return f_nd + brace.feedback_kp * error + brace.feedback_ki * integral[j];
   }
+
+  // The stages of Law::update.
+  // The first state's positions start the paths; returns the time since the last update.
+  double advance_clock(double t, const Vector& q);
+  // l: the PD tasks along their axes (eq. 39), each task's desired and actual positions into `out`; the
+  // braces' Jacobians into `brace_jacobians` (3b x n) and, with a posture task, the configured rows into `task_rows`.
+  Vector task_torque(double t, const Vector& dq, LawOutput& out, Eigen::MatrixXd& brace_jacobians,
+                     Eigen::MatrixXd& task_rows);
+  // The braced contacts' rows at the state of the last computeAllTerms (f_cmd into `out`).
+  BraceRows brace_rows(const Eigen::MatrixXd& brace_jacobians, const Vector& dq, double dt, LawOutput& out);
+  // tau while no brace sticks: B^+ (a - A f_nd) + (I - B^+ B) l.
+  Vector sliding_torque(const BraceRows& rows, const Vector& bias, const Vector& l, bool& damped);
+  // tau with sticking braces: their point constraints' normal forces f_nd, their tangential forces in the cone.
+  Vector sticking_torque(const BraceRows& rows, const Eigen::MatrixXd& brace_jacobians, const Vector& bias,
+                         const Vector& l, bool& damped);
 };
 
 Law::Law(const LawSpec& spec) : impl_(std::make_unique<Impl>()) {
@@ -284,9 +262,7 @@ double Law::null_space_speed(const Vector& dq) {
   Impl& m = *impl_;
   Eigen::MatrixXd rows(0, m.model.nv);
   for (std::size_t k = 0; k < m.frames.size(); ++k) {  // the Jacobians of the last update's pass
-    m.frame_jacobian.setZero();
-    pin::getFrameJacobian(m.model, m.data, m.frames[k], pin::LOCAL_WORLD_ALIGNED, m.frame_jacobian);
-    m.jacobian = m.frame_jacobian.topRows<3>();
+    m.jacobian = translational_jacobian(m.model, m.data, m.frames[k], m.frame_jacobian);
     m.stack(rows, k ? m.spec.braces[k - 1].task.axes : m.spec.hand.axes);
   }
   return bracing_engine::null_space_speed(rows, dq);
@@ -309,9 +285,7 @@ Eigen::MatrixXd Law::allowed_task_rows(const Vector& q0, const std::vector<std::
   const Vector zero = Vector::Zero(n);
   pin::computeAllTerms(m.model, m.data, q0, zero);
   auto translational = [&](std::size_t k) {
-    m.frame_jacobian.setZero();
-    pin::getFrameJacobian(m.model, m.data, m.frames[k], pin::LOCAL_WORLD_ALIGNED, m.frame_jacobian);
-    return Eigen::MatrixXd(m.frame_jacobian.topRows<3>());
+    return Eigen::MatrixXd(translational_jacobian(m.model, m.data, m.frames[k], m.frame_jacobian));
   };
   // the motions the braced contacts allow: I - J_c^+ J_c
   Eigen::MatrixXd allowed = Eigen::MatrixXd::Identity(n, n);
@@ -384,54 +358,202 @@ void Law::retune(const Vector3& hand_kp, const Vector3& hand_kd, const std::vect
   s.voltage_gain = voltage_gain;
 }
 
-void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
-  Impl& m = *impl_;
-  const LawSpec& s = m.spec;
-  const int n = m.model.nv, p = braces();
-  pin::computeAllTerms(m.model, m.data, q, dq);
-  if (!m.started) {
-    for (std::size_t k = 0; k < m.frames.size(); ++k)
-      m.starts[k] = pin::updateFramePlacement(m.model, m.data, m.frames[k]).translation();
-    m.started = true;
-    m.last_time = t;
-    m.rest = s.posture_rest.size() ? s.posture_rest : q;
+double Law::Impl::advance_clock(double t, const Vector& q) {
+  if (!started) {
+    for (std::size_t k = 0; k < frames.size(); ++k)
+      starts[k] = pin::updateFramePlacement(model, data, frames[k]).translation();
+    started = true;
+    last_time = t;
+    rest = spec.posture_rest.size() ? spec.posture_rest : q;
   }
-  const double dt = t - m.last_time;  // since the last update (force feedback's integral)
-  m.last_time = t;
-  out.force_command.resize(p);
-  out.brace_desired.resize(p, 3);
-  out.brace_actual.resize(p, 3);
-  // l: the PD tasks along their axes (eq. 39)
-  Vector l = Vector::Zero(n);
-  Eigen::MatrixXd brace_jacobians(3 * p, n);
-  Eigen::MatrixXd task_rows(0, n);  // the configured axes' Jacobian rows, stacked (the posture's null space)
-  const bool stack_rows = m.posture;
-  for (int k = 0; k <= p; ++k) {
-    const Task& task = k ? s.braces[k - 1].task : s.hand;
-    m.frame_jacobian.setZero();
-    pin::getFrameJacobian(m.model, m.data, m.frames[k], pin::LOCAL_WORLD_ALIGNED, m.frame_jacobian);
-    m.jacobian = m.frame_jacobian.topRows<3>();
-    const Vector3 position = pin::updateFramePlacement(m.model, m.data, m.frames[k]).translation();
-    const Vector3 velocity = m.jacobian * dq;
+  const double dt = t - last_time;  // since the last update (force feedback's integral)
+  last_time = t;
+  return dt;
+}
+
+Vector Law::Impl::task_torque(double t, const Vector& dq, LawOutput& out, Eigen::MatrixXd& brace_jacobians,
+                              Eigen::MatrixXd& task_rows) {
+  Vector l = Vector::Zero(model.nv);
+  for (int k = 0; k < static_cast<int>(frames.size()); ++k) {
+    const Task& task = k ? spec.braces[k - 1].task : spec.hand;
+    jacobian = translational_jacobian(model, data, frames[k], frame_jacobian);
+    const Vector3 position = pin::updateFramePlacement(model, data, frames[k]).translation();
+    const Vector3 velocity = jacobian * dq;
     Vector3 desired, desired_velocity;
-    if (m.overridden[k]) {
-      desired = m.reference_position[k];
-      desired_velocity = m.reference_velocity[k];
+    if (overridden[k]) {
+      desired = reference_position[k];
+      desired_velocity = reference_velocity[k];
     } else {
-      task.path.sample(m.starts[k], t, desired, desired_velocity);
+      task.path.sample(starts[k], t, desired, desired_velocity);
     }
     const Vector3 force = task.kp.cwiseProduct(desired - position) + task.kd.cwiseProduct(desired_velocity - velocity);
-    l.noalias() += m.jacobian.transpose() * force;
-    if (stack_rows) m.stack(task_rows, task.axes);
+    l.noalias() += jacobian.transpose() * force;
+    if (posture) stack(task_rows, task.axes);
     if (k == 0) {
       out.hand_desired = desired;
       out.hand_actual = position;
     } else {
       out.brace_desired.row(k - 1) = desired.transpose();
       out.brace_actual.row(k - 1) = position.transpose();
-      brace_jacobians.middleRows<3>(3 * (k - 1)) = m.jacobian;
+      brace_jacobians.middleRows<3>(3 * (k - 1)) = jacobian;
     }
   }
+  return l;
+}
+
+BraceRows Law::Impl::brace_rows(const Eigen::MatrixXd& brace_jacobians, const Vector& dq, double dt, LawOutput& out) {
+  const int n = model.nv, p = static_cast<int>(spec.braces.size());
+  BraceRows rows{Eigen::MatrixXd(p, n), Eigen::MatrixXd(p, n), Vector(p), Vector(p), std::vector<Vector3>(p),
+                 std::vector<Vector3>(p), {}};
+  for (int j = 0; j < p; ++j) {
+    const Contact& contact = spec.braces[j].contact;
+    const auto jacobian = brace_jacobians.middleRows<3>(3 * j);
+    const Vector3 position = out.brace_actual.row(j).transpose();
+    rows.accelerations[j] =
+        pin::getFrameClassicalAcceleration(model, data, frames[j + 1], pin::LOCAL_WORLD_ALIGNED).linear();
+    const Vector3 velocity = jacobian * dq;
+    const ContactPoint point = contact_point(contact.surface, position, velocity, rows.accelerations[j]);
+    rows.normals[j] = point.normal;
+    rows.gamma[j] = point.drift;
+    const double speed = point.slip.norm();
+    rows.f_nd[j] = out.force_command[j] = force_command(j, point.normal, dt);
+    rows.jc.row(j).noalias() = point.normal.transpose() * jacobian;
+    rows.w.row(j) = rows.jc.row(j);
+    if (contact.friction == 0.0) continue;
+    if (!contact.coulomb) {
+      const Vector3 direction = point.slip / std::sqrt(speed * speed + spec.slip_epsilon * spec.slip_epsilon);
+      rows.w.row(j).noalias() -= contact.friction * (direction.transpose() * jacobian);  // J_c - mu J_t
+    } else if (speed > kSlipAtRest) {  // sliding: |f_t| = mu |f_nd| against the slip d
+      const Vector3 e = (rows.f_nd[j] < 0.0 ? -1.0 : 1.0) * point.slip / speed;
+      rows.w.row(j).noalias() -= contact.friction * (e.transpose() * jacobian);
+    } else {
+      rows.sticking.push_back(j);
+    }
+  }
+  return rows;
+}
+
+Vector Law::Impl::sliding_torque(const BraceRows& rows, const Vector& bias, const Vector& l, bool& damped) {
+  const int n = model.nv, p = static_cast<int>(rows.jc.rows());
+  Eigen::MatrixXd b(p, n);  // B = J_c Mc^-1 (Mc symmetric)
+  mass_inverse_rows(model, data, rows.jc, y_column, b);
+  const Eigen::MatrixXd a_matrix = b * rows.w.transpose();
+  const Vector a_vector = b * bias - rows.gamma;
+  const Eigen::MatrixXd b_pinv =
+      spec.dynamically_consistent
+          ? Eigen::MatrixXd((b * rows.jc.transpose()).partialPivLu().solve(rows.jc).transpose())
+          : pseudo_inverse(b, spec.damping_lambda, damped);
+  // tau = B^+ (a - A f_nd) + (I - B^+ B) l = l + B^+ ((a - A f_nd) - B l)
+  return l + b_pinv * (a_vector - a_matrix * rows.f_nd - b * l);
+}
+
+namespace {
+
+// A sticking brace's point constraint: the normal rows of every brace (R = W as BraceRows has them),
+// then each sticking brace's tangential rows t^T J (W = R), with their gamma.
+struct StickRows {
+  Eigen::MatrixXd r, wr;
+  Vector gamma;
+  std::vector<Vector3> tangents;
+  std::vector<int> owner;  // the brace of each tangential row
+};
+
+StickRows stick_rows(const BraceRows& braces, const Eigen::MatrixXd& brace_jacobians) {
+  const Eigen::Index p = braces.jc.rows(), n = braces.jc.cols();
+  StickRows s;
+  for (int j : braces.sticking) {
+    Vector3 t[2];
+    const int count = Dynamics::tangent_directions(braces.normals[j], brace_jacobians.middleRows<3>(3 * j), t);
+    for (int k = 0; k < count; ++k) {
+      s.tangents.push_back(t[k]);
+      s.owner.push_back(j);
+    }
+  }
+  const Eigen::Index rows = p + static_cast<Eigen::Index>(s.tangents.size());
+  s.r.resize(rows, n);
+  s.wr.resize(rows, n);
+  s.gamma.resize(rows);
+  s.r.topRows(p) = braces.jc;
+  s.wr.topRows(p) = braces.w;
+  s.gamma.head(p) = braces.gamma;
+  for (std::size_t k = 0; k < s.tangents.size(); ++k) {
+    const Eigen::Index i = p + static_cast<Eigen::Index>(k);
+    s.r.row(i).noalias() = s.tangents[k].transpose() * brace_jacobians.middleRows<3>(3 * s.owner[k]);
+    s.wr.row(i) = s.r.row(i);
+    s.gamma[i] = s.tangents[k].dot(braces.accelerations[s.owner[k]]);
+  }
+  return s;
+}
+
+// The change of the tangential forces `lambda` (rows after the p normal ones) that brings each sticking
+// brace whose |f_t| leaves the cone |f_t| <= mu |f_nd| back onto its surface, just inside (the simulator
+// then holds the stick, as modelled); false if every one is inside.
+bool cone_correction(const StickRows& s, const BraceRows& braces, const LawSpec& spec, const Vector& lambda,
+                     Eigen::Index p, Vector& change) {
+  change = Vector::Zero(lambda.size());
+  bool outside = false;
+  for (int j : braces.sticking) {
+    Vector3 force = Vector3::Zero();
+    for (std::size_t k = 0; k < s.tangents.size(); ++k)
+      if (s.owner[k] == j) force += lambda[p + static_cast<int>(k)] * s.tangents[k];
+    const double limit = (1.0 - 1e-9) * spec.braces[j].contact.friction * std::abs(braces.f_nd[j]);
+    if (force.norm() <= limit) continue;
+    outside = true;
+    const double scale = limit / force.norm() - 1.0;
+    for (std::size_t k = 0; k < s.tangents.size(); ++k)
+      if (s.owner[k] == j) change[p + static_cast<int>(k)] = scale * lambda[p + static_cast<int>(k)];
+  }
+  return outside;
+}
+
+}  // namespace
+
+Vector Law::Impl::sticking_torque(const BraceRows& rows, const Eigen::MatrixXd& brace_jacobians, const Vector& bias,
+                                  const Vector& l, bool& damped) {
+  // A sticking contact is a point constraint (its normal and tangential rows R, forces through
+  // W): lambda = G^-1 (R Mc^-1 (h + g + Dc dq - tau) - gamma_R), G = R Mc^-1 W^T. The law asks
+  // only the normal forces S lambda to be f_nd: C tau = e with C = S G^-1 R Mc^-1 and
+  // e = S G^-1 (R Mc^-1 (h + g + Dc dq) - gamma_R) - f_nd; the null space of C leaves the
+  // tangential forces free (docs/model.md, Control law under stick).
+  const Eigen::Index p = rows.jc.rows();
+  const StickRows s = stick_rows(rows, brace_jacobians);
+  Eigen::MatrixXd y(model.nv, s.r.rows());  // Mc^-1 R^T
+  mass_inverse_rows(model, data, s.r, y_column, y.transpose());
+  const Eigen::MatrixXd g = y.transpose() * s.wr.transpose();  // R Mc^-1 W^T
+  // (least-norm where the rows are dependent, as the simulator solves them)
+  const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> g_lu(g);
+  const Eigen::MatrixXd g_inv_rows = g_lu.solve(y.transpose());  // G^-1 R Mc^-1 (d lambda = -this d tau)
+  const Eigen::MatrixXd c_matrix = g_inv_rows.topRows(p);        // C = S G^-1 R Mc^-1
+  const Vector e = g_inv_rows.topRows(p) * bias - g_lu.solve(s.gamma).head(p) - rows.f_nd;
+  Eigen::MatrixXd c_pinv;
+  if (spec.dynamically_consistent) {  // C^# = K^T (K Mc^-1 K^T)^-1 with K = S G^-1 R (C = K Mc^-1)
+    const Eigen::MatrixXd k_rows = g_lu.solve(s.r).topRows(p);
+    c_pinv = (c_matrix * k_rows.transpose()).partialPivLu().solve(k_rows).transpose();
+  } else {
+    c_pinv = pseudo_inverse(c_matrix, spec.damping_lambda, damped);
+  }
+  Vector torque = l + c_pinv * (e - c_matrix * l);
+  // The tangential forces this torque asks of the sticking contacts; where one leaves the cone, the
+  // least torque in the null space of C (f_n stays f_nd) brings it back.
+  const Vector lambda = g_lu.solve(y.transpose() * (bias - torque) - s.gamma);
+  Vector change;
+  if (cone_correction(s, rows, spec, lambda, p, change))  // -G^-1 R Mc^-1 d tau = change (its normal part zero)
+    torque -= g_inv_rows.completeOrthogonalDecomposition().solve(change);
+  return torque;
+}
+
+void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
+  Impl& m = *impl_;
+  const LawSpec& s = m.spec;
+  const int n = m.model.nv, p = braces();
+  pin::computeAllTerms(m.model, m.data, q, dq);
+  const double dt = m.advance_clock(t, q);
+  out.force_command.resize(p);
+  out.brace_desired.resize(p, 3);
+  out.brace_actual.resize(p, 3);
+  Eigen::MatrixXd brace_jacobians(3 * p, n);
+  Eigen::MatrixXd task_rows(0, n);  // the configured axes' Jacobian rows, stacked (the posture's null space)
+  Vector l = m.task_torque(t, dq, out, brace_jacobians, task_rows);
   if (s.gravity_compensation) l += pin::computeGeneralizedGravity(m.model, m.data, q);
   if (m.posture) l += m.posture_torque(task_rows, q, dq);
   out.damped = false;
@@ -439,242 +561,13 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
     out.torque = l;
   } else {
     pin::cholesky::decompose(m.model, m.data);
-    // Per braced contact its normal row J_c and the row its force acts through, W = J_c - mu e^T J
-    // (sliding: e the slip direction, regularised as the paper's or Coulomb's unit one; sticking:
-    // W = J_c, the friction being tangential constraint forces instead, rows t^T J).
-    Eigen::MatrixXd jc(p, n), w(p, n);
-    Vector gamma(p), f_nd(p);
-    std::vector<Vector3> accelerations(p), normals(p);
-    std::vector<int> sticking;  // Coulomb contacts at rest: they stick (and the law keeps them stuck)
-    for (int j = 0; j < p; ++j) {
-      const BracedContact& brace = s.braces[j];
-      const Contact& contact = brace.contact;
-      const auto jacobian = brace_jacobians.middleRows<3>(3 * j);
-      const Vector3 position = out.brace_actual.row(j).transpose();
-      accelerations[j] =
-          pin::getFrameClassicalAcceleration(m.model, m.data, m.frames[j + 1], pin::LOCAL_WORLD_ALIGNED).linear();
-      double c;
-      Matrix3 hessian;
-      contact.surface.evaluate(position, c, normals[j], hessian);
-      const Vector3& normal = normals[j];
-      const Vector3 velocity = jacobian * dq;
-      gamma[j] = normal.dot(accelerations[j]);
-      if (contact.surface.kind != SurfaceKind::plane) gamma[j] += velocity.dot(hessian * velocity);
-      const Vector3 slip = velocity - normal * normal.dot(velocity);
-      const double speed = slip.norm();
-      f_nd[j] = out.force_command[j] = m.force_command(j, normals[j], dt);
-      jc.row(j).noalias() = normal.transpose() * jacobian;
-      w.row(j) = jc.row(j);
-      if (contact.friction == 0.0) continue;
-      if (!contact.coulomb) {
-        const Vector3 direction = slip / std::sqrt(speed * speed + s.slip_epsilon * s.slip_epsilon);
-        w.row(j).noalias() -= contact.friction * (direction.transpose() * jacobian);  // J_c - mu J_t
-      } else if (speed > kSlipAtRest) {  // sliding: |f_t| = mu |f_nd| against the slip d
-        const Vector3 e = (f_nd[j] < 0.0 ? -1.0 : 1.0) * slip / speed;
-        w.row(j).noalias() -= contact.friction * (e.transpose() * jacobian);
-      } else {
-        sticking.push_back(j);
-      }
-    }
+    const BraceRows rows = m.brace_rows(brace_jacobians, dq, dt, out);
     const Vector bias = m.data.nle + s.drive.damping.cwiseProduct(dq);  // h + g + Dc dq
-    if (sticking.empty()) {
-      Eigen::MatrixXd b(p, n);  // B = J_c Mc^-1 (Mc symmetric)
-      for (int j = 0; j < p; ++j) {
-        m.y_column = jc.row(j).transpose();
-        pin::cholesky::solve(m.model, m.data, m.y_column);
-        b.row(j) = m.y_column.transpose();
-      }
-      const Eigen::MatrixXd a_matrix = b * w.transpose();
-      const Vector a_vector = b * bias - gamma;
-      const Eigen::MatrixXd b_pinv =
-          s.dynamically_consistent ? Eigen::MatrixXd((b * jc.transpose()).partialPivLu().solve(jc).transpose())
-                                   : pseudo_inverse(b, s.damping_lambda, out.damped);
-      // tau = B^+ (a - A f_nd) + (I - B^+ B) l = l + B^+ ((a - A f_nd) - B l)
-      out.torque = l + b_pinv * (a_vector - a_matrix * f_nd - b * l);
-    } else {
-      // A sticking contact is a point constraint (its normal and tangential rows R, forces through
-      // W): lambda = G^-1 (R Mc^-1 (h + g + Dc dq - tau) - gamma_R), G = R Mc^-1 W^T. The law asks
-      // only the normal forces S lambda to be f_nd: C tau = e with C = S G^-1 R Mc^-1 and
-      // e = S G^-1 (R Mc^-1 (h + g + Dc dq) - gamma_R) - f_nd; the null space of C leaves the
-      // tangential forces free (docs/model.md, Control law under stick).
-      std::vector<Vector3> tangents;
-      std::vector<int> owner;
-      for (int j : sticking) {
-        Vector3 t[2];
-        const int count = Dynamics::tangent_directions(normals[j], brace_jacobians.middleRows<3>(3 * j), t);
-        for (int k = 0; k < count; ++k) {
-          tangents.push_back(t[k]);
-          owner.push_back(j);
-        }
-      }
-      const int rows = p + static_cast<int>(tangents.size());
-      Eigen::MatrixXd r(rows, n), wr(rows, n), y(n, rows);
-      Vector gamma_r(rows);
-      r.topRows(p) = jc;
-      wr.topRows(p) = w;
-      gamma_r.head(p) = gamma;
-      for (std::size_t k = 0; k < tangents.size(); ++k) {
-        const int i = p + static_cast<int>(k);
-        r.row(i).noalias() = tangents[k].transpose() * brace_jacobians.middleRows<3>(3 * owner[k]);
-        wr.row(i) = r.row(i);
-        gamma_r[i] = tangents[k].dot(accelerations[owner[k]]);
-      }
-      for (int k = 0; k < rows; ++k) {
-        m.y_column = r.row(k).transpose();
-        pin::cholesky::solve(m.model, m.data, m.y_column);
-        y.col(k) = m.y_column;  // Mc^-1 R^T
-      }
-      const Eigen::MatrixXd g = y.transpose() * wr.transpose();  // R Mc^-1 W^T
-      // (least-norm where the rows are dependent, as the simulator solves them)
-      const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> g_lu(g);
-      const Eigen::MatrixXd g_inv_rows = g_lu.solve(y.transpose());  // G^-1 R Mc^-1 (d lambda = -this d tau)
-      const Eigen::MatrixXd c_matrix = g_inv_rows.topRows(p);        // C = S G^-1 R Mc^-1
-      const Vector e = g_inv_rows.topRows(p) * bias - g_lu.solve(gamma_r).head(p) - f_nd;
-      Eigen::MatrixXd c_pinv;
-      if (s.dynamically_consistent) {  // C^# = K^T (K Mc^-1 K^T)^-1 with K = S G^-1 R (C = K Mc^-1)
-        const Eigen::MatrixXd k_rows = g_lu.solve(r).topRows(p);
-        c_pinv = (c_matrix * k_rows.transpose()).partialPivLu().solve(k_rows).transpose();
-      } else {
-        c_pinv = pseudo_inverse(c_matrix, s.damping_lambda, out.damped);
-      }
-      out.torque = l + c_pinv * (e - c_matrix * l);
-      // The tangential forces this torque asks of the sticking contacts; where one leaves the cone
-      // |f_t| <= mu |f_nd|, the least torque in the null space of C (f_n stays f_nd) brings it back
-      // onto the cone's surface (just inside: the simulator then holds the stick, as modelled).
-      const Vector lambda = g_lu.solve(y.transpose() * (bias - out.torque) - gamma_r);
-      Vector change = Vector::Zero(rows);
-      bool outside = false;
-      for (int j : sticking) {
-        Vector3 force = Vector3::Zero();
-        for (std::size_t k = 0; k < tangents.size(); ++k)
-          if (owner[k] == j) force += lambda[p + static_cast<int>(k)] * tangents[k];
-        const double limit = (1.0 - 1e-9) * s.braces[j].contact.friction * std::abs(f_nd[j]);
-        if (force.norm() <= limit) continue;
-        outside = true;
-        const double scale = limit / force.norm() - 1.0;
-        for (std::size_t k = 0; k < tangents.size(); ++k)
-          if (owner[k] == j) change[p + static_cast<int>(k)] = scale * lambda[p + static_cast<int>(k)];
-      }
-      if (outside)  // -G^-1 R Mc^-1 d tau = change (its normal part zero): the least-norm d tau
-        out.torque -= g_inv_rows.completeOrthogonalDecomposition().solve(change);
-    }
+    out.torque = rows.sticking.empty() ? m.sliding_torque(rows, bias, l, out.damped)
+                                       : m.sticking_torque(rows, brace_jacobians, bias, l, out.damped);
   }
   out.command = voltage_command(out.torque, dq);
   m.saturated = s.command_limit > 0.0 && out.command.cwiseAbs().maxCoeff() >= s.command_limit;
-}
-
-namespace {
-
-// Per braced contact of the law, its row in the simulator's contact list (matched by name).
-std::vector<int> brace_rows(const Law& law, const Simulator& simulator) {
-  std::vector<int> rows;
-  const auto& contacts = simulator.dynamics().contacts();
-  for (int j = 0; j < law.braces(); ++j) {
-    int row = -1;
-    for (std::size_t i = 0; i < contacts.size(); ++i)
-      if (contacts[i].name == law.brace_name(j)) row = static_cast<int>(i);
-    if (row < 0) throw std::invalid_argument("rollout: the simulator has no contact " + law.brace_name(j));
-    rows.push_back(row);
-  }
-  return rows;
-}
-
-// What the law measures of the step just reported: each braced contact's force on the robot (through
-// its sensor, if any); the temperatures at the state the step started from.
-void measure_report(Law& law, const Simulator& simulator, const std::vector<int>& rows, const Vector& temperature,
-                    Sensors* sensors) {
-  const Answer& report = simulator.report;
-  if (law.uses_force_feedback()) {
-    for (std::size_t j = 0; j < rows.size(); ++j) {
-      const int i = rows[j];
-      const Vector3 normal = report.normals.row(i).transpose();
-      const Vector3 force = report.force[i] * normal + report.tangential_force.row(i).transpose();
-      law.measure_force(static_cast<int>(j), sensors ? sensors->force(force, normal) : force);
-    }
-  }
-  if (law.uses_temperature()) law.measure_temperature(temperature);
-}
-
-void size_recording(long rows, int n, int p, int b, bool sensed, Recording& out) {
-  out.time.setZero(rows);
-  for (RowMatrix* a : {&out.position, &out.velocity, &out.current, &out.temperature, &out.command})
-    a->setZero(rows, n);
-  for (RowMatrix* a : {&out.measured_position, &out.measured_velocity}) a->setZero(sensed ? rows : 0, n);
-  for (RowMatrix* a : {&out.hand_desired, &out.hand_actual, &out.energy}) a->setZero(rows, 3);
-  for (RowMatrix* a : {&out.brace_desired, &out.brace_actual}) a->setZero(rows, 3 * b);
-  for (RowMatrix* a : {&out.contact_position, &out.slip_velocity}) a->setZero(rows, 3 * p);
-  for (RowMatrix* a : {&out.normal_force, &out.friction_force, &out.residual, &out.active}) a->setZero(rows, p);
-  out.force_command.setZero(rows, b);
-  out.rows = 0;
-  out.status = 0;
-}
-
-}  // namespace
-
-void rollout(Law& law, Simulator& simulator, long steps, double t0, double divergence_speed,
-             double divergence_residual, Recording& out, Sensors* sensors) {
-  const int n = simulator.nv(), p = simulator.dynamics().contact_count(), b = law.braces();
-  const long rows = steps + 1;
-  if (sensors && sensors->exact()) sensors = nullptr;  // the paper's exact, instant sensing: bit for bit as without
-  size_recording(rows, n, p, b, sensors != nullptr, out);
-  const std::vector<int> braced = brace_rows(law, simulator);
-  LawOutput command;
-  Vector q_measured, dq_measured;
-  for (long k = 0; k < rows; ++k) {
-    const double t = t0 + static_cast<double>(simulator.steps_taken) * simulator.step_size();
-    const Vector& y = simulator.state();
-    const Vector q = y.head(n), dq = y.segment(n, n);
-    if (sensors) {
-      sensors->joints(q, dq, q_measured, dq_measured);
-      law.update(t, q_measured, dq_measured, command);
-      out.measured_position.row(k) = q_measured.transpose();
-      out.measured_velocity.row(k) = dq_measured.transpose();
-      const RowMatrix truth = law.task_positions(q);  // what the metrics judge: where the arm really is
-      command.hand_actual = truth.row(0).transpose();
-      for (int j = 0; j < b; ++j) command.brace_actual.row(j) = truth.row(j + 1);
-    } else {
-      law.update(t, q, dq, command);
-    }
-    out.time[k] = t;
-    out.position.row(k) = q.transpose();
-    out.velocity.row(k) = dq.transpose();
-    out.current.row(k) = y.segment(2 * n, n).transpose();
-    const Vector temperature = y.segment(3 * n, n);
-    out.temperature.row(k) = temperature.transpose();
-    out.command.row(k) = command.command.transpose();
-    out.hand_desired.row(k) = command.hand_desired.transpose();
-    out.hand_actual.row(k) = command.hand_actual.transpose();
-    out.brace_desired.row(k) = Eigen::Map<const Vector>(command.brace_desired.data(), 3 * b).transpose();
-    out.brace_actual.row(k) = Eigen::Map<const Vector>(command.brace_actual.data(), 3 * b).transpose();
-    if (b) out.force_command.row(k) = command.force_command.transpose();
-    out.energy.row(k) << y[kStates * n], y[kStates * n + 1], y[kStates * n + 2];
-    // the final state gets its reports without a step, as the simulator node's finish() does
-    const Vector& applied = sensors ? sensors->delay(command.command) : command.command;
-    if (k < steps) {
-      const StepStatus status = simulator.step(applied);
-      if (status != StepStatus::ok) {
-        out.rows = k;
-        out.status = static_cast<int>(status);
-        return;
-      }
-    } else {
-      simulator.evaluate(applied);
-    }
-    const Answer& report = simulator.report;
-    out.contact_position.row(k) = Eigen::Map<const Vector>(report.positions.data(), 3 * p).transpose();
-    out.slip_velocity.row(k) = Eigen::Map<const Vector>(report.slip.data(), 3 * p).transpose();
-    for (int j = 0; j < p; ++j) {
-      out.normal_force(k, j) = report.force[j];
-      out.friction_force(k, j) = report.friction[j];
-      out.residual(k, j) = report.residual[j];
-      out.active(k, j) = simulator.report_modes().held[j] ? 1.0 : 0.0;
-    }
-    out.rows = k + 1;
-    measure_report(law, simulator, braced, temperature, sensors);
-    // where the simulator node refuses a step (the node asks the same function)
-    out.status = simulator.refusal(divergence_speed, divergence_residual, out.measured);
-    if (out.status) return;
-  }
 }
 
 }  // namespace bracing_engine

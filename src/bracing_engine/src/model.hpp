@@ -15,4 +15,25 @@ namespace bracing_engine {
 // (pinocchio's reduced model), `armature` (one value per remaining joint) added to its armature.
 pinocchio::Model build_model(const Robot& robot, const Vector& armature);
 
+// Mc^-1 R^T by Mc's Cholesky factor (pinocchio::cholesky::decompose done on `data`), one solve per row
+// of R: row i of `out` becomes (Mc^-1 R_i^T)^T (pass y.transpose() for an n x k Y). `column`: n of work.
+template <typename Rows, typename Out>
+void mass_inverse_rows(const pinocchio::Model& model, pinocchio::Data& data, const Eigen::MatrixBase<Rows>& rows,
+                       Vector& column, Out&& out) {
+  for (Eigen::Index i = 0; i < rows.rows(); ++i) {
+    column = rows.row(i).transpose();
+    pinocchio::cholesky::solve(model, data, column);
+    out.row(i) = column.transpose();
+  }
+}
+
+// The translational Jacobian (3 x n, world axes at the frame: the top rows of `work`, a 6 x n frame
+// Jacobian) of `frame` after computeAllTerms.
+inline auto translational_jacobian(const pinocchio::Model& model, pinocchio::Data& data, pinocchio::FrameIndex frame,
+                                   pinocchio::Data::Matrix6x& work) {
+  work.setZero();
+  pinocchio::getFrameJacobian(model, data, frame, pinocchio::LOCAL_WORLD_ALIGNED, work);
+  return work.topRows<3>();
+}
+
 }  // namespace bracing_engine

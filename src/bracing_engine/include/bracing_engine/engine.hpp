@@ -41,6 +41,18 @@ struct Surface {
   void evaluate(const Vector3& r, double& c, Vector3& n, Matrix3& h) const;
 };
 
+// A contact point's kinematics on its surface: what the model's and the law's contact rows are built from.
+struct ContactPoint {
+  double residual = 0.0;             // C
+  Vector3 normal = Vector3::Zero();  // n at the point
+  Vector3 slip = Vector3::Zero();    // the tangential velocity v - n (n . v)
+  double drift = 0.0;                // gamma = n . (dJ dq) + v^T H v
+};
+
+// The point at `position` moving with `velocity` (J dq) and classical acceleration (dJ dq), world axes.
+ContactPoint contact_point(const Surface& surface, const Vector3& position, const Vector3& velocity,
+                           const Vector3& acceleration);
+
 struct Contact {
   std::string name;
   std::string frame;
@@ -180,7 +192,17 @@ struct ContactEvent {
 
 enum class StepStatus { ok = 0, diverged = 1, joint_limit = 2 };
 
-// Energy integrals appended to the state, in this order (simulator.py ENERGY_KEYS).
+// Why the simulator node refuses a step it took (Simulator::refusal): none; non-finite forces or slip; a
+// joint faster than the speed limit; a held contact further than the residual limit off its surface; a
+// winding hotter than kWindingTemperatureLimit.
+enum class Refusal { none = 0, non_finite = 3, too_fast = 4, off_surface = 5, too_hot = 6 };
+
+// The energy integrals appended to the state, in this order (simulator.py ENERGY_KEYS): consumed |P|, net P
+// (P = v i, or tau dq in torque mode), copper loss R(T) i^2, viscous loss dq^T Dc dq, friction loss,
+// constraint work, impact loss (events only).
+namespace energy {
+enum Slot : int { consumed, net, copper_loss, viscous_loss, friction_loss, constraint_work, impact_loss };
+}  // namespace energy
 constexpr int kEnergies = 7;
 // The state y = [q, dq, i, T, energies]: kStates blocks of n (T, the winding temperatures [degC], is
 // integrated with the circuit it heats and before the integrals, so the event location's Hermite
@@ -206,11 +228,9 @@ class Simulator {
   // `report` = the model at the current state under u (no time passes).
   void evaluate(const Vector& u);
   // Whether the simulator node refuses the step just taken (`report` its answer at the step's
-  // start, the state the new one): 0 no; 3 non-finite forces or slip; 4 a joint faster than
-  // speed_limit; 5 a held contact further than residual_limit off its surface; 6 a winding hotter
-  // than kWindingTemperatureLimit. `measured`: the speed (4), the temperature (6) or the largest
-  // held |C| (otherwise).
-  int refusal(double speed_limit, double residual_limit, double& measured) const;
+  // start, the state the new one), see Refusal. `measured`: the speed (too_fast), the temperature
+  // (too_hot) or the largest held |C| (otherwise).
+  Refusal refusal(double speed_limit, double residual_limit, double& measured) const;
   void set_active(const Mask& active);
   void set_modes(const ContactModes& modes);
   void set_state(const Vector& y);  // [q, dq, i, T, energies]
@@ -226,6 +246,8 @@ class Simulator {
   const ContactModes& report_modes() const { return report_modes_; }  // the modes `report` was made in
   bool all_active() const;
   const std::vector<ContactEvent>& events() const { return events_; }
+  // Where the energy integral `slot` is in the state.
+  Eigen::Index energy_index(energy::Slot slot) const { return kStates * n_ + slot; }
   long steps_taken = 0;
   Answer report;
   int failed_joint = -1;         // the joint a refused step would have taken past its limit
@@ -235,15 +257,42 @@ class Simulator {
   // The modes at the step's start under u: unilateral contacts that pull release, Coulomb contacts
   // whose holding force leaves the cone slide; `report` is the model there.
   void start(const Vector& u);
+  // The modes at the start (q0, dq0): Coulomb contacts at rest stick, moving ones slide along their slip.
+  void initial_modes(const Vector& q0, const Vector& dq0);
+  // Unilateral contacts whose force in `report` would pull let go, the most negative first; true if one did.
+  bool release_pulling();
+  // A sliding Coulomb contact's friction follows the sign of its normal force in `report`; true if one flipped.
+  bool follow_force_signs();
   // Breakaways at the current state (report evaluated there); true if a contact changed mode.
   bool break_away(double offset);
+  // How far sticking contact j's holding force in `answer` is outside the cone |f_t| <= mu |f_n| (> 0:
+  // outside, beyond rounding).
+  double cone_excess(const Answer& answer, int j) const;
+  // The switch to slipping: sticking contact j slides along where its holding force in `answer` held it
+  // back from (d = -f_t / |f_t|, the sign of f_n held), an event `offset` [s] into the step.
+  void start_sliding(int j, const Answer& answer, double offset);
   // One sub-step of size h from y with events located inside it; `first`: `report` is its first stage.
   void advance(Vector& y, double h, const Vector& u, bool first, double offset);
+  // An interval's start at y: y0_, the first stage's rates k_[0], e_[0]; the model there (`report` if first).
+  const Answer& open_interval(const Vector& y, const Vector& u, bool first);
+  // The sliding Coulomb contacts' slip directions at an interval's start (their stored one while at rest).
+  void hold_slide_directions(const Answer& opening);
+  // The first event inside (0, span] of the interval from y0_ to y1_ (k_first_, k_end_ its end rates):
+  // its contact (-1: none) and time `when`.
+  int first_event(double span, const Vector& u, double& when);
+  // The time in (0, span] where contact j's event function crosses zero, on the step's cubic Hermite
+  // interpolant (Illinois method), just past the crossing.
+  double locate(int j, double span, const Vector& u);
+  // Contact j's mode switched at state y, `at` [s] into the step: a sticking one slides; a sliding one
+  // sticks (its slip impulsively removed), and slides on at once if its forces cannot hold it.
+  void switch_mode(int j, Vector& y, const Vector& u, double at);
   // One RK4 step of size h from y0 into y1; stage 1's rates are in k_[0], e_[0].
   void rk4(const Vector& y0, double h, const Vector& u, Vector& y1);
   // The event functions of the held Coulomb contacts from an answer at a state (>= 0: no event).
   void event_functions(const Answer& answer, Vector& g) const;
+  // Released contacts that reached their surface while approaching land (inelastic impact).
   void touchdown();
+  // The sticking contacts' drifted tangential velocity projected back to zero at a step's end.
   void hold_sticking();
   // The model at state x = [q, dq, i, T, ...] under u with the current contact modes (`full`: every
   // contact's terms too): the one place a state is cut into the model's arguments.

@@ -151,14 +151,14 @@ struct Recording {
   RowMatrix measured_position, measured_velocity;
   RowMatrix force_command;                       // (N+1) x b: f_cmd of each brace [N]
   long rows = 0;                                 // rows filled
-  int status = 0;  // 0 ok; 1 diverged, 2 joint limit (in the step of the last row); 3 non-finite forces,
-                   // 4 too fast, 5 residual (after the last row's step)
-  double measured = 0.0;  // the speed [rad/s] or residual [m] of status 4 / 5
+  StepStatus step_status = StepStatus::ok;       // not ok: the step from the last row's state was not taken
+  Refusal refusal = Refusal::none;               // not none: the node refuses the step after the last row
+  double measured = 0.0;                         // the refusal's speed, temperature or residual
 };
 
 // The closed loop (law + simulator) for `steps` steps from the simulator's state at time t0 +
 // steps_taken * h; the last row is the final state, answered and evaluated without a step. Stops
-// early where the simulator node would refuse a step (status). `sensors` (may be null: exact and
+// early where the simulator node would refuse a step (step_status, refusal). `sensors` (may be null: exact and
 // instant): what the law reads of each state and when its commands land. The law's force feedback
 // reads each braced contact's force of the previous step's report, its thermal compensation the
 // previous state's temperatures: what the nodes have when they answer a state in lockstep.
