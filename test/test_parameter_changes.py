@@ -40,7 +40,7 @@ def setter_main(domain: int) -> None:
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from rosgraph_msgs.msg import Clock
 
-    from bracing_ros.common import use_fastdds_profile
+    from bracing_ros.fastdds import use_fastdds_profile
 
     use_fastdds_profile()
     rclpy.init(domain_id=domain)

@@ -529,7 +529,7 @@ class Live:
         self._later = []
 
     def _waiter(self) -> Any:
-        from bracing_ros.common import SubscriptionWaiter
+        from bracing_ros.waiter import SubscriptionWaiter
 
         return SubscriptionWaiter(self.node, [*self.topics, *([self.status] if self.status is not None else [])])
 
