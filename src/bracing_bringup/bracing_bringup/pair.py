@@ -572,8 +572,8 @@ def _report(
     """Read the bag once: check it (a lockstep run promises every step), then write the summary
     (with ``warnings``), the figures and the animation from what was read. (summary, exit code, message)."""
     from bracing_analysis.animation import DEFAULT_INTERVAL_S
+    from bracing_analysis.bag import BagReadError, read_series  # rosbags ~100 ms, bag replay only, where used
     from bracing_analysis.drawing import report_series
-    from bracing_analysis.summary import BagReadError, read_series  # rosbags ~100 ms, bag replay only, where used
 
     try:
         series = read_series(bag)
@@ -700,7 +700,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if result.exit_code != 0:
         print(f"bracing-pair: {result.message}", file=sys.stderr)
         return result.exit_code
-    from bracing_analysis.summary import format_summary  # rosbags ~100 ms, bag replay only, where used
+    from bracing_analysis.summary import format_summary  # numpy: only once the run is over
 
     print(format_summary(result.summary or {}))
     print(f"bag: {result.output / 'bag'}  report and summary.json: {result.output}")

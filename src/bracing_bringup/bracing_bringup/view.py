@@ -406,7 +406,7 @@ def replay_bag(bag: Path, recording: rr.RecordingStream, period_s: float = DEFAU
     """Every message of a recorded run through a ``Feed`` (the project's typestore; robot first)."""
     from rosbags.highlevel import AnyReader  # rosbags ~100 ms, bag replay only, where used
 
-    from bracing_analysis.summary import read_series, resolve_bag  # rosbags ~100 ms, bag replay only, where used
+    from bracing_analysis.bag import read_series, resolve_bag  # rosbags ~100 ms, bag replay only, where used
 
     path = resolve_bag(Path(bag))
     series = read_series(path)

@@ -8,11 +8,12 @@ what was expected.
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
+
+from bracing_core.numbers import number
 
 Params = Mapping[str, Any]
 
@@ -50,7 +51,7 @@ def get_float(
     params: Params, name: str, default: float | None = None, *, minimum: float | None = None, positive: bool = False
 ) -> float:
     value = params.get(name, default)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+    if not number(value):
         raise ConfigError(f"{name}: expected a finite number, got {value!r}")
     if positive and value <= 0.0:
         raise ConfigError(f"{name}: must be > 0, got {value!r}")
@@ -98,9 +99,7 @@ def get_floats(
         value = []
     if isinstance(value, (int, float)) and not isinstance(value, bool):
         value = [value]
-    if not isinstance(value, (list, tuple)) or not all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value
-    ):
+    if not isinstance(value, (list, tuple)) or not all(number(v) for v in value):
         raise ConfigError(f"{name}: expected a list of finite numbers, got {value!r}")
     if length is not None and len(value) != length:
         hint = f" ({length_hint})" if length_hint else ""

@@ -44,33 +44,32 @@ from typing import Any
 
 import numpy as np
 
-from bracing_analysis.ratios import RATIO_FLOOR, number, ratio
+from bracing_analysis.ratios import RATIO_FLOOR, ratio
 from bracing_analysis.summary import HAND_ERROR_T_MIN_S
 from bracing_core import schema
 from bracing_core.config import SharedConfig
+from bracing_core.numbers import markdown_table, number
 from bracing_core.overrides import CONTROLLER, SIMULATOR, node_params, parse_single, route
 from bracing_core.params import ConfigError
 from bracing_core.variants import BRACED, FREE_SPACE, PASSIVE, Run
+from bracing_experiments.cli import (
+    add_study_options,
+    check_options,
+    config_error,
+    handle_stop_signals,
+    interrupted,
+    study_exit,
+)
 from bracing_experiments.executors import make_executor
-from bracing_experiments.experiment import STATUS_FAILED, RunSpec
+from bracing_experiments.experiment import RunSpec
 from bracing_experiments.reporting import (
     braced_forces,
     is_ok,
-    markdown_table,
     resolve_scenario,
     run_arrays,
     warnings_section,
 )
-from bracing_experiments.sweep import (
-    EXIT_CONFIG,
-    EXIT_FAILED,
-    EXIT_INTERRUPTED,
-    ResultsStore,
-    any_failed,
-    handle_stop_signals,
-    make_spec,
-    run_sweep,
-)
+from bracing_experiments.sweep import ResultsStore, make_spec, run_sweep
 
 STUDY = "robustness"
 """bracing-study's first argument for this study (study.main dispatches it here)."""
@@ -809,25 +808,9 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog=f"bracing-study {STUDY}", description=(__doc__ or "").split("\n\n")[0].replace("\n", " ")
     )
-    parser.add_argument("--output", required=True, type=Path, help="report directory (resumable)")
-    parser.add_argument("--duration", type=float, default=None, help="sim time per run [s] (default: the file's)")
-    where = parser.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=None, help="local worker processes (default: cores)")
-    where.add_argument("--scheduler", default=None, help="Dask scheduler tcp://HOST:PORT, or 'local'")
-    parser.add_argument(
-        "--set",
-        dest="sets",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a scenario parameter in every run",
-    )
-    parser.add_argument("--no-progress", action="store_true")
+    add_study_options(parser, exclusive_executors=True)
     args = parser.parse_args(argv)
-    if args.duration is not None and args.duration <= 0:
-        parser.error("--duration must be > 0")
-    if args.workers is not None and args.workers < 1:
-        parser.error("--workers must be >= 1")
+    check_options(parser, args)
     return args
 
 
@@ -842,26 +825,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         ResultsStore(args.output).check_manifest(config)
         executor = make_executor(args.workers, args.scheduler)
     except ConfigError as exc:
-        print(f"{name}: error: {exc}", file=sys.stderr)
-        return EXIT_CONFIG
+        return config_error(name, exc)
     try:
         with executor:
             where = executor.description
             print(f"{name}: {len(study.specs)} runs of {config} on {where}", file=sys.stderr)
             result = run_sweep(study.specs, args.output, executor, progress=not args.no_progress)
     except KeyboardInterrupt:
-        print(f"{name}: interrupted; the same command again runs the rest", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return interrupted(name)
     report = write_report(study, args.output, time.perf_counter() - start, where, result.skipped)
     print(f"{name}: {result.ran} run now, {result.skipped} reused; report: {report}")
-    failed = sum(1 for row in result.rows if row.get("status") == STATUS_FAILED)
-    if failed or result.lost:
-        print(
-            f"{name}: {failed} run(s) failed, {len(result.lost)} lost: see the report's cells and "
-            f"{args.output / 'results.csv'}",
-            file=sys.stderr,
-        )
-    return EXIT_FAILED if result.lost or any_failed(result.rows) else 0
+    return study_exit(name, result.rows, result.lost, args.output)
 
 
 if __name__ == "__main__":
