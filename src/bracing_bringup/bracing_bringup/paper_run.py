@@ -14,7 +14,8 @@ from typing import Any
 
 from bracing_analysis.bag import BagReadError
 from bracing_analysis.ratios import ratio_text, temperature_saving_text
-from bracing_bringup.pair import RunOptions, run_pair
+from bracing_bringup.run_plan import RunOptions
+from bracing_bringup.supervision import run_pair
 from bracing_core.numbers import number
 from bracing_core.params import ConfigError
 from bracing_core.variants import RUNS
