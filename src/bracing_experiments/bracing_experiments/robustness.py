@@ -51,7 +51,7 @@ from bracing_core.config import SharedConfig
 from bracing_core.numbers import markdown_table, number
 from bracing_core.overrides import CONTROLLER, SIMULATOR, node_params, parse_single, route
 from bracing_core.params import ConfigError
-from bracing_core.variants import BRACED, FREE_SPACE, PASSIVE, Run
+from bracing_core.variants import BRACED, FREE_SPACE, PASSIVE, Variant
 from bracing_experiments.cli import (
     add_study_options,
     check_options,
@@ -83,8 +83,8 @@ NOMINAL = "nominal"
 PAPER_LAW, FEEDBACK_LAW = "paper", "feedback"
 LAWS = (PAPER_LAW, FEEDBACK_LAW)
 LAW_TEXT = {PAPER_LAW: "paper's law", FEEDBACK_LAW: "force feedback + thermal comp."}
-VARIANTS: tuple[Run, ...] = (BRACED, PASSIVE, FREE_SPACE)
-"""make run's three runs: their parameters (Run.overrides) and names (Run.name: the rows' ``variant``)."""
+VARIANTS: tuple[Variant, ...] = (BRACED, PASSIVE, FREE_SPACE)
+"""make run's three runs: their parameters (Variant.overrides) and names (Variant.name: the rows' ``variant``)."""
 
 VOLTAGE, TORQUE = "voltage", "torque"
 FEEDBACK_GAINS: dict[str, tuple[float, float]] = {VOLTAGE: (1.0, 10.0), TORQUE: (0.3, 100.0)}
@@ -295,7 +295,7 @@ def _gains(mode: str) -> str:
     return f"kp {kp:g}, ki {ki:g} /s"
 
 
-def law_overrides(law: str, variant: Run, mode: str, braced: Sequence[str]) -> dict[str, Any]:
+def law_overrides(law: str, variant: Variant, mode: str, braced: Sequence[str]) -> dict[str, Any]:
     """The parameters of ``law``: nothing for the paper's; force feedback on the braced contacts (a run with
     a brace task only) and thermal compensation (voltage input only: the law it compensates)."""
     if law == PAPER_LAW:
@@ -336,7 +336,7 @@ def build_robustness(
     mode = str(ctl["input_mode"])
     study = Robustness(config, duration, factors, mode, [c.name for c in braced], base=base)
 
-    def add(factor: Factor | None, level: Level, law: str, variant: Run, input_mode: str) -> None:
+    def add(factor: Factor | None, level: Level, law: str, variant: Variant, input_mode: str) -> None:
         labels = {  # in the run id's readable part (its first 80 characters) in this order
             "factor": factor.key if factor else NOMINAL,
             "level": level.label,
@@ -608,7 +608,7 @@ def _named(level: Level) -> str:
     return "the nominal" if level is NOMINAL_LEVEL else level.label
 
 
-def _pays(study: Robustness, rows: Mapping[str, dict[str, Any]], baseline: Run) -> str:
+def _pays(study: Robustness, rows: Mapping[str, dict[str, Any]], baseline: Variant) -> str:
     """Against ``baseline`` (free space or passive): in how many conditions bracing uses less energy and keeps
     the hand more precise, by law; the ratios' ranges; where it does not (or, when it mostly does not, where it
     does; when it never does, where it wins on one of the two)."""

@@ -351,7 +351,8 @@ def build_specs(config: Path, sets: Sequence[str], zipped: bool, duration: float
     return [make_spec(config, varied, duration) for varied in combinations(parse_sweep(sets), zipped)]
 
 
-def report(result: SweepResult, output: Path, total: int) -> str:
+def outcome_text(result: SweepResult, output: Path, total: int) -> str:
+    """What bracing-sweep prints at its end: the runs in the table, where it is, what to do next, the warnings."""
     ok = sum(1 for row in result.rows if row.get("status") == STATUS_OK)
     failed = failed_runs(result.rows)
     lines = [
@@ -396,11 +397,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                 specs, args.output, executor, retry_failed=args.retry_failed, progress=not args.no_progress
             )
     except SweepInterrupted as interrupt:
-        print(report(interrupt.result, args.output, len(specs)), file=sys.stderr)
+        print(outcome_text(interrupt.result, args.output, len(specs)), file=sys.stderr)
         return EXIT_INTERRUPTED
     except KeyboardInterrupt:  # before the first run was submitted
         return EXIT_INTERRUPTED
-    print(report(result, args.output, len(specs)))
+    print(outcome_text(result, args.output, len(specs)))
     return EXIT_FAILED if result.lost or failed_runs(result.rows) else 0
 
 
