@@ -36,7 +36,7 @@ from bracing_ros.fastdds import NETWORK_ENV
 EXIT_CONFIG = 2
 
 
-def parse_args(argv: Sequence[str] | None) -> RunOptions:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="bracing-pair", description=__doc__.split("\n\n")[0] if __doc__ else None)
     parser.add_argument(
         "--config", required=True, type=Path, help="scenario params file (e.g. config/paper_4link.yaml)"
@@ -84,6 +84,12 @@ def parse_args(argv: Sequence[str] | None) -> RunOptions:
     parser.add_argument(
         "--set", dest="sets", action="append", default=[], metavar="KEY=VALUE", help="override a scenario parameter"
     )
+    return parser
+
+
+def parse_args(argv: Sequence[str] | None) -> RunOptions:
+    """bracing-pair's options, checked (argparse's error: usage, the message, exit 2)."""
+    parser = _parser()
     args = parser.parse_args(argv)
     if args.duration is not None and args.duration <= 0:
         parser.error("--duration must be > 0")
