@@ -4,6 +4,7 @@ sent, the parameter changes, the nodes' warnings, the input mode) and the metada
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -77,14 +78,19 @@ def read_events(reader: AnyReader) -> RunEvents:
     return RunEvents(_input_mode(reader), _parameter_events(reader), _recorded_warnings(reader), _targets(reader))
 
 
+def _decoded(reader: AnyReader, wanted: Callable[[Any], bool]) -> Iterator[tuple[Any, int, Any]]:
+    """(connection, bag time [ns], message) of the ``wanted`` connections' messages, in bag order."""
+    connections = [c for c in reader.connections if wanted(c)]
+    if not connections:  # (an empty list would make reader.messages read every topic)
+        return
+    for conn, stamp, raw in reader.messages(connections=connections):
+        yield conn, stamp, reader.deserialize(raw, conn.msgtype)
+
+
 def _input_mode(reader: AnyReader) -> str | None:
     """The mode of the first motor_command (the controller sends one mode for a whole run); None if
     none was recorded or the mode is not one MotorCommand defines."""
-    commands = [c for c in reader.connections if c.msgtype == MOTOR_COMMAND]
-    if not commands:  # (an empty list would make reader.messages read every topic)
-        return None
-    for conn, _, raw in reader.messages(connections=commands):
-        command: Any = reader.deserialize(raw, conn.msgtype)
+    for _, _, command in _decoded(reader, lambda c: c.msgtype == MOTOR_COMMAND):
         names = {code: name for name, code in motor_command_modes(reader.typestore).items()}  # the bag's .msg
         return names.get(int(command.mode))
     return None
@@ -110,18 +116,16 @@ def describe(series: BagSeries, path: Path) -> None:
 
 def _targets(reader: AnyReader) -> list[_Target]:
     """(bag time [ns], task, points, pose stamps [ns]) of each recorded target, in time order."""
-    connections = [
-        c
-        for c in reader.connections
-        if (c.msgtype == POINT_STAMPED and c.topic.rsplit("/", 1)[-1] == "hand_target")
-        or (c.msgtype == POINT_STAMPED and "brace_target/" in c.topic)
-        or (c.msgtype == PATH and c.topic.endswith("hand_path"))
-    ]
-    if not connections:  # (an empty list would make reader.messages read every topic)
-        return []
+
+    def target(c: Any) -> bool:
+        return (
+            (c.msgtype == POINT_STAMPED and c.topic.rsplit("/", 1)[-1] == "hand_target")
+            or (c.msgtype == POINT_STAMPED and "brace_target/" in c.topic)
+            or (c.msgtype == PATH and c.topic.endswith("hand_path"))
+        )
+
     out: list[_Target] = []
-    for conn, stamp, raw in reader.messages(connections=connections):
-        msg: Any = reader.deserialize(raw, conn.msgtype)
+    for conn, stamp, msg in _decoded(reader, target):
         task = conn.topic.split("brace_target/", 1)[1] if "brace_target/" in conn.topic else "hand"
         if conn.msgtype == PATH:
             points = [xyz(pose.pose.position) for pose in msg.poses]
@@ -140,12 +144,8 @@ def _parameter_value(value: Any) -> Any:
 def _parameter_events(reader: AnyReader) -> list[_ParameterEvent]:
     """(stamp [ns], node, {name: new value}) of each recorded /parameter_events message that changes
     or deletes a value (a few per run)."""
-    connections = [c for c in reader.connections if c.msgtype == PARAMETER_EVENT]
-    if not connections:  # (an empty list would make reader.messages read every topic)
-        return []
     out = []
-    for conn, _, raw in reader.messages(connections=connections):
-        event: Any = reader.deserialize(raw, conn.msgtype)
+    for _, _, event in _decoded(reader, lambda c: c.msgtype == PARAMETER_EVENT):
         values = {str(p.name): _parameter_value(p.value) for p in event.changed_parameters}
         values.update({str(p.name): None for p in event.deleted_parameters})
         if values:
@@ -156,12 +156,8 @@ def _parameter_events(reader: AnyReader) -> list[_ParameterEvent]:
 
 def _recorded_warnings(reader: AnyReader) -> list[str]:
     """The warnings the nodes said on run_status (the recorder keeps only those), in time order (a few per run)."""
-    connections = [c for c in reader.connections if c.msgtype == RUN_STATUS]
-    if not connections:  # (an empty list would make reader.messages read every topic)
-        return []
     out = []
-    for conn, stamp, raw in reader.messages(connections=connections):
-        status: Any = reader.deserialize(raw, conn.msgtype)
+    for _, stamp, status in _decoded(reader, lambda c: c.msgtype == RUN_STATUS):
         if status.text:
             out.append((stamp, str(status.text)))
     return [text for _, text in sorted(out, key=lambda w: w[0])]
