@@ -5,7 +5,7 @@ The upper bound on the lockstep simulator/controller pair's step rate: one proce
 (names, positions, velocities, efforts) on ``ping`` and waits for the answer; the
 other ("pong", playing the controller) answers each message at once with a
 bracing_msgs/MotorCommand with 4 values on ``pong``, stamped with the request's stamp.
-The transport is the nodes' own: their QoS (bracing_ros.common STREAM_QOS /
+The transport is the nodes' own: their QoS (bracing_ros.qos STREAM_QOS /
 SUBSCRIBE_QOS), their wait (SubscriptionWaiter) and,
 with ``--wire cdr``, their CDR bytes (bracing_ros.wire); ``--wire objects`` sends rclpy
 message objects instead, for comparison. No computation besides the messages.
@@ -44,7 +44,8 @@ class _Side:
     def __init__(self, name: str, out_type: type, out_topic: str, in_type: type, in_topic: str, wire: str) -> None:
         import rclpy
 
-        from bracing_ros.common import STREAM_QOS, SUBSCRIBE_QOS, SubscriptionWaiter
+        from bracing_ros.qos import STREAM_QOS, SUBSCRIBE_QOS
+        from bracing_ros.waiter import SubscriptionWaiter
 
         rclpy.init()
         self.node = rclpy.create_node(name)

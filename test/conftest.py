@@ -17,7 +17,7 @@ import ros_helpers
 
 from bracing_core import overrides, rollout
 from bracing_core.overrides import NodeOverrides
-from bracing_core.rollout import Run, Scenario, run_closed_loop
+from bracing_core.rollout import ClosedLoop, Scenario, run_closed_loop
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 CONFIG_DIR = REPO_ROOT / "config"
@@ -86,12 +86,14 @@ def scenario() -> Callable[..., Scenario]:
 
 
 @pytest.fixture(scope="session")
-def closed_loop() -> Callable[..., Run]:
+def closed_loop() -> Callable[..., ClosedLoop]:
     """``closed_loop(shared=..., sim=..., ctl=..., duration=10.0)``: memoised over the session,
     so the 10 s paper runs are simulated once for all tests that use them."""
-    cache: dict[Any, Run] = {}
+    cache: dict[Any, ClosedLoop] = {}
 
-    def run(shared: Overrides = None, sim: Overrides = None, ctl: Overrides = None, duration: float = 10.0) -> Run:
+    def run(
+        shared: Overrides = None, sim: Overrides = None, ctl: Overrides = None, duration: float = 10.0
+    ) -> ClosedLoop:
         key = (_freeze(shared or {}), _freeze(sim or {}), _freeze(ctl or {}), duration)
         if key not in cache:
             cache[key] = run_closed_loop(build_scenario(shared, sim, ctl), duration)

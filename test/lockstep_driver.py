@@ -29,7 +29,7 @@ from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
 from bracing_msgs.msg import MotorCommand
-from bracing_ros.common import STREAM_QOS
+from bracing_ros.qos import STREAM_QOS
 
 JOINTS = ["joint1", "joint2", "joint3", "joint4"]
 SHUFFLED = [3, 0, 2, 1]

@@ -1,7 +1,7 @@
 """Column-wise CDR decoding (columns.py) and read_series built on it.
 
 The reference everywhere is rosbags' own deserializer: ``typestore.deserialize_cdr`` for
-single messages, ``read_series(bag, columnar=False)`` for whole bags.
+single messages, ``reference_series.read_series`` (every message deserialized by rosbags) for whole bags.
 """
 
 from __future__ import annotations
@@ -13,14 +13,16 @@ from typing import Any
 
 import numpy as np
 import pytest
+import reference_series
 from rosbags.interfaces import Nodetype
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
+from bracing_analysis.bag import BagReadError, read_series
 from bracing_analysis.columns import MAX_PROBES, Layout, decode
-from bracing_analysis.summary import BagReadError, compute_summary, read_series
+from bracing_analysis.summary import compute_summary
 from bracing_bringup.recorder import BAG_VERSION
 from bracing_core.typestore import bracing_typestore
 
@@ -151,7 +153,7 @@ def same_series(a: Any, b: Any, where: str = "series") -> None:
 
 
 def assert_columnar_is_general(bag: Path) -> Any:
-    general, columnar = read_series(bag, columnar=False), read_series(bag)
+    general, columnar = reference_series.read_series(bag), read_series(bag)
     same_series(general, columnar)
     assert json.dumps(compute_summary(general, 1.5)) == json.dumps(compute_summary(columnar, 1.5))  # NaN-safe
     return columnar
@@ -405,7 +407,7 @@ def test_read_series_ragged_joint_states_fail_alike(tmp_path: Path) -> None:
     b.add("/joint_states", "sensor_msgs/msg/JointState", short)
     bag = b.write(tmp_path / "bag")
     with pytest.raises(ValueError):
-        read_series(bag, columnar=False)
+        reference_series.read_series(bag)
     with pytest.raises(ValueError):
         read_series(bag)
 
@@ -417,9 +419,9 @@ def test_read_series_damaged_message_is_a_bag_read_error(tmp_path: Path) -> None
     topic, typename, raw = b.items[1]
     b.items[1] = (topic, typename, raw[:-9])  # truncated
     bag = b.write(tmp_path / "bag")
-    for columnar in (False, True):
+    for read in (reference_series.read_series, read_series):
         with pytest.raises(BagReadError, match="cannot read bag"):
-            read_series(bag, columnar=columnar)
+            read(bag)
 
 
 # --------------------------------------------------------------------------- read_series on recorded bags

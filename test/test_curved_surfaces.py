@@ -20,7 +20,7 @@ from ros_helpers import PAPER_YAML, pair_argv, run
 from rosbags.highlevel import AnyReader
 
 from bracing_analysis.animation import ArmAnimation
-from bracing_analysis.summary import read_series
+from bracing_analysis.bag import read_series
 from bracing_analysis.surfaces import Shape
 from bracing_bringup.scene import SceneBuilder
 from bracing_core.typestore import bracing_typestore

@@ -34,7 +34,7 @@ from sensor_msgs.msg import JointState
 
 from bracing_bringup.domains import hold_domain
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState
-from bracing_ros.common import STREAM_QOS
+from bracing_ros.qos import STREAM_QOS
 
 EXAMPLES = int(os.environ.get("BRACING_FUZZ_EXAMPLES", "200"))
 FUZZ_SETTINGS = settings(

@@ -15,7 +15,8 @@ from pathlib import Path
 import pytest
 from conftest import PAPER_YAML, SHORT_RUN_S
 
-from bracing_bringup.pair import PARAMS_FILE, parse_args, plan_run, write_params
+from bracing_bringup.pair import parse_args
+from bracing_bringup.run_plan import PARAMS_FILE, plan_run, write_params
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 LAUNCH_FILE = REPO_ROOT / "src" / "bracing_bringup" / "launch" / "pair.launch.py"

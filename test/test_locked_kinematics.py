@@ -19,7 +19,7 @@ from ros_helpers import REPO_ROOT, pair_argv, run
 from rosbags.highlevel import AnyReader
 
 from bracing_analysis.animation import ArmAnimation, nearest
-from bracing_analysis.summary import read_series
+from bracing_analysis.bag import read_series
 from bracing_core.kinematics import LinkPoses
 from bracing_core.model import ModelError, RobotModel, simulated_urdf
 

@@ -26,7 +26,7 @@ import pytest
 from conftest import REPO_ROOT
 from ros_helpers import hold_test_domain, isolated_env, pair_argv, start
 
-from bracing_analysis.summary import read_series
+from bracing_analysis.bag import read_series
 
 PEER = str(REPO_ROOT / "test" / "netns_peer.py")
 PEER_SECONDS = 60.0  # its upper bound; it is stopped as soon as the run ends

@@ -16,7 +16,7 @@ import ros_helpers
 from conftest import PAPER_URDF, build_scenario
 
 from bracing_analysis.animation import LINK_COLOR, MESH_ALPHA, ArmAnimation
-from bracing_analysis.summary import read_series
+from bracing_analysis.bag import read_series
 from bracing_core.meshes import find_package, resolve, resolved_description
 
 rr = pytest.importorskip("rerun")

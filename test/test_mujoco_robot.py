@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from ros_helpers import REPO_ROOT, isolated_env, node_argv, pair_argv, params_file, start
 
-from bracing_analysis.summary import read_series
+from bracing_analysis.bag import read_series
 from bracing_analysis.wrench_contacts import contacts_from_wrenches
 
 MU = 0.1  # config/paper_4link.yaml's elbow friction

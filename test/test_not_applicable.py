@@ -16,11 +16,13 @@ import numpy as np
 import pytest
 from test_recorder_report import N_STEPS, PAPER_URDF, write_bag_directly
 
-from bracing_analysis.compare import comparison_figures, markdown_table
+from bracing_analysis.bag import read_series
+from bracing_analysis.compare import comparison_figures, comparison_table
 from bracing_analysis.figures import plot_figure, title
 from bracing_analysis.ratios import RATIO_FLOOR, ratio_text
 from bracing_analysis.report import main as report_main
-from bracing_analysis.summary import BagSeries, ContactSeries, compute_summary, read_series
+from bracing_analysis.series import BagSeries, ContactSeries
+from bracing_analysis.summary import compute_summary
 from bracing_bringup.paper_run import table
 
 DT = 0.01
@@ -75,7 +77,7 @@ def test_the_recorded_run_without_contacts_says_null_not_zero(runs: dict[str, Pa
         assert unbraced[key] is None, key
     braced = json.loads((runs["braced"] / "summary.json").read_text())
     assert isinstance(braced["brace_rms_error_m"], float) and braced["brace_rms_error_m"] > 0.0
-    markdown = markdown_table(["braced", "unbraced"], [braced, unbraced])
+    markdown = comparison_table(["braced", "unbraced"], [braced, unbraced])
     brace_row = next(line for line in markdown.splitlines() if line.startswith("| brace RMS error"))
     assert [c.strip() for c in brace_row.strip("|").split("|")][2:] == ["n/a", "n/a"]
 
@@ -113,14 +115,14 @@ def test_comparison_divides_by_the_stated_baseline_never_by_zero_nor_across_inpu
         _summary("voltage", 10000.0, 4.0, 0.1),
         _summary("torque", 18.0, 5e-14, 0.04),  # eq. 40: f_n = f_nd to machine precision
     ]
-    by_free = markdown_table(labels, summaries, baseline=1)
+    by_free = comparison_table(labels, summaries, baseline=1)
     assert by_free.splitlines()[0] == "| metric | volt | free | torque | volt / free | torque / free |"
     assert _row(by_free, "energy consumed")[4:] == ["0.300", "n/a (torque vs voltage input)"]
     assert _row(by_free, "copper loss")[3:] == ["n/a", "0.300", "n/a"]  # torque input has none
     assert _row(by_free, "hand RMS error")[4:] == ["0.500", "0.400"]
     assert _row(by_free, "input mode")[4:] == ["", ""]  # names have no ratio
 
-    by_torque = markdown_table(labels, summaries, baseline=2)
+    by_torque = comparison_table(labels, summaries, baseline=2)
     assert _row(by_torque, "normal force RMS error")[4:] == ["n/a (baseline ~0)", "n/a (baseline ~0)"]
     assert ratio_text("normal_force_rms_error_n", summaries[2], summaries[0]) == "0.000"  # ~0 on top is fine
     assert 5e-14 < RATIO_FLOOR < 1e-3

@@ -10,13 +10,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import reference_series
 from conftest import build_scenario, run_closed_loop
 from ros_helpers import isolated_env, pair_argv, run, start
 from rosbags.highlevel import AnyReader
 
 from bracing_analysis.animation import DEFAULT_INTERVAL_S
+from bracing_analysis.bag import read_series
 from bracing_analysis.drawing import report_series
-from bracing_analysis.summary import compute_summary, flat_summary, read_series
+from bracing_analysis.summary import compute_summary, flat_summary
 
 STEP_TOPICS = [
     "joint_states",
@@ -126,7 +128,7 @@ def test_report_is_the_general_paths_report(paper_run: Path, tmp_path: Path) -> 
     process) gives the same summary.json and the same files, byte for byte."""
     summary = json.loads((paper_run / "summary.json").read_text())
     reference = report_series(
-        read_series(paper_run / "bag", columnar=False),
+        reference_series.read_series(paper_run / "bag"),
         tmp_path,
         wall_time_s=summary["wall_time_s"],
         animation_interval_s=DEFAULT_INTERVAL_S,

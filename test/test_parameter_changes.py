@@ -16,14 +16,16 @@ from typing import Any
 
 import numpy as np
 import pytest
+import reference_series
 from conftest import build_scenario, run_closed_loop
 from ros_helpers import hold_test_domain, isolated_env, pair_argv, start
 from rosbags.highlevel import AnyReader
 from test_recorder_report import N_STEPS, write_bag_directly
 
+from bracing_analysis.bag import read_series
 from bracing_analysis.drawing import file_names
 from bracing_analysis.figures import plot_figure
-from bracing_analysis.summary import ParameterChange, read_series
+from bracing_analysis.series import ParameterChange
 
 DURATION = 4.0
 SET_AFTER_S = 0.5  # [s] of sim time
@@ -40,7 +42,7 @@ def setter_main(domain: int) -> None:
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from rosgraph_msgs.msg import Clock
 
-    from bracing_ros.common import use_fastdds_profile
+    from bracing_ros.fastdds import use_fastdds_profile
 
     use_fastdds_profile()
     rclpy.init(domain_id=domain)
@@ -135,8 +137,8 @@ def test_every_report_figure_marks_the_change(tuned_run: Path) -> None:
 
 def test_a_bag_without_changes_draws_no_lines(tmp_path: Path) -> None:
     write_bag_directly(tmp_path / "bag", N_STEPS, ("elbow",))
-    for columnar in (True, False):
-        series = read_series(tmp_path / "bag", columnar=columnar)
+    for read in (read_series, reference_series.read_series):
+        series = read(tmp_path / "bag")
         assert series.parameter_changes == []
         axes = plot_figure("hand_y", series).axes[0]
         assert not axes.texts and "parameter set" not in axes.get_legend_handles_labels()[1]

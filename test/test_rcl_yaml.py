@@ -21,7 +21,7 @@ import yaml
 from conftest import PAPER_YAML, REPO_ROOT
 from ros_helpers import isolated_env, pair_argv, run
 
-from bracing_bringup.pair import PARAMS_FILE
+from bracing_bringup.run_plan import PARAMS_FILE
 from bracing_core import rcl_yaml, schema
 from bracing_core.overrides import parse_single, parse_sweep
 from bracing_core.params import ConfigError

@@ -12,7 +12,7 @@ from pathlib import Path
 from conftest import REPO_ROOT
 from ros_helpers import hold_test_domain
 
-from bracing_analysis.summary import read_series
+from bracing_analysis.bag import read_series
 
 README = REPO_ROOT / "README.md"
 BY_HAND = REPO_ROOT / "docs" / "tutorials" / "by-hand.md"

@@ -34,16 +34,11 @@ except ImportError:  # not built into the workspace yet: use the source tree
 
 from rosbags.highlevel import AnyReader  # noqa: E402
 
+from bracing_analysis.bag import read_series  # noqa: E402
 from bracing_analysis.report import main as report_main  # noqa: E402
 from bracing_analysis.report import write_report  # noqa: E402
-from bracing_analysis.summary import (  # noqa: E402
-    SUMMARY_EXTRA_KEYS,
-    SUMMARY_KEYS,
-    BagSeries,
-    ContactSeries,
-    compute_summary,
-    read_series,
-)
+from bracing_analysis.series import BagSeries, ContactSeries  # noqa: E402
+from bracing_analysis.summary import SUMMARY_EXTRA_KEYS, SUMMARY_KEYS, compute_summary  # noqa: E402
 
 N_STEPS = 200
 DT = 0.02  # 200 steps span 3.98 s, so the t >= 2 s window of the hand error is exercised

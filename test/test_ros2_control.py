@@ -268,8 +268,8 @@ def test_hand_path_and_brace_target_mid_run_recorded_and_drawn(tmp_path: Path) -
     the last pose exactly from 3.0 s; the desired brace point is the target exactly 1 s after it is
     sent (0.02 m takes ~0.25 s). The bag holds one message per target, at the sim time it came, and the
     hand figure marks the path's poses at their stamps."""
+    from bracing_analysis.bag import read_series
     from bracing_analysis.figures import plot_figure
-    from bracing_analysis.summary import read_series
     from bracing_bringup.view import write_rrd
     from bracing_core.targets import path_goal
 

@@ -21,7 +21,7 @@ import pyarrow.parquet as pq
 import pytest
 from ros_helpers import PAPER_YAML, pair_argv, run
 
-from bracing_analysis.summary import read_series
+from bracing_analysis.bag import read_series
 from bracing_core import checks
 from bracing_core.rollout import build_scenario
 from bracing_core.simulator import ContactEvent

@@ -14,8 +14,8 @@ from conftest import build_scenario
 from ros_helpers import pair_argv, run
 from rosbags.highlevel import AnyReader
 
+from bracing_analysis.bag import read_series
 from bracing_analysis.figures import plot_figure
-from bracing_analysis.summary import read_series
 from bracing_core.rollout import Recording, run_recorded
 
 DURATION_S = 2.2  # hand errors count from t = 2 s

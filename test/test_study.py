@@ -10,8 +10,8 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
-from bracing_bringup.pair import RunOptions, command_line
 from bracing_bringup.paper_run import RUNS
+from bracing_bringup.run_plan import RunOptions, command_line
 from bracing_core.params import ConfigError
 from bracing_core.rollout import build_scenario, run_recorded
 from bracing_experiments.executors import LocalExecutor

@@ -10,9 +10,9 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
+from bracing_core.numbers import cell as fmt
 from bracing_experiments.executors import LocalExecutor
 from bracing_experiments.experiment import STATUS_FAILED, STATUS_OK, execute_run
-from bracing_experiments.reporting import fmt
 from bracing_experiments.robustness import (
     BRACED,
     FEEDBACK_GAINS,

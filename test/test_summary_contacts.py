@@ -2,7 +2,8 @@
 ``bracing``; the brace plots along each axis the brace moves; make run's three-way table.
 
 Series built by hand or bags written here, so that every expected number is known exactly; both
-read paths (columnar and rosbags' per-message decoding) must give the same summary.
+read paths (``bag.read_series``, column-wise, and ``reference_series``, rosbags' per-message decoding)
+must give the same summary.
 """
 
 from __future__ import annotations
@@ -13,20 +14,14 @@ from typing import Any
 
 import numpy as np
 import pytest
+import reference_series
 from test_columns import JOINTS, BagBuilder, same_series
 
 from bracing_analysis.axes import BRACE_MOVES_M, brace_axes
+from bracing_analysis.bag import read_series
 from bracing_analysis.drawing import file_names, report_series
-from bracing_analysis.summary import (
-    CONTACT_KEYS,
-    SUMMARY_EXTRA_KEYS,
-    SUMMARY_KEYS,
-    BagSeries,
-    ContactSeries,
-    compute_summary,
-    format_summary,
-    read_series,
-)
+from bracing_analysis.series import BagSeries, ContactSeries
+from bracing_analysis.summary import CONTACT_KEYS, SUMMARY_EXTRA_KEYS, SUMMARY_KEYS, compute_summary, format_summary
 from bracing_bringup.paper_run import table
 
 DT = 0.01
@@ -218,7 +213,7 @@ def _known_bag(path: Path, mode: int) -> Path:
 @pytest.mark.parametrize(("mode", "name"), [(0, "voltage"), (1, "torque")])
 def test_known_bag_read_both_ways(tmp_path: Path, mode: int, name: str) -> None:
     bag = _known_bag(tmp_path / "bag", mode)
-    general, columnar = read_series(bag, columnar=False), read_series(bag)
+    general, columnar = reference_series.read_series(bag), read_series(bag)
     same_series(general, columnar)  # slip_velocity and input_mode included
     out = compute_summary(columnar)
     assert json.dumps(compute_summary(general)) == json.dumps(out)
@@ -239,7 +234,7 @@ def test_rclpy_serialized_bag_both_ways(tmp_path: Path) -> None:
 
     n = 60
     write_bag_directly(tmp_path / "bag", n, ("elbow", "wrist"))
-    general, columnar = read_series(tmp_path / "bag", columnar=False), read_series(tmp_path / "bag")
+    general, columnar = reference_series.read_series(tmp_path / "bag"), read_series(tmp_path / "bag")
     same_series(general, columnar)
     out = compute_summary(columnar)
     assert json.dumps(compute_summary(general)) == json.dumps(out)
@@ -252,7 +247,7 @@ def test_rclpy_serialized_bag_both_ways(tmp_path: Path) -> None:
 def test_recorded_run_both_ways(runs: dict[str, Path]) -> None:
     """A real pair run's bag (the session's short braced run): both read paths, one summary."""
     bag = runs["braced"] / "bag"
-    general, columnar = compute_summary(read_series(bag, columnar=False)), compute_summary(read_series(bag))
+    general, columnar = compute_summary(reference_series.read_series(bag)), compute_summary(read_series(bag))
     assert json.dumps(general["contacts"]) == json.dumps(columnar["contacts"])
     assert general["input_mode"] == columnar["input_mode"] in ("voltage", "torque")
     assert columnar["contacts"]["elbow"]["braced"] is True and columnar["bracing"] is True

@@ -17,7 +17,8 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from bracing_bringup.pair import command_line, parse_args
+from bracing_bringup.pair import parse_args
+from bracing_bringup.run_plan import command_line
 from bracing_core.overrides import (
     CONTROLLER,
     SIMULATOR,

@@ -11,9 +11,10 @@ import pytest
 import ros_helpers
 
 from bracing_analysis.axes import brace_axes, hand_axes
+from bracing_analysis.bag import read_series
 from bracing_analysis.drawing import file_names
 from bracing_analysis.figures import plot_figure
-from bracing_analysis.summary import BagSeries, ContactSeries, read_series
+from bracing_analysis.series import BagSeries, ContactSeries
 
 WRITING_DESK = ros_helpers.REPO_ROOT / "config" / "writing_desk.yaml"
 RADIUS_M = 0.01

@@ -15,7 +15,7 @@ import pytest
 
 rr = pytest.importorskip("rerun")
 
-from bracing_analysis.summary import read_series  # noqa: E402
+from bracing_analysis.bag import read_series  # noqa: E402
 from bracing_bringup import view  # noqa: E402
 
 REQUIRE_BROWSER = "BRACING_REQUIRE_BROWSER"

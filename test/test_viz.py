@@ -37,10 +37,10 @@ from bracing_analysis.animation import (
     Palette,
     frame_times,
 )
+from bracing_analysis.bag import read_series
 from bracing_analysis.compare import write_comparison
 from bracing_analysis.report import main as report_main
 from bracing_analysis.report import write_report
-from bracing_analysis.summary import read_series
 from bracing_bringup.recorder import bracing_typestore, missing_messages
 from bracing_bringup.scene import FORCE_ARROW_M_PER_N, SceneBuilder
 from bracing_core.kinematics import DescriptionError

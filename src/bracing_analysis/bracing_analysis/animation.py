@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from bracing_analysis.summary import BagSeries
+from bracing_analysis.series import BagSeries
 from bracing_analysis.surfaces import Shape, shape_of
 from bracing_core.kinematics import LinkPoses
 from bracing_core.meshes import read_mesh, resolve, visual_meshes

@@ -8,7 +8,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from bracing_analysis.summary import BagSeries, ContactSeries
+from bracing_analysis.series import BagSeries, ContactSeries
 
 BRACE_MOVES_M = 1e-6
 """A brace point moves along an axis when its values there (desired and actual) span more than this [m];

@@ -15,7 +15,6 @@ whose baseline value is ~0 (a torque-input force error of 5e-14 N is 0).
 from __future__ import annotations
 
 import json
-import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -23,15 +22,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from bracing_analysis.bag import read_series, resolve_bag
 from bracing_analysis.ratios import RATIO_FLOOR, ratio_text
-from bracing_analysis.summary import (
-    SUMMARY_KEYS,
-    BagSeries,
-    compute_summary,
-    read_series,
-    resolve_bag,
-    scenario_name,
-)
+from bracing_analysis.series import BagSeries, scenario_name
+from bracing_analysis.summary import SUMMARY_KEYS, compute_summary
+from bracing_core.numbers import cell, markdown_table, number
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -80,13 +75,7 @@ def _stored_wall_time(bag: Path) -> float | None:
     except (OSError, ValueError):
         return None
     wall = value.get("wall_time_s") if isinstance(value, dict) else None
-    return float(wall) if isinstance(wall, (int, float)) and not isinstance(wall, bool) else None
-
-
-def _cell(value: Any) -> str:
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        return "n/a"
-    return f"{value:.4g}" if isinstance(value, float) else str(value)
+    return float(wall) if number(wall) else None
 
 
 def baseline_index(labels: Sequence[str], baseline: str | None) -> int:
@@ -98,20 +87,21 @@ def baseline_index(labels: Sequence[str], baseline: str | None) -> int:
     return list(labels).index(baseline)
 
 
-def markdown_table(labels: Sequence[str], summaries: Sequence[dict[str, Any]], baseline: int = 0) -> str:
+def comparison_table(labels: Sequence[str], summaries: Sequence[dict[str, Any]], baseline: int = 0) -> str:
     """The summaries as a Markdown table: a row per metric, a column per run, and each other run's
     ratio to the run ``baseline`` (an index of ``labels``)."""
     head = ["metric", *labels]
     others = [k for k in range(len(labels)) if k != baseline]
     head += [f"{labels[k]} / {labels[baseline]}" for k in others]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    rows = []
     for key in TABLE_KEYS:
         label, unit = ROWS.get(key, (key, ""))
-        cells = [f"{label} [{unit}]" if unit else label] + [_cell(s.get(key)) for s in summaries]
+        cells = [f"{label} [{unit}]" if unit else label]
+        cells += [cell(s.get(key), bools=("True", "False")) for s in summaries]
         for k in others:  # a ratio of names (input mode, bracing) means nothing: left empty
             cells.append("" if key in TEXT_KEYS else ratio_text(key, summaries[k], summaries[baseline]))
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+        rows.append(cells)
+    return markdown_table(head, rows) + "\n"
 
 
 def hand_error(series: BagSeries) -> np.ndarray:
@@ -243,7 +233,7 @@ def write_comparison(
         + f"\n\nRatios: each run / `{names[base]}` (the baseline; `--baseline NAME` chooses it). Energies only "
         "between runs of one input mode (voltage input: electrical joules; torque input: the joints' mechanical "
         f"work); n/a where the baseline is ~0 (below {RATIO_FLOOR:g}) or a metric does not apply.\n\n"
-        + markdown_table(names, summaries, base)
+        + comparison_table(names, summaries, base)
         + "\nFigures: "
         + ", ".join(f"`{p.name}`" for p in written)
         + "\n",

@@ -13,7 +13,6 @@ from __future__ import annotations
 import json
 import multiprocessing
 import os
-import signal
 import sys
 import threading
 import time
@@ -26,7 +25,9 @@ from typing import Any
 import numpy as np
 
 from bracing_analysis.axes import brace_axes, hand_axes
-from bracing_analysis.summary import BagSeries, compute_summary
+from bracing_analysis.series import BagSeries
+from bracing_analysis.summary import compute_summary
+from bracing_core.workers import ignore_sigint
 
 SUMMARY_FILE = "summary.json"
 
@@ -47,12 +48,8 @@ def drawing_pool() -> ProcessPoolExecutor:
     if _pool is None:
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(["bracing_analysis.figures"])
-        _pool = ProcessPoolExecutor(DRAWING_PROCESSES, mp_context=context, initializer=_ignore_sigint)
+        _pool = ProcessPoolExecutor(DRAWING_PROCESSES, mp_context=context, initializer=ignore_sigint)
     return _pool
-
-
-def _ignore_sigint() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is for the run, which stops the pool itself
 
 
 def prepare_drawing() -> threading.Thread:

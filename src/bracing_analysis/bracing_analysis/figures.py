@@ -17,7 +17,7 @@ from matplotlib.figure import Figure
 
 from bracing_analysis.animation import AnimationError, write_animation
 from bracing_analysis.axes import contact_brace_axes
-from bracing_analysis.summary import BagSeries, scenario_name
+from bracing_analysis.series import BagSeries, scenario_name
 from bracing_core.kinematics import DescriptionError
 
 NO_ANIMATION = "no animation"
@@ -64,6 +64,8 @@ def mark_parameter_changes(ax: Axes, series: BagSeries) -> None:
 
 _HAND_FIGURES = {"y": "Figs. 6, 9, 13", "z": "Figs. 7, 10, 14"}
 """The paper's figures of the hand along each axis it has (its arm moves in the y-z plane)."""
+
+
 def mark_targets(ax: Axes, series: BagSeries, task: str, axis: int, label: str) -> None:
     """Each target sent to ``task`` while the run went: a marker where and when it arrived (a point), or
     the path's poses at their stamps joined to the arrival (a path). A run without any draws nothing."""

@@ -8,8 +8,9 @@ torque-input force error of 5e-14 N is 0, and dividing by it gives nonsense such
 
 from __future__ import annotations
 
-import math
-from typing import Any, TypeGuard
+from typing import Any
+
+from bracing_core.numbers import number
 
 ENERGY_KEYS = frozenset({"energy_consumed_j", "copper_loss_j"})
 """Joules of a kind that depends on the input mode: compared only between runs of one mode."""
@@ -18,11 +19,6 @@ RATIO_FLOOR = 1e-9
 """A baseline value smaller than this (in its SI unit: m, N, J, s) is taken as 0: no ratio to it. Well
 above numerical noise (a torque-input force error is ~1e-14 N, a held floor's residual ~1e-15 m) and
 well below anything a run measures on purpose."""
-
-
-def number(value: Any) -> TypeGuard[float]:
-    """A finite int or float (not a bool)."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def ratio(key: str, run: dict[str, Any], baseline: dict[str, Any]) -> tuple[float | None, str]:

@@ -27,16 +27,17 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from bracing_analysis.animation import DEFAULT_INTERVAL_S
+from bracing_analysis.bag import BagReadError, read_series, resolve_bag
 from bracing_analysis.compare import BaselineError, default_compare_dir, write_comparison
 from bracing_analysis.drawing import SUMMARY_FILE, report_series
-from bracing_analysis.summary import BagReadError, format_summary, read_series, resolve_bag
+from bracing_analysis.summary import format_summary
+from bracing_core.numbers import number
 
 
 def _previous(path: Path) -> dict[str, Any]:
@@ -50,7 +51,7 @@ def _previous(path: Path) -> dict[str, Any]:
 
 def _previous_wall_time(previous: dict[str, Any]) -> float | None:
     value = previous.get("wall_time_s")
-    if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value):
+    if number(value):
         return float(value)
     return None
 

@@ -4,7 +4,7 @@
 The bag's messages say where each contact point is and its surface normal there, which pins a
 plane down but not a sphere or a cylinder (their centre and radius). The recorder reads the
 surfaces from the scenario files the nodes got (``--scenario``), draws them (``scene``) and keeps
-them in the bag's metadata (``custom_data``, key ``SURFACES_KEY``, JSON), where ``summary.read_series``
+them in the bag's metadata (``custom_data``, key ``SURFACES_KEY``, JSON), where ``bag.read_series``
 finds them for the animation. A bag without them is drawn as before: each surface as its tangent plane.
 """
 

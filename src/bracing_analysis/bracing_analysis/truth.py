@@ -2,7 +2,7 @@
 its controller received on the usual topics and the truth on ``ground_truth/joint_states`` (no rclpy).
 
 The controller's ``controller_state`` says where it *believes* the hand and the brace points are (from
-the positions it received); the paper's metrics judge where they *are*. ``summary.apply_ground_truth``
+the positions it received); the paper's metrics judge where they *are*. ``bag.apply_ground_truth``
 puts the true positions (the task frames' kinematics at the true joint positions, ``true_positions``)
 in the series' ``hand_actual`` and each contact's ``brace_actual``, and keeps the believed ones beside
 them (``hand_measured``, ``brace_measured``): the summary's metrics are then the truth's, as the rollout's are.

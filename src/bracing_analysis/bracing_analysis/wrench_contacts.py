@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bracing_analysis.summary import BagSeries, ContactSeries, FloatArray
+from bracing_analysis.series import BagSeries, ContactSeries, FloatArray
 from bracing_analysis.surfaces import Shape, shape_of
 
 STAMP_DIGITS = 6  # stamps matched to the microsecond (both are the same sim-time stamps, in [s])

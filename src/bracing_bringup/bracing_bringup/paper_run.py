@@ -12,9 +12,11 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from bracing_analysis.bag import BagReadError
 from bracing_analysis.ratios import ratio_text, temperature_saving_text
-from bracing_analysis.summary import BagReadError
-from bracing_bringup.pair import RunOptions, run_pair
+from bracing_bringup.run_plan import RunOptions
+from bracing_bringup.supervision import run_pair
+from bracing_core.numbers import number
 from bracing_core.params import ConfigError
 from bracing_core.variants import RUNS
 
@@ -37,10 +39,6 @@ ROWS: list[tuple[str, str, str]] = [
 ]
 
 
-def _number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
 def table(summaries: dict[str, dict[str, Any]]) -> str:
     """The runs' summaries (by run name, RUNS) side by side, then RATIOS of energy and hand error."""
     runs = [run for run in RUNS if run.name in summaries]
@@ -48,7 +46,7 @@ def table(summaries: dict[str, dict[str, Any]]) -> str:
     rule = "-" * (28 + 13 * len(runs))
     lines = [f"{'':28s}" + "".join(f" {run.column:>12s}" for run in runs), rule]
     for key, label, unit in ROWS:
-        cells = "".join(f" {s[key]:12.4g}" if _number(s.get(key)) else f" {'n/a':>12s}" for s in columns)
+        cells = "".join(f" {s[key]:12.4g}" if number(s.get(key)) else f" {'n/a':>12s}" for s in columns)
         lines.append(f"{label + (f' [{unit}]' if unit else ''):28s}{cells}")
     lines.append(rule)
     column = {run.name: run.column for run in runs}

@@ -107,9 +107,10 @@ from bracing_core.typestore import (
 )
 from bracing_core.typestore import bracing_msgs_dir as bracing_msgs_dir
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState, RunStatus
-from bracing_ros.common import SubscriptionWaiter, use_fastdds_profile
+from bracing_ros.fastdds import use_fastdds_profile
 from bracing_ros.lifetime import stop_with_parent
 from bracing_ros.status import STATUS_QOS, STATUS_TOPIC, StatusPublisher
+from bracing_ros.waiter import SubscriptionWaiter
 
 BAG_VERSION: Literal[8] = 8
 """rosbag2 metadata version written (8 is read by every Jazzy rosbag2)."""

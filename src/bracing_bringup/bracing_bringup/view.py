@@ -406,7 +406,7 @@ def replay_bag(bag: Path, recording: rr.RecordingStream, period_s: float = DEFAU
     """Every message of a recorded run through a ``Feed`` (the project's typestore; robot first)."""
     from rosbags.highlevel import AnyReader  # rosbags ~100 ms, bag replay only, where used
 
-    from bracing_analysis.summary import read_series, resolve_bag  # rosbags ~100 ms, bag replay only, where used
+    from bracing_analysis.bag import read_series, resolve_bag  # rosbags ~100 ms, bag replay only, where used
 
     path = resolve_bag(Path(bag))
     series = read_series(path)
@@ -529,7 +529,7 @@ class Live:
         self._later = []
 
     def _waiter(self) -> Any:
-        from bracing_ros.common import SubscriptionWaiter
+        from bracing_ros.waiter import SubscriptionWaiter
 
         return SubscriptionWaiter(self.node, [*self.topics, *([self.status] if self.status is not None else [])])
 

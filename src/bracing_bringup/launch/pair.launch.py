@@ -3,7 +3,7 @@
     ros2 launch bracing_bringup pair.launch.py config:=config/paper_4link.yaml output:=out/launched
         [duration:=10.0] [set:="hand.kp=[300,300] contacts.elbow.desired_normal_force=5"]
 
-The same run as ``bracing-pair`` (its parameters and processes: ``bracing_bringup.pair.plan_run``),
+The same run as ``bracing-pair`` (its parameters and processes: ``bracing_bringup.run_plan.plan_run``),
 in the domain the shell has (``ROS_DOMAIN_ID``). The recorder closes the bag once it has every
 state, and the launch ends with it; ``bracing-report OUTPUT/bag`` draws the figures afterwards.
 bracing-pair remains the way to run without a launch installation (none exists on the package
@@ -23,7 +23,8 @@ from launch.events.process import SignalProcess
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
-from bracing_bringup.pair import PARAMS_FILE, parse_args, plan_run, write_params
+from bracing_bringup.pair import parse_args
+from bracing_bringup.run_plan import PARAMS_FILE, plan_run, write_params
 from bracing_core.overrides import SIMULATOR
 
 

@@ -16,7 +16,7 @@ from rclpy.subscription import Subscription
 from bracing_core.checks import frame_reach
 from bracing_core.law import DecoupledController
 from bracing_core.targets import TargetError, TaskSpec, TaskTargets
-from bracing_ros.common import SubscriptionWaiter
+from bracing_ros.waiter import SubscriptionWaiter
 
 TARGET_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,

@@ -72,8 +72,9 @@ def build_scenario_from_params(
 
 
 @dataclass
-class Run:
-    """A closed-loop run; row k is the state at the start of step k and what was sent/returned."""
+class ClosedLoop:
+    """A closed-loop run's arrays (``run_closed_loop``); row k is the state at the start of step k and what
+    was sent/returned."""
 
     time: np.ndarray  # (N,) [s]
     position: np.ndarray  # (N, n) [rad]
@@ -91,11 +92,11 @@ class Run:
         return np.asarray((self.time >= start - 1e-12) & (self.time < stop - 1e-12))
 
 
-def run_closed_loop(scenario: Scenario, duration: float) -> Run:
+def run_closed_loop(scenario: Scenario, duration: float) -> ClosedLoop:
     """The closed loop for ``duration`` seconds (rows: the N states stepped from)."""
     recording = run_recorded(scenario, duration, divergence_checks=False)
     steps = recording.time.size - 1
-    return Run(
+    return ClosedLoop(
         recording.time[:steps],
         recording.position[:steps],
         recording.velocity[:steps],

@@ -14,23 +14,14 @@ controller runs; every other parameter is read-only once a node has started.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from enum import Enum
 from typing import Any
 
 from bracing_core.motors import AMBIENT_TEMPERATURE, COPPER_TEMPERATURE_COEFFICIENT, HEAT_CAPACITY, THERMAL_RESISTANCE
-from bracing_core.params import (
-    ConfigError,
-    Params,
-    check_known,
-    get_bool,
-    get_float,
-    get_floats,
-    get_int,
-    get_str,
-    get_strs,
-)
+from bracing_core.numbers import number
+from bracing_core.params import ConfigError, Params
 
 
 class Kind(str, Enum):  # noqa: UP042 (values are ROS parameter type names)
@@ -939,6 +930,98 @@ _HINTS: dict[str, Callable[[Sequence[str], Mapping[str, Any]], str]] = {
 }
 
 
+# -- typed reads: every parameter's value checked and typed here, in one pass (``read``) --------------
+def check_known(
+    params: Params, known: Iterable[str], dynamic_prefixes: Mapping[str, Iterable[str]] | None = None
+) -> None:
+    """Reject parameters that are not in the schema.
+
+    ``dynamic_prefixes`` maps a prefix such as ``"contacts."`` to the fields allowed in
+    its named sub-sections (``contacts.<any name>.<field>``).
+    """
+    known_set = set(known) | {"use_sim_time", "start_type_description_service"}
+    dynamic = {prefix: set(fields) for prefix, fields in (dynamic_prefixes or {}).items()}
+    unknown = []
+    for name in params:
+        if name in known_set:
+            continue
+        for prefix, fields in dynamic.items():
+            rest = name[len(prefix) :].split(".", 1) if name.startswith(prefix) else []
+            if len(rest) == 2 and rest[1] in fields:
+                break
+        else:
+            unknown.append(name)
+    if unknown:
+        raise ConfigError(f"unknown parameter(s): {', '.join(sorted(unknown))}")
+
+
+def get_float(
+    params: Params, name: str, default: float | None = None, *, minimum: float | None = None, positive: bool = False
+) -> float:
+    value = params.get(name, default)
+    if not number(value):
+        raise ConfigError(f"{name}: expected a finite number, got {value!r}")
+    if positive and value <= 0.0:
+        raise ConfigError(f"{name}: must be > 0, got {value!r}")
+    if minimum is not None and value < minimum:
+        raise ConfigError(f"{name}: must be >= {minimum}, got {value!r}")
+    return float(value)
+
+
+def get_int(params: Params, name: str, default: int, *, minimum: int | None = None) -> int:
+    value = params.get(name, default)
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ConfigError(f"{name}: expected an integer, got {value!r}")
+    if minimum is not None and value < minimum:
+        raise ConfigError(f"{name}: must be >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def get_bool(params: Params, name: str, default: bool) -> bool:
+    value = params.get(name, default)
+    if not isinstance(value, bool):
+        raise ConfigError(f"{name}: expected true or false, got {value!r}")
+    return value
+
+
+def get_str(params: Params, name: str, default: str | None = None, *, choices: Sequence[str] | None = None) -> str:
+    value = params.get(name, default)
+    if not isinstance(value, str) or (default is None and not value):
+        raise ConfigError(f"{name}: expected a non-empty string, got {value!r}")
+    if choices is not None and value not in choices:
+        raise ConfigError(f"{name}: expected one of {', '.join(choices)}, got {value!r}")
+    return value
+
+
+def get_floats(params: Params, name: str, default: Sequence[float] | None = None) -> tuple[float, ...]:
+    """A list of finite numbers; an empty or unset list reads as ``()``."""
+    value = params.get(name, default)
+    if value is None:
+        value = []
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        value = [value]
+    if not isinstance(value, (list, tuple)) or not all(number(v) for v in value):
+        raise ConfigError(f"{name}: expected a list of finite numbers, got {value!r}")
+    return tuple(float(v) for v in value)
+
+
+def get_strs(params: Params, name: str, default: Sequence[str] = ()) -> tuple[str, ...]:
+    value = params.get(name, default)
+    if value is None:
+        return ()
+    if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) and v for v in value):
+        # A node started by hand reads a bare y as true (rcl, YAML 1.1); bracing's own readers mend it.
+        hint = ' (YAML 1.1 reads a bare y or n as true/false: quote it, "y")' if _has_bool(value) else ""
+        raise ConfigError(f"{name}: expected a list of non-empty strings, got {value!r}{hint}")
+    if len(set(value)) != len(value):
+        raise ConfigError(f"{name}: duplicate entries in {list(value)}")
+    return tuple(value)
+
+
+def _has_bool(value: Any) -> bool:
+    return isinstance(value, (list, tuple)) and any(isinstance(v, bool) for v in value)
+
+
 def read_value(param: Param, name: str, params: Params, read: Mapping[str, Any]) -> Any:
     """One parameter's typed value from ``params`` (its default if unset), or a ConfigError naming
     ``name``. ``read`` holds the values read so far (list lengths and conditions refer to them)."""
@@ -985,7 +1068,7 @@ def _read_floats(param: Param, name: str, params: Params, read: Mapping[str, Any
         if param.may_be_empty:
             what = f" ({hint})" if hint else ""
             raise ConfigError(f"{name}: expected {length} values{what} or an empty list, got {list(value)}")
-        value = get_floats(params, name, default, length=length, length_hint=hint)  # raises, naming the length
+        raise ConfigError(f"{name}: expected {length} values{f' ({hint})' if hint else ''}, got {len(value)}")
     if param.positive and any(v <= 0.0 for v in value):
         raise ConfigError(f"{name}: values must be > 0, got {list(value)}")
     if param.minimum is not None and any(v < param.minimum for v in value):

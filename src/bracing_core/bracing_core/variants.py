@@ -22,8 +22,8 @@ def variant_overrides(bracing: bool = True, free_space: bool = False) -> dict[st
 
 
 @dataclass(frozen=True)
-class Run:
-    """One run of the comparison."""
+class Variant:
+    """One of the comparison's runs: which variant of the scenario it is (braced, passive, free space)."""
 
     name: str  # its directory under make run's --output
     column: str  # its column in the table
@@ -40,8 +40,8 @@ class Run:
         return variant_overrides(self.bracing, self.free_space)
 
 
-BRACED = Run("braced", "braced", "braced")
-PASSIVE = Run("passive", "passive", "passive (no brace task, the floor an obstacle)", bracing=False)
-FREE_SPACE = Run("free_space", "free space", "free space (the paper's comparison)", bracing=False, free_space=True)
+BRACED = Variant("braced", "braced", "braced")
+PASSIVE = Variant("passive", "passive", "passive (no brace task, the floor an obstacle)", bracing=False)
+FREE_SPACE = Variant("free_space", "free space", "free space (the paper's comparison)", bracing=False, free_space=True)
 RUNS = (BRACED, PASSIVE, FREE_SPACE)
 """make run's runs, in its order."""

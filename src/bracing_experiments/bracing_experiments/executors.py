@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-import signal
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
@@ -21,6 +20,7 @@ from types import TracebackType
 from typing import Any, Self, TypeVar
 
 from bracing_core.params import ConfigError
+from bracing_core.workers import ignore_sigint
 
 Item = TypeVar("Item")
 Result = TypeVar("Result")
@@ -56,19 +56,13 @@ class Executor(ABC):
         self.close()
 
 
-def _ignore_sigint() -> None:
-    # Ctrl-C reaches the whole process group: the parent decides what stops, a worker must not die
-    # mid-run and break the pool.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
 class LocalExecutor(Executor):
     """``workers`` processes on this machine (spawned: no threads or locks inherited from the parent)."""
 
     def __init__(self, workers: int | None = None) -> None:
         self._workers = workers or os.cpu_count() or 1
         self._pool = ProcessPoolExecutor(
-            self._workers, mp_context=multiprocessing.get_context("spawn"), initializer=_ignore_sigint
+            self._workers, mp_context=multiprocessing.get_context("spawn"), initializer=ignore_sigint
         )
         self._futures: list[Future[Any]] = []
         self.description = f"{self._workers} local worker process{'es' if self._workers > 1 else ''}"

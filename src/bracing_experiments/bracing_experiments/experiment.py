@@ -24,7 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from bracing_analysis.summary import BagSeries, ContactSeries, compute_summary, flat_summary
+from bracing_analysis.series import BagSeries, ContactSeries
+from bracing_analysis.summary import compute_summary, flat_summary
 from bracing_core.checks import reach_warnings
 from bracing_core.rollout import Recording, build_scenario_from_params, run_recorded
 

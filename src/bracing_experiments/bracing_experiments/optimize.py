@@ -45,14 +45,27 @@ from tqdm import tqdm
 
 from bracing_core import rcl_yaml, schema
 from bracing_core.config import SharedConfig
+from bracing_core.numbers import cell, markdown_table, number
 from bracing_core.overrides import CONTROLLER, SIMULATOR, destination, format_value, node_params, parse_single, route
 from bracing_core.params import ConfigError
 from bracing_core.rollout import build_scenario
 from bracing_core.schema import Kind
 from bracing_core.variants import BRACED, FREE_SPACE, PASSIVE
+from bracing_experiments.cli import (
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    add_duration,
+    add_executor,
+    add_output,
+    add_overrides,
+    add_progress,
+    check_options,
+    config_error,
+    handle_stop_signals,
+)
 from bracing_experiments.executors import Executor, make_executor
 from bracing_experiments.experiment import STATUS_OK, RunSpec, execute_run
-from bracing_experiments.sweep import EXIT_CONFIG, EXIT_FAILED, EXIT_INTERRUPTED, handle_stop_signals, make_spec
+from bracing_experiments.sweep import make_spec
 from bracing_experiments.sweep import write_tables as write_sweep_tables
 
 if TYPE_CHECKING:
@@ -363,14 +376,14 @@ def _tell(study: optuna.Study, trial: optuna.Trial, problem: Problem, row: dict[
     bounded = [row.get(c.metric) for c in problem.constraints]
     if row.get("status") != STATUS_OK:
         status = STATUS_FAILED
-    elif not all(_finite(v) for v in [*values, *bounded]):
+    elif not all(number(v) for v in [*values, *bounded]):
         status = STATUS_FAILED
         missing = [
             m
             for m, v in zip(
                 [*problem.objectives, *(c.metric for c in problem.constraints)], [*values, *bounded], strict=True
             )
-            if not _finite(v)
+            if not number(v)
         ]
         trial.set_user_attr("error", f"metric not applicable or not finite: {', '.join(missing)}")
     else:
@@ -386,10 +399,6 @@ def _tell(study: optuna.Study, trial: optuna.Trial, problem: Problem, row: dict[
     else:
         study.tell(trial, [float(v) for v in values])  # type: ignore[arg-type]
     return status
-
-
-def _finite(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 @dataclass
@@ -572,10 +581,9 @@ def write_outputs(
     return best
 
 
-def _fmt(value: Any) -> str:
-    if isinstance(value, bool) or value is None:
-        return "n/a" if value is None else str(value).lower()
-    return f"{value:.4g}" if isinstance(value, float) else str(value)
+def _cell(value: Any) -> str:
+    """A value as the scenario file writes it (true, false) or a metric's cell."""
+    return cell(value, bools=("true", "false"))
 
 
 def changes(problem: Problem, trial: optuna.trial.FrozenTrial) -> list[tuple[str, Any, Any]]:
@@ -629,18 +637,15 @@ def write_report(
         lines += [
             f"**Optimum** (trial {best.number}; `bracing-pair --config {BEST_YAML}` runs it):",
             "",
-            "| parameter | the file's | optimum |",
-            "|---|---|---|",
-            *[f"| {name} | {_fmt(before)} | {_fmt(after)} |" for name, before, after in changes(problem, best)],
+            markdown_table(
+                ["parameter", "the file's", "optimum"],
+                [[name, _cell(before), _cell(after)] for name, before, after in changes(problem, best)],
+            ),
             "",
         ]
-    header = ["run", *metrics]
-    table = [["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]]
-    if best is not None:
-        table.append(["| optimum | " + " | ".join(_fmt(best.user_attrs["row"].get(m)) for m in metrics) + " |"])
-    for name, row in references.items():
-        table.append([f"| {name} | " + " | ".join(_fmt(row.get(m)) for m in metrics) + " |"])
-    lines += [line for part in table for line in part] + ["", "![convergence](convergence.png)", ""]
+    runs = ([("optimum", best.user_attrs["row"])] if best is not None else []) + list(references.items())
+    table = markdown_table(["run", *metrics], [[name, *(_cell(row.get(m)) for m in metrics)] for name, row in runs])
+    lines += [table, "", "![convergence](convergence.png)", ""]
     _draw_convergence(problem, trials, output)
     if len(problem.objectives) == 2:
         front = pareto_front(feasible(study))
@@ -701,7 +706,7 @@ def _draw_pareto(
     if front:
         ax.plot([t.values[0] for t in front], [t.values[1] for t in front], "o-", color="tab:red", label="Pareto front")
     for (name, row), marker in zip(references.items(), ("*", "s", "D"), strict=False):
-        if _finite(row.get(x_metric)) and _finite(row.get(y_metric)):
+        if number(row.get(x_metric)) and number(row.get(y_metric)):
             ax.scatter([row[x_metric]], [row[y_metric]], marker=marker, s=90, color="black", zorder=5)
             ax.annotate(name, (row[x_metric], row[y_metric]), textcoords="offset points", xytext=(6, 4), fontsize=8)
     ax.set(xlabel=x_metric, ylabel=y_metric, title=f"{problem.config.stem}: {x_metric} against {y_metric}")
@@ -754,21 +759,17 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--vary", action="append", default=[], metavar="KEY=LOW:HIGH", help="a parameter and its range")
     parser.add_argument("--minimize", action="append", default=[], metavar="METRIC", help="an objective (summary key)")
     parser.add_argument("--subject-to", dest="subject_to", action="append", default=[], metavar="'METRIC<=V'")
-    parser.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE", help="fixed override")
+    add_overrides(parser, "trial")
     parser.add_argument("--trials", type=int, default=100, help="trials in the study, resumed ones included")
-    parser.add_argument("--duration", type=float, default=None, help="sim time per trial [s] (default: the file's)")
-    parser.add_argument("--workers", type=int, default=None, help="local worker processes (default: cores)")
-    parser.add_argument("--scheduler", default=None, help="Dask scheduler tcp://HOST:PORT, or 'local'")
+    add_duration(parser, "trial")
+    add_executor(parser)
     parser.add_argument("--seed", type=int, default=0, help="the sampler's seed")
-    parser.add_argument("--output", required=True, type=Path, help="study directory (resumable)")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_output(parser, "study")
+    add_progress(parser)
     args = parser.parse_args(argv)
     if args.trials < 1:
         parser.error("--trials must be >= 1")
-    if args.duration is not None and args.duration <= 0:
-        parser.error("--duration must be > 0")
-    if args.workers is not None and args.workers < 1:
-        parser.error("--workers must be >= 1")
+    check_options(parser, args)
     return args
 
 
@@ -781,8 +782,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         check_manifest(problem, args.output)
         executor = make_executor(args.workers, args.scheduler)
     except ConfigError as exc:
-        print(f"bracing-optimize: error: {exc}", file=sys.stderr)
-        return EXIT_CONFIG
+        return config_error("bracing-optimize", exc)
     try:
         with executor:
             print(f"bracing-optimize: up to {args.trials} trials on {executor.description}", file=sys.stderr)
@@ -806,8 +806,8 @@ def summary_text(problem: Problem, found: Optimum, output: Path) -> str:
     if found.best is None:
         lines.append("no feasible trial")
     else:
-        values = ", ".join(f"{k}={_fmt(v)}" for k, v in found.best.params.items())
-        objectives = ", ".join(f"{m}={_fmt(v)}" for m, v in zip(problem.objectives, found.best.values, strict=True))
+        values = ", ".join(f"{k}={_cell(v)}" for k, v in found.best.params.items())
+        objectives = ", ".join(f"{m}={_cell(v)}" for m, v in zip(problem.objectives, found.best.values, strict=True))
         lines.append(f"best: trial {found.best.number}: {values}: {objectives}; scenario: {output / BEST_YAML}")
     return "\n".join(lines)
 

@@ -1,12 +1,10 @@
 """What bracing-study's reports share (the paper study, ``study``, and the robustness study, ``robustness``):
-the scenario by name, numbers and Markdown tables, a run's row and arrays as a sweep stored them, the runs'
+the scenario by name, a run's row and arrays as a sweep stored them, the runs'
 warnings. A module of its own so that ``study`` (which dispatches ``bracing-study robustness``) and
 ``robustness`` both import it without importing each other (test_layout: no import cycles)."""
 
 from __future__ import annotations
 
-import math
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -26,23 +24,6 @@ def resolve_scenario(name: str) -> Path:
         return path
     file = SCENARIO_ALIASES.get(name, name if name.endswith((".yaml", ".yml")) else f"{name}.yaml")
     return resolve_file(file, "scenario", [Path.cwd() / "config"])
-
-
-def fmt(value: Any, digits: int = 4) -> str:
-    """A table cell: n/a for a missing or non-finite number, yes/no, ``digits`` significant digits."""
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        return "n/a"
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if isinstance(value, float):
-        return f"{value:.{digits}g}"
-    return str(value)
-
-
-def markdown_table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(fmt(v) for v in row) + " |" for row in rows]
-    return "\n".join(lines)
 
 
 def run_arrays(store: ResultsStore, run_id: str) -> dict[str, np.ndarray] | None:

@@ -44,33 +44,32 @@ from typing import Any
 
 import numpy as np
 
-from bracing_analysis.ratios import RATIO_FLOOR, number, ratio
+from bracing_analysis.ratios import RATIO_FLOOR, ratio
 from bracing_analysis.summary import HAND_ERROR_T_MIN_S
 from bracing_core import schema
 from bracing_core.config import SharedConfig
+from bracing_core.numbers import markdown_table, number
 from bracing_core.overrides import CONTROLLER, SIMULATOR, node_params, parse_single, route
 from bracing_core.params import ConfigError
-from bracing_core.variants import BRACED, FREE_SPACE, PASSIVE, Run
+from bracing_core.variants import BRACED, FREE_SPACE, PASSIVE, Variant
+from bracing_experiments.cli import (
+    add_study_options,
+    check_options,
+    config_error,
+    handle_stop_signals,
+    interrupted,
+    study_exit,
+)
 from bracing_experiments.executors import make_executor
-from bracing_experiments.experiment import STATUS_FAILED, RunSpec
+from bracing_experiments.experiment import RunSpec
 from bracing_experiments.reporting import (
     braced_forces,
     is_ok,
-    markdown_table,
     resolve_scenario,
     run_arrays,
     warnings_section,
 )
-from bracing_experiments.sweep import (
-    EXIT_CONFIG,
-    EXIT_FAILED,
-    EXIT_INTERRUPTED,
-    ResultsStore,
-    any_failed,
-    handle_stop_signals,
-    make_spec,
-    run_sweep,
-)
+from bracing_experiments.sweep import ResultsStore, make_spec, run_sweep
 
 STUDY = "robustness"
 """bracing-study's first argument for this study (study.main dispatches it here)."""
@@ -84,8 +83,8 @@ NOMINAL = "nominal"
 PAPER_LAW, FEEDBACK_LAW = "paper", "feedback"
 LAWS = (PAPER_LAW, FEEDBACK_LAW)
 LAW_TEXT = {PAPER_LAW: "paper's law", FEEDBACK_LAW: "force feedback + thermal comp."}
-VARIANTS: tuple[Run, ...] = (BRACED, PASSIVE, FREE_SPACE)
-"""make run's three runs: their parameters (Run.overrides) and names (Run.name: the rows' ``variant``)."""
+VARIANTS: tuple[Variant, ...] = (BRACED, PASSIVE, FREE_SPACE)
+"""make run's three runs: their parameters (Variant.overrides) and names (Variant.name: the rows' ``variant``)."""
 
 VOLTAGE, TORQUE = "voltage", "torque"
 FEEDBACK_GAINS: dict[str, tuple[float, float]] = {VOLTAGE: (1.0, 10.0), TORQUE: (0.3, 100.0)}
@@ -296,7 +295,7 @@ def _gains(mode: str) -> str:
     return f"kp {kp:g}, ki {ki:g} /s"
 
 
-def law_overrides(law: str, variant: Run, mode: str, braced: Sequence[str]) -> dict[str, Any]:
+def law_overrides(law: str, variant: Variant, mode: str, braced: Sequence[str]) -> dict[str, Any]:
     """The parameters of ``law``: nothing for the paper's; force feedback on the braced contacts (a run with
     a brace task only) and thermal compensation (voltage input only: the law it compensates)."""
     if law == PAPER_LAW:
@@ -337,7 +336,7 @@ def build_robustness(
     mode = str(ctl["input_mode"])
     study = Robustness(config, duration, factors, mode, [c.name for c in braced], base=base)
 
-    def add(factor: Factor | None, level: Level, law: str, variant: Run, input_mode: str) -> None:
+    def add(factor: Factor | None, level: Level, law: str, variant: Variant, input_mode: str) -> None:
         labels = {  # in the run id's readable part (its first 80 characters) in this order
             "factor": factor.key if factor else NOMINAL,
             "level": level.label,
@@ -609,7 +608,7 @@ def _named(level: Level) -> str:
     return "the nominal" if level is NOMINAL_LEVEL else level.label
 
 
-def _pays(study: Robustness, rows: Mapping[str, dict[str, Any]], baseline: Run) -> str:
+def _pays(study: Robustness, rows: Mapping[str, dict[str, Any]], baseline: Variant) -> str:
     """Against ``baseline`` (free space or passive): in how many conditions bracing uses less energy and keeps
     the hand more precise, by law; the ratios' ranges; where it does not (or, when it mostly does not, where it
     does; when it never does, where it wins on one of the two)."""
@@ -809,25 +808,9 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog=f"bracing-study {STUDY}", description=(__doc__ or "").split("\n\n")[0].replace("\n", " ")
     )
-    parser.add_argument("--output", required=True, type=Path, help="report directory (resumable)")
-    parser.add_argument("--duration", type=float, default=None, help="sim time per run [s] (default: the file's)")
-    where = parser.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=None, help="local worker processes (default: cores)")
-    where.add_argument("--scheduler", default=None, help="Dask scheduler tcp://HOST:PORT, or 'local'")
-    parser.add_argument(
-        "--set",
-        dest="sets",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a scenario parameter in every run",
-    )
-    parser.add_argument("--no-progress", action="store_true")
+    add_study_options(parser, exclusive_executors=True)
     args = parser.parse_args(argv)
-    if args.duration is not None and args.duration <= 0:
-        parser.error("--duration must be > 0")
-    if args.workers is not None and args.workers < 1:
-        parser.error("--workers must be >= 1")
+    check_options(parser, args)
     return args
 
 
@@ -842,26 +825,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         ResultsStore(args.output).check_manifest(config)
         executor = make_executor(args.workers, args.scheduler)
     except ConfigError as exc:
-        print(f"{name}: error: {exc}", file=sys.stderr)
-        return EXIT_CONFIG
+        return config_error(name, exc)
     try:
         with executor:
             where = executor.description
             print(f"{name}: {len(study.specs)} runs of {config} on {where}", file=sys.stderr)
             result = run_sweep(study.specs, args.output, executor, progress=not args.no_progress)
     except KeyboardInterrupt:
-        print(f"{name}: interrupted; the same command again runs the rest", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return interrupted(name)
     report = write_report(study, args.output, time.perf_counter() - start, where, result.skipped)
     print(f"{name}: {result.ran} run now, {result.skipped} reused; report: {report}")
-    failed = sum(1 for row in result.rows if row.get("status") == STATUS_FAILED)
-    if failed or result.lost:
-        print(
-            f"{name}: {failed} run(s) failed, {len(result.lost)} lost: see the report's cells and "
-            f"{args.output / 'results.csv'}",
-            file=sys.stderr,
-        )
-    return EXIT_FAILED if result.lost or any_failed(result.rows) else 0
+    return study_exit(name, result.rows, result.lost, args.output)
 
 
 if __name__ == "__main__":

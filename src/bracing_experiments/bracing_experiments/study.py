@@ -40,36 +40,35 @@ from typing import Any
 
 import numpy as np
 
-from bracing_analysis.ratios import TEMPERATURE_KEY, number, ratio, temperature_saving, temperature_saving_text
+from bracing_analysis.ratios import TEMPERATURE_KEY, ratio, temperature_saving, temperature_saving_text
 from bracing_analysis.summary import HAND_ERROR_T_MIN_S
 from bracing_core import schema
 from bracing_core.config import SharedConfig
+from bracing_core.numbers import cell, markdown_table, number
 from bracing_core.overrides import CONTROLLER, node_params, parse_single, route
 from bracing_core.params import ConfigError
 from bracing_core.rollout import build_scenario
 from bracing_core.variants import PASSIVE
+from bracing_experiments.cli import (
+    EXIT_FAILED,
+    add_study_options,
+    check_options,
+    config_error,
+    handle_stop_signals,
+    interrupted,
+    study_exit,
+)
 from bracing_experiments.executors import Executor, make_executor
-from bracing_experiments.experiment import FORCE_MAX_ERROR_KEY, STATUS_FAILED, RunSpec
+from bracing_experiments.experiment import FORCE_MAX_ERROR_KEY, RunSpec
 from bracing_experiments.optimize import Optimum, Problem, build_problem, changes, optimize
 from bracing_experiments.reporting import braced_forces as _braced_forces
-from bracing_experiments.reporting import fmt as _fmt
 from bracing_experiments.reporting import is_ok as _ok
-from bracing_experiments.reporting import markdown_table as _table
 from bracing_experiments.reporting import resolve_scenario
 from bracing_experiments.reporting import run_arrays as _arrays
 from bracing_experiments.reporting import warnings_section as _warnings_section
 from bracing_experiments.robustness import STUDY as ROBUSTNESS
 from bracing_experiments.robustness import main as robustness_main
-from bracing_experiments.sweep import (
-    EXIT_CONFIG,
-    EXIT_FAILED,
-    EXIT_INTERRUPTED,
-    ResultsStore,
-    any_failed,
-    handle_stop_signals,
-    make_spec,
-    run_sweep,
-)
+from bracing_experiments.sweep import ResultsStore, make_spec, run_sweep
 
 PAPER_SCENARIO = "paper_4link"
 """The scenario whose figures the paper has: only its report cites them."""
@@ -437,9 +436,9 @@ def _bracing_section(study: Study, store: ResultsStore, rows: dict[str, dict[str
         "modes, with and without gravity compensation in the null space. Hand errors over "
         f"t >= {HAND_ERROR_T_MIN_S:g} s.",
         "",
-        _table(header, table),
+        markdown_table(header, table),
         "",
-        _table(
+        markdown_table(
             [
                 "input",
                 "gravity comp.",
@@ -550,7 +549,7 @@ def _gains_section(study: Study, store: ResultsStore, rows: dict[str, dict[str, 
         + study.paper(", paper Sec. 4 / Figs. 9-16")
         + ".",
         "",
-        _table(header, table),
+        markdown_table(header, table),
         "",
         *[f"- {line}" for line in findings],
         "",
@@ -653,7 +652,7 @@ def _placement_section(
     header = ["f_nd [N] \\ target " + study.axis + " [m]", *[f"{t:.3f}" for t in study.targets]]
     for key, title in ((ENERGY, "energy consumed [J]"), (HAND_RMS, "hand RMS error [m]")):
         grid = grids[key]
-        lines += [f"**{title}**", "", _table(header, [[f, *grid[i]] for i, f in enumerate(study.forces)]), ""]
+        lines += [f"**{title}**", "", markdown_table(header, [[f, *grid[i]] for i, f in enumerate(study.forces)]), ""]
         if np.isfinite(grid).any():
             i, j = (int(x) for x in np.unravel_index(np.nanargmin(grid), grid.shape))
             lines += [
@@ -723,7 +722,7 @@ def _search_lines(
         f"trials: `{SEARCH_DIR}/{search.output.name}/` (the same command again reuses them; its `best.yaml` runs "
         "the optimum with `bracing-pair --config`).",
         "",
-        _table(header, table),
+        markdown_table(header, table),
         "",
     ]
     if best is None or optimum is None:
@@ -743,7 +742,7 @@ def _search_lines(
             moves.append(_move(f"target {study.axis}", target, changed[search.target], "m", ".3f"))
         energy, hand = ratio(ENERGY, optimum, row)[0], ratio(HAND_RMS, optimum, row)[0]
         lines.append(
-            f"- Against {name}, the optimum {_joined(moves)}: energy x {_fmt(energy, 3)}, hand RMS x {_fmt(hand, 3)}."
+            f"- Against {name}, the optimum {_joined(moves)}: energy x {cell(energy, 3)}, hand RMS x {cell(hand, 3)}."
         )
     if started:
         lines.append(f"- The optimum is the grid's cell the search started from: {trials} trials found nothing better.")
@@ -926,18 +925,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         "scenario",
         help=f"'paper' or a scenario params file; '{ROBUSTNESS}': the robustness study ({ROBUSTNESS} --help)",
     )
-    parser.add_argument("--output", required=True, type=Path, help="report directory (resumable)")
-    parser.add_argument("--duration", type=float, default=None, help="sim time per run [s] (default: the file's)")
-    parser.add_argument("--workers", type=int, default=None, help="local worker processes (default: cores)")
-    parser.add_argument("--scheduler", default=None, help="Dask scheduler tcp://HOST:PORT, or 'local'")
-    parser.add_argument(
-        "--set",
-        dest="sets",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a scenario parameter in every run",
-    )
+    add_study_options(parser)
     parser.add_argument("--positions", type=int, default=5, help="brace targets in the placement grid")
     parser.add_argument("--span", type=float, default=0.15, help="placement targets: start position +- span [m]")
     parser.add_argument(
@@ -946,12 +934,10 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         default=SEARCH_TRIALS,
         help=f"the optimiser's trials over the placement axes (default {SEARCH_TRIALS}; 0: no search)",
     )
-    parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
     if args.trials < 0:
         parser.error("--trials must be >= 0")
-    if args.duration is not None and args.duration <= 0:
-        parser.error("--duration must be > 0")
+    check_options(parser, args)  # (--workers >= 1: checked since the options are one with the other commands')
     if args.positions < 1 or args.span < 0:
         parser.error("--positions must be >= 1 and --span >= 0")
     return args
@@ -970,8 +956,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         ResultsStore(args.output).check_manifest(config)
         executor = make_executor(args.workers, args.scheduler)
     except ConfigError as exc:
-        print(f"bracing-study: error: {exc}", file=sys.stderr)
-        return EXIT_CONFIG
+        return config_error("bracing-study", exc)
     try:
         with executor:
             where = executor.description
@@ -989,21 +974,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                 if search is not None:
                     run_placement_search(search, executor, args.trials, progress=not args.no_progress)
     except KeyboardInterrupt:
-        print("bracing-study: interrupted; the same command again runs the rest", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return interrupted("bracing-study")
     report = write_report(study, args.output, time.perf_counter() - start, where, result.skipped, search, note)
     found = search.found if search is not None else None
     trials = f"; optimiser: {found.trials} trials ({found.search.ran} now)" if found is not None else ""
     print(f"bracing-study: {result.ran} run now, {result.skipped} reused{trials}; report: {report}")
-    failed = sum(1 for row in result.rows if row.get("status") == STATUS_FAILED)
-    if failed or result.lost:
-        print(
-            f"bracing-study: {failed} run(s) failed, {len(result.lost)} lost: see the report's cells and "
-            f"{args.output / 'results.csv'}",
-            file=sys.stderr,
-        )
-    searched = found is not None and found.search.failed
-    return EXIT_FAILED if result.lost or any_failed(result.rows) or searched else 0
+    code = study_exit("bracing-study", result.rows, result.lost, args.output)
+    return code or (EXIT_FAILED if found is not None and found.search.failed else 0)
 
 
 if __name__ == "__main__":

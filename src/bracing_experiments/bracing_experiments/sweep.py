@@ -23,7 +23,6 @@ import json
 import os
 import re
 import secrets
-import signal
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -46,15 +45,24 @@ from bracing_core.overrides import (
     validate,
 )
 from bracing_core.params import ConfigError
+from bracing_experiments.cli import (
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    add_duration,
+    add_executor,
+    add_output,
+    add_progress,
+    check_options,
+    config_error,
+    failed_runs,
+    handle_stop_signals,
+)
 from bracing_experiments.executors import Executor, make_executor
 from bracing_experiments.experiment import STATUS_FAILED, STATUS_OK, RunOutcome, RunSpec, execute_run
 
 if TYPE_CHECKING:
     from bracing_core.config import SimulatorConfig
 
-EXIT_FAILED = 1
-EXIT_CONFIG = 2
-EXIT_INTERRUPTED = 130
 ROW_FILE, SUMMARY_FILE, ARRAYS_FILE = "row.json", "summary.json", "arrays.npz"
 RESULTS_PARQUET, RESULTS_CSV, MANIFEST = "results.parquet", "results.csv", "sweep.json"
 ORDER_FIRST = ("run_id", "status", "error")
@@ -324,21 +332,15 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         ),
     )
     parser.add_argument("--config", required=True, type=Path, help="scenario params file")
-    parser.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=V1,V2,...")
+    parser.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=V1,V2,...")  # values swept
     parser.add_argument("--zip", action="store_true", help="pair the i-th values of every --set (default: grid)")
-    parser.add_argument("--duration", type=float, default=None, help="sim time per run [s] (default: the file's)")
-    parser.add_argument("--workers", type=int, default=None, help="local worker processes (default: cores)")
-    parser.add_argument(
-        "--scheduler", default=None, help="Dask scheduler tcp://HOST:PORT, or 'local' for a Dask LocalCluster"
-    )
-    parser.add_argument("--output", required=True, type=Path, help="sweep directory (resumable)")
+    add_duration(parser)
+    add_executor(parser)
+    add_output(parser, "sweep")
     parser.add_argument("--retry-failed", action="store_true", help="run again the runs that failed before")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress(parser)
     args = parser.parse_args(argv)
-    if args.duration is not None and args.duration <= 0:
-        parser.error("--duration must be > 0")
-    if args.workers is not None and args.workers < 1:
-        parser.error("--workers must be >= 1")
+    check_options(parser, args)
     return args
 
 
@@ -349,9 +351,10 @@ def build_specs(config: Path, sets: Sequence[str], zipped: bool, duration: float
     return [make_spec(config, varied, duration) for varied in combinations(parse_sweep(sets), zipped)]
 
 
-def report(result: SweepResult, output: Path, total: int) -> str:
+def outcome_text(result: SweepResult, output: Path, total: int) -> str:
+    """What bracing-sweep prints at its end: the runs in the table, where it is, what to do next, the warnings."""
     ok = sum(1 for row in result.rows if row.get("status") == STATUS_OK)
-    failed = sum(1 for row in result.rows if row.get("status") == STATUS_FAILED)
+    failed = failed_runs(result.rows)
     lines = [
         f"{len(result.rows)} of {total} runs in the table ({ok} ok, {failed} failed); "
         f"{result.ran} run now, {result.skipped} done before, {result.wall_time_s:.1f} s",
@@ -378,17 +381,6 @@ def row_warnings(rows: Sequence[dict[str, Any]]) -> dict[str, int]:
     return counts
 
 
-def handle_stop_signals() -> None:
-    """Ctrl-C and SIGTERM stop a sweep the same way (KeyboardInterrupt), even when started with SIGINT
-    ignored (a background job of a non-interactive shell)."""
-
-    def stop(signum: int, frame: object) -> None:
-        raise KeyboardInterrupt
-
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-    signal.signal(signal.SIGTERM, stop)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
     handle_stop_signals()
@@ -397,8 +389,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         ResultsStore(args.output).check_manifest(args.config)
         executor = make_executor(args.workers, args.scheduler)
     except ConfigError as exc:
-        print(f"bracing-sweep: error: {exc}", file=sys.stderr)
-        return EXIT_CONFIG
+        return config_error("bracing-sweep", exc)
     try:
         with executor:
             print(f"bracing-sweep: {len(specs)} runs on {executor.description}", file=sys.stderr)
@@ -406,17 +397,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                 specs, args.output, executor, retry_failed=args.retry_failed, progress=not args.no_progress
             )
     except SweepInterrupted as interrupt:
-        print(report(interrupt.result, args.output, len(specs)), file=sys.stderr)
+        print(outcome_text(interrupt.result, args.output, len(specs)), file=sys.stderr)
         return EXIT_INTERRUPTED
     except KeyboardInterrupt:  # before the first run was submitted
         return EXIT_INTERRUPTED
-    print(report(result, args.output, len(specs)))
-    return EXIT_FAILED if result.lost or any_failed(result.rows) else 0
-
-
-def any_failed(rows: Sequence[dict[str, Any]]) -> bool:
-    """Whether a row of the table is a failed run (its error is in the row)."""
-    return any(row.get("status") == STATUS_FAILED for row in rows)
+    print(outcome_text(result, args.output, len(specs)))
+    return EXIT_FAILED if result.lost or failed_runs(result.rows) else 0
 
 
 if __name__ == "__main__":

@@ -26,8 +26,8 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.signals import SignalHandlerOptions
 
 from bracing_msgs.msg import RunStatus
-from bracing_ros.common import create_waking_publisher
 from bracing_ros.fastdds import PROFILE_ENV, RANGE_ENV, use_fastdds_profile
+from bracing_ros.matching import create_waking_publisher
 
 STATUS_TOPIC = "run_status"
 STATUS_QOS = QoSProfile(
@@ -84,7 +84,7 @@ class StatusPublisher:
         self.say(RunStatus.WARNING, sim_time, text=text)
 
     def subscribers(self) -> int:
-        """How many subscribers have matched run_status (a match wakes ``common.wait_until``)."""
+        """How many subscribers have matched run_status (a match wakes ``matching.wait_until``)."""
         return int(self._publisher.get_subscription_count())
 
     def flush(self, timeout_s: float = 5.0) -> bool:

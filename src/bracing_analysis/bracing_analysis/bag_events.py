@@ -1,0 +1,163 @@
+"""What a run's bag holds besides its streams: the few messages rosbags decodes one by one (the targets
+sent, the parameter changes, the nodes' warnings, the input mode) and the metadata the recorder noted
+(scenario, surfaces, task axes). ``read_events`` reads them, ``RunEvents.apply`` puts them in a series."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from rosbags.highlevel import AnyReader
+
+from bracing_analysis.series import BagSeries, ParameterChange, TargetSent
+from bracing_analysis.surfaces import SCENARIO_KEY, SURFACES_KEY, from_json
+from bracing_analysis.truth import TASK_AXES_KEY, task_axes_from_json
+from bracing_core.typestore import MOTOR_COMMAND, PARAMETER_EVENT, PATH, POINT_STAMPED, RUN_STATUS, motor_command_modes
+
+_VALUE_FIELDS = {
+    1: "bool_value",
+    2: "integer_value",
+    3: "double_value",
+    4: "string_value",
+    5: "byte_array_value",
+    6: "bool_array_value",
+    7: "integer_array_value",
+    8: "double_array_value",
+    9: "string_array_value",
+}
+"""rcl_interfaces/ParameterType -> the ParameterValue field that holds it."""
+
+_Target = tuple[int, str, list[tuple[float, float, float]], list[int]]
+_ParameterEvent = tuple[int, str, dict[str, Any]]
+
+
+def stamp_ns(msg: Any) -> int:
+    """A message's header stamp [ns]."""
+    stamp = msg.header.stamp
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def xyz(point: Any) -> tuple[float, float, float]:
+    return (float(point.x), float(point.y), float(point.z))
+
+
+@dataclass(frozen=True)
+class RunEvents:
+    """The run's events at their bag times [ns] (the time base is the series' ``t0_ns``)."""
+
+    input_mode: str | None
+    parameter_events: list[_ParameterEvent]
+    warnings: list[str]
+    targets: list[_Target]
+
+    def apply(self, series: BagSeries, path: Path) -> None:
+        """Into ``series`` (its ``t0_ns`` set): these events, and the bag's metadata (``describe``)."""
+        t0 = series.t0_ns
+        series.input_mode = self.input_mode
+        series.parameter_changes = [
+            ParameterChange((stamp - t0) * 1e-9, node, values) for stamp, node, values in self.parameter_events
+        ]
+        series.warnings = self.warnings
+        series.targets = [
+            TargetSent(
+                (stamp - t0) * 1e-9,
+                task,
+                np.array(points, dtype=float).reshape(-1, 3),
+                ((np.array(times, dtype=np.int64) - t0) * 1e-9).astype(np.float64),
+            )
+            for stamp, task, points, times in self.targets
+        ]
+        describe(series, path)
+
+
+def read_events(reader: AnyReader) -> RunEvents:
+    return RunEvents(_input_mode(reader), _parameter_events(reader), _recorded_warnings(reader), _targets(reader))
+
+
+def _decoded(reader: AnyReader, wanted: Callable[[Any], bool]) -> Iterator[tuple[Any, int, Any]]:
+    """(connection, bag time [ns], message) of the ``wanted`` connections' messages, in bag order."""
+    connections = [c for c in reader.connections if wanted(c)]
+    if not connections:  # (an empty list would make reader.messages read every topic)
+        return
+    for conn, stamp, raw in reader.messages(connections=connections):
+        yield conn, stamp, reader.deserialize(raw, conn.msgtype)
+
+
+def _input_mode(reader: AnyReader) -> str | None:
+    """The mode of the first motor_command (the controller sends one mode for a whole run); None if
+    none was recorded or the mode is not one MotorCommand defines."""
+    for _, _, command in _decoded(reader, lambda c: c.msgtype == MOTOR_COMMAND):
+        names = {code: name for name, code in motor_command_modes(reader.typestore).items()}  # the bag's .msg
+        return names.get(int(command.mode))
+    return None
+
+
+def custom_data(path: Path) -> dict[str, str]:
+    """The bag's metadata ``custom_data`` (what the recorder noted: scenario, surfaces, tasks); {} if none."""
+    try:
+        document = yaml.safe_load((path / "metadata.yaml").read_text(encoding="utf-8"))
+        data = document["rosbag2_bagfile_information"].get("custom_data") or {}
+    except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError):
+        return {}
+    return {str(k): str(v) for k, v in data.items()} if isinstance(data, dict) else {}
+
+
+def describe(series: BagSeries, path: Path) -> None:
+    """The run's scenario, surfaces and task axes from the bag's metadata, into ``series``."""
+    data = custom_data(path)
+    series.scenario = data.get(SCENARIO_KEY) or None
+    series.surfaces = from_json(data.get(SURFACES_KEY, "{}"))
+    series.hand_axes, series.brace_task_axes = task_axes_from_json(data.get(TASK_AXES_KEY, "{}"))
+
+
+def _targets(reader: AnyReader) -> list[_Target]:
+    """(bag time [ns], task, points, pose stamps [ns]) of each recorded target, in time order."""
+
+    def target(c: Any) -> bool:
+        return (
+            (c.msgtype == POINT_STAMPED and c.topic.rsplit("/", 1)[-1] == "hand_target")
+            or (c.msgtype == POINT_STAMPED and "brace_target/" in c.topic)
+            or (c.msgtype == PATH and c.topic.endswith("hand_path"))
+        )
+
+    out: list[_Target] = []
+    for conn, stamp, msg in _decoded(reader, target):
+        task = conn.topic.split("brace_target/", 1)[1] if "brace_target/" in conn.topic else "hand"
+        if conn.msgtype == PATH:
+            points = [xyz(pose.pose.position) for pose in msg.poses]
+            times = [stamp_ns(pose) for pose in msg.poses]
+        else:
+            points, times = [xyz(msg.point)], [stamp]
+        out.append((stamp, task, points, times))
+    return sorted(out, key=lambda e: e[0])
+
+
+def _parameter_value(value: Any) -> Any:
+    held = getattr(value, _VALUE_FIELDS.get(int(value.type), ""), None)
+    return held.tolist() if isinstance(held, np.ndarray) else list(held) if isinstance(held, list) else held
+
+
+def _parameter_events(reader: AnyReader) -> list[_ParameterEvent]:
+    """(stamp [ns], node, {name: new value}) of each recorded /parameter_events message that changes
+    or deletes a value (a few per run)."""
+    out = []
+    for _, _, event in _decoded(reader, lambda c: c.msgtype == PARAMETER_EVENT):
+        values = {str(p.name): _parameter_value(p.value) for p in event.changed_parameters}
+        values.update({str(p.name): None for p in event.deleted_parameters})
+        if values:
+            stamp = int(event.stamp.sec) * 1_000_000_000 + int(event.stamp.nanosec)
+            out.append((stamp, str(event.node), values))
+    return sorted(out, key=lambda e: e[0])
+
+
+def _recorded_warnings(reader: AnyReader) -> list[str]:
+    """The warnings the nodes said on run_status (the recorder keeps only those), in time order (a few per run)."""
+    out = []
+    for _, stamp, status in _decoded(reader, lambda c: c.msgtype == RUN_STATUS):
+        if status.text:
+            out.append((stamp, str(status.text)))
+    return [text for _, text in sorted(out, key=lambda w: w[0])]

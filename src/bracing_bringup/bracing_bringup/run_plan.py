@@ -1,0 +1,191 @@
+"""A run's plan: what bracing-pair and the launch file start, from the scenario file, ``--set`` and the
+flags (``RunOptions``), checked against the schemas before any process starts: every node's parameters
+(written to DIR/params.yaml) and the processes (``RunPlan``, ``plan_run``); the configurations' own
+checks (``check_configs``)."""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bracing_core import rcl_yaml, schema
+from bracing_core.overrides import CONTROLLER, SIMULATOR, node_params, with_layers
+from bracing_core.params import resolve_file
+from bracing_core.sensing import SensorConfig
+from bracing_core.variants import variant_overrides
+
+PARAMS_FILE = "params.yaml"
+"""DIR/params.yaml: every parameter each node ran with (``bracing-simulator --ros-args --params-file``
+runs it again)."""
+MUJOCO = "mujoco"
+MUJOCO_NEEDS = {"command_output": "effort_forward", "input_mode": "torque"}
+"""--engine mujoco: the controller's torque law sent as a JointGroupEffortController takes it."""
+
+
+@dataclass
+class RunOptions:
+    config: Path
+    output: Path
+    duration: float | None = None
+    mode: str | None = None
+    bracing: bool = True  # False: --no-bracing (no brace tasks; the surfaces stay, as obstacles)
+    real_time: bool = False
+    domain_id: int | None = None
+    quiet: bool = False
+    stall_timeout: float = 60.0  # [s] wall without sim progress before the run is declared hung
+    parameters: dict[str, Any] = field(default_factory=dict)  # --set KEY=VALUE (flat names; see overrides)
+    command_start: float | None = None  # wall time the run was asked for (default: run_pair's call)
+    animation: bool = True  # draw animation.gif / .mp4 with the report
+    show_timeline: bool = False  # print the timeline at the end (bracing-pair --timeline)
+    free_space: bool = False  # --free-space: the surfaces removed (only watched), the paper's comparison
+    network: bool = False  # --network: DDS sockets on every interface (default: loopback and shared memory)
+    view: bool = False  # --view: bracing-view beside the nodes (a process of its own, best-effort subscriber)
+    rrd: bool = False  # --rrd: DIR/run.rrd, the run for rerun's viewer, written from the bag
+    engine: str = "bracing"  # --engine: bracing (our simulator) | mujoco (MuJoCo through ros2_control's topics)
+
+
+def command_line(options: RunOptions) -> dict[str, Any]:
+    """What the command line sets, as flat parameter names: ``--set``, then the flags (they win)."""
+    values = dict(options.parameters)
+    if options.mode is not None:
+        values["input_mode"] = options.mode
+    values.update(variant_overrides(options.bracing, options.free_space))
+    if options.engine == MUJOCO:
+        values.update(MUJOCO_NEEDS)
+    return values
+
+
+def pair_needs(options: RunOptions, urdf: Path) -> dict[str, Any]:
+    """What the pair sets over the scenario and the command line, as flat parameter names.
+
+    Both nodes publish their first message only once the recorder has matched every topic they
+    publish, and the simulator once the controller has too (joint_states: the controller and the
+    recorder; bracing-view subscribes once the run steps) and run_status has its subscribers: this
+    process's watcher and the recorder (it keeps the run's warnings), and bracing-view's with --view
+    (it is up before the nodes start; counting it makes sure the watcher is one of those matched).
+    The nodes resolve a relative URDF from their working directory, so it is pinned to the file
+    found now (``urdf``).
+    """
+    status_subscribers = 2 + int(options.view)
+    needs: dict[str, Any] = {
+        "wait_for_recorder": True,
+        "min_subscribers": 2,
+        "min_status_subscribers": status_subscribers,
+    }
+    if options.duration is not None:
+        needs["duration"] = options.duration
+    if options.real_time:
+        needs["stepping"] = "real_time"
+    needs["robot.urdf"] = str(urdf)
+    return needs
+
+
+def write_params(path: Path, node_params: dict[str, dict[str, Any]]) -> None:
+    """The nodes' one params file, written so that rcl reads exactly these values back (every string
+    quoted: a y stays an axis name, a float list stays floats; no aliases)."""
+    path.write_text(rcl_yaml.dump({node: {"ros__parameters": params} for node, params in node_params.items()}))
+
+
+@dataclass(frozen=True)
+class RunProcess:
+    """One process of a run: bracing-pair starts it as ``python -m module``, launch/pair.launch.py
+    as ``package``'s ``executable``; both with these arguments (ours, then ROS's)."""
+
+    name: str  # simulator | controller | recorder
+    package: str
+    executable: str
+    module: str
+    arguments: tuple[str, ...]
+    ros_arguments: tuple[str, ...] = ()
+
+    def argv(self) -> list[str]:
+        ros = ["--ros-args", *self.ros_arguments] if self.ros_arguments else []
+        return [sys.executable, "-m", self.module, *self.arguments, *ros]
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """What a run starts, from (scenario file, --set overrides, flags), checked against the schemas
+    (names, types, bounds): every node's parameters and the processes. No file is written."""
+
+    options: RunOptions
+    sim_values: schema.Values
+    node_params: dict[str, dict[str, Any]]  # each node's complete parameters (DIR/params.yaml)
+    duration: float  # [s] of sim time
+    expected_states: int  # lockstep: the states the recorder waits for before it closes the bag (0: any)
+
+    @property
+    def contacts(self) -> list[str]:
+        return list(self.sim_values.contacts)
+
+    @property
+    def ground_truth(self) -> bool:
+        """The simulator measures through sensors (sensors.*): it publishes the truth too, and the bag keeps it."""
+        return not SensorConfig.from_values(self.sim_values).exact
+
+    @property
+    def search(self) -> list[Path]:
+        return [self.options.config.parent]
+
+    def processes(self, out: Path) -> list[RunProcess]:
+        """The recorder, the controller and the simulator of a run into ``out`` (its params file
+        ``out / PARAMS_FILE``, its bag ``out / "bag"``)."""
+        params_file = str(out / PARAMS_FILE)
+        recorder = ["--output", str(out / "bag"), "--contacts", ",".join(self.contacts)]
+        recorder += ["--ground-truth"] if self.ground_truth else []
+        recorder += ["--niceness", "10"]  # the lockstep loop comes first
+        recorder += ["--drain-idle", "0.05"]  # stopped only after the nodes' last messages are acknowledged
+        recorder += ["--params-file", params_file, "--scenario", self.options.config.stem]  # surfaces, name
+        if self.expected_states:
+            recorder += ["--expect-states", str(self.expected_states)]  # it closes the bag once it has them all
+        nodes = ("--params-file", params_file)
+        if self.options.engine == MUJOCO:
+            controller = (*nodes, "-p", "use_sim_time:=true")  # it follows MuJoCo's /clock
+            mujoco_robot = ("bracing_bringup", "bracing-mujoco-robot", "bracing_bringup.mujoco_robot", (), nodes)
+            return [
+                RunProcess(
+                    "recorder", "bracing_bringup", "bracing-recorder", "bracing_bringup.recorder", tuple(recorder)
+                ),
+                RunProcess(
+                    "controller", "bracing_controller", "bracing-controller", "bracing_controller.node", (), controller
+                ),
+                RunProcess("simulator", *mujoco_robot),
+            ]
+        return [
+            RunProcess("recorder", "bracing_bringup", "bracing-recorder", "bracing_bringup.recorder", tuple(recorder)),
+            RunProcess("controller", "bracing_controller", "bracing-controller", "bracing_controller.node", (), nodes),
+            RunProcess("simulator", "bracing_sim", "bracing-simulator", "bracing_sim.node", (), nodes),
+        ]
+
+
+def plan_run(options: RunOptions) -> RunPlan:
+    """The one way a run's parameters are assembled for its nodes (bracing-pair, the launch file):
+    the scenario file, then ``--set``, then the flags, then what the pair needs (``overrides``).
+    The configurations' own checks (pinocchio's imports, ~0.25 s) are ``check_configs``'."""
+    search = [options.config.parent]
+    given = node_params(options.config, command_line(options))
+    sim_values = schema.read("simulator", given[SIMULATOR])
+    schema.read("controller", given[CONTROLLER])  # refused here, before any process starts
+    urdf = resolve_file(sim_values["robot.urdf"], "robot.urdf", search)
+    duration = options.duration if options.duration is not None else float(sim_values["duration"])
+    step = float(sim_values["step"])
+    lockstep = sim_values["stepping"] == "lockstep" and not options.real_time and duration > 0
+    lockstep = lockstep and options.engine != MUJOCO  # MuJoCo's robot promises no message count
+    expected_states = round(duration / step) + 1 if lockstep else 0
+    every = with_layers(given, pair_needs(options, urdf))
+    return RunPlan(options, sim_values, every, duration, expected_states)
+
+
+def check_configs(plan: RunPlan) -> list[str]:
+    """The nodes' configurations built as an in-process run builds them (``rollout``: they would stop
+    on the same error), the start posture's feasibility and the task's rank there: ConfigError,
+    before the run leaves a bag behind. The targets out of the arm's reach: warnings, as the
+    controller logs them (the summary's)."""
+    from bracing_core.checks import reach_warnings
+    from bracing_core.rollout import build_scenario_from_params
+
+    scenario = build_scenario_from_params(plan.node_params[SIMULATOR], plan.node_params[CONTROLLER], plan.search)
+    assert scenario.controller is not None  # built with the controller's parameters
+    return reach_warnings(scenario.controller.config, scenario.controller.plant)

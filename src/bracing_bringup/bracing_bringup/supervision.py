@@ -1,0 +1,309 @@
+"""A run supervised from its plan to its files (``run_pair``): the processes started, followed until the
+simulator finished and the recorder closed the bag, the bag checked and the report drawn from it.
+
+A run that fails (or is stopped) before its first step keeps only its logs, so the same --output works
+again. The run holds its ROS domain id (``domains``) from before its first process starts until its
+last file is written.
+"""
+
+from __future__ import annotations
+
+import shutil
+import signal
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bracing_bringup.domains import hold_domain
+from bracing_bringup.processes import Interrupted, Pair, environment
+from bracing_bringup.run_plan import MUJOCO, PARAMS_FILE, RunOptions, RunPlan, check_configs, plan_run, write_params
+from bracing_bringup.timeline import BAG_CLOSED, FIRST_STEP, LAST_FILE, LAST_STEP, TIMELINE_FILE, Timeline
+from bracing_bringup.topics import missing_from_counts
+from bracing_bringup.viewurl import free_ports, view_url, wait_for_port
+from bracing_core.params import ConfigError
+
+EXIT_FAILED = 1
+VIEWER_START_S = 60.0  # [s] --view: how long the viewer may take to serve its page before the run goes on without
+FINISHED = "simulator finished"
+"""The simulator's last status: every subscriber has acknowledged everything it sent."""
+RECORDER_CLOSED = "recorder closed the bag"
+
+
+@dataclass
+class RunResult:
+    exit_code: int
+    output: Path
+    wall_time_s: float
+    summary: dict[str, Any] | None = None
+    message: str = ""
+    logs: dict[str, Path] = field(default_factory=dict)
+    timeline: Timeline | None = None
+
+
+class _Failure(Exception):
+    def __init__(self, process: str, message: str) -> None:
+        super().__init__(message)
+        self.process, self.message = process, message
+
+
+@dataclass
+class _Outcome:
+    """How the supervised part of a run ended."""
+
+    code: int = 0
+    message: str = ""
+    warnings: list[str] = field(default_factory=list)  # the controller's configuration warnings (check_configs)
+
+
+def run_pair(options: RunOptions) -> RunResult:
+    """Run one experiment; never raises for a failing node, returns the exit code and message.
+
+    The run holds its ROS domain id (see ``domains``) from before its first process starts
+    until its last file is written, so no other run on this machine can answer its nodes.
+    """
+    with hold_domain(options.domain_id) as domain:
+        if not domain.exclusive:
+            print(
+                f"bracing-pair: warning: ROS_DOMAIN_ID={domain.domain_id} (--domain-id) is held by another run on this "
+                "machine; their nodes can see each other",
+                file=sys.stderr,
+                flush=True,
+            )
+        return _run_pair(options, domain.domain_id)
+
+
+def _run_pair(options: RunOptions, domain: int) -> RunResult:
+    timeline = Timeline(options.command_start if options.command_start is not None else time.time())
+    start_wall = time.monotonic()
+    plan = plan_run(options)  # checked against the schemas; the configurations' checks follow while processes import
+    out = options.output
+    if (out / "bag").exists():
+        raise ConfigError(f"--output: {out / 'bag'} exists already; choose a new output directory")
+    created = not out.exists()
+    (out / "logs").mkdir(parents=True, exist_ok=True)
+    write_params(out / PARAMS_FILE, plan.node_params)  # the nodes read only this file
+    pair = Pair(options, timeline)
+    with _stopped_by_signals(pair):
+        outcome = _supervise(pair, plan, domain, created, start_wall)
+    wall = time.monotonic() - start_wall
+    return _conclude(pair, plan, outcome, wall, created)
+
+
+@contextmanager
+def _stopped_by_signals(pair: Pair) -> Iterator[None]:
+    """Ctrl-C or a SIGTERM (a CI timeout, `kill`) while inside: stop the nodes in order, keep the bag.
+    The children run in sessions of their own, so nothing else would stop them."""
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+    def on_signal(signum: int, frame: object) -> None:
+        pair.interrupted = signum
+
+    for sig in previous:
+        signal.signal(sig, on_signal)
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def _supervise(pair: Pair, plan: RunPlan, domain: int, created: bool, start_wall: float) -> _Outcome:
+    """Start the processes and follow them until the bag is closed; stop them all should the run fail."""
+    outcome, finished, watcher = _Outcome(), False, None
+    env = environment(plan.options, domain)
+    try:
+        pair.say(f"bracing-pair: ROS_DOMAIN_ID={domain}, output {plan.options.output}")
+        outcome.warnings = _start(pair, plan, env, created)
+        # What they do, from ROS: their run_status messages. The watcher's participant starts (in its
+        # thread) while the processes still import (~1 s); the simulator steps only once it matched
+        # (min_status_subscribers), and the topic keeps a process's history for a late subscriber.
+        from bracing_ros.status import StatusWatcher  # rclpy (~0.1 s): after the check, not competing with it
+
+        watcher = StatusWatcher(domain, pair.on_status, env).start()
+        _follow_stepping(pair, plan, start_wall)
+        finished = True
+        from bracing_analysis.drawing import prepare_drawing  # rosbags and numpy: needed from here on
+
+        prepare_drawing()  # the drawing processes load matplotlib while the nodes exit and the bag is read
+        _await_bag(pair)
+    except Interrupted:
+        outcome.code = 128 + int(pair.interrupted)
+        outcome.message = f"interrupted ({signal.Signals(pair.interrupted).name}): nodes stopped, bag finalised"
+    except _Failure as failure:
+        outcome.code = EXIT_FAILED
+        outcome.message = f"error: {failure.message}\n{pair.tail(failure.process)}"
+    finally:
+        if not finished or outcome.code != 0:
+            pair.stop_all()
+        if watcher is not None:
+            watcher.stop()
+    return outcome
+
+
+def _start(pair: Pair, plan: RunPlan, env: dict[str, str], created: bool) -> list[str]:
+    """Start the viewer (--view), then the processes, and check the configurations while they import;
+    the controller's configuration warnings. A ConfigError kills them and discards the run."""
+    # All three at once: each imports and discovers the others while the rest start. No state
+    # goes out before the recorder is there: the simulator steps only once the recorder (and
+    # the controller) subscribe to every topic it publishes, and the controller answers only
+    # once the recorder subscribes to its outputs (the nodes' wait_for_recorder).
+    out = plan.options.output
+    if plan.options.view:
+        _start_viewer(pair, plan, env)
+    for process in plan.processes(out):
+        pair.start(process.name, process.argv(), env)
+    pair.timeline.mark("processes started")
+    try:
+        warnings = check_configs(plan)
+    except Exception:  # a ConfigError (or a fault of the checks themselves): the run never starts
+        pair.kill_all()  # they would stop on the same error; nothing of the run is kept
+        _discard(out, created, keep_logs=False)
+        raise
+    pair.timeline.mark("configuration checked")
+    return warnings
+
+
+def _start_viewer(pair: Pair, plan: RunPlan, env: dict[str, str]) -> None:
+    """bracing-view, first, and waited for until its page is up (it subscribes before it serves): its
+    imports then do not compete with the stepping, and it sees the run from the first state. It
+    subscribes best effort, so once running it never holds the loop back."""
+    out = plan.options.output
+    web_port, grpc_port = free_ports(2)
+    ports = ["--web-port", str(web_port), "--grpc-port", str(grpc_port)]
+    viewer = [sys.executable, "-m", "bracing_bringup.view", *ports, "--params-file", str(out / PARAMS_FILE)]
+    viewer += ["--after-stepping"]  # not counted as the recorder by the nodes' wait (see view.Live)
+    viewer += ["--ros-args", "-p", f"contacts:={plan.contacts!r}"]
+    pair.start("viewer", viewer, env)
+    url = view_url(web_port, grpc_port)
+    if wait_for_port(web_port, lambda: pair.exit_code("viewer") is None, VIEWER_START_S):
+        pair.say(f"bracing-pair: watch it at {url}  (log: {out / 'logs' / 'viewer.log'})")
+    else:
+        pair.say(f"bracing-pair: the viewer did not start (see {out / 'logs' / 'viewer.log'}); running without")
+    pair.timeline.mark("viewer started")
+
+
+def _follow_stepping(pair: Pair, plan: RunPlan, start_wall: float) -> None:
+    """Until the simulator finished (its last messages acknowledged by every subscriber), showing its
+    progress; _Failure if a process exits before or the simulation stalls."""
+    options = plan.options
+    last_progress, last_time, last_shown = time.monotonic(), -1.0, 0.0
+    tty = sys.stdout.isatty()
+    while FINISHED not in pair.seen:
+        pair.wait_for_change(0.1)
+        if pair.exit_code("simulator") == 0 and FINISHED not in pair.seen:
+            # Ended, its FINISHED status still in flight (it waits for run_status's subscriber before
+            # its first state, so it is heard): its exit code says it finished; the bag check says
+            # whether the run is whole.
+            heard_by = time.monotonic() + 1.0
+            while FINISHED not in pair.seen and time.monotonic() < heard_by:
+                pair.wait_for_change(0.1)
+            pair.seen.add(FINISHED)
+        for name in ("simulator", "controller", "recorder"):
+            exit_code = pair.exit_code(name)
+            # The recorder may close the bag and exit by itself once it has every message.
+            if exit_code is not None and FINISHED not in pair.seen and (name != "recorder" or exit_code != 0):
+                raise _Failure(name, f"the {name} exited with code {exit_code} during the run")
+        t, now = pair.sim_time, time.monotonic()
+        if t is not None and t > last_time:
+            last_time, last_progress = t, now
+            if now - last_shown >= (0.2 if tty else 2.0):
+                last_shown = now
+                rtf = t / max(now - start_wall, 1e-9)
+                line = f"  sim {t:7.3f} / {plan.duration:g} s   real-time factor {rtf:5.2f}"
+                pair.say("\r" + line if tty else line, end="" if tty else "\n")
+        elif now - last_progress > options.stall_timeout:
+            raise _Failure("simulator", f"no simulation progress for {options.stall_timeout:g} s (hung)")
+    if tty:
+        pair.say("")
+
+
+def _await_bag(pair: Pair) -> None:
+    """The controller's answers are all out (the simulator had the last one): it flushes and exits
+    while the simulator exits by itself. The recorder closes the bag once it has every message (or,
+    should some be missing, when stopped after both nodes are gone)."""
+    pair.interrupt("controller")
+    deadline = time.monotonic() + 120.0  # the nodes' flush (<= 15 s) and the recorder's drain (<= 75 s)
+    while RECORDER_CLOSED not in pair.seen and pair.exit_code("recorder") is None:
+        if time.monotonic() > deadline:
+            raise _Failure("recorder", "the recorder did not close the bag")
+        if pair.exit_code("simulator") is not None and pair.exit_code("controller") is not None:
+            pair.interrupt("recorder")
+        pair.wait_for_change(0.1)
+
+
+def _conclude(pair: Pair, plan: RunPlan, outcome: _Outcome, wall: float, created: bool) -> RunResult:
+    """The run's files and result once its processes are done: the report of a run that ended well
+    (then the processes' exit codes), nothing but the logs of one that never stepped."""
+    out, timeline = plan.options.output, pair.timeline
+    code, message, summary = outcome.code, outcome.message, None
+    timeline.add(pair.events)
+    if code == 0:
+        timeline.mark(BAG_CLOSED, timeline.at("recorder closed the bag"))
+        # The report is drawn while the processes finish exiting (their exit codes are checked after).
+        summary, code, message = _check_and_draw(plan, wall, timeline, outcome.warnings)
+        for name, process_code in pair.stop_all(ask=False).items():
+            if process_code != 0 and code == 0 and name != "viewer":  # a viewer's end is no run's failure
+                code, message = EXIT_FAILED, f"error: the {name} exited with code {process_code}\n{pair.tail(name)}"
+    if code != 0 and timeline.at("simulator stepping") is None:
+        # Nothing to keep from a run that never stepped: the same --output works again.
+        _discard(out, created, keep_logs=True)
+        if pair.interrupted:
+            message = f"interrupted ({signal.Signals(pair.interrupted).name}) before the first step"
+        message += f"\n(the run never stepped: nothing of it was kept but its logs, {out / 'logs'})"
+        return RunResult(code, out, wall, None, message, pair.logs, timeline)
+    for phase, event in ((FIRST_STEP, "simulator stepping"), (LAST_STEP, "simulator finished")):
+        stamp = timeline.at(event)
+        if stamp is not None:
+            timeline.mark(phase, stamp)
+    timeline.write(out)
+    return RunResult(code, out, wall, summary, message, pair.logs, timeline)
+
+
+def _discard(out: Path, created: bool, keep_logs: bool) -> None:
+    """Remove what a run that never stepped wrote (its empty bag, its params file), and its logs unless
+    ``keep_logs``; the directory too if the run made it and it is left empty."""
+    shutil.rmtree(out / "bag", ignore_errors=True)
+    (out / PARAMS_FILE).unlink(missing_ok=True)
+    (out / TIMELINE_FILE).unlink(missing_ok=True)
+    if not keep_logs:
+        shutil.rmtree(out / "logs", ignore_errors=True)
+    if created and out.is_dir() and not any(out.iterdir()):
+        out.rmdir()
+
+
+def _check_and_draw(
+    plan: RunPlan, wall: float, timeline: Timeline, warnings: list[str]
+) -> tuple[dict[str, Any] | None, int, str]:
+    """Read the bag once: check it (a lockstep run promises every step), then write the summary
+    (with ``warnings``), the figures and the animation from what was read. (summary, exit code, message)."""
+    from bracing_analysis.animation import DEFAULT_INTERVAL_S
+    from bracing_analysis.bag import BagReadError, read_series  # rosbags ~100 ms, bag replay only, where used
+    from bracing_analysis.drawing import report_series
+
+    out = plan.options.output
+    try:
+        series = read_series(out / "bag")
+    except BagReadError as exc:
+        return None, EXIT_FAILED, f"error: {exc}"
+    timeline.mark("bag read")
+    options, expected_states = plan.options, plan.expected_states
+    if options.engine == MUJOCO:  # no `contacts` topic: each contact's forces and residual from its wrench
+        from bracing_analysis.wrench_contacts import contacts_from_wrenches
+
+        contacts_from_wrenches(series)
+        series.input_mode = "torque"  # what MUJOCO_NEEDS set (no motor_command tells it)
+    if expected_states:  # lockstep
+        problems = missing_from_counts(series.topic_counts, plan.contacts, expected_states, "", plan.ground_truth)
+        timeline.mark("bag checked")
+        if problems:
+            return None, EXIT_FAILED, "error: the bag is incomplete (lost messages): " + "; ".join(problems)
+    interval = DEFAULT_INTERVAL_S if options.animation else None
+    summary = report_series(
+        series, out, wall_time_s=wall, animation_interval_s=interval, mark=timeline.mark, warnings=warnings
+    )
+    timeline.mark(LAST_FILE)
+    return summary, 0, ""

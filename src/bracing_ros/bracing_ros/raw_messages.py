@@ -1,0 +1,37 @@
+"""Messages taken raw (CDR bytes) decoded by ``wire``, or by rclpy for encodings ``wire`` does not read."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
+
+from bracing_msgs.msg import MotorCommand
+from bracing_ros import wire
+
+
+def read_joint_state(data: bytes, decoder: wire.JointStateDecoder) -> wire.JointStateData:
+    """A JointState taken raw (CDR bytes); rclpy decodes encapsulations ``wire`` does not read.
+
+    Raises ``wire.DecodeError`` for bytes that are not a JointState.
+    """
+    try:
+        return decoder.decode(data)
+    except wire.UnsupportedEncoding:
+        return wire.joint_state_data(_deserialize(data, JointState))
+
+
+def read_motor_command(data: bytes, decoder: wire.MotorCommandDecoder) -> wire.MotorCommandData:
+    """A MotorCommand taken raw (CDR bytes); see :func:`read_joint_state`."""
+    try:
+        return decoder.decode(data)
+    except wire.UnsupportedEncoding:
+        return wire.motor_command_data(_deserialize(data, MotorCommand))
+
+
+def _deserialize(data: bytes, msg_type: type) -> Any:
+    try:
+        return deserialize_message(data, msg_type)
+    except Exception as exc:  # rclpy raises its RMWError (and others) for bytes it cannot read
+        raise wire.DecodeError(str(exc).split(", at /")[0]) from None
