@@ -356,3 +356,35 @@ def test_a_diverging_run_stops_as_the_simulator_node_would() -> None:
     row = execute_run(spec).row
     assert row["status"] == STATUS_FAILED
     assert row["error"].startswith("DivergenceError: joint speed exceeds divergence_speed 0.5")
+
+
+def _slow_square(x: int) -> int:
+    time.sleep(0.05 * x)  # completes in the items' order
+    return x * x
+
+
+def test_a_ctrl_c_dropped_in_a_finalizer_still_stops_the_executor_at_the_next_result() -> None:
+    """A SIGINT whose handler runs inside __del__ has its KeyboardInterrupt printed and dropped by
+    Python ("Exception ignored in"): CI once saw bracing-optimize run all its trials after Ctrl-C.
+    The commands' handler also sets STOP_REQUESTED, and the executor raises at the next result."""
+    from bracing_experiments.cli import handle_stop_signals
+
+    class SignalsOnCollection:
+        def __del__(self) -> None:
+            signal.raise_signal(signal.SIGINT)
+
+    previous = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)
+    handle_stop_signals()
+    seen: list[int] = []
+    try:
+        with LocalExecutor(workers=1) as executor, pytest.raises(KeyboardInterrupt):
+            for item, result, _ in executor.run(_slow_square, [1, 2, 3, 4]):
+                seen.append(result if result is not None else -1)
+                if item == 1:
+                    SignalsOnCollection()  # collected at once: the handler's exception is dropped there
+                    seen.append(0)  # ... so this line runs: only the flag is left to stop the loop
+    finally:
+        signal.signal(signal.SIGINT, previous[0])
+        signal.signal(signal.SIGTERM, previous[1])
+        handle_stop_signals.__globals__["STOP_REQUESTED"].clear()
+    assert seen == [1, 0]  # no result after the one during which Ctrl-C came

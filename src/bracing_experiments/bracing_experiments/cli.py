@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from bracing_core.params import ConfigError
+from bracing_experiments.executors import STOP_REQUESTED
 from bracing_experiments.experiment import STATUS_FAILED
 
 EXIT_FAILED = 1
@@ -75,9 +76,11 @@ def handle_stop_signals() -> None:
     ignored (a background job of a non-interactive shell)."""
 
     def stop(signum: int, frame: object) -> None:
+        STOP_REQUESTED.set()  # kept should the KeyboardInterrupt land in a finalizer and be dropped
         raise KeyboardInterrupt
 
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+    STOP_REQUESTED.clear()  # a command run again in the same process starts unstopped
+    signal.signal(signal.SIGINT, stop)
     signal.signal(signal.SIGTERM, stop)
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import threading
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
@@ -26,15 +27,31 @@ Item = TypeVar("Item")
 Result = TypeVar("Result")
 
 
+STOP_REQUESTED = threading.Event()
+"""Set by the commands' Ctrl-C/SIGTERM handler (cli.handle_stop_signals) besides raising
+KeyboardInterrupt: a signal that lands while Python runs a finalizer (a weakref callback, __del__)
+has its KeyboardInterrupt printed and dropped ("Exception ignored in"), seen once in CI as a
+bracing-optimize that ran all its trials after Ctrl-C. ``Executor.run`` raises it again at the next result."""
+
+
 class Executor(ABC):
     description = ""
 
-    @abstractmethod
     def run(
         self, fn: Callable[[Item], Result], items: Sequence[Item], keys: Sequence[str] | None = None
     ) -> Iterator[tuple[Item, Result | None, BaseException | None]]:
         """Submit ``fn(item)`` for every item; yield (item, result, None) or (item, None, error) as each
-        completes. ``keys``: a unique name per item (Dask task keys)."""
+        completes. ``keys``: a unique name per item (Dask task keys). A stop requested (STOP_REQUESTED)
+        raises KeyboardInterrupt before the next item is yielded."""
+        for outcome in self._run(fn, items, keys):
+            if STOP_REQUESTED.is_set():
+                raise KeyboardInterrupt
+            yield outcome
+
+    @abstractmethod
+    def _run(
+        self, fn: Callable[[Item], Result], items: Sequence[Item], keys: Sequence[str] | None
+    ) -> Iterator[tuple[Item, Result | None, BaseException | None]]: ...
 
     @abstractmethod
     def cancel(self) -> None:
@@ -71,7 +88,7 @@ class LocalExecutor(Executor):
     def workers(self) -> int:
         return self._workers
 
-    def run(
+    def _run(
         self, fn: Callable[[Item], Result], items: Sequence[Item], keys: Sequence[str] | None = None
     ) -> Iterator[tuple[Item, Result | None, BaseException | None]]:
         futures = {self._pool.submit(fn, item): item for item in items}
@@ -133,7 +150,7 @@ class DaskExecutor(Executor):
         info = self._client.scheduler_info(n_workers=-1)
         return sum(int(w.get("nthreads", 1)) for w in info.get("workers", {}).values()) or 1
 
-    def run(
+    def _run(
         self, fn: Callable[[Item], Result], items: Sequence[Item], keys: Sequence[str] | None = None
     ) -> Iterator[tuple[Item, Result | None, BaseException | None]]:
         from distributed import as_completed as dask_as_completed  # distributed ~340 ms, where used
