@@ -13,7 +13,7 @@ from conftest import build_scenario
 from bracing_core import checks
 from bracing_core.rollout import run_recorded
 from bracing_core.simulator import DivergenceError
-from bracing_core.stepping import SimulatorStepper, StateOut, StepOut
+from bracing_core.stepping import EFFORT_WAIT_S, HeldEffort, Periodic, SimulatorStepper, StateOut, StepOut
 
 
 class Clock:
@@ -341,3 +341,48 @@ def test_lockstep_with_the_law_in_process_is_the_rollout_bit_for_bit() -> None:
     assert np.array_equal(np.array([s.forces.normal_force for s in outlet.steps]), recording.normal_force)
     assert np.array_equal(np.array([s.current for s in outlet.steps]), recording.current)
     assert [w for w, _ in log.said] == list(recording.warnings) and not log.reports
+
+
+def test_the_mujoco_robot_holds_a_valid_effort_command_and_refuses_others() -> None:
+    log, clock = Log(), Clock()
+    held = HeldEffort(["a", "b"], "effort_controller/commands", log, clock)
+    held.offer([1.0, -2.0])
+    held.offer([1.0])
+    held.offer([1.0, float("nan")])
+    assert np.array_equal(held.command, [1.0, -2.0]) and held.commands == 1
+    assert log.reports == [
+        ("error", "length", "effort_controller/commands refused: 1 values for 2 joints (joints ['a', 'b'])"),
+        (
+            "error",
+            "non-finite",
+            "effort_controller/commands refused: non-finite value at index 1 (nan) (joints ['a', 'b'])",
+        ),
+    ]
+
+
+def test_a_mujoco_step_waits_for_the_answer_at_most_effort_wait_s() -> None:
+    log, clock = Log(), Clock()
+    held = HeldEffort(["a"], "effort_controller/commands", log, clock)
+    waits: list[float] = []
+
+    def silent(timeout_s: float) -> None:
+        waits.append(timeout_s)
+        clock.now += min(timeout_s, 0.02)  # a wait that ends early (another message came), then the rest
+
+    started = clock.now
+    held.wait_for_answer(silent)
+    assert clock.now - started == pytest.approx(EFFORT_WAIT_S)
+    assert waits == pytest.approx([0.05, 0.03, 0.01])
+    started = clock.now
+    held.wait_for_answer(lambda timeout_s: held.offer([3.0]))  # an answer at once: no further wait
+    assert clock.now == started and held.command[0] == 3.0
+
+
+def test_periodic_says_due_once_per_period() -> None:
+    clock = Clock()
+    due = Periodic(0.5, clock).due
+    seen = []
+    for _ in range(12):
+        seen.append(due())
+        clock.now += 0.125  # exact in binary: the period's end is hit, not missed by rounding
+    assert seen == [True, False, False, False] * 3

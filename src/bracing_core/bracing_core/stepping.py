@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -31,6 +31,23 @@ from bracing_core.watch import RunWatch
 
 PROGRESS_PERIOD_S = 0.5
 """[s] wall between two progress lines (and run_status PROGRESS)."""
+EFFORT_WAIT_S = 0.05
+"""[s] wall: the longest a MuJoCo step waits for the controller's answer to the last state (``HeldEffort``)."""
+
+
+class Periodic:
+    """Whether ``period`` [s] of ``clock`` has passed since it last said so (the first time: yes)."""
+
+    def __init__(self, period: float, clock: Callable[[], float]) -> None:
+        self.period, self.clock = period, clock
+        self._next = 0.0
+
+    def due(self) -> bool:
+        now = self.clock()
+        if now < self._next:
+            return False
+        self._next = now + self.period
+        return True
 
 
 @dataclass(frozen=True)
@@ -121,7 +138,7 @@ class SimulatorStepper:
         self.max_residual = 0.0  # [m], over the run so far (contacts holding a force)
         self.refusal = ""  # why the last refused step was refused
         self.real_time_achieved = math.nan  # real-time stepping: sim time / wall time, once finished
-        self._next_progress = 0.0  # wall time of the next progress line
+        self.progress_due = Periodic(PROGRESS_PERIOD_S, clock).due  # a progress line
         self._events_logged = 0
         self._started = 0.0  # wall time real-time stepping started
         # What the run should be warned about (the in-process rollout says the same).
@@ -272,9 +289,7 @@ class SimulatorStepper:
         self.outlet.sent()
         self._take_events()
         self._watch_state(t_ns, d)
-        now = self.clock()
-        if now >= self._next_progress:
-            self._next_progress = now + PROGRESS_PERIOD_S
+        if self.progress_due():
             self.log.info(self.progress_line())
             self.outlet.progress(sim.time)
         return True
@@ -431,6 +446,40 @@ class SimulatorStepper:
         if self.config.stepping == "real_time":  # free_run asks for no pace
             self.say(self.watch.real_time(achieved, asked))
         self.finish()
+
+
+class HeldEffort:
+    """The MuJoCo robot's commands, as a mujoco_ros2_control robot with a JointGroupEffortController
+    takes them: one effort per joint (``joints`` order) held until a valid one replaces it (a wrong
+    length or a non-finite value refused, rate-limited); and its loop's wait: each state waits for the
+    controller's answer, at most ``EFFORT_WAIT_S`` (then the held command), so a slow machine slows the
+    run down instead of starving the controller."""
+
+    def __init__(self, joints: Sequence[str], topic: str, log: NodeLog, clock: Callable[[], float] = time.monotonic):
+        self.joints, self.topic, self.log, self.clock = list(joints), topic, log, clock
+        self.command = np.zeros(len(self.joints))  # held until a valid one replaces it
+        self.commands = 0  # valid commands taken so far
+
+    def offer(self, values: Sequence[float]) -> None:
+        """A Float64MultiArray's values: held, or refused with the reason."""
+        n = len(self.joints)
+        problem = None
+        if len(values) != n:
+            problem, kind = f"{len(values)} values for {n} joints", "length"
+        elif bad := [i for i, v in enumerate(values) if not math.isfinite(v)]:
+            problem, kind = f"non-finite value at index {bad[0]} ({values[bad[0]]})", "non-finite"
+        if problem is not None:
+            self.log.limited("error", kind, f"{self.topic} refused: {problem} (joints {self.joints})")
+            return
+        self.command = np.array(values, dtype=float)
+        self.commands += 1
+
+    def wait_for_answer(self, receive: Callable[[float], None]) -> None:
+        """Until a command has come since this call began, or EFFORT_WAIT_S of wall time;
+        ``receive(timeout)`` takes what comes within ``timeout`` [s] (to ``offer``)."""
+        seen, deadline = self.commands, self.clock() + EFFORT_WAIT_S
+        while self.commands == seen and self.clock() < deadline:
+            receive(max(0.0, deadline - self.clock()))
 
 
 def _finite(*arrays: Vector) -> bool:
