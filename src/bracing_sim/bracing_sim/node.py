@@ -2,7 +2,8 @@
 
 Wiring only: ROS parameters -> SimulatorConfig -> the core's Simulator and its stepping policy
 (``bracing_core.stepping.SimulatorStepper``: stamp matching, refusal and rollback, the watchdog, the
-warnings, the real-time pace); messages in are checked and handed to it, what it sends goes out here.
+warnings, the real-time pace); messages in are checked here and handed to it, what it sends goes out
+through ``bracing_sim.topics``.
 Lockstep (default): publish state k, wait for the command stamped with state k's stamp, step with it
 held. Real-time: a wall-clock timer steps with the latest command.
 """
