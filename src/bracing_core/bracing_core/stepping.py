@@ -131,7 +131,7 @@ class SimulatorStepper:
         sensing = config.sensors
         self.sensors = None if sensing.exact else sensing.engine(config.step, plant.robot.prismatic.tolist())
         self.drive = joint_command_drive(config, plant)
-        self.wrenches = len(config.shared.contacts)  # the configured contacts, first in the contact set
+        self.wrench_count = len(config.shared.contacts)  # the configured contacts, first in the contact set
         self.command = np.zeros(sim.n)  # last applied (held) command
         self.pending: dict[int, Vector] = {}  # lockstep: valid commands by stamp [ns]
         self.latest_command: tuple[float, Vector] | None = None  # real-time: (wall time, command)
@@ -334,7 +334,7 @@ class SimulatorStepper:
         terms, sensors = d.contacts, self.sensors
         active = d.active if d.active is not None else np.ones(terms.count, dtype=bool)
         wrenches = []
-        for j in range(min(terms.count, self.wrenches)):
+        for j in range(min(terms.count, self.wrench_count)):
             force = float(d.normal_force[j]) * terms.normals[j] + d.tangential_force[j]
             wrenches.append(sensors.force(force, terms.normals[j]) if sensors is not None else force)
         n = self.sim.n
