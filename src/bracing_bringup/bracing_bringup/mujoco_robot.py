@@ -13,18 +13,16 @@ it on run_status as it follows our simulator (``bracing-pair --engine mujoco``).
 Stepping: MuJoCo at ``step`` with the latest command held. Like mujoco_ros2_control's loop (read, the
 controllers' update, write, mj_step in one thread) each state waits for the controller's answer, here
 over DDS: a step is taken once a command has come since the state before it, or after
-``COMMAND_WAIT_S`` of wall time without one (then with the held command), so a slow machine slows the
-run down instead of starving the controller.
+``EFFORT_WAIT_S`` of wall time without one (then with the held command), so a slow machine slows the
+run down instead of starving the controller. That policy is ROS-free: ``bracing_core.stepping.HeldEffort``.
 """
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 from functools import partial
 
-import numpy as np
 from geometry_msgs.msg import WrenchStamped
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -36,9 +34,14 @@ from std_msgs.msg import Float64MultiArray, String
 from bracing_bringup.mujoco_plant import MujocoRobot
 from bracing_core import schema
 from bracing_core.config import SimulatorConfig
+from bracing_core.stepping import PROGRESS_PERIOD_S, HeldEffort, Periodic
 from bracing_msgs.msg import RunStatus
 from bracing_ros import parameters, wire
-from bracing_ros.common import STREAM_QOS, AckWindow, RateLimitedLog, create_waking_publisher, run, wait_until
+from bracing_ros.ack_window import AckWindow
+from bracing_ros.matching import create_waking_publisher, wait_until
+from bracing_ros.node_log import RosNodeLog
+from bracing_ros.node_main import run
+from bracing_ros.qos import STREAM_QOS
 from bracing_ros.status import StatusPublisher
 
 COMMAND_TOPIC = "effort_controller/commands"
@@ -52,15 +55,6 @@ DESCRIPTION_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )  # fmt: skip
-COMMAND_WAIT_S = 0.05  # [s] wall: the longest a step waits for the controller's answer to the last state
-
-
-def command_error(values: list[float], n: int) -> str | None:
-    """Why a Float64MultiArray's values cannot be ``n`` joint efforts (None: they can)."""
-    if len(values) != n:
-        return f"{len(values)} values for {n} joints"
-    bad = [i for i, v in enumerate(values) if not math.isfinite(v)]
-    return f"non-finite value at index {bad[0]} ({values[bad[0]]})" if bad else None
 
 
 class MujocoRobotNode(Node):
@@ -85,13 +79,12 @@ class MujocoRobotNode(Node):
         self.joint_wire = wire.JointStateEncoder(self.joint_names)
         self.clock_wire = wire.ClockEncoder()
         self.wrench_wire = wire.WrenchStampedEncoder("world")
-        self.command = np.zeros(len(self.joint_names))  # held until a valid one replaces it
-        self.commands = 0  # valid commands taken so far
         self.command_sub = self.create_subscription(Float64MultiArray, COMMAND_TOPIC, self.on_command, COMMAND_QOS)
-        self.report = RateLimitedLog(self, self.config.log_throttle_period)
         self.status = StatusPublisher(self)
-        self._next_progress = 0.0
-        self.get_logger().info(
+        self.log = RosNodeLog(self, self.status, self.config.log_throttle_period)
+        self.held = HeldEffort(self.joint_names, COMMAND_TOPIC, self.log)
+        self.progress_due = Periodic(PROGRESS_PERIOD_S, time.monotonic).due
+        self.log.info(
             f"MuJoCo {self.robot.version}: {len(self.joint_names)} joints {self.joint_names}, contacts "
             f"{self.robot.contacts or 'none'}, step {self.config.step} s, "
             f"duration {self.config.duration or 'unbounded'} s"
@@ -99,33 +92,23 @@ class MujocoRobotNode(Node):
         self.status.say(RunStatus.CONFIGURED, 0.0)
 
     def on_command(self, msg: Float64MultiArray) -> None:
-        """Hold a valid effort command; refuse (rate-limited error) a wrong length or a non-finite value."""
-        values = [float(v) for v in msg.data]
-        problem = command_error(values, len(self.joint_names))
-        if problem is not None:
-            kind = "length" if problem.endswith("joints") else "non-finite"
-            self.report("error", kind, f"{COMMAND_TOPIC} refused: {problem} (joints {self.joint_names})")
-            return
-        self.command = np.array(values)
-        self.commands += 1
+        self.held.offer([float(v) for v in msg.data])
 
     def publish_state(self) -> None:
         """joint_states (effort: the held command), /clock, then each contact's wrench, at MuJoCo's time."""
         t_ns = self.steps * self.step_ns
         position, velocity = self.robot.state()
-        self.joint_pub.publish(self.joint_wire.encode(t_ns, position, velocity, self.command))
+        self.joint_pub.publish(self.joint_wire.encode(t_ns, position, velocity, self.held.command))
         self.clock_pub.publish(self.clock_wire.encode(t_ns))
         for pub, force in zip(self.wrench_pubs, self.robot.contact_forces(), strict=True):
             pub.publish(self.wrench_wire.encode(t_ns, force))
         self.flow.sent()
 
     def advance(self) -> None:
-        self.robot.step(self.command)
+        self.robot.step(self.held.command)
         self.steps += 1
         self.publish_state()
-        now = time.monotonic()
-        if now >= self._next_progress:
-            self._next_progress = now + 0.5
+        if self.progress_due():
             self.status.say(RunStatus.PROGRESS, self.steps * self.config.step)
 
     def done(self) -> bool:
@@ -165,9 +148,7 @@ def spin(node: MujocoRobotNode) -> int:
         node.status.say(RunStatus.STEPPING, 0.0)
         node.publish_state()
         while not node.done():
-            seen, deadline = node.commands, time.monotonic() + COMMAND_WAIT_S
-            while node.commands == seen and time.monotonic() < deadline:
-                executor.spin_once(timeout_sec=max(0.0, deadline - time.monotonic()))
+            node.held.wait_for_answer(lambda timeout_s: executor.spin_once(timeout_sec=timeout_s))
             node.advance()
         node.finish()
     except (KeyboardInterrupt, ExternalShutdownException):

@@ -13,9 +13,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.subscription import Subscription
 
-from bracing_core.checks import frame_reach
-from bracing_core.law import DecoupledController
-from bracing_core.targets import TargetError, TaskSpec, TaskTargets
+from bracing_core.targets import TargetError, TaskTargets
 from bracing_ros.waiter import SubscriptionWaiter
 
 TARGET_QOS = QoSProfile(
@@ -25,22 +23,6 @@ TARGET_QOS = QoSProfile(
     durability=DurabilityPolicy.VOLATILE,
 )
 """What a script, RViz or MoveIt publishes by default (reliable); a transient-local publisher matches it too."""
-
-
-def task_targets(law: DecoupledController) -> TaskTargets:
-    """The targets of the law's tasks (the hand, then each braced contact), with their reach."""
-    config, plant = law.config, law.plant
-    specs = [
-        TaskSpec(
-            "hand_target",
-            config.hand.axes,
-            frame_reach(plant.robot.model, plant.frame_id(config.hand.frame, "hand.frame")),
-        )
-    ]
-    for c in config.shared.braced_contacts:
-        reach = frame_reach(plant.robot.model, plant.frame_id(c.frame, f"contacts.{c.name}.frame"))
-        specs.append(TaskSpec(f"brace_target/{c.name}", c.brace_axes, reach))
-    return TaskTargets(specs, config.target_max_velocity, config.target_max_acceleration)
 
 
 def _seconds(stamp: object) -> float:

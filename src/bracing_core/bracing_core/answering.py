@@ -1,0 +1,245 @@
+"""The controller node's policy, without ROS: how one joint state becomes the law's answer.
+
+Per state: a joint state that cannot be answered (lengths, a joint missing, not finite, a stamp out of
+``builtin_interfaces/Time``) is refused with a rate-limited report; a retune takes effect; the force
+and temperature reports of the step before wait briefly (``Measurements``, ``MEASUREMENT_WAIT_S``); the
+targets that came are fed to the law (``TaskTargets``); the law's failure or a non-finite output
+refuses the state; a damped inverse is reported; every ``NULL_SPACE_CHECK_EVERY`` states the null
+space's speed is looked at, and a runaway said once (log and run_status). What it says goes through a
+``NodeLog``; the messages that come in while it waits are taken by an injected ``receive``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from bracing_core import schema
+from bracing_core.checks import configuration_warnings, desired_force_warning, frame_reach, null_space_warning
+from bracing_core.controller_config import ControllerConfig
+from bracing_core.kinematics import WORLD_FRAME
+from bracing_core.law import ControlOutput, DecoupledController
+from bracing_core.measurements import Measurements
+from bracing_core.node_log import NodeLog
+from bracing_core.params import ConfigError
+from bracing_core.targets import TaskSpec, TaskTargets
+from bracing_core.types import Vector
+
+STAMP_RANGE_NS = (-(2**31) * 1_000_000_000, 2**31 * 1_000_000_000)
+"""The stamps an answer can carry (builtin_interfaces/Time: int32 seconds)."""
+NULL_SPACE_CHECK_EVERY = 20
+"""States between two looks at the null space's speed (1 us each in the engine; a runaway lasts 100s of steps)."""
+MEASUREMENT_WAIT_S = 0.5
+"""[s] wall: how long a state waits for the force and temperature reports of the step before it
+(``Measurements``); past it the state is answered with the latest ones, and a warning says which lagged."""
+
+
+class StateError(ValueError):
+    """A joint_states message the controller cannot use."""
+
+
+def joint_vectors(
+    names: list[str], position: Vector, velocity: Vector, stamp_ns: int, joint_names: list[str]
+) -> tuple[Vector, Vector]:
+    """(q, dq) in ``joint_names`` order from a joint state's joints matched by name."""
+    if len(position) != len(names) or len(velocity) != len(names):
+        raise StateError(f"{len(names)} names, {len(position)} positions, {len(velocity)} velocities")
+    if names == joint_names:  # the simulator's order: nothing to match
+        q, dq = position, velocity
+    else:
+        if len(set(names)) != len(names):
+            raise StateError("duplicate joint names")
+        index = {name: k for k, name in enumerate(names)}
+        missing = [j for j in joint_names if j not in index]
+        if missing:
+            raise StateError(f"missing joints {missing}")
+        order = [index[j] for j in joint_names]
+        q, dq = position[order], velocity[order]
+    if not (np.isfinite(q).all() and np.isfinite(dq).all()):
+        raise StateError("non-finite position or velocity")
+    if not STAMP_RANGE_NS[0] <= stamp_ns < STAMP_RANGE_NS[1]:  # a nanosec field >= 1e9 can push it out
+        raise StateError(f"stamp {stamp_ns} ns cannot be answered (builtin_interfaces/Time: int32 seconds)")
+    return q, dq
+
+
+def task_targets(law: DecoupledController) -> TaskTargets:
+    """The targets of the law's tasks (the hand, then each braced contact), with their reach."""
+    config, plant = law.config, law.plant
+    specs = [
+        TaskSpec(
+            "hand_target",
+            config.hand.axes,
+            frame_reach(plant.robot.model, plant.frame_id(config.hand.frame, "hand.frame")),
+        )
+    ]
+    for c in config.shared.braced_contacts:
+        reach = frame_reach(plant.robot.model, plant.frame_id(c.frame, f"contacts.{c.name}.frame"))
+        specs.append(TaskSpec(f"brace_target/{c.name}", c.brace_axes, reach))
+    return TaskTargets(specs, config.target_max_velocity, config.target_max_acceleration)
+
+
+@dataclass(frozen=True)
+class Answer:
+    """The law's answer to the state stamped ``stamp_ns`` (motor_command and controller_state)."""
+
+    stamp_ns: int
+    output: ControlOutput
+    compute_time: float  # [s] wall, the law's update
+
+
+class StateAnswerer:
+    """The controller node's policy (see the module docstring). ``clock``: wall time [s], monotonic;
+    ``timer``: what the law's compute time is measured with."""
+
+    def __init__(
+        self,
+        config: ControllerConfig,
+        log: NodeLog,
+        clock: Callable[[], float] = time.monotonic,
+        timer: Callable[[], float] = time.perf_counter,
+    ) -> None:
+        self.config = config
+        self.law = DecoupledController(config)
+        self.log, self.clock, self.timer = log, clock, timer
+        self.joint_names = list(self.law.plant.joint_names)
+        self.measurements = Measurements.for_law(self.law)  # None: the law reads no measurement
+        self.targets = task_targets(self.law)
+        self.retuned: ControllerConfig | None = None  # applied at the next update
+        self.previous_ns: int | None = None  # the stamp of the last state answered (None: none yet)
+        self.null_space_warned = False
+        self.answers = 0  # states answered (the null-space watch samples them)
+
+    @property
+    def answered_ns(self) -> int:
+        """[ns] the stamp of the last state answered (0 before the first)."""
+        return 0 if self.previous_ns is None else self.previous_ns
+
+    def start(self) -> None:
+        """Say what the law does, and what looks wrong in its configuration (once, before the run)."""
+        contacts = [c.name for c in self.config.shared.braced_contacts]
+        self.log.info(
+            f"{self.config.shared.input_mode.value} output, contacts {contacts or 'none'}, "
+            f"task dimension {self.config.task_dimension}"
+        )
+        for warning in configuration_warnings(self.config, self.law.plant):
+            self.log.warning(warning)
+
+    # -- parameters -------------------------------------------------------------------
+    def retune(self, values: dict[str, Any], changes: Sequence[tuple[str, Any]]) -> str | None:
+        """Tunable parameters changed (``values``: all of them as they are; ``changes``: (name, value)):
+        validated as a whole configuration, applied from the next update, logged. Why not, if refused."""
+        for name, value in changes:
+            param = schema.find("controller", name)
+            if param is None or not param.tunable:
+                return f"{name}: cannot change while running"
+            values[name] = value
+        values["robot.urdf"] = str(self.config.shared.urdf)
+        try:
+            config = ControllerConfig.from_params(values)
+        except ConfigError as exc:
+            return str(exc)
+        self.retuned = config
+        self.log.info("retuned (from the next update): " + ", ".join(f"{name} = {value}" for name, value in changes))
+        changed = {name for name, _ in changes}
+        for contact in config.shared.braced_contacts:
+            if f"contacts.{contact.name}.desired_normal_force" in changed:
+                t = self.answered_ns * 1e-9
+                warning = desired_force_warning(contact.name, contact.desired_normal_force or 0.0, t)
+                if warning is not None:
+                    self.log.warning(warning)
+        return None
+
+    # -- measurements -----------------------------------------------------------------
+    def take_force(self, contact: str, stamp_ns: int, force: Vector, frame: str = WORLD_FRAME) -> None:
+        """A contact's measured force (contact_wrench/<contact>), kept unless refused."""
+        assert self.measurements is not None
+        problem = self.measurements.take_force(contact, stamp_ns, force, frame)
+        if problem is not None:
+            self.log.limited("error", "measurement", f"ignored: {problem}")
+
+    def take_temperature(self, stamp_ns: int, temperature: Vector) -> None:
+        """The windings' measured temperatures (motor_state), kept unless refused."""
+        assert self.measurements is not None
+        problem = self.measurements.take_temperature(stamp_ns, temperature, len(self.joint_names))
+        if problem is not None:
+            self.log.limited("error", "measurement", f"ignored: {problem}")
+
+    def measure(self, receive: Callable[[float], None]) -> None:
+        """Give the law the reports of the step before this state, waiting briefly for them.
+        ``receive(timeout)`` takes the reports that come within ``timeout`` [s] (to ``take_*``)."""
+        measurements = self.measurements
+        if measurements is None:
+            return
+        deadline = self.clock() + MEASUREMENT_WAIT_S
+        receive(0.0)
+        while not measurements.ready(self.previous_ns) and (left := deadline - self.clock()) > 0.0:
+            receive(min(left, 0.05))
+        if self.previous_ns is not None and not measurements.ready(self.previous_ns):
+            lagging = ", ".join(measurements.missing(self.previous_ns))
+            message = f"no report of the last step within {MEASUREMENT_WAIT_S} s: {lagging}"
+            self.log.limited("warning", "lagging", message)
+        measurements.apply(self.law)
+
+    # -- one state ----------------------------------------------------------------------
+    def read_state(
+        self, names: list[str], position: Vector, velocity: Vector, stamp_ns: int, refusal: tuple[str, str, str]
+    ) -> tuple[Vector, Vector] | None:
+        """(q, dq) of a joint state in the law's joint order, or None after reporting why it cannot be
+        answered; ``refusal``: (severity, verdict, what follows), e.g. ("error", "ignored", "")."""
+        try:
+            return joint_vectors(names, position, velocity, stamp_ns, self.joint_names)
+        except StateError as exc:
+            severity, verdict, then = refusal
+            self.log.limited(severity, str(exc).split(" ")[0], f"joint_states {verdict}: {exc}{then}")
+            return None
+
+    def answer(
+        self, stamp_ns: int, q: Vector, dq: Vector, receive: Callable[[float], None], send: Callable[[Answer], None]
+    ) -> None:
+        """The law's answer to the state (q, dq) stamped ``stamp_ns``, to ``send`` (the node's publishers),
+        unless the law fails on it or its output is not finite (then nothing is sent)."""
+        if self.retuned is not None:
+            self.law.retune(self.retuned)
+            self.config, self.retuned = self.retuned, None
+        t = stamp_ns * 1e-9
+        self.measure(receive)
+        self.follow_targets(t)
+        start = self.timer()
+        try:
+            out = self.law.update(t, q, dq)
+        except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:  # absurd but finite q, dq
+            self.log.limited("error", "law", f"joint_states at t = {t:.6f} s ignored: the law failed on it ({exc})")
+            return
+        compute_time = self.timer() - start
+        outputs = (out.command, out.hand_desired, out.hand_actual, out.desired_normal_force)
+        if not all(np.isfinite(v).all() for v in (*outputs, out.brace_desired, out.brace_actual)):
+            message = f"joint_states at t = {t:.6f} s ignored: the law's output is not finite"
+            self.log.limited("error", "command", message)
+            return
+        if out.damped:
+            self.log.limited("warning", "damped", "B is near-singular: using a damped inverse")
+        self.watch_null_space(out, dq, t)
+        send(Answer(stamp_ns, out, compute_time))
+        self.previous_ns = stamp_ns
+
+    def follow_targets(self, t: float) -> None:
+        """Feed the law each retargeted task's reference at t (hand_target, hand_path, brace_target/<contact>)."""
+        if not self.targets.goals or self.previous_ns is None:  # no target, or the law has no path start yet
+            return
+        for task, (position, velocity) in self.targets.advance(t, self.law.engine.path_sample).items():
+            self.law.engine.set_reference(task, position, velocity)
+
+    def watch_null_space(self, out: ControlOutput, dq: Vector, t: float) -> None:
+        """Every NULL_SPACE_CHECK_EVERY states, until said once: warn of joints running in the null space."""
+        self.answers += 1
+        if self.null_space_warned or self.answers % NULL_SPACE_CHECK_EVERY:
+            return
+        hand_error = float(np.linalg.norm(out.hand_desired - out.hand_actual))
+        warning = null_space_warning(self.law.null_space_speed(dq), hand_error, t)
+        if warning is not None:
+            self.null_space_warned = True
+            self.log.say([warning], t)  # the recorder keeps it for the summary, as the simulator's

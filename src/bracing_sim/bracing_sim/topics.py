@@ -1,0 +1,134 @@
+"""The simulator's topics out: its publishers, and what a step sends on them (the stepping policy's
+``StepOutlet``: ``bracing_core.stepping``). Messages travel as CDR bytes built by ``wire`` (rclpy's
+message classes cost more than the DDS write)."""
+
+from __future__ import annotations
+
+from functools import partial
+
+from geometry_msgs.msg import WrenchStamped
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+
+from bracing_core.config import Plant, SimulatorConfig
+from bracing_core.sensing import GROUND_TRUTH
+from bracing_core.stepping import StateOut, StepOut
+from bracing_msgs.msg import Contacts, MotorState, RunStatus
+from bracing_ros import wire
+from bracing_ros.ack_window import AckWindow
+from bracing_ros.matching import create_waking_publisher
+from bracing_ros.qos import STREAM_QOS
+from bracing_ros.status import StatusPublisher
+
+DESCRIPTION_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+"""robot_description as robot_state_publisher offers it: one message, kept for late subscribers."""
+
+JOINT_COMMANDS_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+"""robot_joint_commands / robot_joint_states, as ros-controls/topic_based_hardware_interfaces'
+joint_state_topic_hardware_interface/src/joint_state_topic_hardware_interface.cpp has them: its
+commands go out with rclcpp::QoS(1) (reliable, volatile, depth 1), one JointState with every joint's
+name in its own order and only the declared command interfaces filled (here `effort`), unless
+trigger_joint_command_threshold holds them back; it reads the state with SensorDataQoS (best effort,
+the latest message kept), joints matched by name, only finite position/velocity/effort used. A
+reliable subscription matches its publisher, a reliable publisher its best-effort reader."""
+
+
+class SimulatorTopics:
+    """The simulator node's publishers and encoders; a ``StepOutlet``."""
+
+    def __init__(self, node: Node, config: SimulatorConfig, plant: Plant, status: StatusPublisher) -> None:
+        joint_names = list(plant.joint_names)
+        publisher = partial(create_waking_publisher, node)  # the lockstep wait wakes on each match
+        self.joint_pub = publisher(JointState, "joint_states", STREAM_QOS)
+        self.contacts_pub = publisher(Contacts, "contacts", STREAM_QOS)
+        self.motor_pub = publisher(MotorState, "motor_state", STREAM_QOS)
+        self.clock_pub = publisher(Clock, "/clock", STREAM_QOS)
+        # A wrench topic per configured contact (the contact set lists them first); the contacts a
+        # collision frame adds are reported in `contacts` only.
+        self.wrench_pubs = [
+            publisher(WrenchStamped, f"contact_wrench/{c.name}", STREAM_QOS) for c in config.shared.contacts
+        ]
+        # The URDF loaded, as simulated (each locked joint a fixed joint at its locked position; the
+        # URDF itself when none is locked), latched: robot_state_publisher, RViz, Foxglove and the
+        # recorder get it whenever they join, and with joint_states (the moving joints) pose the
+        # links where the simulator has them.
+        self.description_pub = publisher(String, "robot_description", DESCRIPTION_QOS)
+        # With sensors that are not exact (sensors.*) what the controller receives is measured; the truth goes out too.
+        self.truth_pubs: list[Publisher] = []
+        if not config.sensors.exact:
+            self.truth_pubs = [
+                publisher(JointState, GROUND_TRUTH + "joint_states", STREAM_QOS),
+                publisher(MotorState, GROUND_TRUTH + "motor_state", STREAM_QOS),
+            ]
+        self.joint_command_pubs: list[Publisher] = []  # joint_commands: the ros2_control side's state topic
+        if config.command_source == "joint_commands":
+            self.joint_command_pubs = [node.create_publisher(JointState, config.joint_states_topic, JOINT_COMMANDS_QOS)]
+        contacts = plant.contact_set.contacts
+        self.joint_wire, self.clock_wire = wire.JointStateEncoder(joint_names), wire.ClockEncoder()
+        self.wrench_wire = wire.WrenchStampedEncoder("world")
+        self.contacts_wire = wire.ContactsEncoder([c.name for c in contacts], [c.frame for c in contacts])
+        self.motor_wire = wire.MotorStateEncoder(joint_names)
+        # robot_description too: a short run could otherwise end before the recorder has it.
+        self.data_pubs = [self.joint_pub, self.contacts_pub, self.motor_pub, self.clock_pub, *self.wrench_pubs]
+        self.data_pubs += [self.description_pub, *self.truth_pubs]
+        self.flow = AckWindow(node, self.data_pubs, STREAM_QOS.depth)
+        self.status = status  # what bracing-pair follows (not a data topic: not in data_pubs)
+
+    def publish_description(self, description: str) -> None:
+        self.description_pub.publish(String(data=description))
+
+    def publish_state(self, state: StateOut) -> None:
+        t_ns = state.t_ns
+        truth = self.joint_wire.encode(t_ns, state.position, state.velocity, state.effort)
+        if state.measured is None:
+            self.joint_pub.publish(truth)
+        else:
+            self.joint_pub.publish(self.joint_wire.encode(t_ns, *state.measured, state.effort))
+            self.truth_pubs[0].publish(truth)
+        for pub in self.joint_command_pubs:  # the ros2_control face: the full truth, as a robot's driver gives it
+            pub.publish(truth)
+        self.clock_pub.publish(self.clock_wire.encode(t_ns))
+
+    def publish_step(self, step: StepOut) -> None:
+        t_ns, d = step.t_ns, step.forces
+        for pub, force in zip(self.wrench_pubs, step.wrenches, strict=True):
+            pub.publish(self.wrench_wire.encode(t_ns, force))  # at the contact point: no moment
+        terms = d.contacts
+        reports = [
+            wire.ContactReport(
+                active=bool(step.active[j]),
+                position=terms.positions[j],
+                normal=terms.normals[j],
+                normal_force=float(d.normal_force[j]),
+                friction_force=float(d.friction_force[j]),
+                slip_velocity=terms.slip_velocity[j],
+                residual=float(terms.residual[j]),
+            )
+            for j in range(terms.count)
+        ]
+        self.contacts_pub.publish(self.contacts_wire.encode(t_ns, reports))
+        motor = (step.voltage, step.current, step.power, step.energies, step.temperature)
+        self.motor_pub.publish(self.motor_wire.encode(t_ns, *motor))
+        if self.truth_pubs:
+            truth = (step.voltage, step.true_current, step.power, step.energies, step.temperature)
+            self.truth_pubs[1].publish(self.motor_wire.encode(t_ns, *truth))
+
+    def sent(self) -> None:
+        self.flow.sent()
+
+    def progress(self, t: float) -> None:
+        self.status.say(RunStatus.PROGRESS, t)
