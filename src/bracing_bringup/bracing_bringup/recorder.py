@@ -211,6 +211,7 @@ class Recorder(Node):
         super().__init__(RECORDER_NODE, namespace=namespace)
         self.writer = writer
         self.typestore = typestore
+        self._contacts = list(contacts)
         self.counts: dict[str, int] = {}
         self.received = 0
         self.derived = 0
@@ -218,6 +219,19 @@ class Recorder(Node):
         self.last_receive = time.monotonic()
         self._connections: dict[Subscription, Connection] = {}
         self._roles: dict[Subscription, str] = {}  # what the scene makes of a subscription's messages
+        self._subscribe_recorded(contacts, ground_truth)
+        self._subscribe_events()
+        self._sim_time_ns = 0  # the last /clock recorded: when a target arrived, on the bag's time axis
+        self._waiter = SubscriptionWaiter(self, [*self._connections, self._events, self._status, *self._targets])
+        self.scene = SceneBuilder(typestore, contacts, shapes) if scene else None
+        self._scene_inputs: deque[tuple[str, bytes]] = deque()
+        self._scene_roles = {"joint_states", "contacts", "description", *(f"contact_wrench/{c}" for c in contacts)}
+        self._scene_connections: dict[str, Connection] = {}
+        if scene:
+            self._add_scene_connections(contacts)
+
+    def _subscribe_recorded(self, contacts: Sequence[str], ground_truth: bool) -> None:
+        """The recorded topics, each with its bag connection from the start."""
         table = [
             (topic, msg_type, type_name, topic) for topic, msg_type, type_name in topic_table(contacts, ground_truth)
         ]
@@ -228,50 +242,48 @@ class Recorder(Node):
             sub = self.create_subscription(msg_type, topic, _never_called, RECORD_QOS, raw=True)
             resolved = sub.topic_name
             qos = [LATCHED] if role == "description" else []
-            self._connections[sub] = writer.add_connection(
-                resolved, type_name, typestore=typestore, offered_qos_profiles=qos
+            self._connections[sub] = self.writer.add_connection(
+                resolved, type_name, typestore=self.typestore, offered_qos_profiles=qos
             )
             self._roles[sub] = role
             self.counts[resolved] = 0
-        # The controller's parameter changes, on rclpy's volatile topic (see ``_record_event``); the bag
-        # gets the topic with the first change (a run without any has none).
+
+    def _subscribe_events(self) -> None:
+        """Parameter changes, run_status and the targets: each topic enters the bag with its first message."""
+        # The controller's parameter changes, on rclpy's volatile topic (see ``_record_event``); a run
+        # without any has no such topic.
         self._events = self.create_subscription(
             ParameterEvent, PARAMETER_EVENTS_TOPIC, _never_called, PARAMETER_EVENTS_QOS, raw=True
         )
         self._events_connection: Connection | None = None
         self._roles[self._events] = "parameter_events"
         self._controller = self.resolve_topic_name(CONTROLLER_NODE)  # its fully qualified name
-        # The run's warnings, from run_status (see ``_record_status``); the bag gets the topic with the first.
+        # The run's warnings, from run_status (see ``_record_status``).
         self._status = self.create_subscription(RunStatus, STATUS_TOPIC, _never_called, STATUS_QOS, raw=True)
         self._status_connection: Connection | None = None
         self._roles[self._status] = "run_status"
         self.simulator_heard = False  # a simulator speaks on run_status (its CONFIGURED is kept for late subscribers)
         self.simulator_finished = False  # its FINISHED status came: nothing more from it
-        # The targets, likewise: each topic enters the bag with its first message.
         self._targets: dict[Subscription, str] = {}
         self._target_connections: dict[Subscription, Connection] = {}
-        for topic, type_name in target_topics(contacts):
+        for topic, type_name in target_topics(self._contacts):
             sub = self.create_subscription(
                 _TARGET_TYPES[type_name], topic, _never_called, PARAMETER_EVENTS_QOS, raw=True
             )
             self._targets[sub] = type_name
             self._roles[sub] = "target"
-        self._sim_time_ns = 0  # the last /clock recorded: when a target arrived, on the bag's time axis
-        self._waiter = SubscriptionWaiter(self, [*self._connections, self._events, self._status, *self._targets])
-        self.scene = SceneBuilder(typestore, contacts, shapes) if scene else None
-        self._scene_inputs: deque[tuple[str, bytes]] = deque()
-        self._scene_roles = {"joint_states", "contacts", "description", *(f"contact_wrench/{c}" for c in contacts)}
-        self._scene_connections: dict[str, Connection] = {}
-        if scene:
-            for key, (topic, type_name) in SCENE_TOPICS.items():
-                if key == "contact_markers" and not contacts:
-                    continue  # nothing to mark
-                resolved = self.resolve_topic_name(topic)
-                qos = [LATCHED] if key == "tf_static" else []
-                self._scene_connections[key] = writer.add_connection(
-                    resolved, type_name, typestore=typestore, offered_qos_profiles=qos
-                )
-                self.counts[resolved] = 0
+
+    def _add_scene_connections(self, contacts: Sequence[str]) -> None:
+        """/tf, /tf_static and the contact markers the recorder derives."""
+        for key, (topic, type_name) in SCENE_TOPICS.items():
+            if key == "contact_markers" and not contacts:
+                continue  # nothing to mark
+            resolved = self.resolve_topic_name(topic)
+            qos = [LATCHED] if key == "tf_static" else []
+            self._scene_connections[key] = self.writer.add_connection(
+                resolved, type_name, typestore=self.typestore, offered_qos_profiles=qos
+            )
+            self.counts[resolved] = 0
 
     def record(self, timeout_sec: float) -> int:
         """Write every message available now, waiting up to ``timeout_sec``; the count written."""
