@@ -279,6 +279,20 @@ def test_free_run_has_no_pace_and_no_pace_warning() -> None:
     assert not any("real time" in w for w, _ in log.said)
 
 
+def test_free_run_steps_with_the_latest_motor_command_and_keeps_no_other() -> None:
+    """free_run holds the latest command as real_time does (before: it kept every command by stamp for
+    a lockstep step that never came, stepped with zero and grew without bound)."""
+    core, _, _, _ = stepper(stepping="free_run", duration=0.002)
+    twin, *_ = stepper()
+    core.start_real_time()
+    for k in range(50):
+        core.offer(k, U * (k + 1) / 50, False)
+    core.tick()
+    twin.advance(U)
+    assert snapshot(core) == snapshot(twin)
+    assert core.pending == {}
+
+
 def test_joint_commands_in_voltage_mode_go_through_the_drive_which_a_refused_step_does_not_advance() -> None:
     core, _, _, _ = stepper(stepping="real_time", command_source="joint_commands")
     assert core.drive is not None and core.effort_limit == 0.0

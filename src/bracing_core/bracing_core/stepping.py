@@ -235,10 +235,10 @@ class SimulatorStepper:
             return
         if saturated:  # said only of a command that is applied
             self.warn_first("saturated", f"motor_command saturated to +/-{self.limit}")
-        if self.config.stepping == "real_time":
-            self.latest_command = (self.clock(), command)
-        else:
+        if self.config.stepping == "lockstep":
             self.pending[stamp_ns] = command
+        else:  # real_time and free_run hold the latest
+            self.latest_command = (self.clock(), command)
 
     @property
     def effort_limit(self) -> float:
