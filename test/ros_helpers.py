@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import contextlib
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -66,10 +68,24 @@ def start(argv: list[str], env: dict[str, str]) -> subprocess.Popen[str]:
 
 
 def run(argv: list[str], env: dict[str, str] | None = None, timeout: float = 60) -> subprocess.CompletedProcess[str]:
-    """Run to completion in an isolated domain, capturing stdout and stderr apart."""
-    return subprocess.run(
-        argv, env=env or isolated_env(), capture_output=True, text=True, timeout=timeout, cwd=REPO_ROOT
+    """Run to completion in an isolated domain, capturing stdout and stderr apart. Past ``timeout`` the
+    process is asked for every thread's stack (SIGUSR1: faulthandler in bracing-pair, the nodes and the
+    recorder), killed, and the test fails with what it printed: a hang says where it hung."""
+    process = subprocess.Popen(
+        argv, env=env or isolated_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO_ROOT
     )
+    try:
+        stdout, stderr = process.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        process.send_signal(signal.SIGUSR1)
+        time.sleep(2.0)
+        process.kill()
+        stdout, stderr = process.communicate()
+        raise AssertionError(
+            f"{argv[:3]} did not finish in {timeout:g} s; its output, then its threads' stacks:\n"
+            f"{stdout[-5000:]}\n{stderr[-20000:]}"
+        ) from None
+    return subprocess.CompletedProcess(argv, process.returncode, stdout, stderr)
 
 
 def drive(

@@ -21,6 +21,8 @@ This module is the command line; the run's plan is ``run_plan``, its supervision
 from __future__ import annotations
 
 import argparse
+import faulthandler
+import signal
 import sys
 import time
 from collections.abc import Sequence
@@ -125,6 +127,7 @@ def parse_args(argv: Sequence[str] | None) -> RunOptions:
 def main(argv: Sequence[str] | None = None) -> int:
     options = parse_args(argv)
     options.command_start = process_start_time()  # the timeline counts the interpreter's start too
+    faulthandler.register(signal.SIGUSR1, all_threads=True)  # kill -USR1 PID: every thread's stack, for a hang
     try:
         result = run_pair(options)
     except ConfigError as exc:

@@ -601,6 +601,7 @@ def _close(writer: Writer, node: Recorder | None, status: StatusPublisher | None
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the recorder until SIGINT/SIGTERM; returns the exit code."""
     faulthandler.enable()  # a crash in native code (DDS, pinocchio) leaves its Python stack on stderr
+    faulthandler.register(signal.SIGUSR1, all_threads=True)  # kill -USR1 PID: every thread's stack, for a hang
     full = list(sys.argv[1:] if argv is None else argv)
     args = _parse(remove_ros_args(["recorder", *full])[1:])
     contacts = [c.strip() for c in args.contacts.split(",") if c.strip()]

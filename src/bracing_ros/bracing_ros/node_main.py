@@ -30,6 +30,7 @@ def _interrupt(signum: int, frame: object) -> None:
 def run(node_factory: Callable[[], Node], spin: Callable[[Node], int], args: list[str] | None = None) -> int:
     """Create the node, spin it, and turn start-up errors into one clear line and exit 2."""
     faulthandler.enable()  # a crash in native code (DDS, pinocchio) leaves its Python stack in the node's log
+    faulthandler.register(signal.SIGUSR1, all_threads=True)  # kill -USR1 PID: every thread's stack, for a hang
     code = 0
     node: Node | None = None
     try:
