@@ -141,7 +141,11 @@ def controller_latency_us(updates: int = 3000) -> dict[str, float]:
         out = controller.update(t, q, dq)
         samples[k] = (time.perf_counter() - start) * 1e6
         sim.step(out.command)
-    return {"p50": float(np.percentile(samples, 50)), "p99": float(np.percentile(samples, 99))}
+    return {
+        "p50": float(np.percentile(samples, 50)),
+        "p99": float(np.percentile(samples, 99)),
+        "mean": float(samples.mean()),
+    }
 
 
 def chain_scenario(n: int, p: int) -> Any:
@@ -238,11 +242,12 @@ def pair_run(duration: float, *extra: str) -> dict[str, Any]:
     }
 
 
-def pair_without_recorder(duration: float = 10.0) -> float:
-    """The two nodes alone in lockstep (no recorder: the simulator waits for the controller only);
-    the stepping real-time factor, measured as in ``pair_run``. Side by side with the pair, it
-    gives the recorder's share of a step."""
+def pair_without_recorder(duration: float = 10.0) -> dict[str, Any]:
+    """The two nodes alone in lockstep (no recorder: the simulator waits for the controller only):
+    the stepping real-time factor, measured as in ``pair_run`` (side by side with the pair, it gives
+    the recorder's share of a step), and each node's per-step work from its log (step_timing)."""
     from bracing_bringup.domains import hold_domain
+    from bracing_core.step_timing import read_work_line
     from bracing_ros.status import Status, StatusWatcher
 
     out = scratch("bench_nodes_")
@@ -287,7 +292,34 @@ def pair_without_recorder(duration: float = 10.0) -> float:
                 watcher.stop()
     if code != 0:
         raise RuntimeError(f"the simulator failed: {(out / 'simulator.log').read_text()[-2000:]}")
-    return duration / (simulator["finished"] - simulator["stepping"])
+    work = {name: read_work_line((out / f"{name}.log").read_text()) for name in ("simulator", "controller")}
+    missing = [name for name, line in work.items() if line is None]
+    if missing:
+        raise RuntimeError(f"no per-step work line in the {' and '.join(missing)} log ({out})")
+    return {"real_time_factor": duration / (simulator["finished"] - simulator["stepping"]), "work": work}
+
+
+def step_breakdown_us(
+    pair_rtf: float, bare: list[dict[str, Any]], engine_us: float, law_us: float, bound_round_trip_us: float
+) -> dict[str, float]:
+    """Where a lockstep step's wall time goes [us per 1 ms step]: each node's work from its own log
+    (the bare runs, medians), minus the engine's and the law's in-process cost, the rest of the round
+    trip (DDS both ways and the wake-ups), and what the recorder adds (the recorded pair against the
+    bare one). The parts add up to ``step``."""
+    bare_step = 1e3 / statistics.median(run["real_time_factor"] for run in bare)
+    sim_work = statistics.median(run["work"]["simulator"]["mean"] for run in bare)
+    ctl_work = statistics.median(run["work"]["controller"]["mean"] for run in bare)
+    step = 1e3 / pair_rtf
+    return {
+        "step": step,
+        "simulator_node": sim_work - engine_us,
+        "engine": engine_us,
+        "controller_node": ctl_work - law_us,
+        "law": law_us,
+        "dds_round_trip": bare_step - sim_work - ctl_work,
+        "recorder": step - bare_step,
+        "dds_bound_round_trip": bound_round_trip_us,  # for comparison: not a part of the sum
+    }
 
 
 def make_run(duration: float | None = None) -> dict[str, Any]:
@@ -431,10 +463,10 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
     duration = TINY_RUN_S if quick else 10.0
     print(f"pair ({duration:g} s of sim time), with and without the recorder, alternately ...", flush=True)
     pair_runs: list[dict[str, Any]] = []
-    bare_rtf: list[float] = []
+    bare_runs: list[dict[str, Any]] = []
     for _ in range(1 if quick else 2):
         pair_runs.append(pair_run(duration))
-        bare_rtf.append(pair_without_recorder(duration))
+        bare_runs.append(pair_without_recorder(duration))
     measure_bounds("dds bound again ...")
     print(f"turnaround: bracing-pair --duration {TINY_RUN_S:g}, and make run ...", flush=True)
     # Quick: the pair runs above are already `bracing-pair --duration 0.01` runs.
@@ -443,7 +475,7 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
     pair = {key: statistics.median(run[key] for run in pair_runs) for key in pair_runs[0] if key != "events"}
     pair["stepping"] = pair["stepping_real_time_factor"]
     pair["whole_run"] = duration / pair["whole_run_s"]
-    without_recorder = statistics.median(bare_rtf)
+    without_recorder = statistics.median(run["real_time_factor"] for run in bare_runs)
     # Per 1 ms step: wall time with the recorder vs without it.
     recorder_share = 1.0 - pair["stepping"] / without_recorder
     tiny_command = statistics.median(run["command_s"] for run in tiny)
@@ -455,6 +487,7 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
     optimize_rate = optimize_trials_per_min(4, 0.01) if quick else optimize_trials_per_min()
     bound = statistics.mean(run["round_trips_per_s"] for run in bound_runs) * step
     bound_objects = statistics.mean(run["round_trips_per_s"] for run in objects_runs) * step
+    breakdown = step_breakdown_us(pair["stepping"], bare_runs, 1e6 / engine, latency["mean"], 1e3 / bound)
     result = {
         "quick": quick,
         "engine_steps_per_s": engine,
@@ -498,6 +531,8 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
         "dds_bound_objects_before_after": [run["round_trips_per_s"] * step for run in objects_runs],
         "controller_update_us_p50": latency["p50"],
         "controller_update_us_p99": latency["p99"],
+        "pair_step_breakdown_us": breakdown,
+        "node_work_us": [run["work"] for run in bare_runs],
         "scaling": scale,
         "sweep_runs_per_min": sweep["runs_per_min"],
         "sweep_parallel_efficiency": sweep["parallel_efficiency"],
@@ -532,6 +567,8 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
         ("pair / bound", f"{result['pair_vs_bound']:.3f}"),
         ("DDS bound with rclpy message objects (for comparison)", f"{bound_objects:.2f}"),
         ("controller update p50 / p99 [us]", f"{latency['p50']:.1f} / {latency['p99']:.1f}"),
+        ("a lockstep step [us per 1 ms step], where it goes:", f"{breakdown['step']:.0f}"),
+        *((f"  {part.replace('_', ' ')}", f"{us:.1f}") for part, us in breakdown.items() if part != "step"),
     ]
     for p in (1, 2):
         s = scale[f"p{p}"]

@@ -49,6 +49,7 @@ SPEC_KEYS = (
     "simulator_step_us",
     "pair_real_time_factor_no_recorder",
     "optimize_trials_per_min",
+    "pair_step_breakdown_us",
 )
 # What the bench's table and the docs' Performance page (docs/results/performance.md) report besides.
 REPORTED_KEYS = (
@@ -130,3 +131,11 @@ def test_quick_bench_produces_every_key(tmp_path: Path) -> None:
         assert "cost_exponent" in result["scaling"][p]
     assert set(result["sweep_runs_per_min"]) == {"local_1", "local_2", "dask_local_2"}
     assert result["make_run_runs"] == [run.name for run in RUNS]  # every run of make run timed
+    # Where a step goes: every part, each node's work read from its own log, and the parts add up.
+    parts = result["pair_step_breakdown_us"]
+    named = ("simulator_node", "engine", "controller_node", "law", "dds_round_trip", "recorder")
+    assert set(parts) == {"step", "dds_bound_round_trip", *named}
+    assert math.isclose(sum(parts[name] for name in named), parts["step"], rel_tol=1e-9)
+    for work in result["node_work_us"]:
+        for node in ("simulator", "controller"):
+            assert work[node]["steps"] >= 1 and 0 < work[node]["p50"] <= work[node]["p99"]

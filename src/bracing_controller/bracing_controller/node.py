@@ -26,6 +26,7 @@ from bracing_controller.targets import TargetTopics
 from bracing_core import schema
 from bracing_core.answering import Answer, StateAnswerer
 from bracing_core.controller_config import ControllerConfig
+from bracing_core.step_timing import WorkTimer
 from bracing_msgs.msg import ControllerState, MotorCommand, MotorState, RunStatus
 from bracing_ros import parameters, wire
 from bracing_ros.ack_window import AckWindow
@@ -174,7 +175,7 @@ def spin(node: ControllerNode) -> int:
         return spin_effort_forward(node)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    answered = 0
+    answered, work = 0, WorkTimer()
     try:
         if node.config.wait_for_recorder:
             # Answers sent before the recorder has matched these publishers can be lost to it (a
@@ -202,7 +203,9 @@ def spin(node: ControllerNode) -> int:
         while True:
             messages = waiter.take(0.1)
             for msg in messages:
+                work.begin()
                 node.on_state(msg)
+                work.end()
             answered += len(messages)
             node.target_topics.poll()  # a target is followed from the next state on
             if not messages or answered >= 100:
@@ -210,6 +213,8 @@ def spin(node: ControllerNode) -> int:
                 node.sync_clock()  # a parameter change is stamped with it
                 executor.spin_once(timeout_sec=0.0)  # parameter services and the like
     except KeyboardInterrupt:
+        if (line := work.line()) is not None:
+            node.log.info(line)  # make bench's pair_step_breakdown_us
         # Stopped (bracing-pair stops the controller once the simulator is done): the last
         # answers must reach the recorder before this process and its publishers are gone.
         if not node.flow.wait(timeout_sec=10.0):

@@ -23,6 +23,7 @@ from bracing_core import schema
 from bracing_core.config import SimulatorConfig, build_simulator
 from bracing_core.meshes import missing_warning
 from bracing_core.simulator import DivergenceError
+from bracing_core.step_timing import WorkTimer
 from bracing_core.stepping import SimulatorStepper
 from bracing_msgs.msg import MotorCommand, RunStatus
 from bracing_ros import parameters, wire
@@ -154,19 +155,26 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
     node.log.info(f"lockstep: stepping (subscribers matched in {time.monotonic() - since:.3f} s)")
     node.status.say(RunStatus.STEPPING, node.sim.time)
     assert node.command_sub is not None  # lockstep: motor_command (joint_commands does not lockstep)
-    waiter, core = SubscriptionWaiter(node, node.command_sub), node.core
+    waiter, core, work = SubscriptionWaiter(node, node.command_sub), node.core, WorkTimer()
 
     def receive(timeout_s: float) -> None:
-        for msg in waiter.take(timeout_s):
+        work.pause()  # waiting for the controller is not this node's work
+        messages = waiter.take(timeout_s)
+        work.resume()
+        for msg in messages:
             node.on_command(msg)
 
     core.send_state()
     node.topics.sent()
     while not core.done():
+        work.begin()
         if node.sim.steps_taken % 100 == 0:
             executor.spin_once(timeout_sec=0.0)  # parameter services and the like
         core.step_lockstep(receive)
+        work.end()
     core.finish_lockstep(receive)  # the answer to the final state, for its reports
+    if (line := work.line()) is not None:
+        node.log.info(line)  # make bench's pair_step_breakdown_us
     node.finish()
 
 
