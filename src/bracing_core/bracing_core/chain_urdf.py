@@ -81,6 +81,82 @@ def _axis_text(axis: Sequence[float]) -> str:
     return " ".join(str(int(a)) if float(a).is_integer() else repr(float(a)) for a in axis)
 
 
+def _link_inertia(link: LinkSpec) -> tuple[float, float, float]:
+    """Principal inertias about the COM: the explicit ones, else the box's, else the cylinder's."""
+    if link.inertia is not None:
+        return link.inertia
+    if link.box is not None:
+        return _box_inertia(link.mass, link.box)
+    return _cylinder_inertia(link.mass, link.radius, link.length)
+
+
+def _link_geometry(link: LinkSpec) -> str:
+    """The visual's shape: the box, else a cylinder of the link's length, else a ball."""
+    if link.box is not None:
+        return '<box size="{!r} {!r} {!r}"/>'.format(*link.box)
+    if link.length > 0.0:
+        return f'<cylinder radius="{link.radius!r}" length="{link.length!r}"/>'
+    return f'<sphere radius="{link.radius!r}"/>'  # a joint housing of no length: a ball
+
+
+def _check_joint(joint: JointSpec) -> None:
+    if joint.type not in ("revolute", "prismatic"):
+        raise ValueError(f"joint {joint.name!r}: type {joint.type!r} is not revolute or prismatic")
+    if not joint.lower < joint.upper:
+        raise ValueError(f"joint {joint.name!r}: lower limit {joint.lower} not below upper {joint.upper}")
+
+
+def _moving_link_lines(joint: JointSpec, link: LinkSpec, parent: str, offset: float) -> list[str]:
+    """The URDF of ``joint`` (at ``offset`` on ``parent``'s z axis) and of the ``link`` it moves."""
+    _check_joint(joint)
+    ixx, iyy, izz = _link_inertia(link)
+    geometry = _link_geometry(link)
+    centre = link.length / 2.0
+    return [
+        f'  <joint name="{joint.name}" type="{joint.type}">',
+        f'    <parent link="{parent}"/>',
+        f'    <child link="{link.name}"/>',
+        f'    <origin xyz="0 0 {offset!r}" rpy="0 0 0"/>',
+        f'    <axis xyz="{_axis_text(joint.axis)}"/>',
+        f'    <limit lower="{joint.lower!r}" upper="{joint.upper!r}" effort="{joint.effort!r}"'
+        f' velocity="{joint.velocity!r}"/>',
+        f'    <dynamics damping="{joint.damping!r}" friction="{joint.friction!r}"/>',
+        "  </joint>",
+        f'  <link name="{link.name}">',
+        "    <inertial>",
+        f'      <origin xyz="0 0 {centre!r}" rpy="0 0 0"/>',
+        f'      <mass value="{link.mass!r}"/>',
+        f'      <inertia ixx="{ixx!r}" ixy="0" ixz="0" iyy="{iyy!r}" iyz="0" izz="{izz!r}"/>',
+        "    </inertial>",
+        "    <visual>",
+        f'      <origin xyz="0 0 {centre!r}" rpy="0 0 0"/>',
+        f"      <geometry>{geometry}</geometry>",
+        "    </visual>",
+        "  </link>",
+    ]
+
+
+def _tip_frame_lines(frame: str, where: int | str, links: Sequence[LinkSpec]) -> list[str]:
+    """A fixed frame at the tip of the link ``where`` (1-based index or link name)."""
+    names = [link.name for link in links]
+    if isinstance(where, str):
+        if where not in names:
+            raise ValueError(f"frame {frame!r}: no link named {where!r}")
+        index = names.index(where)
+    else:
+        if not 1 <= where <= len(links):
+            raise ValueError(f"frame {frame!r}: link index {where} not in 1..{len(links)}")
+        index = where - 1
+    return [
+        f'  <joint name="{frame}_joint" type="fixed">',
+        f'    <parent link="{names[index]}"/>',
+        f'    <child link="{frame}"/>',
+        f'    <origin xyz="0 0 {links[index].length!r}" rpy="0 0 0"/>',
+        "  </joint>",
+        f'  <link name="{frame}"/>',
+    ]
+
+
 def serial_chain_urdf(
     name: str,
     joints: Sequence[JointSpec],
@@ -105,64 +181,11 @@ def serial_chain_urdf(
     ]
     parent, parent_length = "base_link", 0.0
     for joint, link in zip(joints, links, strict=True):
-        if joint.type not in ("revolute", "prismatic"):
-            raise ValueError(f"joint {joint.name!r}: type {joint.type!r} is not revolute or prismatic")
-        if not joint.lower < joint.upper:
-            raise ValueError(f"joint {joint.name!r}: lower limit {joint.lower} not below upper {joint.upper}")
         offset = parent_length if joint.offset is None else joint.offset
-        if link.inertia is not None:
-            ixx, iyy, izz = link.inertia
-        elif link.box is not None:
-            ixx, iyy, izz = _box_inertia(link.mass, link.box)
-        else:
-            ixx, iyy, izz = _cylinder_inertia(link.mass, link.radius, link.length)
-        if link.box is not None:
-            geometry = '<box size="{!r} {!r} {!r}"/>'.format(*link.box)
-        elif link.length > 0.0:
-            geometry = f'<cylinder radius="{link.radius!r}" length="{link.length!r}"/>'
-        else:  # a joint housing of no length: a ball
-            geometry = f'<sphere radius="{link.radius!r}"/>'
-        centre = link.length / 2.0
-        out += [
-            f'  <joint name="{joint.name}" type="{joint.type}">',
-            f'    <parent link="{parent}"/>',
-            f'    <child link="{link.name}"/>',
-            f'    <origin xyz="0 0 {offset!r}" rpy="0 0 0"/>',
-            f'    <axis xyz="{_axis_text(joint.axis)}"/>',
-            f'    <limit lower="{joint.lower!r}" upper="{joint.upper!r}" effort="{joint.effort!r}"'
-            f' velocity="{joint.velocity!r}"/>',
-            f'    <dynamics damping="{joint.damping!r}" friction="{joint.friction!r}"/>',
-            "  </joint>",
-            f'  <link name="{link.name}">',
-            "    <inertial>",
-            f'      <origin xyz="0 0 {centre!r}" rpy="0 0 0"/>',
-            f'      <mass value="{link.mass!r}"/>',
-            f'      <inertia ixx="{ixx!r}" ixy="0" ixz="0" iyy="{iyy!r}" iyz="0" izz="{izz!r}"/>',
-            "    </inertial>",
-            "    <visual>",
-            f'      <origin xyz="0 0 {centre!r}" rpy="0 0 0"/>',
-            f"      <geometry>{geometry}</geometry>",
-            "    </visual>",
-            "  </link>",
-        ]
+        out += _moving_link_lines(joint, link, parent, offset)
         parent, parent_length = link.name, link.length
     for frame, where in (tip_frames or {}).items():
-        if isinstance(where, str):
-            if where not in names:
-                raise ValueError(f"frame {frame!r}: no link named {where!r}")
-            index = names.index(where)
-        else:
-            if not 1 <= where <= n:
-                raise ValueError(f"frame {frame!r}: link index {where} not in 1..{n}")
-            index = where - 1
-        out += [
-            f'  <joint name="{frame}_joint" type="fixed">',
-            f'    <parent link="{names[index]}"/>',
-            f'    <child link="{frame}"/>',
-            f'    <origin xyz="0 0 {links[index].length!r}" rpy="0 0 0"/>',
-            "  </joint>",
-            f'  <link name="{frame}"/>',
-        ]
+        out += _tip_frame_lines(frame, where, links)
     out.append("</robot>")
     return "\n".join(out) + "\n"
 

@@ -40,7 +40,7 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -70,6 +70,9 @@ from bracing_experiments.reporting import (
     warnings_section,
 )
 from bracing_experiments.sweep import ResultsStore, make_spec, run_sweep
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 STUDY = "robustness"
 """bracing-study's first argument for this study (study.main dispatches it here)."""
@@ -141,30 +144,33 @@ class Factor:
     torque: bool = False  # braced torque-input rows too (a model error that applies to direct drive)
 
 
-def paper_factors(step: float, mu: float) -> tuple[Factor, ...]:
-    """The study's factors and levels for a scenario with step ``step`` [s] whose braced contact has ``mu``."""
-    if mu <= 0:
-        raise ConfigError("the robustness study scales the braced contact's friction: it needs mu > 0")
-    seeded = {"sensors.noise_seed": NOISE_SEED}
+def _mass_factor() -> Factor:
+    return Factor(
+        "mass",
+        "Link masses and inertias",
+        "Every link's mass and rotational inertia in the plant times the scale; the controller keeps the file's",
+        "mass scale (plant / model)",
+        1.0,
+        tuple(Level(f"masses x{s:g}", s, {"plant_error.mass_scale": s}) for s in MASS_SCALES),
+        torque=True,
+    )
+
+
+def _friction_factor(mu: float) -> Factor:
+    return Factor(
+        "friction",
+        "Contact friction",
+        f"The contact's mu in the plant (the model's: {mu:g})",
+        "mu (plant)",
+        mu,
+        tuple(Level(f"mu {m:g}", m, {"plant_error.friction_scale": m / mu}) for m in FRICTIONS),
+        torque=True,
+    )
+
+
+def _motor_factors() -> tuple[Factor, Factor]:
+    """The torque constant and the winding resistance, each scaled in the plant."""
     return (
-        Factor(
-            "mass",
-            "Link masses and inertias",
-            "Every link's mass and rotational inertia in the plant times the scale; the controller keeps the file's",
-            "mass scale (plant / model)",
-            1.0,
-            tuple(Level(f"masses x{s:g}", s, {"plant_error.mass_scale": s}) for s in MASS_SCALES),
-            torque=True,
-        ),
-        Factor(
-            "friction",
-            "Contact friction",
-            f"The contact's mu in the plant (the model's: {mu:g})",
-            "mu (plant)",
-            mu,
-            tuple(Level(f"mu {m:g}", m, {"plant_error.friction_scale": m / mu}) for m in FRICTIONS),
-            torque=True,
-        ),
         Factor(
             "torque_constant",
             "Motor torque constant",
@@ -181,49 +187,73 @@ def paper_factors(step: float, mu: float) -> tuple[Factor, ...]:
             1.0,
             tuple(Level(f"R x{s:g}", s, {"plant_error.resistance_scale": s}) for s in MOTOR_SCALES),
         ),
-        Factor(
-            "encoder",
-            "Encoders",
-            "The joint positions q published on a grid of 2 pi / counts per joint revolution, dq differentiated "
-            f"from them through a {VELOCITY_FILTER_HZ:g} Hz first-order low-pass",
-            "encoder count [mrad]",
-            0.0,
-            tuple(
-                Level(
-                    f"{n} counts/rev",
-                    2 * math.pi / n * 1e3,
-                    {"sensors.encoder_counts_per_rev": n, "sensors.velocity_filter_hz": VELOCITY_FILTER_HZ},
-                )
-                for n in ENCODER_COUNTS
-            ),
+    )
+
+
+def _encoder_factor() -> Factor:
+    return Factor(
+        "encoder",
+        "Encoders",
+        "The joint positions q published on a grid of 2 pi / counts per joint revolution, dq differentiated "
+        f"from them through a {VELOCITY_FILTER_HZ:g} Hz first-order low-pass",
+        "encoder count [mrad]",
+        0.0,
+        tuple(
+            Level(
+                f"{n} counts/rev",
+                2 * math.pi / n * 1e3,
+                {"sensors.encoder_counts_per_rev": n, "sensors.velocity_filter_hz": VELOCITY_FILTER_HZ},
+            )
+            for n in ENCODER_COUNTS
         ),
-        Factor(
-            "force_sensor",
-            "Force sensor",
-            f"White noise of the given sigma on each force component of contact_wrench/<contact>, plus a "
-            f"{FORCE_BIAS_N:g} N bias along the normal (only force feedback reads it)",
-            "force noise sigma [N]",
-            0.0,
-            tuple(
-                Level(
-                    f"force noise {s:g} N, bias {FORCE_BIAS_N:g} N",
-                    s,
-                    {**seeded, "sensors.force_noise_n": s, "sensors.force_bias_n": FORCE_BIAS_N},
-                )
-                for s in FORCE_NOISES
-            ),
+    )
+
+
+def _force_sensor_factor() -> Factor:
+    seeded = {"sensors.noise_seed": NOISE_SEED}
+    return Factor(
+        "force_sensor",
+        "Force sensor",
+        f"White noise of the given sigma on each force component of contact_wrench/<contact>, plus a "
+        f"{FORCE_BIAS_N:g} N bias along the normal (only force feedback reads it)",
+        "force noise sigma [N]",
+        0.0,
+        tuple(
+            Level(
+                f"force noise {s:g} N, bias {FORCE_BIAS_N:g} N",
+                s,
+                {**seeded, "sensors.force_noise_n": s, "sensors.force_bias_n": FORCE_BIAS_N},
+            )
+            for s in FORCE_NOISES
         ),
-        Factor(
-            "latency",
-            "Command latency",
-            f"Each command applied k steps ({step * 1e3:g} ms each) after the state it answers",
-            "latency [ms]",
-            0.0,
-            tuple(
-                Level(f"latency {k * step * 1e3:g} ms", k * step * 1e3, {"sensors.command_latency_steps": k})
-                for k in LATENCY_STEPS
-            ),
+    )
+
+
+def _latency_factor(step: float) -> Factor:
+    return Factor(
+        "latency",
+        "Command latency",
+        f"Each command applied k steps ({step * 1e3:g} ms each) after the state it answers",
+        "latency [ms]",
+        0.0,
+        tuple(
+            Level(f"latency {k * step * 1e3:g} ms", k * step * 1e3, {"sensors.command_latency_steps": k})
+            for k in LATENCY_STEPS
         ),
+    )
+
+
+def paper_factors(step: float, mu: float) -> tuple[Factor, ...]:
+    """The study's factors and levels for a scenario with step ``step`` [s] whose braced contact has ``mu``."""
+    if mu <= 0:
+        raise ConfigError("the robustness study scales the braced contact's friction: it needs mu > 0")
+    return (
+        _mass_factor(),
+        _friction_factor(mu),
+        *_motor_factors(),
+        _encoder_factor(),
+        _force_sensor_factor(),
+        _latency_factor(step),
     )
 
 
@@ -513,6 +543,90 @@ def _factor_section(
     ]
 
 
+_LAW_COLOURS = {PAPER_LAW: "tab:blue", FEEDBACK_LAW: "tab:orange"}
+_VARIANT_STYLES = {BRACED.name: "-", PASSIVE.name: ":", FREE_SPACE.name: "--"}
+_Points = list[tuple[float, Factor | None, Level]]  # (x, factor or None for the nominal, level), by x
+
+
+def _series(
+    study: Robustness,
+    rows: Mapping[str, dict[str, Any]],
+    points: _Points,
+    law: str,
+    variant: str,
+    get: Any,
+    mode: str | None = None,
+) -> list[float]:
+    """``get`` of that run's row at each point; nan where it is not a number."""
+    values = []
+    for _, where, level in points:
+        value = get(study.row(rows, where, level, law, variant, mode))
+        values.append(float(value) if number(value) else math.nan)
+    return values
+
+
+def _plot_hand(ax: Axes, study: Robustness, rows: Mapping[str, dict[str, Any]], points: _Points, law: str) -> None:
+    xs = [p[0] for p in points]
+    for variant in VARIANTS:
+        hand = _series(study, rows, points, law, variant.name, lambda r: r.get(HAND_RMS) if is_ok(r) else None)
+        ax.plot(
+            xs,
+            hand,
+            marker="o",
+            ls=_VARIANT_STYLES[variant.name],
+            color=_LAW_COLOURS[law],
+            label=f"{variant.column}, {LAW_TEXT[law]}",
+        )
+
+
+def _plot_force(
+    ax: Axes, study: Robustness, rows: Mapping[str, dict[str, Any]], points: _Points, law: str, factor: Factor
+) -> bool:
+    """The braced force error in the file's mode (and torque input's, when the study has those rows);
+    True when a value is finite (a log axis can draw it)."""
+    xs = [p[0] for p in points]
+    force = _series(study, rows, points, law, BRACED.name, _force)
+    finite = bool(np.isfinite(force).any())
+    ax.plot(
+        xs, [max(v, 1e-15) for v in force], marker="o", color=_LAW_COLOURS[law], label=f"{study.mode}, {LAW_TEXT[law]}"
+    )
+    if study.torque_rows and factor.torque:
+        torque = _series(study, rows, points, law, BRACED.name, _force, TORQUE)
+        finite = finite or bool(np.isfinite(torque).any())
+        ax.plot(
+            xs,
+            [max(v, 1e-15) for v in torque],
+            marker="s",
+            ls="--",
+            color=_LAW_COLOURS[law],
+            alpha=0.7,
+            label=f"torque, {'force feedback' if law == FEEDBACK_LAW else LAW_TEXT[law]}",
+        )
+    return finite
+
+
+def _plot_energy_ratios(
+    ax: Axes, study: Robustness, rows: Mapping[str, dict[str, Any]], points: _Points, law: str
+) -> None:
+    """Braced energy over free space's and over resting passively's."""
+    xs = [p[0] for p in points]
+    for baseline, marker in ((FREE_SPACE, "o"), (PASSIVE, "^")):
+        values = []
+        for _, where, level in points:
+            braced = study.row(rows, where, level, law, BRACED.name)
+            other = study.row(rows, where, level, law, baseline.name)
+            value = _ratio(ENERGY, braced, other)
+            values.append(value if value is not None else math.nan)
+        ax.plot(
+            xs,
+            values,
+            marker=marker,
+            ls=_VARIANT_STYLES[baseline.name],
+            color=_LAW_COLOURS[law],
+            label=f"braced / {baseline.column}, {LAW_TEXT[law]}",
+        )
+
+
 def _draw_factor(
     study: Robustness, store: ResultsStore, rows: Mapping[str, dict[str, Any]], factor: Factor, name: str
 ) -> None:
@@ -521,64 +635,15 @@ def _draw_factor(
     points = sorted(
         [(factor.nominal, None, NOMINAL_LEVEL), *((lv.value, factor, lv) for lv in factor.levels)], key=lambda p: p[0]
     )
-    xs = [p[0] for p in points]
-    colours = {PAPER_LAW: "tab:blue", FEEDBACK_LAW: "tab:orange"}
-    styles = {BRACED.name: "-", PASSIVE.name: ":", FREE_SPACE.name: "--"}
     fig = Figure(figsize=(14, 4.2), layout="constrained")
     fig.suptitle(f"{study.scenario}: {factor.title.lower()} ({study.mode} input unless marked)")
     hand_ax, force_ax, ratio_ax = fig.subplots(1, 3)
     logarithmic = False
-
-    def series(law: str, variant: str, get: Any, mode: str | None = None) -> list[float]:
-        values = []
-        for _, where, level in points:
-            value = get(study.row(rows, where, level, law, variant, mode))
-            values.append(float(value) if number(value) else math.nan)
-        return values
-
     for law in LAWS:
-        for variant in VARIANTS:
-            hand = series(law, variant.name, lambda r: r.get(HAND_RMS) if is_ok(r) else None)
-            hand_ax.plot(
-                xs,
-                hand,
-                marker="o",
-                ls=styles[variant.name],
-                color=colours[law],
-                label=f"{variant.column}, {LAW_TEXT[law]}",
-            )
-        force = series(law, BRACED.name, _force)
-        logarithmic = logarithmic or bool(np.isfinite(force).any())
-        force_ax.plot(
-            xs, [max(v, 1e-15) for v in force], marker="o", color=colours[law], label=f"{study.mode}, {LAW_TEXT[law]}"
-        )
-        if study.torque_rows and factor.torque:
-            torque = series(law, BRACED.name, _force, TORQUE)
-            logarithmic = logarithmic or bool(np.isfinite(torque).any())
-            force_ax.plot(
-                xs,
-                [max(v, 1e-15) for v in torque],
-                marker="s",
-                ls="--",
-                color=colours[law],
-                alpha=0.7,
-                label=f"torque, {'force feedback' if law == FEEDBACK_LAW else LAW_TEXT[law]}",
-            )
-        for baseline, marker in ((FREE_SPACE, "o"), (PASSIVE, "^")):
-            values = []
-            for _, where, level in points:
-                braced = study.row(rows, where, level, law, BRACED.name)
-                other = study.row(rows, where, level, law, baseline.name)
-                value = _ratio(ENERGY, braced, other)
-                values.append(value if value is not None else math.nan)
-            ratio_ax.plot(
-                xs,
-                values,
-                marker=marker,
-                ls=styles[baseline.name],
-                color=colours[law],
-                label=f"braced / {baseline.column}, {LAW_TEXT[law]}",
-            )
+        _plot_hand(hand_ax, study, rows, points, law)
+        finite = _plot_force(force_ax, study, rows, points, law, factor)
+        logarithmic = logarithmic or finite
+        _plot_energy_ratios(ratio_ax, study, rows, points, law)
     ratio_ax.axhline(1.0, color="grey", lw=1.0)
     for ax in (hand_ax, force_ax, ratio_ax):
         ax.axvline(factor.nominal, color="grey", ls=":", lw=0.8)

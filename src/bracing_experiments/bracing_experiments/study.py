@@ -33,19 +33,19 @@ import argparse
 import math
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from bracing_analysis.ratios import TEMPERATURE_KEY, ratio, temperature_saving, temperature_saving_text
 from bracing_analysis.summary import HAND_ERROR_T_MIN_S
 from bracing_core import schema
-from bracing_core.config import SharedConfig
+from bracing_core.config import ContactConfig, SharedConfig
 from bracing_core.numbers import cell, markdown_table, number
-from bracing_core.overrides import CONTROLLER, node_params, parse_single, route
+from bracing_core.overrides import CONTROLLER, NodeOverrides, node_params, parse_single, route
 from bracing_core.params import ConfigError
 from bracing_core.rollout import build_scenario
 from bracing_core.variants import PASSIVE
@@ -69,6 +69,9 @@ from bracing_experiments.reporting import warnings_section as _warnings_section
 from bracing_experiments.robustness import STUDY as ROBUSTNESS
 from bracing_experiments.robustness import main as robustness_main
 from bracing_experiments.sweep import ResultsStore, make_spec, run_sweep
+
+if TYPE_CHECKING:
+    from optuna.trial import FrozenTrial
 
 PAPER_SCENARIO = "paper_4link"
 """The scenario whose figures the paper has: only its report cites them."""
@@ -129,6 +132,90 @@ def _scaled(values: Any, scale: float) -> list[float]:
     return [float(v) * scale for v in (values if isinstance(values, list) else [values])]
 
 
+_MakeSpec = Callable[[str, dict[str, Any], dict[str, Any]], RunSpec]
+"""(comparison, labels, overrides) -> the run's spec, with the study's --set overrides under its own."""
+
+
+def _bracing_specs(spec: _MakeSpec) -> list[RunSpec]:
+    """Comparison 1: braced and free, both inputs, with and without gravity compensation."""
+    return [
+        spec(
+            "bracing",
+            {"bracing": with_contacts, "input_mode": mode, "gravity_compensation": compensation},
+            {
+                "input_mode": mode,
+                "gravity_compensation": compensation,
+                **({} if with_contacts else {"contacts.names": []}),
+            },
+        )
+        for with_contacts in (True, False)
+        for mode in ("voltage", "torque")
+        for compensation in (False, True)
+    ]
+
+
+def _passive_specs(spec: _MakeSpec) -> list[RunSpec]:
+    """Resting passively (variants.PASSIVE) beside each input and compensation of comparison 1."""
+    return [
+        spec(
+            "passive",
+            {"input_mode": mode, "gravity_compensation": compensation},
+            {"input_mode": mode, "gravity_compensation": compensation, **PASSIVE.overrides()},
+        )
+        for mode in ("voltage", "torque")
+        for compensation in (False, True)
+    ]
+
+
+def _gain_specs(
+    spec: _MakeSpec, ctl: dict[str, Any], contacts: Sequence[ContactConfig], gain_scales: Sequence[float]
+) -> list[RunSpec]:
+    """Comparison 2: every PD gain (hand and each contact's, kp and kd) scaled, both inputs."""
+    gains = []
+    for mode in ("torque", "voltage"):
+        for scale in gain_scales:
+            gain_overrides: dict[str, Any] = {
+                "input_mode": mode,
+                "hand.kp": _scaled(ctl["hand.kp"], scale),
+                "hand.kd": _scaled(ctl["hand.kd"], scale),
+            }
+            for contact in contacts:
+                for gain in ("kp", "kd"):
+                    key = f"contacts.{contact.name}.{gain}"
+                    gain_overrides[key] = _scaled(ctl.get(key, []), scale)
+            gains.append(spec("gains", {"input_mode": mode, "gain_scale": scale}, gain_overrides))
+    return gains
+
+
+def _brace_origin(config: Path, routed: NodeOverrides, shared: SharedConfig, contact: ContactConfig) -> np.ndarray:
+    """The contact's brace target as the file has it, else where its point starts (q = 0)."""
+    scenario = build_scenario(config, shared=routed.shared, sim=routed.simulator, with_controller=False)
+    start = scenario.sim.evaluate(np.zeros(scenario.sim.n)).contacts.positions
+    return np.array(contact.target if contact.target is not None else start[shared.contacts.index(contact)])
+
+
+def _placement_specs(
+    spec: _MakeSpec, contact: str, origin: np.ndarray, axis: int, targets: Sequence[float], forces: Sequence[float]
+) -> list[RunSpec]:
+    """Comparison 3: the contact's target moved along ``axis`` to each of ``targets``, at each desired force."""
+    placement = []
+    for force in forces:
+        for target in targets:
+            point = origin.copy()
+            point[axis] = target
+            placement.append(
+                spec(
+                    "placement",
+                    {"brace_target": round(target, 6), "desired_normal_force": force},
+                    {
+                        f"contacts.{contact}.target": [float(v) for v in point],
+                        f"contacts.{contact}.desired_normal_force": force,
+                    },
+                )
+            )
+    return placement
+
+
 def build_study(
     config: Path,
     duration: float | None = None,
@@ -150,68 +237,18 @@ def build_study(
     def spec(comparison: str, labels: dict[str, Any], overrides: dict[str, Any]) -> RunSpec:
         return make_spec(config, {"comparison": comparison, **labels}, duration, overrides={**base, **overrides})
 
-    bracing = [
-        spec(
-            "bracing",
-            {"bracing": with_contacts, "input_mode": mode, "gravity_compensation": compensation},
-            {
-                "input_mode": mode,
-                "gravity_compensation": compensation,
-                **({} if with_contacts else {"contacts.names": []}),
-            },
-        )
-        for with_contacts in (True, False)
-        for mode in ("voltage", "torque")
-        for compensation in (False, True)
-    ]
-    passive = [
-        spec(
-            "passive",
-            {"input_mode": mode, "gravity_compensation": compensation},
-            {"input_mode": mode, "gravity_compensation": compensation, **PASSIVE.overrides()},
-        )
-        for mode in ("voltage", "torque")
-        for compensation in (False, True)
-    ]
-    gains = []
-    for mode in ("torque", "voltage"):
-        for scale in gain_scales:
-            gain_overrides: dict[str, Any] = {
-                "input_mode": mode,
-                "hand.kp": _scaled(ctl["hand.kp"], scale),
-                "hand.kd": _scaled(ctl["hand.kd"], scale),
-            }
-            for contact in shared.contacts:
-                for gain in ("kp", "kd"):
-                    key = f"contacts.{contact.name}.{gain}"
-                    gain_overrides[key] = _scaled(ctl.get(key, []), scale)
-            gains.append(spec("gains", {"input_mode": mode, "gain_scale": scale}, gain_overrides))
-
+    bracing = _bracing_specs(spec)
+    passive = _passive_specs(spec)
+    gains = _gain_specs(spec, ctl, shared.contacts, gain_scales)
     contact = braced[0]
     axis = contact.brace_axes[0]
-    scenario = build_scenario(config, shared=routed.shared, sim=routed.simulator, with_controller=False)
-    start = scenario.sim.evaluate(np.zeros(scenario.sim.n)).contacts.positions
-    origin = np.array(contact.target if contact.target is not None else start[shared.contacts.index(contact)])
+    origin = _brace_origin(config, routed, shared, contact)
     offsets = np.linspace(-span, span, positions) if positions > 1 else np.zeros(1)
     targets = [float(origin[axis] + d) for d in offsets]
     desired = contact.desired_normal_force
     assert desired is not None  # a braced contact (study_specs picks one)
     forces = [desired * s for s in force_scales]
-    placement = []
-    for force in forces:
-        for target in targets:
-            point = origin.copy()
-            point[axis] = target
-            placement.append(
-                spec(
-                    "placement",
-                    {"brace_target": round(target, 6), "desired_normal_force": force},
-                    {
-                        f"contacts.{contact.name}.target": [float(v) for v in point],
-                        f"contacts.{contact.name}.desired_normal_force": force,
-                    },
-                )
-            )
+    placement = _placement_specs(spec, contact.name, origin, axis, targets, forces)
     values = schema.read("controller", ctl)
     return Study(
         config,
@@ -270,7 +307,11 @@ def _passive_row(study: Study, rows: dict[str, dict[str, Any]]) -> dict[str, Any
     return None
 
 
-def _grid_cells(study: Study, rows: dict[str, dict[str, Any]]) -> list[tuple[float, float, dict[str, Any]]]:
+_Cell = tuple[float, float, dict[str, Any]]
+"""(target [m], force [N], row) of a placement run (_grid_cells)."""
+
+
+def _grid_cells(study: Study, rows: dict[str, dict[str, Any]]) -> list[_Cell]:
     """(target, force, row) of every placement run that came back ok with an energy and a hand error."""
     cells = []
     for k, spec in enumerate(study.placement):
@@ -279,6 +320,64 @@ def _grid_cells(study: Study, rows: dict[str, dict[str, Any]]) -> list[tuple[flo
         if row is not None and _ok(row) and number(row.get(ENERGY)) and number(row.get(HAND_RMS)):
             cells.append((study.targets[j], study.forces[i], row))
     return cells
+
+
+_Ranges = list[tuple[tuple[float, float], tuple[float, float] | None]]
+"""(force, target) ranges [N], [m] of the search, the first the scenario takes; target None: only the force varies."""
+
+
+def _search_bound(study: Study, rows: dict[str, dict[str, Any]]) -> tuple[float, _Ranges, str]:
+    """The hand RMS bound [m], the ranges to try and where they come from (placement_search's docstring)."""
+    if study.scenario == PAPER_SCENARIO and study.axis == "y":
+        return PAPER_HAND_RMS_BOUND, [(PAPER_SEARCH[0], PAPER_SEARCH[1])], "the paper arm's problem"
+    braced = _braced_row(study, rows)
+    if braced is None or not _ok(braced) or not number(braced.get(HAND_RMS)):
+        raise ConfigError("no hand RMS bound: the file's braced run (comparison 1) did not come back ok")
+    bound = math.ceil(float(braced[HAND_RMS]) * 1e4) / 1e4
+    forces = (0.0, 2.0 * max(study.forces))
+    ranges: _Ranges
+    if study.span > 0:
+        wide = SEARCH_WIDEN * study.span
+        ranges = [
+            (forces, (study.origin - wide, study.origin + wide)),
+            (forces, (min(study.targets), max(study.targets))),
+        ]
+    else:
+        ranges = [(forces, None)]  # one target: only the force varies
+    why = (
+        f"f_nd from 0 to twice the grid's largest, the target over the grid's span widened x "
+        f"{SEARCH_WIDEN:.3g} (the grid's own when the scenario refuses that), hand RMS no worse than the "
+        f"file's braced run ({float(braced[HAND_RMS]) * 1e3:.3g} mm, rounded up to {bound * 1e3:g} mm)"
+    )
+    return bound, ranges, why
+
+
+def _search_problem(study: Study, force: str, target: str, bound: float, ranges: _Ranges) -> tuple[Problem, list[str]]:
+    """The optimiser's problem over the first of ``ranges`` it takes, and why it refused those before."""
+    refused: list[str] = []
+    for force_range, target_range in ranges:
+        vary = [f"{force}={force_range[0]:g}:{force_range[1]:g}"]
+        if target_range is not None:
+            vary.append(f"{target}={target_range[0]:.6g}:{target_range[1]:.6g}")
+        try:
+            problem = build_problem(
+                study.config, vary, [ENERGY], [f"{HAND_RMS}<={bound:g}"], study.duration, base=study.base
+            )
+            return problem, refused
+        except ConfigError as exc:
+            refused.append(str(exc))
+    raise ConfigError("the optimiser's ranges are refused: " + "; ".join(refused))
+
+
+def _search_start(search: PlacementSearch, cells: list[_Cell]) -> dict[str, float] | None:
+    """The grid's least-energy cell within the bound, if any and inside the search's ranges."""
+    feasible = [cell for cell in cells if float(cell[2][HAND_RMS]) <= search.bound]
+    if not feasible:
+        return None
+    cell_target, cell_force, _ = min(feasible, key=lambda cell: float(cell[2][ENERGY]))
+    point = {search.force: cell_force, **({search.target: cell_target} if search.target else {})}
+    inside = all(v.low <= point[v.name] <= v.high for v in search.problem.varies)
+    return point if inside else None
 
 
 def placement_search(study: Study, rows: dict[str, dict[str, Any]], output: Path) -> PlacementSearch:
@@ -295,46 +394,8 @@ def placement_search(study: Study, rows: dict[str, dict[str, Any]], output: Path
     contact, axis = study.contact, study.axis_index
     force = f"contacts.{contact}.desired_normal_force"
     target = f"contacts.{contact}.target[{axis}]"
-    paper = study.scenario == PAPER_SCENARIO and study.axis == "y"
-    ranges: list[tuple[tuple[float, float], tuple[float, float] | None]]  # (force, target) ranges, first that works
-    if paper:
-        bound = PAPER_HAND_RMS_BOUND
-        ranges = [(PAPER_SEARCH[0], PAPER_SEARCH[1])]
-        why = "the paper arm's problem"
-    else:
-        braced = _braced_row(study, rows)
-        if braced is None or not _ok(braced) or not number(braced.get(HAND_RMS)):
-            raise ConfigError("no hand RMS bound: the file's braced run (comparison 1) did not come back ok")
-        bound = math.ceil(float(braced[HAND_RMS]) * 1e4) / 1e4
-        forces = (0.0, 2.0 * max(study.forces))
-        if study.span > 0:
-            wide = SEARCH_WIDEN * study.span
-            ranges = [
-                (forces, (study.origin - wide, study.origin + wide)),
-                (forces, (min(study.targets), max(study.targets))),
-            ]
-        else:
-            ranges = [(forces, None)]  # one target: only the force varies
-        why = (
-            f"f_nd from 0 to twice the grid's largest, the target over the grid's span widened x "
-            f"{SEARCH_WIDEN:.3g} (the grid's own when the scenario refuses that), hand RMS no worse than the "
-            f"file's braced run ({float(braced[HAND_RMS]) * 1e3:.3g} mm, rounded up to {bound * 1e3:g} mm)"
-        )
-    problem: Problem | None = None
-    refused: list[str] = []
-    for force_range, target_range in ranges:
-        vary = [f"{force}={force_range[0]:g}:{force_range[1]:g}"]
-        if target_range is not None:
-            vary.append(f"{target}={target_range[0]:.6g}:{target_range[1]:.6g}")
-        try:
-            problem = build_problem(
-                study.config, vary, [ENERGY], [f"{HAND_RMS}<={bound:g}"], study.duration, base=study.base
-            )
-            break
-        except ConfigError as exc:
-            refused.append(str(exc))
-    if problem is None:
-        raise ConfigError("the optimiser's ranges are refused: " + "; ".join(refused))
+    bound, ranges, why = _search_bound(study, rows)
+    problem, refused = _search_problem(study, force, target, bound, ranges)
     if refused:
         why += f" (the widened target range was refused: {refused[0]}; the grid's own used)"
     search = PlacementSearch(
@@ -345,12 +406,7 @@ def placement_search(study: Study, rows: dict[str, dict[str, Any]], output: Path
         bound,
         why,
     )
-    feasible = [cell for cell in cells if float(cell[2][HAND_RMS]) <= bound]
-    if feasible:
-        cell_target, cell_force, _ = min(feasible, key=lambda cell: float(cell[2][ENERGY]))
-        point = {force: cell_force, **({target: cell_target} if search.target else {})}
-        inside = all(v.low <= point[v.name] <= v.high for v in problem.varies)
-        search.start = point if inside else None
+    search.start = _search_start(search, cells)
     return search
 
 
@@ -373,19 +429,15 @@ def run_placement_search(
 
 
 # -- the report ------------------------------------------------------------------------------------
-def _bracing_section(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any]]) -> list[str]:
-    header = [
-        "bracing",
-        "input",
-        "gravity comp.",
-        "hand RMS [m]",
-        "hand max [m]",
-        "energy [J]",
-        "copper loss [J]",
-        "hottest motor [degC]",
-    ]
+_Lookup = dict[tuple[Any, str, bool], dict[str, Any] | None]
+"""(bracing: True | False | "passive", input mode, gravity compensation) -> that run's row."""
+
+
+def _bracing_table(study: Study, rows: dict[str, dict[str, Any]]) -> tuple[list[list[Any]], _Lookup]:
+    """Comparison 1's table (braced, passive, free) and its rows by case."""
     keys = (HAND_RMS, HAND_MAX, ENERGY, "copper_loss_j", TEMPERATURE_KEY)
-    table, lookup = [], {}
+    table: list[list[Any]] = []
+    lookup: _Lookup = {}
     cases = [(spec, spec.varied["bracing"]) for spec in study.bracing if spec.varied["bracing"]]
     cases += [(spec, "passive") for spec in study.passive]
     cases += [(spec, spec.varied["bracing"]) for spec in study.bracing if not spec.varied["bracing"]]
@@ -398,6 +450,39 @@ def _bracing_section(study: Study, store: ResultsStore, rows: dict[str, dict[str
             table.append([*labels, *(row.get(k) for k in keys)])
         else:
             table.append([*labels, f"failed: {row.get('error') if row else 'not run'}", "", "", "", ""])
+    return table, lookup
+
+
+def _bracing_findings(
+    case: str,
+    energy: float | None,
+    hand: float | None,
+    resting: list[float | None],
+    passive: dict[str, Any] | None,
+    saved: float | None,
+) -> list[str]:
+    """What one case's ratios say, a sentence each."""
+    findings = []
+    if hand is not None and energy is not None:
+        better = "more precise" if hand < 1 else "less precise"
+        findings.append(
+            f"{case}: bracing uses {energy:.3g} x the energy and the hand is {better} (RMS error x {hand:.3g})."
+        )
+    if passive is not None and resting[0] is not None and resting[1] is not None:
+        findings.append(
+            f"{case}: bracing uses {resting[0]:.3g} x the energy of resting passively, its hand RMS error "
+            f"x {resting[1]:.3g} of the passive one's."
+        )
+    if saved is not None:
+        findings.append(
+            f"{case}: bracing keeps the hottest motor {abs(saved):.3g} degC "
+            f"{'cooler' if saved >= 0 else 'hotter'} than free."
+        )
+    return findings
+
+
+def _bracing_ratios(lookup: _Lookup) -> tuple[list[list[Any]], list[str]]:
+    """Braced against free and against passive, per input and compensation: the ratios' table, the findings."""
     ratios = []
     findings = []
     for mode in ("voltage", "torque"):
@@ -412,22 +497,23 @@ def _bracing_section(study: Study, store: ResultsStore, rows: dict[str, dict[str
             hand = ratio(HAND_RMS, braced, free)[0]
             resting = [ratio(k, braced, passive)[0] if passive and _ok(passive) else None for k in (ENERGY, HAND_RMS)]
             ratios.append([mode, compensation, energy, hand, *resting, temperature_saving_text(braced, free)])
-            if hand is not None and energy is not None:
-                better = "more precise" if hand < 1 else "less precise"
-                findings.append(
-                    f"{case}: bracing uses {energy:.3g} x the energy and the hand is {better} (RMS error x {hand:.3g})."
-                )
-            if passive is not None and resting[0] is not None and resting[1] is not None:
-                findings.append(
-                    f"{case}: bracing uses {resting[0]:.3g} x the energy of resting passively, its hand RMS error "
-                    f"x {resting[1]:.3g} of the passive one's."
-                )
-            saved = temperature_saving(braced, free)
-            if saved is not None:
-                findings.append(
-                    f"{case}: bracing keeps the hottest motor {abs(saved):.3g} degC "
-                    f"{'cooler' if saved >= 0 else 'hotter'} than free."
-                )
+            findings += _bracing_findings(case, energy, hand, resting, passive, temperature_saving(braced, free))
+    return ratios, findings
+
+
+def _bracing_section(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any]]) -> list[str]:
+    header = [
+        "bracing",
+        "input",
+        "gravity comp.",
+        "hand RMS [m]",
+        "hand max [m]",
+        "energy [J]",
+        "copper loss [J]",
+        "hottest motor [degC]",
+    ]
+    table, lookup = _bracing_table(study, rows)
+    ratios, findings = _bracing_ratios(lookup)
     lines = [
         "## 1. Braced, passive and free",
         "",
@@ -672,66 +758,91 @@ def _placement_section(
     return lines
 
 
-def _search_lines(
-    study: Study, rows: dict[str, dict[str, Any]], search: PlacementSearch | None, note: str
-) -> list[str]:
-    """The optimiser's answer beside the grid's best cell, the file's setting, passive and free; what it
-    changed; one sentence on what the numbers say."""
-    lines = ["### The optimiser's answer", ""]
-    if search is None:
-        return [*lines, f"Not searched{f': {note}' if note else ''}.", ""]
-    found, optimum = search.found, search.optimum
-    unit = f"target {study.axis} [m]"
-    bound = search.bound
-    header = ["run", "f_nd [N]", unit, "energy [J]", "hand RMS [m]", "hand max [m]", f"hand RMS <= {bound:g} m"]
+@dataclass
+class _Beside:
+    """The runs the optimum is set beside: the file's setting braced, passive and free, the grid's best cells."""
+
+    where: str  # whose setting: "the paper's" | "the file's"
+    setting: dict[str, Any] | None
+    passive: dict[str, Any] | None
+    free: dict[str, Any] | None
+    best_cell: _Cell | None  # the grid's least energy
+    best_feasible: _Cell | None  # ... within the hand RMS bound
+
+
+def _beside(study: Study, rows: dict[str, dict[str, Any]], bound: float) -> _Beside:
     cells = _grid_cells(study, rows)
     best_cell = min(cells, key=lambda c: float(c[2][ENERGY])) if cells else None
     feasible = [c for c in cells if float(c[2][HAND_RMS]) <= bound]
     best_feasible = min(feasible, key=lambda c: float(c[2][ENERGY])) if feasible else None
-    setting = _braced_row(study, rows)
-    passive = _passive_row(study, rows)
-    free = _braced_row(study, rows, braced=False)
-    where = "the paper's" if study.scenario == PAPER_SCENARIO else "the file's"
+    return _Beside(
+        "the paper's" if study.scenario == PAPER_SCENARIO else "the file's",
+        _braced_row(study, rows),
+        _passive_row(study, rows),
+        _braced_row(study, rows, braced=False),
+        best_cell,
+        best_feasible,
+    )
 
-    def line(name: str, force: Any, target: Any, row: dict[str, Any] | None) -> list[Any]:
-        if row is None or not _ok(row):
-            return [name, force, target, f"failed: {row.get('error') if row else 'not run'}", "", "", ""]
-        rms = row.get(HAND_RMS)
-        return [name, force, target, row.get(ENERGY), rms, row.get(HAND_MAX), number(rms) and float(rms) <= bound]
 
+def _search_row(name: str, force: Any, target: Any, row: dict[str, Any] | None, bound: float) -> list[Any]:
+    """One line of the optimiser's table: the run's numbers and whether its hand RMS meets ``bound``."""
+    if row is None or not _ok(row):
+        return [name, force, target, f"failed: {row.get('error') if row else 'not run'}", "", "", ""]
+    rms = row.get(HAND_RMS)
+    return [name, force, target, row.get(ENERGY), rms, row.get(HAND_MAX), number(rms) and float(rms) <= bound]
+
+
+def _search_table(study: Study, search: PlacementSearch, beside: _Beside) -> list[list[Any]]:
+    """The file's setting (braced, passive, free), the grid's best cells and the optimum."""
+    where, bound = beside.where, search.bound
     table = [
-        line(f"braced, {where} setting", study.desired, study.origin, setting),
-        line(f"passive, {where} setting (no brace task)", "n/a", "n/a", passive),
-        line(f"free, {where} setting (no contact)", "n/a", "n/a", free),
+        _search_row(f"braced, {where} setting", study.desired, study.origin, beside.setting, bound),
+        _search_row(f"passive, {where} setting (no brace task)", "n/a", "n/a", beside.passive, bound),
+        _search_row(f"free, {where} setting (no contact)", "n/a", "n/a", beside.free, bound),
     ]
+    best_cell, best_feasible = beside.best_cell, beside.best_feasible
     if best_cell is not None:
-        table.append(line("grid's best (least energy)", best_cell[1], best_cell[0], best_cell[2]))
+        table.append(_search_row("grid's best (least energy)", best_cell[1], best_cell[0], best_cell[2], bound))
     if best_feasible is not None and best_feasible is not best_cell:
-        table.append(line("grid's best within the bound", best_feasible[1], best_feasible[0], best_feasible[2]))
-    best = found.best if found is not None else None
+        name = "grid's best within the bound"
+        table.append(_search_row(name, best_feasible[1], best_feasible[0], best_feasible[2], bound))
+    best = search.found.best if search.found is not None else None
+    optimum = search.optimum
     if best is not None and optimum is not None:
         target = best.params[search.target] if search.target else study.origin
-        table.append(line(f"**optimum** (trial {best.number})", best.params[search.force], target, optimum))
+        table.append(
+            _search_row(f"**optimum** (trial {best.number})", best.params[search.force], target, optimum, bound)
+        )
+    return table
+
+
+def _search_paragraph(search: PlacementSearch) -> str:
+    """What the search was and where its study lives."""
+    found = search.found
     trials = found.trials if found is not None else 0
     ran = found.search.ran if found is not None else 0
     varies = " and ".join(f"`{v.name}` in [{v.low:.4g}, {v.high:.4g}]" for v in search.problem.varies)
-    lines += [
-        f"Least energy subject to hand RMS <= {bound:g} m over {varies} ({search.why}), searched by "
+    return (
+        f"Least energy subject to hand RMS <= {search.bound:g} m over {varies} ({search.why}), searched by "
         f"bracing-optimize (Optuna's TPE, seed {SEARCH_SEED}) with the grid's runs on the same executor: {trials} "
         f"trials ({ran} run by this invocation), the first at the grid's best cell within the bound. Its study and "
         f"trials: `{SEARCH_DIR}/{search.output.name}/` (the same command again reuses them; its `best.yaml` runs "
-        "the optimum with `bracing-pair --config`).",
-        "",
-        markdown_table(header, table),
-        "",
-    ]
-    if best is None or optimum is None:
-        return [*lines, "No trial met the bound: no optimum.", ""]
+        "the optimum with `bracing-pair --config`)."
+    )
+
+
+def _optimum_against(
+    study: Study, search: PlacementSearch, beside: _Beside, best: FrozenTrial, optimum: dict[str, Any], trials: int
+) -> list[str]:
+    """What the optimum changed against the file's setting and the grid's cell to beat, and what that says."""
+    lines = []
     changed = {name: after for name, _, after in changes(search.problem, best)}
+    best_cell, best_feasible = beside.best_cell, beside.best_feasible
     # The grid's cell to beat: its least energy within the bound (the optimum's own constraint).
     grid_name = "the grid's best cell" + ("" if best_feasible is best_cell else " within the bound")
     started = search.start is not None and best.params == search.start
-    against = [(f"{where} setting", study.desired, study.origin, setting)]
+    against = [(f"{beside.where} setting", study.desired, study.origin, beside.setting)]
     if best_feasible is not None and not started:
         against.append((grid_name, best_feasible[1], best_feasible[0], best_feasible[2]))
     for name, force, target, row in against:
@@ -747,10 +858,30 @@ def _search_lines(
     if started:
         lines.append(f"- The optimum is the grid's cell the search started from: {trials} trials found nothing better.")
     grid_row = best_feasible[2] if best_feasible is not None else None
-    sentence = _what_it_says(study, where, setting, passive, optimum, grid_row, grid_name)
+    sentence = _what_it_says(study, beside.where, beside.setting, beside.passive, optimum, grid_row, grid_name)
     if sentence:
         lines += ["", f"**What the numbers say**: {sentence}"]
-    return [*lines, ""]
+    return lines
+
+
+def _search_lines(
+    study: Study, rows: dict[str, dict[str, Any]], search: PlacementSearch | None, note: str
+) -> list[str]:
+    """The optimiser's answer beside the grid's best cell, the file's setting, passive and free; what it
+    changed; one sentence on what the numbers say."""
+    lines = ["### The optimiser's answer", ""]
+    if search is None:
+        return [*lines, f"Not searched{f': {note}' if note else ''}.", ""]
+    found, optimum = search.found, search.optimum
+    bound = search.bound
+    header = ["run", "f_nd [N]", f"target {study.axis} [m]", "energy [J]", "hand RMS [m]", "hand max [m]"]
+    beside = _beside(study, rows, bound)
+    table = _search_table(study, search, beside)
+    lines += [_search_paragraph(search), "", markdown_table([*header, f"hand RMS <= {bound:g} m"], table), ""]
+    best = found.best if found is not None else None
+    if found is None or best is None or optimum is None:
+        return [*lines, "No trial met the bound: no optimum.", ""]
+    return [*lines, *_optimum_against(study, search, beside, best, optimum, found.trials), ""]
 
 
 def _what_it_says(
