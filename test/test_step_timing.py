@@ -1,0 +1,29 @@
+"""The nodes' per-step work (bracing_core.step_timing): waiting for the peer is not counted, and the
+log line reads back as written (make bench's pair_step_breakdown_us reads it from the nodes' logs)."""
+
+from __future__ import annotations
+
+import pytest
+
+from bracing_core import step_timing
+from bracing_core.step_timing import WorkTimer, read_work_line
+
+
+def test_the_wait_for_the_peer_is_not_work_and_the_line_reads_back(monkeypatch: pytest.MonkeyPatch) -> None:
+    # Two steps on a clock read at begin, pause, resume, end: 10 us of work around a 500 us wait,
+    # then 30 us with no wait.
+    reads = iter([0.0, 4e-6, 504e-6, 510e-6, 1.0, 1.000030])
+    monkeypatch.setattr(step_timing.time, "perf_counter", lambda: next(reads))
+    timer = WorkTimer()
+    assert timer.line() is None
+    timer.begin()
+    timer.pause()
+    timer.resume()
+    timer.end()
+    timer.begin()
+    timer.end()
+    line = timer.line()
+    assert line == "per-step work [us]: mean 20.0, p50 20.0, p99 29.8 over 2 steps"
+    log = f"[INFO] [1.0] [bracing_simulator]: {line}\n[INFO] [1.1] [bracing_simulator]: finished at t = 1.0 s\n"
+    assert read_work_line(log) == {"mean": 20.0, "p50": 20.0, "p99": 29.8, "steps": 2.0}
+    assert read_work_line("finished at t = 1.0 s") is None
