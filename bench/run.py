@@ -302,22 +302,27 @@ def pair_without_recorder(duration: float = 10.0) -> dict[str, Any]:
 def step_breakdown_us(
     pair_rtf: float, bare: list[dict[str, Any]], engine_us: float, law_us: float, bound_round_trip_us: float
 ) -> dict[str, float]:
-    """Where a lockstep step's wall time goes [us per 1 ms step]: each node's work from its own log
-    (the bare runs, medians), minus the engine's and the law's in-process cost, the rest of the round
-    trip (DDS both ways and the wake-ups), and what the recorder adds (the recorded pair against the
-    bare one). The parts add up to ``step``."""
+    """Where a lockstep step's wall time goes [us per 1 ms step], along the loop's critical path: the
+    simulator's work from the controller's answer taken to the next state out, the controller's work
+    on that state (each from the node's own log, the bare runs' medians) less the engine's and the
+    law's in-process cost; the rest of the bare step (DDS both ways and the wake-ups, and the CPU the
+    simulator's reports take meanwhile on two cores); what the recorder adds (the recorded pair
+    against the bare one). Those parts add up to ``step``. Beside them: the simulator's work after
+    the state is out (its reports, overlapping the controller) and the DDS bound's round trip."""
     bare_step = 1e3 / statistics.median(run["real_time_factor"] for run in bare)
+    sim_to_state = statistics.median(run["work"]["simulator"]["out_mean"] for run in bare)
     sim_work = statistics.median(run["work"]["simulator"]["mean"] for run in bare)
     ctl_work = statistics.median(run["work"]["controller"]["mean"] for run in bare)
     step = 1e3 / pair_rtf
     return {
         "step": step,
-        "simulator_node": sim_work - engine_us,
+        "simulator_node": sim_to_state - engine_us,
         "engine": engine_us,
         "controller_node": ctl_work - law_us,
         "law": law_us,
-        "dds_round_trip": bare_step - sim_work - ctl_work,
+        "dds_round_trip": bare_step - sim_to_state - ctl_work,
         "recorder": step - bare_step,
+        "simulator_reports_overlapped": sim_work - sim_to_state,  # not a part of the sum
         "dds_bound_round_trip": bound_round_trip_us,  # for comparison: not a part of the sum
     }
 

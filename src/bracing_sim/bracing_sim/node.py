@@ -164,6 +164,7 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
         for msg in messages:
             node.on_command(msg)
 
+    node.topics.state_out = work.mark  # the controller's wait ends there; the step's reports follow
     core.send_state()
     node.topics.sent()
     while not core.done():

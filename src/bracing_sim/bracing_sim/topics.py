@@ -4,6 +4,7 @@ message classes cost more than the DDS write)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import partial
 
 from geometry_msgs.msg import WrenchStamped
@@ -52,6 +53,7 @@ class SimulatorTopics:
 
     def __init__(self, node: Node, config: SimulatorConfig, plant: Plant, status: StatusPublisher) -> None:
         joint_names = list(plant.joint_names)
+        self.state_out: Callable[[], None] | None = None  # called once a state is out (lockstep's timing)
         publisher = partial(create_waking_publisher, node)  # the lockstep wait wakes on each match
         self.joint_pub = publisher(JointState, "joint_states", STREAM_QOS)
         self.contacts_pub = publisher(Contacts, "contacts", STREAM_QOS)
@@ -102,6 +104,8 @@ class SimulatorTopics:
         for pub in self.joint_command_pubs:  # the ros2_control face: the full truth, as a robot's driver gives it
             pub.publish(truth)
         self.clock_pub.publish(self.clock_wire.encode(t_ns))
+        if self.state_out is not None:
+            self.state_out()
 
     def publish_step(self, step: StepOut) -> None:
         t_ns, d = step.t_ns, step.forces
