@@ -47,6 +47,8 @@ import json
 import math
 import sys
 import time
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import rclpy
@@ -166,14 +168,23 @@ def effort_controller(node: rclpy.node.Node, _: int) -> dict[str, object]:
     return {"commands": seen, "refused": refused, "publisher_reliability": reliability}
 
 
-
-def _join_run(node: rclpy.node.Node, listens: object, speaks: list[object]) -> None:
-    """Once this script hears the controller (``listens`` matched) and is heard by it (each of ``speaks``
-    matched), subscribe to joint_states: a simulator with min_subscribers 2 steps only then, so the
-    script cannot miss the run's start on a busy machine (it did once in CI: it saw no state at all)."""
-    while listens.get_publisher_count() < 1 or any(pub.get_subscription_count() < 1 for pub in speaks):
+def _follow_run(
+    node: rclpy.node.Node, on_state: Callable[[ControllerState], None], speaks: list[Any], rows: list[Any]
+) -> None:
+    """Follow controller_state with ``on_state`` (which appends to ``rows``) until the run has ended
+    (3 s without a state). Once this script hears the controller and is heard by it (each of
+    ``speaks`` matched), it subscribes to joint_states: a simulator with min_subscribers 2 steps only
+    then, so the script cannot miss the run's start on a busy machine (it did once in CI)."""
+    states = node.create_subscription(ControllerState, "controller_state", on_state, QoSProfile(depth=10000))
+    while states.get_publisher_count() < 1 or any(pub.get_subscription_count() < 1 for pub in speaks):
         rclpy.spin_once(node, timeout_sec=0.05)
     node.create_subscription(JointState, "joint_states", lambda _msg: None, 10)
+    deadline, quiet = time.monotonic() + 120, 0.0
+    while time.monotonic() < deadline and quiet < 3.0:  # until the run has ended (3 s without a state)
+        count = len(rows)
+        rclpy.spin_once(node, timeout_sec=0.1)
+        quiet = quiet + 0.1 if rows and len(rows) == count else 0.0
+
 
 def target(node: rclpy.node.Node, t_pub: float, point: list[float], frame: str) -> dict[str, object]:
     pub = node.create_publisher(PointStamped, "hand_target", 10)
@@ -196,13 +207,7 @@ def target(node: rclpy.node.Node, t_pub: float, point: list[float], frame: str) 
             pub.publish(target_msg)
             sent.append(t)
 
-    states = node.create_subscription(ControllerState, "controller_state", on_state, QoSProfile(depth=10000))
-    _join_run(node, states, [pub])
-    deadline, quiet = time.monotonic() + 120, 0.0
-    while time.monotonic() < deadline and quiet < 3.0:  # until the run has ended (3 s without a state)
-        count = len(rows)
-        rclpy.spin_once(node, timeout_sec=0.1)
-        quiet = quiet + 0.1 if rows and len(rows) == count else 0.0
+    _follow_run(node, on_state, [pub], rows)
     return {"sent_at": sent, "rows": rows}
 
 
@@ -240,13 +245,7 @@ def path_and_brace(node: rclpy.node.Node, t_pub: float, poses: list[list[float]]
         brace_pub.publish(brace)
         sent.append([t, brace.point.x, brace.point.y, brace.point.z])
 
-    states = node.create_subscription(ControllerState, "controller_state", on_state, QoSProfile(depth=10000))
-    _join_run(node, states, [path_pub, brace_pub])
-    deadline, quiet = time.monotonic() + 120, 0.0
-    while time.monotonic() < deadline and quiet < 3.0:  # until the run has ended (3 s without a state)
-        count = len(rows)
-        rclpy.spin_once(node, timeout_sec=0.1)
-        quiet = quiet + 0.1 if rows and len(rows) == count else 0.0
+    _follow_run(node, on_state, [path_pub, brace_pub], rows)
     return {"sent": sent, "rows": rows}
 
 

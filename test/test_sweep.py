@@ -31,7 +31,7 @@ from bracing_core.overrides import (
 )
 from bracing_core.params import ConfigError
 from bracing_core.rollout import build_scenario, run_closed_loop
-from bracing_experiments.executors import DaskExecutor, LocalExecutor
+from bracing_experiments.executors import STOP_REQUESTED, DaskExecutor, LocalExecutor
 from bracing_experiments.experiment import STATUS_FAILED, STATUS_OK, RunOutcome, execute_run
 from bracing_experiments.sweep import (
     RESULTS_CSV,
@@ -386,5 +386,5 @@ def test_a_ctrl_c_dropped_in_a_finalizer_still_stops_the_executor_at_the_next_re
     finally:
         signal.signal(signal.SIGINT, previous[0])
         signal.signal(signal.SIGTERM, previous[1])
-        handle_stop_signals.__globals__["STOP_REQUESTED"].clear()
+        STOP_REQUESTED.clear()
     assert seen == [1, 0]  # no result after the one during which Ctrl-C came
