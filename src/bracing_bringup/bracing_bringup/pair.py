@@ -21,8 +21,6 @@ This module is the command line; the run's plan is ``run_plan``, its supervision
 from __future__ import annotations
 
 import argparse
-import faulthandler
-import signal
 import sys
 import time
 from collections.abc import Sequence
@@ -34,6 +32,7 @@ from bracing_bringup.timeline import process_start_time
 from bracing_core.overrides import parse_single
 from bracing_core.params import ConfigError
 from bracing_ros.fastdds import NETWORK_ENV
+from bracing_ros.lifetime import report_faults
 
 EXIT_CONFIG = 2
 
@@ -127,7 +126,7 @@ def parse_args(argv: Sequence[str] | None) -> RunOptions:
 def main(argv: Sequence[str] | None = None) -> int:
     options = parse_args(argv)
     options.command_start = process_start_time()  # the timeline counts the interpreter's start too
-    faulthandler.register(signal.SIGUSR1, all_threads=True)  # kill -USR1 PID: every thread's stack, for a hang
+    report_faults()  # its stack on a crash, and every thread's on SIGUSR1 (a hang)
     try:
         result = run_pair(options)
     except ConfigError as exc:

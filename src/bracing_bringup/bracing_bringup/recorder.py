@@ -43,7 +43,6 @@ seconds, at most ``--drain-timeout`` seconds) and the bag is closed cleanly.
 from __future__ import annotations
 
 import argparse
-import faulthandler
 import json
 import math
 import os
@@ -108,7 +107,7 @@ from bracing_core.typestore import (
 from bracing_core.typestore import bracing_msgs_dir as bracing_msgs_dir
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState, RunStatus
 from bracing_ros.fastdds import use_fastdds_profile
-from bracing_ros.lifetime import stop_with_parent
+from bracing_ros.lifetime import report_faults, stop_with_parent
 from bracing_ros.status import STATUS_QOS, STATUS_TOPIC, StatusPublisher
 from bracing_ros.waiter import SubscriptionWaiter
 
@@ -600,8 +599,7 @@ def _close(writer: Writer, node: Recorder | None, status: StatusPublisher | None
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the recorder until SIGINT/SIGTERM; returns the exit code."""
-    faulthandler.enable()  # a crash in native code (DDS, pinocchio) leaves its Python stack on stderr
-    faulthandler.register(signal.SIGUSR1, all_threads=True)  # kill -USR1 PID: every thread's stack, for a hang
+    report_faults()  # its stack on a crash, and every thread's on SIGUSR1 (a hang)
     full = list(sys.argv[1:] if argv is None else argv)
     args = _parse(remove_ros_args(["recorder", *full])[1:])
     contacts = [c.strip() for c in args.contacts.split(",") if c.strip()]

@@ -1,14 +1,24 @@
-"""Processes that do not outlive the bracing-pair that started them (no rclpy needed)."""
+"""Processes that do not outlive the bracing-pair that started them, and that say where they crashed
+or hung (no rclpy needed)."""
 
 from __future__ import annotations
 
 import ctypes
+import faulthandler
 import os
 import signal
 import sys
 
 STOP_WITH_PARENT = "BRACING_STOP_WITH_PARENT"
 """Set by bracing-pair to its pid for the processes it starts (see ``stop_with_parent``)."""
+
+
+def report_faults() -> None:
+    """A crash in native code (DDS, pinocchio) leaves this process's Python stack on stderr, and
+    ``kill -USR1 PID`` prints every thread's stack (a hang; the tests' run() asks for it at its
+    timeout)."""
+    faulthandler.enable()
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
 
 
 def stop_with_parent() -> None:

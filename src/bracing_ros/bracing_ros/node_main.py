@@ -3,7 +3,6 @@ line and an exit code."""
 
 from __future__ import annotations
 
-import faulthandler
 import signal
 import sys
 from collections.abc import Callable
@@ -17,7 +16,7 @@ from rclpy.signals import SignalHandlerOptions
 from bracing_core import rcl_yaml
 from bracing_core.params import ConfigError
 from bracing_ros.fastdds import use_fastdds_profile
-from bracing_ros.lifetime import stop_with_parent
+from bracing_ros.lifetime import report_faults, stop_with_parent
 
 EXIT_CONFIG = 2
 EXIT_DIVERGED = 3
@@ -29,8 +28,7 @@ def _interrupt(signum: int, frame: object) -> None:
 
 def run(node_factory: Callable[[], Node], spin: Callable[[Node], int], args: list[str] | None = None) -> int:
     """Create the node, spin it, and turn start-up errors into one clear line and exit 2."""
-    faulthandler.enable()  # a crash in native code (DDS, pinocchio) leaves its Python stack in the node's log
-    faulthandler.register(signal.SIGUSR1, all_threads=True)  # kill -USR1 PID: every thread's stack, for a hang
+    report_faults()  # its stack on a crash, and every thread's on SIGUSR1 (a hang)
     code = 0
     node: Node | None = None
     try:
