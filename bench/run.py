@@ -253,7 +253,14 @@ def pair_without_recorder(duration: float = 10.0) -> dict[str, Any]:
     out = scratch("bench_nodes_")
     overrides = out / "overrides.yaml"
     urdf = str(PAPER.parent / "paper_4link.urdf")
-    sim = {"duration": duration, "min_subscribers": 1, "wait_for_recorder": False, "robot.urdf": urdf}
+    # min_status_subscribers: the watcher below hears "finished" (a 0.01 s run can end before it matched)
+    sim = {
+        "duration": duration,
+        "min_subscribers": 1,
+        "min_status_subscribers": 1,
+        "wait_for_recorder": False,
+        "robot.urdf": urdf,
+    }
     controller = {"wait_for_recorder": False, "robot.urdf": urdf}
     overrides.write_text(
         json.dumps(
@@ -296,6 +303,8 @@ def pair_without_recorder(duration: float = 10.0) -> dict[str, Any]:
     missing = [name for name, line in work.items() if line is None]
     if missing:
         raise RuntimeError(f"no per-step work line in the {' and '.join(missing)} log ({out})")
+    if not {"stepping", "finished"} <= simulator.keys():
+        raise RuntimeError(f"run_status did not say both stepping and finished (heard {sorted(simulator)}; {out})")
     return {"real_time_factor": duration / (simulator["finished"] - simulator["stepping"]), "work": work}
 
 
