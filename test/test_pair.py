@@ -63,6 +63,33 @@ def test_bag_has_every_topic_and_no_missing_step(paper_run: Path) -> None:
         assert stamps == [k * 1_000_000 for k in range(steps)], f"{topic}: steps missing or repeated"
 
 
+def test_a_bag_from_batches_is_the_bag_from_every_topic(paper_run: Path, tmp_path: Path) -> None:
+    """bracing-pair hands the per-state messages to the recorder in batches (record_batch); with it off
+    the recorder subscribes to every topic, as any rosbag2 recorder. The two bags hold the same
+    messages, byte for byte at the same bag times (controller_state but its compute_time, a wall-clock
+    measurement), and the derived /tf and markers alike."""
+    output = tmp_path / "run"
+    done = run(pair_argv(output, "--duration", "1.0", "--no-animation", "--set", "record_batch=0"), timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    for run_dir, batch in ((paper_run, 100), (output, 0)):  # the two paths were taken
+        assert f"record_batch: {batch}" in (run_dir / "params.yaml").read_text()
+    bags = []
+    for bag in (paper_run / "bag", output / "bag"):
+        with AnyReader([bag]) as reader:
+            topics: dict[str, list[tuple[int, bytes]]] = {}
+            for connection, timestamp, raw in reader.messages():
+                data = bytes(raw)
+                if connection.topic == "/controller_state":  # compute_time: the float64 at the end
+                    data = data[:-8]
+                topics.setdefault(connection.topic, []).append((timestamp, data))
+        bags.append(topics)
+    batched, every = bags
+    assert set(batched) == set(every)
+    for topic in every:
+        assert len(batched[topic]) == len(every[topic]) >= 1, topic
+        assert batched[topic] == every[topic], topic
+
+
 def test_pair_trajectory_equals_in_process_loop(paper_run: Path) -> None:
     messages = read_bag(paper_run / "bag")
     states = sorted(messages["joint_states"], key=lambda m: (m[1].header.stamp.sec, m[1].header.stamp.nanosec))

@@ -17,6 +17,7 @@ import subprocess
 import sys
 import threading
 import time
+from array import array
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -223,6 +224,60 @@ def publisher_main(namespace: str, contacts: str, n: int, period: float, wait_go
     print("sent", flush=True)
     for p in pubs.values():
         p.wait_for_all_acked(rclpy.duration.Duration(seconds=5.0))
+    print("published", flush=True)
+    node.destroy_node()
+    rclpy.shutdown()
+
+
+def batch_publisher_main(namespace: str, contacts: str, n: int, sent_file: str) -> None:
+    """Run in a subprocess: as the nodes do with record_batch 10, publish n synthetic steps on their
+    topics and in batches (bracing_ros.record_batch); between them, a batch that cannot be unpacked
+    (from another node) and one this node's recorder never gets (a gap in its sequence). Prints
+    "matched" once the recorder subscribes to the batches and "published" once all is acked; the
+    bytes of the steps in batches that were sent go to ``sent_file`` (JSON, hex by topic)."""
+    import rclpy
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import String
+
+    from bracing_msgs.msg import RecordBatch
+    from bracing_ros.record_batch import RECORD_BATCH_QOS, RECORD_BATCH_TOPIC, RecordBatchPublisher
+
+    names = tuple(c for c in contacts.split(",") if c)
+    rclpy.init()
+    node = rclpy.create_node("synthetic_publisher", namespace=namespace)
+    reliable, latched = ReliabilityPolicy.RELIABLE, DurabilityPolicy.TRANSIENT_LOCAL
+    qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=reliable, durability=latched)
+    pubs = {topic: node.create_publisher(type(msg), topic, qos) for topic, msg in make_step(0, names).items()}
+    node.create_publisher(String, "robot_description", qos).publish(String(data=PAPER_URDF.read_text("utf-8")))
+    batches = RecordBatchPublisher(node, list(pubs.values()), 10)
+    intruder = node.create_publisher(RecordBatch, RECORD_BATCH_TOPIC, RECORD_BATCH_QOS)
+    deadline = time.monotonic() + 15.0
+    while batches.publisher.get_subscription_count() == 0 or intruder.get_subscription_count() == 0:
+        if time.monotonic() > deadline:
+            print("publisher: recorder not discovered", flush=True)
+            sys.exit(3)
+        rclpy.spin_once(node, timeout_sec=0.02)
+    print("matched", flush=True)
+    broken = RecordBatch(node="/intruder", sequence=0, topics=["/joint_states"])
+    broken.topic_of, broken.end, broken.data = array("H", [0]), array("I", [8]), array("B", b"four")
+    sent: dict[str, list[str]] = {topic: [] for topic in pubs}
+    for k in range(n):
+        if k == 10:
+            intruder.publish(broken)  # its bytes end after its data: left out whole
+            batches._packer.sequence += 1  # states 10-19: a batch the recorder never gets
+        lost = 10 <= k < 20
+        for topic, msg in make_step(k, names).items():
+            data = serialize_message(msg)
+            if lost:
+                pubs[topic].publish(data)
+            else:
+                batches.publish(pubs[topic], data)
+                sent[topic].append(data.hex())
+        if not lost:
+            batches.state_done()
+    batches.close(timeout_sec=5.0)
+    Path(sent_file).write_text(json.dumps(sent))
     print("published", flush=True)
     node.destroy_node()
     rclpy.shutdown()
@@ -462,6 +517,37 @@ def test_recorder_closes_the_bag_once_it_has_every_message(tmp_path: Path, procs
     assert set(data) == expected_topics("", CONTACTS)
     for topic, msgs in data.items():
         assert len(msgs) == (1 if topic.endswith(ONCE) else N_STEPS), topic
+
+
+def test_recorder_from_batches_writes_each_message_under_its_topic(tmp_path: Path, procs: list[Proc]) -> None:
+    """--from-batches: the bag holds what subscribing to each topic would have given, message for
+    message and byte for byte; a batch that cannot be unpacked is left out with an error, and a
+    node's lost batch is reported."""
+    env = ros_env()
+    bag = tmp_path / "run" / "bag"
+    n, sent_file = 40, tmp_path / "sent.json"
+    rec = start_recorder(procs, env, bag, "", CONTACTS, "--from-batches")
+    code = f"import test_recorder_report as t; t.batch_publisher_main('', {','.join(CONTACTS)!r}, {n}, '{sent_file}')"
+    pub = Proc([sys.executable, "-c", code], env)
+    procs.append(pub)
+    pub.wait_line("published", timeout=30.0)
+    rec.popen.send_signal(signal.SIGINT)
+    rc, err = rec.finish(timeout=15.0)
+    assert rc == 0, err
+    assert "a record_batch from /intruder left out: message 0: its bytes end at 8" in err
+    assert "1 batch(es) from /synthetic_publisher lost (sequence 2)" in err
+    kept = [step_values(k) for k in range(n) if not 10 <= k < 20]  # batch 1 (states 10-19) was never sent
+    data = read_bag(bag)
+    assert set(data) == expected_topics("", CONTACTS)
+    raw: dict[str, list[tuple[int, str]]] = {}
+    with AnyReader([bag]) as reader:
+        for conn, stamp, message in reader.messages():
+            raw.setdefault(conn.topic, []).append((stamp, bytes(message).hex()))
+    for topic, sent in json.loads(sent_file.read_text()).items():
+        name = topic if topic.startswith("/") else "/" + topic
+        assert [message for _, message in raw[name]] == sent, name
+        assert [stamp for stamp, _ in raw[name]] == [v["sec"] * 1_000_000_000 + v["nanosec"] for v in kept], name
+    assert len(data["/tf"]) == len(kept)  # the scene from the batches' joint_states
 
 
 @pytest.mark.parametrize(("sig", "publisher_keeps_going"), [(signal.SIGINT, True), (signal.SIGTERM, False)])

@@ -35,6 +35,12 @@ about, also in its log), stamped with their sim time; the topic is in the bag fr
 closed once every topic has its messages and, if a simulator speaks on run_status, once it has said
 FINISHED (after its last warning: one writer, in order).
 
+With ``--from-batches`` the per-state topics come in ``bracing_msgs/RecordBatch`` samples on
+``record_batch`` (the nodes' ``record_batch`` parameter; bracing-pair sets both): each message is
+written under its own topic, exactly as if it had come on it, without one DDS delivery per message
+(``bracing_core.record_batch`` says why). A batch that cannot be unpacked is left out whole, with
+an error line, and a gap in a node's batch sequence is reported as lost.
+
 Prints ``recorder ready`` on stdout once every subscription exists. SIGINT or SIGTERM
 stops it: pending messages are drained (until nothing arrives for ``--drain-idle``
 seconds, at most ``--drain-timeout`` seconds) and the bag is closed cleanly.
@@ -88,6 +94,7 @@ from bracing_bringup.topics import (
 from bracing_bringup.topics import expected_counts as expected_counts  # re-exported: the check lives in topics
 from bracing_core.kinematics import DescriptionError
 from bracing_core.overrides import SIMULATOR
+from bracing_core.record_batch import BatchError, unpack
 from bracing_core.typestore import BRACING_MSGS as BRACING_MSGS  # re-exported: the typestore lives in bracing_core
 from bracing_core.typestore import (
     CLOCK,
@@ -105,9 +112,10 @@ from bracing_core.typestore import (
     bracing_typestore,
 )
 from bracing_core.typestore import bracing_msgs_dir as bracing_msgs_dir
-from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState, RunStatus
+from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState, RecordBatch, RunStatus
 from bracing_ros.fastdds import use_fastdds_profile
 from bracing_ros.lifetime import report_faults, stop_with_parent
+from bracing_ros.record_batch import RECORD_BATCH_TOPIC
 from bracing_ros.status import STATUS_QOS, STATUS_TOPIC, StatusPublisher
 from bracing_ros.waiter import SubscriptionWaiter
 
@@ -206,6 +214,7 @@ class Recorder(Node):
         scene: bool = True,
         shapes: Mapping[str, surfaces.Shape] | None = None,
         ground_truth: bool = False,
+        from_batches: bool = False,
     ) -> None:
         super().__init__(RECORDER_NODE, namespace=namespace)
         self.writer = writer
@@ -216,12 +225,19 @@ class Recorder(Node):
         self.derived = 0
         self.scene_time = 0.0  # [s] of CPU spent deriving /tf and markers (what the lockstep loop shares)
         self.last_receive = time.monotonic()
-        self._connections: dict[Subscription, Connection] = {}
+        self._recorded: dict[str, tuple[Connection, str]] = {}  # resolved topic: its connection, its role
+        self._topic_of: dict[Subscription, str] = {}  # the recorded topics subscribed to one by one
         self._roles: dict[Subscription, str] = {}  # what the scene makes of a subscription's messages
-        self._subscribe_recorded(contacts, ground_truth)
+        self._subscribe_recorded(contacts, ground_truth, from_batches)
         self._subscribe_events()
+        self._batches: Subscription | None = None
+        self._next_batch: dict[str, int] = {}  # per node: the sequence number its next batch should have
+        subscriptions = [*self._topic_of, self._events, self._status, *self._targets]
+        if from_batches:
+            self._batches = self.create_subscription(RecordBatch, RECORD_BATCH_TOPIC, _never_called, RECORD_QOS)
+            subscriptions.append(self._batches)
         self._sim_time_ns = 0  # the last /clock recorded: when a target arrived, on the bag's time axis
-        self._waiter = SubscriptionWaiter(self, [*self._connections, self._events, self._status, *self._targets])
+        self._waiter = SubscriptionWaiter(self, subscriptions)
         self.scene = SceneBuilder(typestore, contacts, shapes) if scene else None
         self._scene_inputs: deque[tuple[str, bytes]] = deque()
         self._scene_roles = {"joint_states", "contacts", "description", *(f"contact_wrench/{c}" for c in contacts)}
@@ -229,22 +245,26 @@ class Recorder(Node):
         if scene:
             self._add_scene_connections(contacts)
 
-    def _subscribe_recorded(self, contacts: Sequence[str], ground_truth: bool) -> None:
-        """The recorded topics, each with its bag connection from the start."""
+    def _subscribe_recorded(self, contacts: Sequence[str], ground_truth: bool, from_batches: bool) -> None:
+        """The recorded topics, each with its bag connection from the start; subscribed to one by one
+        unless they come in batches (robot_description always is: once, latched)."""
         table = [
             (topic, msg_type, type_name, topic) for topic, msg_type, type_name in topic_table(contacts, ground_truth)
         ]
         table.append((DESCRIPTION_TOPIC, String, STRING, "description"))
         for topic, msg_type, type_name, role in table:
-            # Messages are taken directly in ``record`` (no executor: per message it costs more
-            # than the write), so the callback is never called.
-            sub = self.create_subscription(msg_type, topic, _never_called, RECORD_QOS, raw=True)
-            resolved = sub.topic_name
+            resolved = self.resolve_topic_name(topic)
+            if role == "description" or not from_batches:
+                # Messages are taken directly in ``record`` (no executor: per message it costs more
+                # than the write), so the callback is never called.
+                sub = self.create_subscription(msg_type, topic, _never_called, RECORD_QOS, raw=True)
+                self._topic_of[sub] = resolved
+                self._roles[sub] = role
             qos = [LATCHED] if role == "description" else []
-            self._connections[sub] = self.writer.add_connection(
+            connection = self.writer.add_connection(
                 resolved, type_name, typestore=self.typestore, offered_qos_profiles=qos
             )
-            self._roles[sub] = role
+            self._recorded[resolved] = (connection, role)
             self.counts[resolved] = 0
 
     def _subscribe_events(self) -> None:
@@ -285,33 +305,57 @@ class Recorder(Node):
             self.counts[resolved] = 0
 
     def record(self, timeout_sec: float) -> int:
-        """Write every message available now, waiting up to ``timeout_sec``; the count written."""
+        """Write every message available now, waiting up to ``timeout_sec``; the count of samples taken."""
         taken = self._waiter.take_all(timeout_sec)
-        write, connections, counts = self.writer.write, self._connections, self.counts
-        skipped = 0
+        written = 0
         for sub, data in taken:
-            if sub is self._events:
-                skipped += not self._record_event(data)
-                continue
-            if sub is self._status:
-                skipped += not self._record_status(data)
-                continue
-            if sub in self._targets:
+            if sub is self._batches:
+                written += self._record_batch(data)
+            elif sub is self._events:
+                written += self._record_event(data)
+            elif sub is self._status:
+                written += self._record_status(data)
+            elif sub in self._targets:
                 self._record_target(sub, data)
-                continue
-            connection = connections[sub]
-            stamp = 0 if self._roles[sub] == "description" else cdr_stamp_ns(data)
-            if self._roles[sub] == "/clock":
-                self._sim_time_ns = stamp
-            write(connection, stamp, data)
-            counts[connection.topic] += 1
+                written += 1
+            else:
+                self._write(self._topic_of[sub], data)
+                written += 1
         if taken:
-            self.received += len(taken) - skipped
+            self.received += written
             self.last_receive = time.monotonic()
-            if self.scene is not None:
-                roles = self._roles
-                self._scene_inputs.extend((roles[sub], data) for sub, data in taken if roles[sub] in self._scene_roles)
         return len(taken)
+
+    def _write(self, topic: str, data: bytes) -> None:
+        """One message of a recorded topic (resolved name) into the bag, at its header stamp."""
+        connection, role = self._recorded[topic]
+        stamp = 0 if role == "description" else cdr_stamp_ns(data)
+        if role == "/clock":
+            self._sim_time_ns = stamp
+        self.writer.write(connection, stamp, data)
+        self.counts[topic] += 1
+        if self.scene is not None and role in self._scene_roles:
+            self._scene_inputs.append((role, data))
+
+    def _record_batch(self, batch: RecordBatch) -> int:
+        """Write a RecordBatch's messages, each under its own topic; the count written (0 for a batch
+        that cannot be unpacked, or that names a topic this recorder does not record)."""
+        expected = self._next_batch.get(batch.node, 0)
+        if batch.sequence != expected:
+            lost = f"{batch.sequence - expected} batch(es)" if batch.sequence > expected else "a batch out of order"
+            print(f"recorder: error: {lost} from {batch.node} lost (sequence {batch.sequence})", file=sys.stderr)
+        self._next_batch[batch.node] = batch.sequence + 1
+        try:
+            messages = unpack(batch.topics, batch.topic_of, batch.end, batch.data)
+            unknown = sorted({topic for topic in batch.topics if topic not in self._recorded})
+            if unknown:
+                raise BatchError(f"it names topics this recorder does not record: {', '.join(unknown)}")
+        except BatchError as exc:
+            print(f"recorder: error: a record_batch from {batch.node} left out: {exc}", file=sys.stderr, flush=True)
+            return 0
+        for topic, data in messages:
+            self._write(topic, data)
+        return len(messages)
 
     def _record_event(self, data: bytes) -> bool:
         """Write a /parameter_events message if it is worth the bag: the run's controller changing a value.
@@ -370,7 +414,7 @@ class Recorder(Node):
 
     def has_every_message(self, wanted: Mapping[str, int]) -> bool:
         """Whether every subscribed topic has ``wanted[topic]`` messages (``topics.expected_counts``)."""
-        return all(self.counts[c.topic] >= wanted[c.topic] for c in self._connections.values())
+        return all(self.counts[topic] >= wanted[topic] for topic in self._recorded)
 
     @property
     def scene_backlog(self) -> int:
@@ -489,6 +533,12 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
         "--no-scene",
         action="store_true",
         help="record only what arrives: no /tf, /tf_static or contact_markers (they cost CPU per state)",
+    )
+    parser.add_argument(
+        "--from-batches",
+        action="store_true",
+        help="take the per-state topics from the nodes' record_batch (their record_batch parameter > 0; "
+        "bracing-pair sets both) instead of subscribing to each: one DDS delivery per batch, not per message",
     )
     parser.add_argument(
         "--expect-states",
@@ -634,6 +684,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             scene=not args.no_scene,
             shapes=shapes,
             ground_truth=args.ground_truth,
+            from_batches=args.from_batches,
         )
         status = StatusPublisher(node)  # what bracing-pair follows
         status.say(RunStatus.READY)

@@ -22,6 +22,10 @@ runs it again)."""
 MUJOCO = "mujoco"
 MUJOCO_NEEDS = {"command_output": "effort_forward", "input_mode": "torque"}
 """--engine mujoco: the controller's torque law sent as a JointGroupEffortController takes it."""
+PAIR_RECORD_BATCH = 100
+"""States per record_batch the pair's nodes hand the recorder (``--set record_batch=0``: every topic
+subscribed one by one, as any rosbag2 recorder does). Measured on the paper arm: bracing-recorder's
+share of a lockstep step fell from ~30 % to ... (docs/performance.md)."""
 
 
 @dataclass
@@ -57,22 +61,24 @@ def command_line(options: RunOptions) -> dict[str, Any]:
     return values
 
 
-def pair_needs(options: RunOptions, urdf: Path) -> dict[str, Any]:
+def pair_needs(options: RunOptions, urdf: Path, record_batch: int) -> dict[str, Any]:
     """What the pair sets over the scenario and the command line, as flat parameter names.
 
     Both nodes publish their first message only once the recorder has matched every topic they
-    publish, and the simulator once the controller has too (joint_states: the controller and the
-    recorder; bracing-view subscribes once the run steps) and run_status has its subscribers: this
-    process's watcher and the recorder (it keeps the run's warnings), and bracing-view's with --view
-    (it is up before the nodes start; counting it makes sure the watcher is one of those matched).
-    The nodes resolve a relative URDF from their working directory, so it is pinned to the file
-    found now (``urdf``).
+    publish (with ``record_batch`` > 0: their batches, see bracing_ros.record_batch), and the
+    simulator once the controller has too (joint_states: the controller, and the recorder when it
+    subscribes to each topic; bracing-view subscribes once the run steps) and run_status has its
+    subscribers: this process's watcher and the recorder (it keeps the run's warnings), and
+    bracing-view's with --view (it is up before the nodes start; counting it makes sure the watcher
+    is one of those matched). The nodes resolve a relative URDF from their working directory, so it
+    is pinned to the file found now (``urdf``).
     """
     status_subscribers = 2 + int(options.view)
     needs: dict[str, Any] = {
         "wait_for_recorder": True,
-        "min_subscribers": 2,
+        "min_subscribers": 1 if record_batch else 2,
         "min_status_subscribers": status_subscribers,
+        "record_batch": record_batch,
     }
     if options.duration is not None:
         needs["duration"] = options.duration
@@ -138,6 +144,7 @@ class RunPlan:
         recorder += ["--niceness", "10"]  # the lockstep loop comes first
         recorder += ["--drain-idle", "0.05"]  # stopped only after the nodes' last messages are acknowledged
         recorder += ["--params-file", params_file, "--scenario", self.options.config.stem]  # surfaces, name
+        recorder += ["--from-batches"] if self.node_params[SIMULATOR].get("record_batch", 0) else []
         if self.expected_states:
             recorder += ["--expect-states", str(self.expected_states)]  # it closes the bag once it has them all
         nodes = ("--params-file", params_file)
@@ -174,7 +181,9 @@ def plan_run(options: RunOptions) -> RunPlan:
     lockstep = sim_values["stepping"] == "lockstep" and not options.real_time and duration > 0
     lockstep = lockstep and options.engine != MUJOCO  # MuJoCo's robot promises no message count
     expected_states = round(duration / step) + 1 if lockstep else 0
-    every = with_layers(given, pair_needs(options, urdf))
+    # MuJoCo's robot publishes no batches: its recorder subscribes to each topic, the controller's too
+    record_batch = 0 if options.engine == MUJOCO else int(given[SIMULATOR].get("record_batch", PAIR_RECORD_BATCH))
+    every = with_layers(given, pair_needs(options, urdf, record_batch))
     return RunPlan(options, sim_values, every, duration, expected_states)
 
 

@@ -36,6 +36,7 @@ from bracing_ros.node_log import RosNodeLog
 from bracing_ros.node_main import run
 from bracing_ros.qos import STREAM_QOS, SUBSCRIBE_QOS
 from bracing_ros.raw_messages import read_joint_state
+from bracing_ros.record_batch import RecordBatchPublisher, publish_only
 from bracing_ros.status import StatusPublisher
 from bracing_ros.waiter import SubscriptionWaiter
 
@@ -73,6 +74,10 @@ class ControllerNode(Node):
         self.measurement_waiter: SubscriptionWaiter | None = None
         self.wrench_subs: dict[Subscription, str] = {}
         self.flow = AckWindow(self, [self.command_pub, self.state_pub], STREAM_QOS.depth)
+        # record_batch: the answers also reach the recorder in batches (it subscribes to those instead)
+        self.batch: RecordBatchPublisher | None = None
+        if config.record_batch:
+            self.batch = RecordBatchPublisher(self, [self.command_pub, self.state_pub], config.record_batch)
         self.core.start()
         self.effort = EffortForward(self, config, self.joint_names) if self.effort_forward else None
         self.target_topics = TargetTopics(self, self.core.targets, contact_names)
@@ -150,19 +155,34 @@ class ControllerNode(Node):
 
     def send(self, answer: Answer) -> None:
         """The answer out: the command (motor_command, or effort_forward's topic) and the controller_state."""
-        out, stamp_ns = answer.output, answer.stamp_ns
+        out, stamp_ns, batch = answer.output, answer.stamp_ns, self.batch
+        publish = batch.publish if batch is not None else publish_only
         if self.effort is not None:
             self.effort.send(out.command)
         else:
-            self.command_pub.publish(self.command_wire.encode(stamp_ns, out.command))
+            publish(self.command_pub, self.command_wire.encode(stamp_ns, out.command))
         brace = (out.brace_desired, out.brace_actual)
-        self.state_pub.publish(
+        publish(
+            self.state_pub,
             self.state_wire.encode(
                 stamp_ns, out.hand_desired, out.hand_actual, out.desired_normal_force, *brace, out.command,
                 answer.compute_time,
-            )
+            ),
         )  # fmt: skip
         self.flow.sent()
+        if batch is not None:
+            batch.state_done()
+
+    def recorder_matched(self) -> bool:
+        """Whether a recorder subscribes to the answers (to the batches, with record_batch)."""
+        if self.batch is not None:
+            return self.batch.publisher.get_subscription_count() >= 1
+        return self.command_pub.get_subscription_count() >= 2 and self.state_pub.get_subscription_count() >= 1
+
+    def close(self, timeout_sec: float) -> bool:
+        """Everything sent (the last batch too) acknowledged by every subscriber; whether it was in time."""
+        batched = self.batch.close(timeout_sec) if self.batch is not None else True
+        return self.flow.wait(timeout_sec) and batched
 
 
 def _stamp_ns(msg: WrenchStamped | MotorState) -> int:
@@ -185,7 +205,7 @@ def spin(node: ControllerNode) -> int:
             wait_until(
                 node,
                 executor,
-                lambda: node.command_pub.get_subscription_count() >= 2 and node.state_pub.get_subscription_count() >= 1,
+                node.recorder_matched,
                 "waiting for the recorder to subscribe to the command and state topics",
             )
         # An answer published before this writer has matched the simulator's reader is lost (volatile
@@ -208,6 +228,8 @@ def spin(node: ControllerNode) -> int:
                 work.end()
             answered += len(messages)
             node.target_topics.poll()  # a target is followed from the next state on
+            if not messages and node.batch is not None:
+                node.batch.flush()  # the stream paused (or ended): what waits goes to the recorder now
             if not messages or answered >= 100:
                 answered = 0
                 node.sync_clock()  # a parameter change is stamped with it
@@ -217,7 +239,7 @@ def spin(node: ControllerNode) -> int:
             node.log.info(line)  # make bench's pair_step_breakdown_us
         # Stopped (bracing-pair stops the controller once the simulator is done): the last
         # answers must reach the recorder before this process and its publishers are gone.
-        if not node.flow.wait(timeout_sec=10.0):
+        if not node.close(timeout_sec=10.0):
             node.get_logger().error("stopping with answers that a subscriber has not acknowledged (lost to it)")
         return 0
     except ExternalShutdownException:

@@ -376,6 +376,7 @@ class SimulatorConfig:
     divergence_speed: float
     wait_for_recorder: bool
     log_throttle_period: float
+    record_batch: int = 0  # states per bracing_msgs/RecordBatch to the recorder; 0: off
     plant_error: PlantError = field(default_factory=PlantError)
     sensors: SensorConfig = field(default_factory=SensorConfig)
     command_source: str = "motor_command"  # | joint_commands (ros2_control's JointStateTopicSystem)
@@ -501,6 +502,8 @@ def circuit_substeps(plant: Plant, q0: Vector, step: float) -> int:
     if step * fastest <= STIFF_STEP:
         return 1
     return math.ceil(step * fastest / RK4_ACCURATE_STEP)
+
+
 UNILATERAL_PROJECTION_M = 0.05
 """A braced unilateral contact that starts at most this far above its surface [m] is put on it by
 ``project_initial_position``: a posture measured or guessed by hand is off by millimetres to

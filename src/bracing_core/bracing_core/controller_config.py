@@ -42,6 +42,7 @@ class ControllerConfig:
     control_rate: float = 1000.0  # [Hz] effort_forward's timer
     target_max_velocity: float = 0.05  # [m/s] targets.max_velocity
     target_max_acceleration: float = 0.2  # [m/s^2] targets.max_acceleration
+    record_batch: int = 0  # answers per bracing_msgs/RecordBatch to the recorder; 0: off
 
     @property
     def task_dimension(self) -> int:
@@ -84,6 +85,7 @@ class ControllerConfig:
             control_rate=values["control_rate"],
             target_max_velocity=values["targets.max_velocity"],
             target_max_acceleration=values["targets.max_acceleration"],
+            record_batch=values["record_batch"],
         )
         check_effort_forward(config)
         if config.task_dimension > n - p:

@@ -716,6 +716,14 @@ SIMULATOR: tuple[Param, ...] = (
         "publish the first state only once every topic has a subscriber (bracing-pair sets true)",
     ),
     Param(
+        "record_batch",
+        Kind.INTEGER,
+        0,
+        "also hand the per-state messages to the recorder in batches of this many states on record_batch "
+        "(bracing_msgs/RecordBatch, for bracing-recorder --from-batches; bracing-pair sets 100); 0: off",
+        minimum=0,
+    ),
+    Param(
         "divergence_residual",
         Kind.DOUBLE,
         0.01,
@@ -841,6 +849,14 @@ CONTROLLER: tuple[Param, ...] = (
         Kind.BOOL,
         False,
         "answer the first state only once a recorder subscribes to both outputs (bracing-pair sets true)",
+    ),
+    Param(
+        "record_batch",
+        Kind.INTEGER,
+        0,
+        "also hand the answers (motor_command, controller_state) to the recorder in batches of this many on "
+        "record_batch (bracing_msgs/RecordBatch, for bracing-recorder --from-batches; bracing-pair sets 100); 0: off",
+        minimum=0,
     ),
     Param(
         "command_output",

@@ -15,7 +15,7 @@ from typing import Any
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
-BRACING_MSGS = ("ContactState", "Contacts", "ControllerState", "MotorCommand", "MotorState", "RunStatus")
+BRACING_MSGS = ("ContactState", "Contacts", "ControllerState", "MotorCommand", "MotorState", "RecordBatch", "RunStatus")
 
 # The message types a run sends, records and derives, named as the typestore and a bag's metadata name them.
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -31,6 +31,7 @@ CONTROLLER_STATE = "bracing_msgs/msg/ControllerState"
 MOTOR_COMMAND = "bracing_msgs/msg/MotorCommand"
 MOTOR_STATE = "bracing_msgs/msg/MotorState"
 RUN_STATUS = "bracing_msgs/msg/RunStatus"
+RECORD_BATCH = "bracing_msgs/msg/RecordBatch"
 POINT_STAMPED = "geometry_msgs/msg/PointStamped"
 PATH = "nav_msgs/msg/Path"
 

@@ -77,6 +77,7 @@ from bracing_core.typestore import (
     JOINT_STATE,
     MOTOR_COMMAND,
     MOTOR_STATE,
+    RECORD_BATCH,
     WRENCH_STAMPED,
     bracing_typestore,
 )
@@ -463,6 +464,27 @@ class ClockEncoder:
     def encode(self, stamp_ns: int) -> bytes:
         message = self._clock(clock=self._ser.time(stamp_ns))
         return self._ser.serialize(message, CLOCK)
+
+
+class RecordBatchEncoder:
+    """bracing_msgs/RecordBatch (``bracing_ros.record_batch``): ~30 us for 100 states of the paper arm,
+    where rclpy's message class took 560 us (it converts the uint8[] byte by byte)."""
+
+    def __init__(self, node: str) -> None:
+        self._ser = _Serializer()
+        self._batch = _Messages(self._ser.store, RECORD_BATCH)
+        self._node = node
+
+    def encode(self, sequence: int, topics: list[str], topic_of: list[int], end: list[int], data: bytes) -> bytes:
+        message = self._batch(
+            node=self._node,
+            sequence=sequence,
+            topics=topics,
+            topic_of=np.array(topic_of, dtype=np.uint16),
+            end=np.array(end, dtype=np.uint32),
+            data=np.frombuffer(data, dtype=np.uint8),
+        )
+        return self._ser.serialize(message, RECORD_BATCH)
 
 
 class WrenchStampedEncoder:

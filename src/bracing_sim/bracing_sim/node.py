@@ -107,7 +107,7 @@ class SimulatorNode(Node):
 
     def finish(self) -> None:
         """After the core's ``finish``: every subscriber has every message before this process ends."""
-        self.topics.flow.wait()
+        self.topics.close()
         self.log.info(self.core.progress_line())
         self.log.info(f"finished at t = {self.sim.time:.6f} s")
         self.status.say(RunStatus.FINISHED, self.sim.time, self.core.real_time_achieved)
@@ -131,7 +131,7 @@ def wait_for_peers(node: SimulatorNode, executor: SingleThreadedExecutor) -> Non
         ))  # fmt: skip
         if cfg.wait_for_recorder:
             waits.append((
-                lambda: all(pub.get_subscription_count() >= 1 for pub in node.topics.data_pubs),
+                lambda: all(pub.get_subscription_count() >= 1 for pub in node.topics.recorder_pubs),
                 "waiting for the recorder to subscribe to every topic",
             ))  # fmt: skip
     wanted = cfg.min_status_subscribers
@@ -210,7 +210,9 @@ def spin(node: SimulatorNode) -> int:
         node.get_logger().fatal(f"simulation diverged at t = {node.sim.time:.6f} s: {exc}")
         print(f"error: simulation diverged at t = {node.sim.time:.6f} s: {exc}", file=sys.stderr, flush=True)
         return EXIT_DIVERGED
-    except (KeyboardInterrupt, ExternalShutdownException):
+    except KeyboardInterrupt:  # stopped mid-run: what was sent still reaches the recorder, if it can soon
+        node.topics.close(timeout_sec=2.0)
+    except ExternalShutdownException:
         pass
     return 0
 

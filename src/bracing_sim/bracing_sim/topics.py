@@ -23,6 +23,7 @@ from bracing_ros import wire
 from bracing_ros.ack_window import AckWindow
 from bracing_ros.matching import create_waking_publisher
 from bracing_ros.qos import STREAM_QOS
+from bracing_ros.record_batch import RecordBatchPublisher, publish_only
 from bracing_ros.status import StatusPublisher
 
 DESCRIPTION_QOS = QoSProfile(
@@ -88,6 +89,16 @@ class SimulatorTopics:
         self.data_pubs = [self.joint_pub, self.contacts_pub, self.motor_pub, self.clock_pub, *self.wrench_pubs]
         self.data_pubs += [self.description_pub, *self.truth_pubs]
         self.flow = AckWindow(node, self.data_pubs, STREAM_QOS.depth)
+        # record_batch: the per-state messages also reach the recorder in batches (it subscribes to those
+        # and robot_description only); otherwise it subscribes to every topic.
+        self.batch: RecordBatchPublisher | None = None
+        self.recorder_pubs = self.data_pubs
+        self._send: Callable[[Publisher, bytes], None] = publish_only
+        if config.record_batch:
+            per_state = [self.joint_pub, *self.truth_pubs, self.clock_pub, *self.wrench_pubs, self.contacts_pub]
+            self.batch = RecordBatchPublisher(node, [*per_state, self.motor_pub], config.record_batch)
+            self.recorder_pubs = [self.batch.publisher, self.description_pub]
+            self._send = self.batch.publish
         self.status = status  # what bracing-pair follows (not a data topic: not in data_pubs)
 
     def publish_description(self, description: str) -> None:
@@ -95,22 +106,22 @@ class SimulatorTopics:
 
     def publish_state(self, state: StateOut) -> None:
         t_ns = state.t_ns
-        truth = self.joint_wire.encode(t_ns, state.position, state.velocity, state.effort)
+        send, truth = self._send, self.joint_wire.encode(t_ns, state.position, state.velocity, state.effort)
         if state.measured is None:
-            self.joint_pub.publish(truth)
+            send(self.joint_pub, truth)
         else:
-            self.joint_pub.publish(self.joint_wire.encode(t_ns, *state.measured, state.effort))
-            self.truth_pubs[0].publish(truth)
+            send(self.joint_pub, self.joint_wire.encode(t_ns, *state.measured, state.effort))
+            send(self.truth_pubs[0], truth)
         for pub in self.joint_command_pubs:  # the ros2_control face: the full truth, as a robot's driver gives it
             pub.publish(truth)
-        self.clock_pub.publish(self.clock_wire.encode(t_ns))
+        send(self.clock_pub, self.clock_wire.encode(t_ns))
         if self.state_out is not None:
             self.state_out()
 
     def publish_step(self, step: StepOut) -> None:
-        t_ns, d = step.t_ns, step.forces
+        t_ns, d, send = step.t_ns, step.forces, self._send
         for pub, force in zip(self.wrench_pubs, step.wrenches, strict=True):
-            pub.publish(self.wrench_wire.encode(t_ns, force))  # at the contact point: no moment
+            send(pub, self.wrench_wire.encode(t_ns, force))  # at the contact point: no moment
         terms = d.contacts
         reports = [
             wire.ContactReport(
@@ -124,15 +135,22 @@ class SimulatorTopics:
             )
             for j in range(terms.count)
         ]
-        self.contacts_pub.publish(self.contacts_wire.encode(t_ns, reports))
+        send(self.contacts_pub, self.contacts_wire.encode(t_ns, reports))
         motor = (step.voltage, step.current, step.power, step.energies, step.temperature)
-        self.motor_pub.publish(self.motor_wire.encode(t_ns, *motor))
+        send(self.motor_pub, self.motor_wire.encode(t_ns, *motor))
         if self.truth_pubs:
             truth = (step.voltage, step.true_current, step.power, step.energies, step.temperature)
-            self.truth_pubs[1].publish(self.motor_wire.encode(t_ns, *truth))
+            send(self.truth_pubs[1], self.motor_wire.encode(t_ns, *truth))
+        if self.batch is not None:
+            self.batch.state_done()  # a full batch goes out while the controller works on the state
 
     def sent(self) -> None:
         self.flow.sent()
+
+    def close(self, timeout_sec: float | None = None) -> bool:
+        """Everything sent (the last batch too) acknowledged by every subscriber; whether it was in time."""
+        batched = self.batch.close(timeout_sec) if self.batch is not None else True
+        return self.flow.wait(timeout_sec) and batched
 
     def progress(self, t: float) -> None:
         self.status.say(RunStatus.PROGRESS, t)

@@ -1,0 +1,68 @@
+"""A node's per-step messages to the recorder in batches (``record_batch``, ``bracing_msgs/RecordBatch``).
+
+Each message still goes out on its own topic, to whoever subscribes (the controller, RViz, a
+viewer); a copy of its bytes waits in a ``bracing_core.record_batch.BatchPacker`` and reaches the
+recorder (``bracing-recorder --from-batches``) with the others of its batch: one DDS delivery per
+``states_per_batch`` states instead of one per message (why: ``bracing_core.record_batch``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from bracing_core.record_batch import BatchPacker
+from bracing_msgs.msg import RecordBatch
+from bracing_ros.ack_window import AckWindow
+from bracing_ros.matching import create_waking_publisher
+from bracing_ros.wire import RecordBatchEncoder
+
+RECORD_BATCH_TOPIC = "record_batch"
+RECORD_BATCH_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,  # batches of ~100 states (~100 kB each) kept for a late recorder; AckWindow every 50
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,  # what the recorder's transient-local reader matches
+)
+
+
+def publish_only(publisher: Publisher, data: bytes) -> None:
+    """``data`` out on ``publisher``: what a node sends with record_batch off (``RecordBatchPublisher.publish``)."""
+    publisher.publish(data)
+
+
+class RecordBatchPublisher:
+    """Publishes on the given publishers and hands the same bytes to the recorder in batches."""
+
+    def __init__(self, node: Node, publishers: Sequence[Publisher], states_per_batch: int) -> None:
+        self._index = {id(pub): k for k, pub in enumerate(publishers)}
+        self._packer = BatchPacker([pub.topic_name for pub in publishers], states_per_batch)
+        self._wire = RecordBatchEncoder(node.get_fully_qualified_name())
+        self.publisher = create_waking_publisher(node, RecordBatch, RECORD_BATCH_TOPIC, RECORD_BATCH_QOS)
+        self.flow = AckWindow(node, [self.publisher], RECORD_BATCH_QOS.depth)
+
+    def publish(self, publisher: Publisher, data: bytes) -> None:
+        """``data`` (CDR bytes) out on ``publisher``, and into the batch."""
+        publisher.publish(data)
+        self._packer.add(self._index[id(publisher)], data)
+
+    def state_done(self) -> None:
+        """A state's messages are all in: the batch goes out once it holds ``states_per_batch``."""
+        if self._packer.state_done():
+            self.flush()
+
+    def flush(self) -> None:
+        """The waiting messages out now (a node that stops or pauses), if there are any."""
+        if not len(self._packer):
+            return
+        batch = self._packer.take()
+        self.publisher.publish(self._wire.encode(batch.sequence, batch.topics, batch.topic_of, batch.end, batch.data))
+        self.flow.sent()
+
+    def close(self, timeout_sec: float | None = None) -> bool:
+        """Flush, then wait until the recorder has acknowledged every batch; whether it has."""
+        self.flush()
+        return self.flow.wait(timeout_sec)
