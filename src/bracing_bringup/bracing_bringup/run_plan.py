@@ -24,8 +24,8 @@ MUJOCO_NEEDS = {"command_output": "effort_forward", "input_mode": "torque"}
 """--engine mujoco: the controller's torque law sent as a JointGroupEffortController takes it."""
 PAIR_RECORD_BATCH = 100
 """States per record_batch the pair's nodes hand the recorder (``--set record_batch=0``: every topic
-subscribed one by one, as any rosbag2 recorder does). Measured on the paper arm: bracing-recorder's
-share of a lockstep step fell from ~30 % to ... (docs/performance.md)."""
+subscribed one by one, as any rosbag2 recorder does). The recorder's share of a lockstep step of the
+paper arm fell from 31 % to 7.5 % (make bench, 2026-11-26: docs/results/performance.md)."""
 
 
 @dataclass

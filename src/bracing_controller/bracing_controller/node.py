@@ -189,48 +189,56 @@ def _stamp_ns(msg: WrenchStamped | MotorState) -> int:
     return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
 
 
+def wait_for_outputs(node: ControllerNode, executor: SingleThreadedExecutor) -> None:
+    """Before the first state: the recorder (wait_for_recorder) and the simulator on this node's outputs."""
+    if node.config.wait_for_recorder:
+        # Answers sent before the recorder has matched these publishers can be lost to it (a
+        # recorder discovers late on a busy machine, and a short run ends before it does), so
+        # no state is taken until then: joint_states is subscribed to only afterwards (the
+        # executor would otherwise answer states from its callbacks while waiting here).
+        waiting = "waiting for the recorder to subscribe to the command and state topics"
+        wait_until(node, executor, node.recorder_matched, waiting)
+    # An answer published before this writer has matched the simulator's reader is lost (volatile
+    # durability), and the lockstep simulator would wait its command_timeout for it (seen in CI:
+    # the simulator matched both endpoints first and stalled 5 s on its first state).
+    wait_until(
+        node,
+        executor,
+        lambda: node.command_pub.get_subscription_count() >= 1,
+        "waiting for a subscriber of motor_command (start the simulator)",
+    )
+
+
 def spin(node: ControllerNode) -> int:
-    """Answer states as they come (a wait set on joint_states), serving the executor in between."""
+    """Answer states as they come (one wait set on joint_states and the targets), serving the executor
+    in between."""
     if node.effort is not None:
         return spin_effort_forward(node)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    answered, work = 0, WorkTimer()
+    answered, work, targets = 0, WorkTimer(), node.target_topics
     try:
-        if node.config.wait_for_recorder:
-            # Answers sent before the recorder has matched these publishers can be lost to it (a
-            # recorder discovers late on a busy machine, and a short run ends before it does), so
-            # no state is taken until then: joint_states is subscribed to only afterwards (the
-            # executor would otherwise answer states from its callbacks while waiting here).
-            wait_until(
-                node,
-                executor,
-                node.recorder_matched,
-                "waiting for the recorder to subscribe to the command and state topics",
-            )
-        # An answer published before this writer has matched the simulator's reader is lost (volatile
-        # durability), and the lockstep simulator would wait its command_timeout for it (seen in CI:
-        # the simulator matched both endpoints first and stalled 5 s on its first state).
-        wait_until(
-            node,
-            executor,
-            lambda: node.command_pub.get_subscription_count() >= 1,
-            "waiting for a subscriber of motor_command (start the simulator)",
-        )
-        waiter = SubscriptionWaiter(node, node.listen())
+        wait_for_outputs(node, executor)
+        state_sub = node.listen()
+        # The targets in the same wait: a wait of their own on every state cost ~15 % of the node's time
+        # (py-spy, 2026-11-26).
+        waiter = SubscriptionWaiter(node, [state_sub, *targets.handlers])
         node.log.info("answering joint_states")
         node.status.say(RunStatus.STEPPING)
         while True:
-            messages = waiter.take(0.1)
-            for msg in messages:
-                work.begin()
-                node.on_state(msg)
-                work.end()
-            answered += len(messages)
-            node.target_topics.poll()  # a target is followed from the next state on
-            if not messages and node.batch is not None:
+            states = 0
+            for subscription, msg in waiter.take_all(0.1):
+                if subscription is state_sub:
+                    work.begin()
+                    node.on_state(msg)
+                    work.end()
+                    states += 1
+                else:  # the states are taken first: a target is followed from the next state on
+                    targets.take(subscription, msg)
+            answered += states
+            if not states and node.batch is not None:
                 node.batch.flush()  # the stream paused (or ended): what waits goes to the recorder now
-            if not messages or answered >= 100:
+            if not states or answered >= 100:
                 answered = 0
                 node.sync_clock()  # a parameter change is stamped with it
                 executor.spin_once(timeout_sec=0.0)  # parameter services and the like

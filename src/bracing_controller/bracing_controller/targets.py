@@ -14,7 +14,6 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.subscription import Subscription
 
 from bracing_core.targets import TargetError, TaskTargets
-from bracing_ros.waiter import SubscriptionWaiter
 
 TARGET_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
@@ -40,15 +39,13 @@ class TargetTopics:
         self._add(Path, "hand_path", self.on_path)
         for j, name in enumerate(contacts):
             self._add(PointStamped, f"brace_target/{name}", partial(self.on_point, j + 1))
-        self.waiter = SubscriptionWaiter(node, list(self.handlers))
 
     def _add(self, msg_type: type, topic: str, handler: Callable[[Any], None]) -> None:
         self.handlers[self.node.create_subscription(msg_type, topic, handler, TARGET_QOS)] = handler
 
-    def poll(self) -> None:
-        """Take the targets that have come (the lockstep loop spins its executor only now and then)."""
-        for subscription, msg in self.waiter.take_all(0.0):
-            self.handlers[subscription](msg)
+    def take(self, subscription: Subscription, msg: Any) -> None:
+        """A target that came on ``subscription`` (the lockstep loop waits on them with its states)."""
+        self.handlers[subscription](msg)
 
     def on_point(self, task: int, msg: PointStamped) -> None:
         p = msg.point
