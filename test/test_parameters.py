@@ -157,6 +157,14 @@ def controller_node() -> Iterator[tuple[Any, Any, Any, subprocess.Popen[str]]]:
     while not client.services_are_ready() and time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.1)
     assert client.services_are_ready(), "the controller's parameter services did not appear"
+    # Ready means the client has matched the services' request readers, not that they have matched its
+    # response reader: a first answer can be lost (seen in CI, a 10 s wait for list_parameters). Ask
+    # until one answer comes back; every call after it has its way back.
+    while time.monotonic() < deadline:
+        answered = client.list_parameters()
+        executor.spin_until_future_complete(answered, timeout_sec=1.0)
+        if answered.done():
+            break
     try:
         yield client, executor, node, process
     finally:

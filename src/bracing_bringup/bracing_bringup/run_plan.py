@@ -181,8 +181,9 @@ def plan_run(options: RunOptions) -> RunPlan:
     lockstep = sim_values["stepping"] == "lockstep" and not options.real_time and duration > 0
     lockstep = lockstep and options.engine != MUJOCO  # MuJoCo's robot promises no message count
     expected_states = round(duration / step) + 1 if lockstep else 0
-    # MuJoCo's robot publishes no batches: its recorder subscribes to each topic, the controller's too
-    record_batch = 0 if options.engine == MUJOCO else int(given[SIMULATOR].get("record_batch", PAIR_RECORD_BATCH))
+    # Only --set changes it (a scenario file's record_batch is for its nodes started by hand, as its
+    # wait_for_recorder). MuJoCo's robot publishes no batches: its recorder subscribes to each topic.
+    record_batch = 0 if options.engine == MUJOCO else int(options.parameters.get("record_batch", PAIR_RECORD_BATCH))
     every = with_layers(given, pair_needs(options, urdf, record_batch))
     return RunPlan(options, sim_values, every, duration, expected_states)
 
