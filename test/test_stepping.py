@@ -334,12 +334,20 @@ def test_refusals_are_taken_back_from_the_sensors_too() -> None:
     assert np.array_equal(outlet.steps[-1].current, twin_out.steps[-1].current)
 
 
-def test_lockstep_with_the_law_in_process_is_the_rollout_bit_for_bit() -> None:
-    """The node's loop, its ROS taken away: the law answers each state, the policy steps with the answer."""
-    scenario = build_scenario()
+PULLING = {"contacts.elbow.desired_normal_force": -30.0}
+"""A bilateral table made to pull from t = 0.204 s: the watch's warning counts states across its batches."""
+
+
+@pytest.mark.parametrize(("shared", "duration"), [(None, 0.05), (PULLING, 0.35)])
+def test_lockstep_with_the_law_in_process_is_the_rollout_bit_for_bit(
+    shared: dict[str, Any] | None, duration: float
+) -> None:
+    """The node's loop, its ROS taken away: the law answers each state, the policy steps with the answer;
+    the warnings are the rollout's (the node hands its watch WATCH_EVERY states at once, the rollout all)."""
+    scenario = build_scenario(shared)
     law = scenario.controller
     assert law is not None
-    core, log, outlet, _ = stepper(duration=0.05)
+    core, log, outlet, _ = stepper(shared, duration=duration)
 
     def receive(timeout_s: float) -> None:
         state = outlet.states[-1]
@@ -349,12 +357,13 @@ def test_lockstep_with_the_law_in_process_is_the_rollout_bit_for_bit() -> None:
     while not core.done():
         core.step_lockstep(receive)
     core.finish_lockstep(receive)
-    recording = run_recorded(scenario, 0.05)
+    recording = run_recorded(scenario, duration)
     assert np.array_equal(np.array([s.position for s in outlet.states]), recording.position)
     assert np.array_equal(np.array([s.velocity for s in outlet.states]), recording.velocity)
     assert np.array_equal(np.array([s.forces.normal_force for s in outlet.steps]), recording.normal_force)
     assert np.array_equal(np.array([s.current for s in outlet.steps]), recording.current)
     assert [w for w, _ in log.said] == list(recording.warnings) and not log.reports
+    assert len(log.said) == (1 if shared else 0)
 
 
 def test_the_mujoco_robot_holds_a_valid_effort_command_and_refuses_others() -> None:

@@ -25,6 +25,7 @@ from bracing_core.kinematics import WORLD_FRAME
 from bracing_core.law import ControlOutput, DecoupledController
 from bracing_core.measurements import Measurements
 from bracing_core.node_log import NodeLog
+from bracing_core.numbers import all_finite
 from bracing_core.params import ConfigError
 from bracing_core.targets import TaskSpec, TaskTargets
 from bracing_core.types import Vector
@@ -216,7 +217,7 @@ class StateAnswerer:
             return
         compute_time = self.timer() - start
         outputs = (out.command, out.hand_desired, out.hand_actual, out.desired_normal_force)
-        if not all(np.isfinite(v).all() for v in (*outputs, out.brace_desired, out.brace_actual)):
+        if not all_finite(*outputs, out.brace_desired, out.brace_actual):
             message = f"joint_states at t = {t:.6f} s ignored: the law's output is not finite"
             self.log.limited("error", "command", message)
             return

@@ -25,12 +25,17 @@ from bracing_core.config import Plant, SimulatorConfig
 from bracing_core.drive import CurrentLoopDrive, DriveGains
 from bracing_core.dynamics import Derivative, InputMode
 from bracing_core.node_log import NodeLog
+from bracing_core.numbers import all_finite
 from bracing_core.simulator import DivergenceError, Energy, Simulator
 from bracing_core.types import Vector
 from bracing_core.watch import RunWatch
 
 PROGRESS_PERIOD_S = 0.5
 """[s] wall between two progress lines (and run_status PROGRESS)."""
+WATCH_EVERY = 100
+"""States handed to the run's watch at once: its checks are vectorised over states (the rollout hands it
+a whole run), and one state at a time cost the simulator node ~25 us a step (py-spy, 2026-11-26: 9 % of
+its samples). A warning comes at most this many states later, with the time it is about."""
 EFFORT_WAIT_S = 0.05
 """[s] wall: the longest a MuJoCo step waits for the controller's answer to the last state (``HeldEffort``)."""
 
@@ -143,6 +148,7 @@ class SimulatorStepper:
         self._started = 0.0  # wall time real-time stepping started
         # What the run should be warned about (the in-process rollout says the same).
         self.watch = RunWatch(plant, config, sim)
+        self._watched: list[tuple[float, Vector, Vector, Vector]] = []  # states not yet handed to the watch
 
     # -- the run's start and end --------------------------------------------------------
     def start_lines(self) -> list[str]:
@@ -183,7 +189,7 @@ class SimulatorStepper:
         if command is not None and self.sensors is not None:
             command = self.sensors.delay(command)
         d = self.sim.evaluate(command) if command is not None else None
-        if d is None or not _finite(d.normal_force, d.friction_force, d.effort):
+        if d is None or not all_finite(d.normal_force, d.friction_force, d.effort):
             if command is not None:
                 self.refusal = "non-finite forces or effort at the final state"
                 self.refuse(command)
@@ -193,6 +199,7 @@ class SimulatorStepper:
         sim = self.sim
         self.outlet.publish_step(self.step_out(t_ns, self.command, d, sim.current, sim.temperature, sim.energy))
         self._watch_state(t_ns, d)
+        self._hand_to_watch()
         self.say(self.watch.finish())
 
     # -- warnings -------------------------------------------------------------------
@@ -274,7 +281,7 @@ class SimulatorStepper:
                 d = sim.step(command)
                 residual = sim.check(self.config.divergence_speed, self.config.divergence_residual)
                 effort = self.state_effort(command)
-            if not _finite(effort):
+            if not all_finite(effort):
                 raise DivergenceError("non-finite forces or effort")
         except DivergenceError as exc:
             sim.restore(checkpoint)
@@ -306,10 +313,20 @@ class SimulatorStepper:
         self.watch.events(events)
 
     def _watch_state(self, t_ns: int, d: Derivative) -> None:
-        """Give the watch the state a step's reports described (as ``contacts`` has it), and say its warnings."""
+        """Keep the state a step's reports described (as ``contacts`` has it) for the watch (``WATCH_EVERY``)."""
         terms = d.contacts
         active = d.active if d.active is not None else np.ones(terms.count, dtype=bool)
-        self.say(self.watch.states([t_ns * 1e-9], active, d.normal_force, terms.residual))
+        self._watched.append((t_ns * 1e-9, active, d.normal_force, terms.residual))
+        if len(self._watched) >= WATCH_EVERY:
+            self._hand_to_watch()
+
+    def _hand_to_watch(self) -> None:
+        """The states kept, to the watch at once; say its warnings."""
+        if not self._watched:
+            return
+        times, active, normal_force, residual = (np.array(column) for column in zip(*self._watched, strict=True))
+        self._watched = []
+        self.say(self.watch.states(times, active, normal_force, residual))
 
     def state_effort(self, command: Vector | None = None) -> Vector:
         """JointState.effort under ``command`` (default: the held one): the link-side motor torque
@@ -443,6 +460,7 @@ class SimulatorStepper:
         self.real_time_achieved = achieved
         asked = self.config.real_time_factor
         self.log.info(f"{REAL_TIME_ACHIEVED}{achieved:.4f}x real time (asked {asked:g}x)")
+        self._hand_to_watch()  # the states' warnings before the pace's, in time order
         if self.config.stepping == "real_time":  # free_run asks for no pace
             self.say(self.watch.real_time(achieved, asked))
         self.finish()
@@ -480,7 +498,3 @@ class HeldEffort:
         seen, deadline = self.commands, self.clock() + EFFORT_WAIT_S
         while self.commands == seen and self.clock() < deadline:
             receive(max(0.0, deadline - self.clock()))
-
-
-def _finite(*arrays: Vector) -> bool:
-    return all(bool(np.isfinite(a).all()) for a in arrays)
