@@ -308,6 +308,13 @@ def pair_without_recorder(duration: float = 10.0) -> dict[str, Any]:
     return {"real_time_factor": duration / (simulator["finished"] - simulator["stepping"]), "work": work}
 
 
+def _callback_p50_p99(bare_runs: list[dict[str, Any]]) -> str:
+    """The controller node's per-state work in the bare pair (step_timing: decoding, checks, the law, the two
+    messages out), the medians over the runs of its p50 and p99."""
+    works = [run["work"]["controller"] for run in bare_runs]
+    return f"{statistics.median(w['p50'] for w in works):.1f} / {statistics.median(w['p99'] for w in works):.1f}"
+
+
 def step_breakdown_us(
     pair_rtf: float, bare: list[dict[str, Any]], engine_us: float, law_us: float, bound_round_trip_us: float
 ) -> dict[str, float]:
@@ -478,7 +485,7 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
     print(f"pair ({duration:g} s of sim time), with and without the recorder, alternately ...", flush=True)
     pair_runs: list[dict[str, Any]] = []
     bare_runs: list[dict[str, Any]] = []
-    for _ in range(1 if quick else 2):
+    for _ in range(1 if quick else 3):  # 2 rounds gave the recorder's share as 7.5 % and 15.8 % on like code
         pair_runs.append(pair_run(duration))
         bare_runs.append(pair_without_recorder(duration))
     measure_bounds("dds bound again ...")
@@ -581,6 +588,7 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
         ("pair / bound", f"{result['pair_vs_bound']:.3f}"),
         ("DDS bound with rclpy message objects (for comparison)", f"{bound_objects:.2f}"),
         ("controller update p50 / p99 [us]", f"{latency['p50']:.1f} / {latency['p99']:.1f}"),
+        ("controller node, its whole callback on a state in the pair, p50 / p99 [us]", _callback_p50_p99(bare_runs)),
         ("a lockstep step [us per 1 ms step], where it goes:", f"{breakdown['step']:.0f}"),
         *((f"  {part.replace('_', ' ')}", f"{us:.1f}") for part, us in breakdown.items() if part != "step"),
     ]
