@@ -36,7 +36,7 @@ from bracing_ros.node_log import RosNodeLog
 from bracing_ros.node_main import run
 from bracing_ros.qos import STREAM_QOS, SUBSCRIBE_QOS
 from bracing_ros.raw_messages import read_joint_state
-from bracing_ros.record_batch import RecordBatchPublisher, publish_only
+from bracing_ros.record_batch import RecordBatchPublisher
 from bracing_ros.status import StatusPublisher
 from bracing_ros.waiter import SubscriptionWaiter
 
@@ -75,9 +75,7 @@ class ControllerNode(Node):
         self.wrench_subs: dict[Subscription, str] = {}
         self.flow = AckWindow(self, [self.command_pub, self.state_pub], STREAM_QOS.depth)
         # record_batch: the answers also reach the recorder in batches (it subscribes to those instead)
-        self.batch: RecordBatchPublisher | None = None
-        if config.record_batch:
-            self.batch = RecordBatchPublisher(self, [self.command_pub, self.state_pub], config.record_batch)
+        self.batch = RecordBatchPublisher(self, [self.command_pub, self.state_pub], config.record_batch)
         self.core.start()
         self.effort = EffortForward(self, config, self.joint_names) if self.effort_forward else None
         self.target_topics = TargetTopics(self, self.core.targets, contact_names)
@@ -155,8 +153,7 @@ class ControllerNode(Node):
 
     def send(self, answer: Answer) -> None:
         """The answer out: the command (motor_command, or effort_forward's topic) and the controller_state."""
-        out, stamp_ns, batch = answer.output, answer.stamp_ns, self.batch
-        publish = batch.publish if batch is not None else publish_only
+        out, stamp_ns, publish = answer.output, answer.stamp_ns, self.batch.publish
         if self.effort is not None:
             self.effort.send(out.command)
         else:
@@ -170,18 +167,17 @@ class ControllerNode(Node):
             ),
         )  # fmt: skip
         self.flow.sent()
-        if batch is not None:
-            batch.state_done()
+        self.batch.state_done()
 
     def recorder_matched(self) -> bool:
         """Whether a recorder subscribes to the answers (to the batches, with record_batch)."""
-        if self.batch is not None:
+        if self.batch.publisher is not None:
             return self.batch.publisher.get_subscription_count() >= 1
         return self.command_pub.get_subscription_count() >= 2 and self.state_pub.get_subscription_count() >= 1
 
     def close(self, timeout_sec: float) -> bool:
         """Everything sent (the last batch too) acknowledged by every subscriber; whether it was in time."""
-        batched = self.batch.close(timeout_sec) if self.batch is not None else True
+        batched = self.batch.close(timeout_sec)
         return self.flow.wait(timeout_sec) and batched
 
 
@@ -236,7 +232,7 @@ def spin(node: ControllerNode) -> int:
                 else:  # the states are taken first: a target is followed from the next state on
                     targets.take(subscription, msg)
             answered += states
-            if not states and node.batch is not None:
+            if not states:
                 node.batch.flush()  # the stream paused (or ended): what waits goes to the recorder now
             if not states or answered >= 100:
                 answered = 0

@@ -32,7 +32,7 @@ class Batch:
 
 
 class BatchPacker:
-    """A node's messages since the last batch; ``full`` after ``size`` states (``state_done`` calls)."""
+    """A node's messages since the last batch; ``state_done`` says when it holds ``size`` states."""
 
     def __init__(self, topics: Sequence[str], size: int) -> None:
         if size < 1:
@@ -44,14 +44,12 @@ class BatchPacker:
         self._topic_of: list[int] = []
         self._chunks: list[bytes] = []
         self._end: list[int] = []
-        self._length = 0
 
     def add(self, topic_index: int, data: bytes) -> None:
         """One message published on ``topics[topic_index]`` (its CDR bytes)."""
         self._topic_of.append(topic_index)
         self._chunks.append(data)
-        self._length += len(data)
-        self._end.append(self._length)
+        self._end.append((self._end[-1] if self._end else 0) + len(data))
 
     def state_done(self) -> bool:
         """One more state's messages are in; whether the batch is now full (``take`` it)."""
@@ -66,7 +64,7 @@ class BatchPacker:
         """The waiting messages as one batch (the next sequence number); the packer starts afresh."""
         batch = Batch(self.sequence, self.topics, self._topic_of, self._end, b"".join(self._chunks))
         self.sequence += 1
-        self._states, self._topic_of, self._chunks, self._end, self._length = 0, [], [], [], 0
+        self._states, self._topic_of, self._chunks, self._end = 0, [], [], []
         return batch
 
 

@@ -29,15 +29,15 @@ RECORD_BATCH_QOS = QoSProfile(
 )
 
 
-def publish_only(publisher: Publisher, data: bytes) -> None:
-    """``data`` out on ``publisher``: what a node sends with record_batch off (``RecordBatchPublisher.publish``)."""
-    publisher.publish(data)
-
-
 class RecordBatchPublisher:
-    """Publishes on the given publishers and hands the same bytes to the recorder in batches."""
+    """A node's per-state publishers: each message out on its own topic and, with ``states_per_batch`` > 0,
+    the same bytes to the recorder in batches (0: off, each message goes out on its topic only)."""
 
     def __init__(self, node: Node, publishers: Sequence[Publisher], states_per_batch: int) -> None:
+        self.publisher: Publisher | None = None  # record_batch's, while batching
+        self._packer: BatchPacker | None = None
+        if not states_per_batch:
+            return
         self._index = {id(pub): k for k, pub in enumerate(publishers)}
         self._packer = BatchPacker([pub.topic_name for pub in publishers], states_per_batch)
         self._wire = RecordBatchEncoder(node.get_fully_qualified_name())
@@ -47,22 +47,25 @@ class RecordBatchPublisher:
     def publish(self, publisher: Publisher, data: bytes) -> None:
         """``data`` (CDR bytes) out on ``publisher``, and into the batch."""
         publisher.publish(data)
-        self._packer.add(self._index[id(publisher)], data)
+        if self._packer is not None:
+            self._packer.add(self._index[id(publisher)], data)
 
     def state_done(self) -> None:
         """A state's messages are all in: the batch goes out once it holds ``states_per_batch``."""
-        if self._packer.state_done():
+        if self._packer is not None and self._packer.state_done():
             self.flush()
 
     def flush(self) -> None:
         """The waiting messages out now (a node that stops or pauses), if there are any."""
-        if not len(self._packer):
+        if self._packer is None or self.publisher is None or not len(self._packer):
             return
         batch = self._packer.take()
         self.publisher.publish(self._wire.encode(batch.sequence, batch.topics, batch.topic_of, batch.end, batch.data))
         self.flow.sent()
 
     def close(self, timeout_sec: float | None = None) -> bool:
-        """Flush, then wait until the recorder has acknowledged every batch; whether it has."""
+        """Flush, then wait until the recorder has acknowledged every batch; whether it has (True when off)."""
+        if self._packer is None:
+            return True
         self.flush()
         return self.flow.wait(timeout_sec)

@@ -23,7 +23,7 @@ from bracing_ros import wire
 from bracing_ros.ack_window import AckWindow
 from bracing_ros.matching import create_waking_publisher
 from bracing_ros.qos import STREAM_QOS
-from bracing_ros.record_batch import RecordBatchPublisher, publish_only
+from bracing_ros.record_batch import RecordBatchPublisher
 from bracing_ros.status import StatusPublisher
 
 DESCRIPTION_QOS = QoSProfile(
@@ -91,14 +91,10 @@ class SimulatorTopics:
         self.flow = AckWindow(node, self.data_pubs, STREAM_QOS.depth)
         # record_batch: the per-state messages also reach the recorder in batches (it subscribes to those
         # and robot_description only); otherwise it subscribes to every topic.
-        self.batch: RecordBatchPublisher | None = None
-        self.recorder_pubs = self.data_pubs
-        self._send: Callable[[Publisher, bytes], None] = publish_only
-        if config.record_batch:
-            per_state = [self.joint_pub, *self.truth_pubs, self.clock_pub, *self.wrench_pubs, self.contacts_pub]
-            self.batch = RecordBatchPublisher(node, [*per_state, self.motor_pub], config.record_batch)
-            self.recorder_pubs = [self.batch.publisher, self.description_pub]
-            self._send = self.batch.publish
+        per_state = [self.joint_pub, *self.truth_pubs, self.clock_pub, *self.wrench_pubs, self.contacts_pub]
+        self.batch = RecordBatchPublisher(node, [*per_state, self.motor_pub], config.record_batch)
+        batched = self.batch.publisher
+        self.recorder_pubs = self.data_pubs if batched is None else [batched, self.description_pub]
         self.status = status  # what bracing-pair follows (not a data topic: not in data_pubs)
 
     def publish_description(self, description: str) -> None:
@@ -106,7 +102,7 @@ class SimulatorTopics:
 
     def publish_state(self, state: StateOut) -> None:
         t_ns = state.t_ns
-        send, truth = self._send, self.joint_wire.encode(t_ns, state.position, state.velocity, state.effort)
+        send, truth = self.batch.publish, self.joint_wire.encode(t_ns, state.position, state.velocity, state.effort)
         if state.measured is None:
             send(self.joint_pub, truth)
         else:
@@ -119,7 +115,7 @@ class SimulatorTopics:
             self.state_out()
 
     def publish_step(self, step: StepOut) -> None:
-        t_ns, d, send = step.t_ns, step.forces, self._send
+        t_ns, d, send = step.t_ns, step.forces, self.batch.publish
         for pub, force in zip(self.wrench_pubs, step.wrenches, strict=True):
             send(pub, self.wrench_wire.encode(t_ns, force))  # at the contact point: no moment
         terms = d.contacts
@@ -141,15 +137,14 @@ class SimulatorTopics:
         if self.truth_pubs:
             truth = (step.voltage, step.true_current, step.power, step.energies, step.temperature)
             send(self.truth_pubs[1], self.motor_wire.encode(t_ns, *truth))
-        if self.batch is not None:
-            self.batch.state_done()  # a full batch goes out while the controller works on the state
+        self.batch.state_done()  # a full batch goes out while the controller works on the state
 
     def sent(self) -> None:
         self.flow.sent()
 
     def close(self, timeout_sec: float | None = None) -> bool:
         """Everything sent (the last batch too) acknowledged by every subscriber; whether it was in time."""
-        batched = self.batch.close(timeout_sec) if self.batch is not None else True
+        batched = self.batch.close(timeout_sec)
         return self.flow.wait(timeout_sec) and batched
 
     def progress(self, t: float) -> None:
