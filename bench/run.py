@@ -324,7 +324,8 @@ def step_breakdown_us(
     law's in-process cost; the rest of the bare step (DDS both ways and the wake-ups, and the CPU the
     simulator's reports take meanwhile on two cores); what the recorder adds (the recorded pair
     against the bare one). Those parts add up to ``step``. Beside them: the simulator's work after
-    the state is out (its reports, overlapping the controller) and the DDS bound's round trip."""
+    the state is out (its reports, overlapping the controller), each node's time in rclpy's publish
+    (a share of its part) and the DDS bound's round trip."""
     bare_step = 1e3 / statistics.median(run["real_time_factor"] for run in bare)
     sim_to_state = statistics.median(run["work"]["simulator"]["out_mean"] for run in bare)
     sim_work = statistics.median(run["work"]["simulator"]["mean"] for run in bare)
@@ -339,8 +340,57 @@ def step_breakdown_us(
         "dds_round_trip": bare_step - sim_to_state - ctl_work,
         "recorder": step - bare_step,
         "simulator_reports_overlapped": sim_work - sim_to_state,  # not a part of the sum
+        # of the nodes' parts: their time in rclpy's publish (the DDS writes, the peer's wake-up among them)
+        "simulator_dds_writes": statistics.median(run["work"]["simulator"].get("writes_mean", 0.0) for run in bare),
+        "controller_dds_writes": statistics.median(run["work"]["controller"].get("writes_mean", 0.0) for run in bare),
         "dds_bound_round_trip": bound_round_trip_us,  # for comparison: not a part of the sum
     }
+
+
+def bare_import_s(repeats: int = 3) -> float:
+    """A fresh interpreter's ``import rclpy, pinocchio`` [s], command to exit (median): what any node
+    process pays before its own code, the floor of a run's turnaround."""
+    samples = []
+    for _ in range(repeats):
+        start = time.monotonic()
+        subprocess.run([sys.executable, "-c", "import rclpy, pinocchio"], check=True)
+        samples.append(time.monotonic() - start)
+    return statistics.median(samples)
+
+
+def target_figures(result: dict[str, Any], sweep: dict[str, Any]) -> dict[str, float | None]:
+    """The speed figures issue 36 sets targets on (``TARGETS``), as ratios of figures of this one run."""
+    works = [work["controller"] for work in result["node_work_us"]]
+    law_us = result["controller_update_us_p50"]
+    rollout_s = result["rollout_sim_time_s"] * 1000.0 / result["rollout_steps_per_s"]  # one rollout [s]
+    same_runs = sweep["run_sim_time_s"] == result["rollout_sim_time_s"]
+    return {
+        "pair_vs_bound": result["pair_vs_bound"],
+        "pair_vs_no_recorder": result["pair_real_time_factor"] / result["pair_real_time_factor_no_recorder"],
+        "recorder_share_of_step": result["recorder_share_of_step"],
+        "controller_callback_p50_vs_law": statistics.median(w["p50"] for w in works) / law_us,
+        "controller_callback_p99_vs_law": statistics.median(w["p99"] for w in works) / law_us,
+        "engine_vs_mujoco": result["engine_vs_mujoco"],
+        "sweep_row_vs_rollout": sweep["mean_run_s"]["local_1"] / rollout_s if same_runs else None,
+        "make_run_vs_stepping": result["make_run_vs_stepping"],
+        "run_wall_minus_stepping_s": result["whole_run_s"] - result["stepping_s"],
+        "tiny_run_vs_bare_import": result["tiny_run_command_s"] / result["bare_import_s"],
+    }
+
+
+TARGETS = {
+    "pair_vs_bound": ">= 0.6",
+    "pair_vs_no_recorder": ">= 0.9",
+    "recorder_share_of_step": "<= 0.10",
+    "controller_callback_p50_vs_law": "<= 1.5",
+    "controller_callback_p99_vs_law": "<= 3",
+    "engine_vs_mujoco": ">= 2",
+    "sweep_row_vs_rollout": "<= 1.3",
+    "make_run_vs_stepping": "<= 1.25",
+    "run_wall_minus_stepping_s": "<= 2.0",
+    "tiny_run_vs_bare_import": "<= 3",
+}
+"""Issue 36's targets on ``target_figures`` (printed beside them; a figure, never a timed test)."""
 
 
 def make_run(duration: float | None = None) -> dict[str, Any]:
@@ -500,6 +550,7 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
     # Per 1 ms step: wall time with the recorder vs without it.
     recorder_share = 1.0 - pair["stepping"] / without_recorder
     tiny_command = statistics.median(run["command_s"] for run in tiny)
+    bare_import = bare_import_s(1 if quick else 3)
     print("scaling ...", flush=True)
     scale = scaling(repeats=1, steps=200) if quick else scaling(repeats=3)
     print("sweep throughput (1 and 2 local workers, Dask LocalCluster) ...", flush=True)
@@ -539,6 +590,7 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
         "timeline_events": pair_runs[0]["events"],
         "tiny_run_command_s": tiny_command,
         "tiny_run_timeline": {key: value for key, value in tiny[0].items() if key != "events"},
+        "bare_import_s": bare_import,
         "make_run_s": paper["whole_s"],
         "make_run_stepping_s": paper["stepping_s"],
         "make_run_vs_stepping": paper["ratio"],
@@ -561,6 +613,7 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
         "sweep": sweep,
         "bench_wall_time_s": time.monotonic() - started,
     }
+    result["targets"] = target_figures(result, sweep)
     rows = [
         ("engine steps/s (paper model, voltage, RK4, 1 ms)", f"{engine:,.0f}"),
         ("MuJoCo steps/s (equivalent MJCF, RK4, 1 ms)", f"{mujoco:,.0f}" if mujoco else "n/a (mujoco not installed)"),
@@ -600,6 +653,9 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
     rows.append((f"sweep runs/min ({sweep['run_sim_time_s']:g} s runs)", sweep_rates))
     rows.append(("sweep parallel efficiency, 2 workers (target >= 0.9)", f"{sweep['parallel_efficiency']:.3f}"))
     rows.append(("optimiser trials/min (paper arm, 10 s runs, 2 workers)", f"{optimize_rate:.0f}"))
+    rows.append(("issue 36's figures (this run) against their targets:", ""))
+    for key, value in result["targets"].items():
+        rows.append((f"  {key.replace('_', ' ')} (target {TARGETS[key]})", "n/a" if value is None else f"{value:.3g}"))
     rows.append(("bench wall time", f"{result['bench_wall_time_s']:.0f} s"))
     return result, rows
 

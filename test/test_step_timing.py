@@ -11,7 +11,7 @@ from bracing_core.step_timing import WorkTimer, read_work_line
 
 def test_the_mark_splits_the_work_at_the_answer_out(monkeypatch: pytest.MonkeyPatch) -> None:
     # begin 0, pause 2, resume 402 (a 400 us wait), mark 412 (the state out), end 450: 50 us of work,
-    # 12 of them before the state was out.
+    # 12 of them before the state was out, 8 of them in DDS writes.
     reads = iter([0.0, 2e-6, 402e-6, 412e-6, 450e-6])
     monkeypatch.setattr(step_timing.time, "perf_counter", lambda: next(reads))
     timer = WorkTimer()
@@ -19,13 +19,17 @@ def test_the_mark_splits_the_work_at_the_answer_out(monkeypatch: pytest.MonkeyPa
     timer.pause()
     timer.resume()
     timer.mark()
-    timer.end()
+    timer.end(written_s=8e-6)
     line = timer.line()
     assert line == (
         "per-step work [us]: mean 50.0, p50 50.0, p99 50.0 over 1 steps; until the answer is out: mean 12.0, p50 12.0"
+        "; DDS writes: mean 8.0, p50 8.0"
     )
     work = read_work_line(line)
-    assert work == {"mean": 50.0, "p50": 50.0, "p99": 50.0, "steps": 1.0, "out_mean": 12.0, "out_p50": 12.0}
+    assert work == {
+        "mean": 50.0, "p50": 50.0, "p99": 50.0, "steps": 1.0, "out_mean": 12.0, "out_p50": 12.0,
+        "writes_mean": 8.0, "writes_p50": 8.0,
+    }  # fmt: skip
 
 
 def test_the_wait_for_the_peer_is_not_work_and_the_line_reads_back(monkeypatch: pytest.MonkeyPatch) -> None:

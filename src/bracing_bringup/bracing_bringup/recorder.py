@@ -535,6 +535,14 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
         help="record only what arrives: no /tf, /tf_static or contact_markers (they cost CPU per state)",
     )
     parser.add_argument(
+        "--scene-backlog",
+        type=int,
+        default=MAX_SCENE_BACKLOG,
+        metavar="N",
+        help=f"derive /tf and markers when more than N recorded messages wait for it, else only when idle "
+        f"(default {MAX_SCENE_BACKLOG}: at the end of a run; bracing-pair with batches: 0, as they come)",
+    )
+    parser.add_argument(
         "--from-batches",
         action="store_true",
         help="take the per-state topics from the nodes' record_batch (their record_batch parameter > 0; "
@@ -607,7 +615,7 @@ def _record_until_stopped(node: Recorder, args: argparse.Namespace, stop: StopRe
         idle = not got
         if got and wanted is not None and node.simulator_done and node.has_every_message(wanted):
             return True  # nothing more will come (the simulator's last warning came before FINISHED): no drain
-        if node.scene_backlog and (idle or node.scene_backlog > MAX_SCENE_BACKLOG):
+        if node.scene_backlog and (idle or node.scene_backlog > args.scene_backlog):
             node.derive(0.05)  # idle (nothing came for 0.1 s), or the queue would grow too large
         elif got and args.batch > 0.0:
             time.sleep(args.batch)  # messages wait in the subscriptions' queues (deep, reliable)

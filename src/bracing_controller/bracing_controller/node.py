@@ -227,7 +227,7 @@ def spin(node: ControllerNode) -> int:
                 if subscription is state_sub:
                     work.begin()
                     node.on_state(msg)
-                    work.end()
+                    work.end(node.batch.take_written())
                     states += 1
                 else:  # the states are taken first: a target is followed from the next state on
                     targets.take(subscription, msg)

@@ -14,18 +14,21 @@ _PATTERN = re.compile(
     re.escape(WORK_LINE)
     + r": mean ([0-9.]+), p50 ([0-9.]+), p99 ([0-9.]+) over ([0-9]+) steps"
     + r"(?:; until the answer is out: mean ([0-9.]+), p50 ([0-9.]+))?"
+    + r"(?:; DDS writes: mean ([0-9.]+), p50 ([0-9.]+))?"
 )
 
 
 class WorkTimer:
     """Per-step work [s] on ``time.perf_counter``: ``begin`` a step, ``pause``/``resume`` around a
     wait for the peer, ``mark`` when the answer the peer waits for is out (the simulator's next state:
-    what follows it, the step's reports, overlaps the peer's work), ``end`` it. Four to five clock
-    reads a step (~0.2 us)."""
+    what follows it, the step's reports, overlaps the peer's work), ``end`` it with the time its
+    messages' DDS writes took (rclpy's publish: the middleware's share of the work). Four to five clock
+    reads a step (~0.2 us), two more a message written."""
 
     def __init__(self) -> None:
         self._samples: list[float] = []
         self._to_mark: list[float] = []
+        self._writes: list[float] = []
         self._start = 0.0
         self._waited = 0.0
         self._paused_at = 0.0
@@ -44,14 +47,15 @@ class WorkTimer:
         if self._marked_at is None:
             self._marked_at = time.perf_counter()
 
-    def end(self) -> None:
+    def end(self, written_s: float = 0.0) -> None:
         self._samples.append(time.perf_counter() - self._start - self._waited)
+        self._writes.append(written_s)
         if self._marked_at is not None:  # the waits come before the answer is taken, so before the mark
             self._to_mark.append(self._marked_at - self._start - self._waited)
 
     def line(self) -> str | None:
         """The log line (None before any step): mean, p50 and p99 [us] and the count; with marks, the
-        mean and p50 up to the mark."""
+        mean and p50 up to the mark; with writes, their mean and p50."""
         if not self._samples:
             return None
         us = np.asarray(self._samples) * 1e6
@@ -60,17 +64,22 @@ class WorkTimer:
         if self._to_mark:
             marked = np.asarray(self._to_mark) * 1e6
             line += f"; until the answer is out: mean {marked.mean():.1f}, p50 {np.percentile(marked, 50):.1f}"
+        writes = np.asarray(self._writes) * 1e6
+        if writes.any():
+            line += f"; DDS writes: mean {writes.mean():.1f}, p50 {np.percentile(writes, 50):.1f}"
         return line
 
 
 def read_work_line(log: str) -> dict[str, float] | None:
     """The last per-step work line of a node's log as {mean, p50, p99 [us], steps} and, with marks,
-    {out_mean, out_p50}; None if absent."""
+    {out_mean, out_p50} and, with writes, {writes_mean, writes_p50}; None if absent."""
     found = _PATTERN.findall(log)
     if not found:
         return None
-    mean, p50, p99, steps, out_mean, out_p50 = found[-1]
+    mean, p50, p99, steps, out_mean, out_p50, writes_mean, writes_p50 = found[-1]
     work = {"mean": float(mean), "p50": float(p50), "p99": float(p99), "steps": float(steps)}
     if out_mean:
         work.update(out_mean=float(out_mean), out_p50=float(out_p50))
+    if writes_mean:
+        work.update(writes_mean=float(writes_mean), writes_p50=float(writes_p50))
     return work

@@ -8,6 +8,7 @@ recorder (``bracing-recorder --from-batches``) with the others of its batch: one
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 
 from rclpy.node import Node
@@ -35,6 +36,7 @@ class RecordBatchPublisher:
 
     def __init__(self, node: Node, publishers: Sequence[Publisher], states_per_batch: int) -> None:
         self.publisher: Publisher | None = None  # record_batch's, while batching
+        self.written_s = 0.0  # [s] in rclpy's publish since the last take_written (make bench's breakdown)
         self._packer: BatchPacker | None = None
         if not states_per_batch:
             return
@@ -46,7 +48,9 @@ class RecordBatchPublisher:
 
     def publish(self, publisher: Publisher, data: bytes) -> None:
         """``data`` (CDR bytes) out on ``publisher``, and into the batch."""
+        start = time.perf_counter()
         publisher.publish(data)
+        self.written_s += time.perf_counter() - start
         if self._packer is not None:
             self._packer.add(self._index[id(publisher)], data)
 
@@ -60,8 +64,16 @@ class RecordBatchPublisher:
         if self._packer is None or self.publisher is None or not len(self._packer):
             return
         batch = self._packer.take()
-        self.publisher.publish(self._wire.encode(batch.sequence, batch.topics, batch.topic_of, batch.end, batch.data))
+        data = self._wire.encode(batch.sequence, batch.topics, batch.topic_of, batch.end, batch.data)
+        start = time.perf_counter()
+        self.publisher.publish(data)
+        self.written_s += time.perf_counter() - start
         self.flow.sent()
+
+    def take_written(self) -> float:
+        """The time [s] spent in rclpy's publish (the DDS writes) since the last call."""
+        written, self.written_s = self.written_s, 0.0
+        return written
 
     def close(self, timeout_sec: float | None = None) -> bool:
         """Flush, then wait until the recorder has acknowledged every batch; whether it has (True when off)."""

@@ -172,7 +172,7 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
         if node.sim.steps_taken % 100 == 0:
             executor.spin_once(timeout_sec=0.0)  # parameter services and the like
         core.step_lockstep(receive)
-        work.end()
+        work.end(node.topics.batch.take_written())
     core.finish_lockstep(receive)  # the answer to the final state, for its reports
     if (line := work.line()) is not None:
         node.log.info(line)  # make bench's pair_step_breakdown_us
