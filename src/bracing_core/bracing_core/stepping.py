@@ -278,7 +278,7 @@ class SimulatorStepper:
         command = self.sensors.delay(command) if self.sensors is not None else command
         try:
             with np.errstate(over="ignore", invalid="ignore"):  # an overflow is reported as a refusal
-                d = sim.step(command)
+                answer = sim.step_answer(command)  # as a Derivative once the state is out
                 residual = sim.check(self.config.divergence_speed, self.config.divergence_residual)
                 effort = self.state_effort(command)
             if not all_finite(effort):
@@ -292,6 +292,7 @@ class SimulatorStepper:
         self.command = command
         self.max_residual = max(self.max_residual, residual)
         self.outlet.publish_state(self.state_out(effort))
+        d = sim.derivative(answer)
         self.outlet.publish_step(self.step_out(t_ns, command, d, current, temperature, energy))
         self.outlet.sent()
         self._take_events()
@@ -334,7 +335,7 @@ class SimulatorStepper:
         command = self.command if command is None else command
         if self.mode is InputMode.TORQUE:
             return command
-        return self.sim.evaluate(command).effort
+        return self.sim.effort(command)
 
     # -- what goes out --------------------------------------------------------------
     def state_out(self, effort: Vector) -> StateOut:
