@@ -310,9 +310,10 @@ def pair_without_recorder(duration: float = 10.0) -> dict[str, Any]:
 
 def _callback_p50_p99(bare_runs: list[dict[str, Any]]) -> str:
     """The controller node's per-state work in the bare pair (step_timing: decoding, checks, the law, the two
-    messages out), the medians over the runs of its p50 and p99."""
+    messages out), the medians over the runs of its p50 and p99, and of its p50 until the command is out."""
     works = [run["work"]["controller"] for run in bare_runs]
-    return f"{statistics.median(w['p50'] for w in works):.1f} / {statistics.median(w['p99'] for w in works):.1f}"
+    p50, p99 = (statistics.median(w[key] for w in works) for key in ("p50", "p99"))
+    return f"{p50:.1f} / {p99:.1f}; to the command out {statistics.median(w['out_p50'] for w in works):.1f}"
 
 
 def step_breakdown_us(
@@ -320,26 +321,29 @@ def step_breakdown_us(
 ) -> dict[str, float]:
     """Where a lockstep step's wall time goes [us per 1 ms step], along the loop's critical path: the
     simulator's work from the controller's answer taken to the next state out, the controller's work
-    on that state (each from the node's own log, the bare runs' medians) less the engine's and the
-    law's in-process cost; the rest of the bare step (DDS both ways and the wake-ups, and the CPU the
-    simulator's reports take meanwhile on two cores); what the recorder adds (the recorded pair
-    against the bare one). Those parts add up to ``step``. Beside them: the simulator's work after
-    the state is out (its reports, overlapping the controller), each node's time in rclpy's publish
-    (a share of its part) and the DDS bound's round trip."""
+    from that state taken to its command out (each from the node's own log, the bare runs' medians)
+    less the engine's and the law's in-process cost; the rest of the bare step (DDS both ways and the
+    wake-ups, and the CPU the nodes' work after their answer takes meanwhile on two cores); what the
+    recorder adds (the recorded pair against the bare one). Those parts add up to ``step``. Beside
+    them: each node's work after its answer is out (the simulator's reports, the controller's
+    controller_state: overlapping the other node), each node's time in rclpy's publish per step
+    (the DDS writes, inside its work) and the DDS bound's round trip."""
     bare_step = 1e3 / statistics.median(run["real_time_factor"] for run in bare)
     sim_to_state = statistics.median(run["work"]["simulator"]["out_mean"] for run in bare)
     sim_work = statistics.median(run["work"]["simulator"]["mean"] for run in bare)
+    ctl_to_command = statistics.median(run["work"]["controller"]["out_mean"] for run in bare)
     ctl_work = statistics.median(run["work"]["controller"]["mean"] for run in bare)
     step = 1e3 / pair_rtf
     return {
         "step": step,
         "simulator_node": sim_to_state - engine_us,
         "engine": engine_us,
-        "controller_node": ctl_work - law_us,
+        "controller_node": ctl_to_command - law_us,
         "law": law_us,
-        "dds_round_trip": bare_step - sim_to_state - ctl_work,
+        "dds_round_trip": bare_step - sim_to_state - ctl_to_command,
         "recorder": step - bare_step,
         "simulator_reports_overlapped": sim_work - sim_to_state,  # not a part of the sum
+        "controller_state_overlapped": ctl_work - ctl_to_command,  # nor this
         # of the nodes' parts: their time in rclpy's publish (the DDS writes, the peer's wake-up among them)
         "simulator_dds_writes": statistics.median(run["work"]["simulator"].get("writes_mean", 0.0) for run in bare),
         "controller_dds_writes": statistics.median(run["work"]["controller"].get("writes_mean", 0.0) for run in bare),

@@ -136,11 +136,13 @@ def test_quick_bench_produces_every_key(tmp_path: Path) -> None:
     # Where a step goes: every part, each node's work read from its own log, and the parts add up.
     parts = result["pair_step_breakdown_us"]
     named = ("simulator_node", "engine", "controller_node", "law", "dds_round_trip", "recorder")
-    beside = ("dds_bound_round_trip", "simulator_reports_overlapped", "simulator_dds_writes", "controller_dds_writes")
+    beside = ("dds_bound_round_trip", "simulator_reports_overlapped", "controller_state_overlapped")
+    beside += ("simulator_dds_writes", "controller_dds_writes")
     assert set(parts) == {"step", *beside, *named}
     assert math.isclose(sum(parts[name] for name in named), parts["step"], rel_tol=1e-9)
     for work in result["node_work_us"]:
         for node in ("simulator", "controller"):
             assert work[node]["steps"] >= 1 and 0 < work[node]["p50"] <= work[node]["p99"]
             assert 0 < work[node]["writes_mean"] <= work[node]["mean"]  # rclpy's publish, inside the step's work
-        assert 0 < work["simulator"]["out_mean"] <= work["simulator"]["mean"]  # the state is out before the reports
+        for node in ("simulator", "controller"):  # the answer (state, command) is out before the reports
+            assert 0 < work[node]["out_mean"] <= work[node]["mean"]

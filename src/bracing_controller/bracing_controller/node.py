@@ -8,6 +8,7 @@ the command is stamped with the state it answers, which is what the simulator's 
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from functools import partial
 
 import numpy as np
@@ -74,6 +75,7 @@ class ControllerNode(Node):
         self.measurement_waiter: SubscriptionWaiter | None = None
         self.wrench_subs: dict[Subscription, str] = {}
         self.flow = AckWindow(self, [self.command_pub, self.state_pub], STREAM_QOS.depth)
+        self.command_out: Callable[[], None] | None = None  # called once a command is out (lockstep's timing)
         # record_batch: the answers also reach the recorder in batches (it subscribes to those instead)
         self.batch = RecordBatchPublisher(self, [self.command_pub, self.state_pub], config.record_batch)
         self.core.start()
@@ -158,6 +160,8 @@ class ControllerNode(Node):
             self.effort.send(out.command)
         else:
             publish(self.command_pub, self.command_wire.encode(stamp_ns, out.command))
+        if self.command_out is not None:
+            self.command_out()  # the simulator's wait ends there; the controller_state follows it
         brace = (out.brace_desired, out.brace_actual)
         publish(
             self.state_pub,
@@ -220,6 +224,7 @@ def spin(node: ControllerNode) -> int:
         # (py-spy, 2026-11-26).
         waiter = SubscriptionWaiter(node, [state_sub, *targets.handlers])
         node.log.info("answering joint_states")
+        node.command_out = work.mark
         node.status.say(RunStatus.STEPPING)
         while True:
             states = 0
