@@ -358,6 +358,13 @@ void Dynamics::evaluate(const Eigen::Ref<const Vector>& q, const Eigen::Ref<cons
   m.circuit(dq, current, temperature, u, out);
 }
 
+void Dynamics::rerun_circuit(const Eigen::Ref<const Vector>& dq, const Eigen::Ref<const Vector>& current,
+                             const Eigen::Ref<const Vector>& temperature, const Eigen::Ref<const Vector>& u,
+                             Answer& out) const {
+  if (!impl_->drive.voltage) throw std::logic_error("rerun_circuit: the answer depends on u in torque mode");
+  impl_->circuit(dq, current, temperature, u, out);
+}
+
 double Dynamics::hold_velocity(const Vector& q, Vector& dq, const ContactModes& modes) const {
   const Impl& m = *impl_;
   const int n = m.model.nv, p = contact_count();
