@@ -40,7 +40,7 @@ struct Dynamics::Impl {
 
   void contact_terms(int j, const Eigen::Ref<const Vector>& dq, Answer& out) const;
   void resize(Answer& out) const;
-  // r = drive - Dc dq - (h + g) (after computeAllTerms).
+  // r = drive - Dc dq - (h + g) (after rigid_body_terms).
   void drive_balance(const Eigen::Ref<const Vector>& dq, const Eigen::Ref<const Vector>& current,
                      const Eigen::Ref<const Vector>& u) const;
   // The contacts' terms (held ones, or all if `full`) and the sticking ones' tangent directions; the number
@@ -65,7 +65,7 @@ struct Dynamics::Impl {
                const Eigen::Ref<const Vector>& temperature, const Eigen::Ref<const Vector>& u, Answer& out) const;
 };
 
-// One contact's terms after computeAllTerms, into row j of `out`.
+// One contact's terms after rigid_body_terms, into row j of `out`.
 void Dynamics::Impl::contact_terms(int j, const Eigen::Ref<const Vector>& dq, Answer& out) const {
   const auto frame = frames[j];
   const auto jacobian = translational_jacobian(model, data, frame, frame_jacobian);
@@ -305,7 +305,7 @@ std::vector<std::string> Dynamics::joint_names() const {
 void Dynamics::terms(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& dq, Answer& out) const {
   const Impl& m = *impl_;
   m.resize(out);
-  pin::computeAllTerms(m.model, m.data, q, dq);
+  rigid_body_terms(m.model, m.data, q, dq);
   for (int j = 0; j < contact_count(); ++j) m.contact_terms(j, dq, out);
 }
 
@@ -339,7 +339,7 @@ void Dynamics::evaluate(const Eigen::Ref<const Vector>& q, const Eigen::Ref<cons
                         const Eigen::Ref<const Vector>& u, const ContactModes& modes, bool full, Answer& out) const {
   const Impl& m = *impl_;
   m.resize(out);
-  pin::computeAllTerms(m.model, m.data, q, dq);
+  rigid_body_terms(m.model, m.data, q, dq);
   pin::cholesky::decompose(m.model, m.data);
   m.drive_balance(dq, current, u);
   const int rows = m.count_rows(modes, full, dq, out);
