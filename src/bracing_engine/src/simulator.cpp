@@ -191,7 +191,7 @@ StepStatus Simulator::step(const Vector& u) {
   const int n = n_;
   if (u.size() != n) throw std::invalid_argument("command: one value per joint expected");
   start(u);  // the modes at the start; `report` is the first stage
-  const ContactModes modes = modes_;
+  start_modes_ = modes_;
   const std::size_t event_count = events_.size();
   const double h = step_ / substeps_;
   Vector& y = y_next_;
@@ -199,7 +199,7 @@ StepStatus Simulator::step(const Vector& u) {
   for (int s = 0; s < substeps_; ++s) advance(y, h, u, s == 0, s * h);
   auto refuse = [&](StepStatus status) {
     end_evaluated_ = false;  // the state stays: located_ is the refused step's end
-    modes_ = modes;
+    modes_ = start_modes_;
     events_.resize(event_count);
     return status;
   };

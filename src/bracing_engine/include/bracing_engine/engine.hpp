@@ -317,6 +317,7 @@ class Simulator {
   Vector lower_, upper_;
   Vector y_, y_next_;  // q, dq, i, T, energies (a step writes the next into y_next_ and swaps)
   ContactModes modes_, report_modes_;
+  ContactModes start_modes_;  // a step's modes at its start, restored if it is refused
   Mask unilateral_, enforced_, coulomb_;
   bool any_unilateral_ = false, any_coulomb_ = false;
   bool end_evaluated_ = false;  // located_ holds the model at the state the last step ended in
