@@ -1,9 +1,11 @@
-// The rigid-body terms the model reads, in one pass over the joints: pinocchio's computeAllTerms cut to
-// what dynamics.cpp uses (placements, velocities, the accelerations at ddq = 0, the world Jacobians, M,
-// h + g), each computed by computeAllTerms' own expressions, so they are its numbers bit for bit. Left
+// The rigid-body terms the model and the law read, in one pass over the joints: pinocchio's computeAllTerms
+// cut to what dynamics.cpp and law.cpp use (placements, velocities, the accelerations at ddq = 0, the world
+// Jacobians, M, h + g), each by computeAllTerms' own expressions, so they are its numbers bit for bit. Left
 // out: dJ, the centroidal terms (Ag, dAg, hg), the centres of mass, g and the energies (make bench's
 // engine on the paper arm, four evaluations a step: 88k steps/s with computeAllTerms, 123k with this).
+#include <pinocchio/multibody/joint.hpp>
 #include <pinocchio/multibody/visitor.hpp>
+#include <pinocchio/spatial.hpp>
 
 #include "model.hpp"
 
