@@ -255,8 +255,8 @@ void Simulator::advance(Vector& y, double h, const Vector& u, bool first, double
     // The event functions at the end (the 4th stage's state is not enough: an event it misses is a
     // reversal taken as slip in the other direction); where one crossed zero, locate it on the cubic
     // Hermite interpolant of the step (q, dq, i, T).
-    // `full`: every contact's terms, so that located_ can be the next step's `report` (end_reusable)
-    evaluate_at(y1_, u, true, located_);
+    // `full` (every contact's terms) where located_ can be the next step's `report` (end_reusable: voltage input)
+    evaluate_at(y1_, u, dynamics_->drive().voltage, located_);
     event_functions(located_, g_end_);
     if ((g_end_.array() >= 0.0).all()) {
       y = y1_;
