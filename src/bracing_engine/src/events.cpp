@@ -63,6 +63,7 @@ void Simulator::hold_sticking() {
   }
   if (!any || !drifted) return;
   const int n = n_;
+  end_evaluated_ = false;  // the state moves
   Vector q = y_.head(n), dq = y_.segment(n, n);
   y_[energy_index(energy::friction_loss)] += dynamics_->hold_velocity(q, dq, modes_);
   y_.segment(n, n) = dq;
@@ -254,11 +255,13 @@ void Simulator::advance(Vector& y, double h, const Vector& u, bool first, double
     // The event functions at the end (the 4th stage's state is not enough: an event it misses is a
     // reversal taken as slip in the other direction); where one crossed zero, locate it on the cubic
     // Hermite interpolant of the step (q, dq, i, T).
-    evaluate_at(y1_, u, false, located_);
+    // `full` (every contact's terms) where located_ can be the next step's `report` (end_reusable: voltage input)
+    evaluate_at(y1_, u, dynamics_->drive().voltage, located_);
     event_functions(located_, g_end_);
     if ((g_end_.array() >= 0.0).all()) {
       y = y1_;
       end_evaluated_ = true;  // located_ is the model at the step's end
+      end_baumgarte_ = dynamics_->baumgarte;
       return;
     }
     rates(y1_.head(m), u, true, located_, k_end_, e_end_);

@@ -10,7 +10,6 @@
 #include "model.hpp"
 
 #include <pinocchio/algorithm/cholesky.hpp>
-#include <pinocchio/algorithm/compute-all-terms.hpp>
 #include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/algorithm/kinematics.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
@@ -133,7 +132,7 @@ struct Law::Impl {
   // braces' Jacobians into `brace_jacobians` (3b x n) and, with a posture task, the configured rows into `task_rows`.
   Vector task_torque(double t, const Vector& dq, LawOutput& out, Eigen::MatrixXd& brace_jacobians,
                      Eigen::MatrixXd& task_rows);
-  // The braced contacts' rows at the state of the last computeAllTerms (f_cmd into `out`).
+  // The braced contacts' rows at the state of the last rigid_body_terms (f_cmd into `out`).
   BraceRows brace_rows(const Eigen::MatrixXd& brace_jacobians, const Vector& dq, double dt, LawOutput& out);
   // tau while no brace sticks: B^+ (a - A f_nd) + (I - B^+ B) l.
   Vector sliding_torque(const BraceRows& rows, const Vector& bias, const Vector& l, bool& damped);
@@ -283,7 +282,7 @@ Eigen::MatrixXd Law::allowed_task_rows(const Vector& q0, const std::vector<std::
   Impl& m = *impl_;
   const int n = m.model.nv, p = braces();
   const Vector zero = Vector::Zero(n);
-  pin::computeAllTerms(m.model, m.data, q0, zero);
+  rigid_body_terms(m.model, m.data, q0, zero);
   auto translational = [&](std::size_t k) {
     return Eigen::MatrixXd(translational_jacobian(m.model, m.data, m.frames[k], m.frame_jacobian));
   };
@@ -546,7 +545,7 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
   Impl& m = *impl_;
   const LawSpec& s = m.spec;
   const int n = m.model.nv, p = braces();
-  pin::computeAllTerms(m.model, m.data, q, dq);
+  rigid_body_terms(m.model, m.data, q, dq);
   const double dt = m.advance_clock(t, q);
   out.force_command.resize(p);
   out.brace_desired.resize(p, 3);

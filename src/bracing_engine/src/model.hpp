@@ -2,7 +2,6 @@
 #pragma once
 
 #include <pinocchio/algorithm/cholesky.hpp>
-#include <pinocchio/algorithm/compute-all-terms.hpp>
 #include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/multibody/data.hpp>
 #include <pinocchio/multibody/model.hpp>
@@ -14,6 +13,11 @@ namespace bracing_engine {
 // The robot's model from its URDF: gravity set, the locked joints removed at their positions
 // (pinocchio's reduced model), `armature` (one value per remaining joint) added to its armature.
 pinocchio::Model build_model(const Robot& robot, const Vector& armature);
+
+// What the engine reads of pinocchio's computeAllTerms, its numbers bit for bit (rigid_body_terms.cpp): oMi, v,
+// a, a_gf (accelerations at ddq = 0), J (world), M (upper triangle, armature added) and nle = h + g at (q, v).
+void rigid_body_terms(const pinocchio::Model& model, pinocchio::Data& data, const Eigen::Ref<const Vector>& q,
+                      const Eigen::Ref<const Vector>& v);
 
 // Mc^-1 R^T by Mc's Cholesky factor (pinocchio::cholesky::decompose done on `data`), one solve per row
 // of R: row i of `out` becomes (Mc^-1 R_i^T)^T (pass y.transpose() for an n x k Y). `column`: n of work.
@@ -28,7 +32,7 @@ void mass_inverse_rows(const pinocchio::Model& model, pinocchio::Data& data, con
 }
 
 // The translational Jacobian (3 x n, world axes at the frame: the top rows of `work`, a 6 x n frame
-// Jacobian) of `frame` after computeAllTerms.
+// Jacobian) of `frame` after rigid_body_terms.
 inline auto translational_jacobian(const pinocchio::Model& model, pinocchio::Data& data, pinocchio::FrameIndex frame,
                                    pinocchio::Data::Matrix6x& work) {
   work.setZero();

@@ -76,9 +76,11 @@ void Simulator::set_active(const Mask& active) {
     if (active[j] && !modes_.held[j] && coulomb_[j]) modes_.sticking[j] = true;  // the start check decides
   }
   modes_.held = active;
+  end_evaluated_ = false;
 }
 
 void Simulator::set_modes(const ContactModes& modes) {
+  end_evaluated_ = false;
   if (static_cast<int>(modes.held.size()) != p_ || static_cast<int>(modes.sticking.size()) != p_ ||
       modes.slide.rows() != p_ || modes.pushing.size() != p_)
     throw std::invalid_argument("one mode per contact expected");
@@ -88,6 +90,7 @@ void Simulator::set_modes(const ContactModes& modes) {
 void Simulator::set_state(const Vector& y) {
   if (y.size() != y_.size()) throw std::invalid_argument("state: wrong size");
   y_ = y;
+  end_evaluated_ = false;
 }
 
 void Simulator::truncate_events(std::size_t count) {
@@ -148,9 +151,22 @@ Refusal Simulator::refusal(double speed_limit, double residual_limit, double& me
   return measured > residual_limit ? Refusal::off_surface : Refusal::none;
 }
 
+bool Simulator::end_reusable() const {
+  return end_evaluated_ && dynamics_->drive().voltage && end_baumgarte_ == dynamics_->baumgarte;
+}
+
 void Simulator::start(const Vector& u) {
   for (int guard = 0; guard < 4 * p_ + 4; ++guard) {
-    evaluate(u);
+    // one model evaluation of five a step saved (make bench's engine: 71k -> 88k steps/s)
+    if (guard == 0 && end_reusable()) {
+      const int n = n_;
+      std::swap(report, located_);
+      dynamics_->rerun_circuit(y_.segment(n, n), y_.segment(2 * n, n), y_.segment(3 * n, n), u, report);
+      report_modes_ = modes_;
+    } else {
+      evaluate(u);
+    }
+    end_evaluated_ = false;  // located_ is scratch again
     if (release_pulling() || follow_force_signs() || (any_coulomb_ && break_away(0.0))) continue;
     return;
   }
@@ -175,14 +191,15 @@ StepStatus Simulator::step(const Vector& u) {
   const int n = n_;
   if (u.size() != n) throw std::invalid_argument("command: one value per joint expected");
   start(u);  // the modes at the start; `report` is the first stage
-  const ContactModes modes = modes_;
+  start_modes_ = modes_;
   const std::size_t event_count = events_.size();
   const double h = step_ / substeps_;
   Vector& y = y_next_;
   y = y_;
   for (int s = 0; s < substeps_; ++s) advance(y, h, u, s == 0, s * h);
   auto refuse = [&](StepStatus status) {
-    modes_ = modes;
+    end_evaluated_ = false;  // the state stays: located_ is the refused step's end
+    modes_ = start_modes_;
     events_.resize(event_count);
     return status;
   };

@@ -158,6 +158,11 @@ class Dynamics {
   void evaluate(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& dq,
                 const Eigen::Ref<const Vector>& current, const Eigen::Ref<const Vector>& temperature,
                 const Eigen::Ref<const Vector>& u, const ContactModes& modes, bool full, Answer& out) const;
+  // The circuit's part of `out` (di, the effort, R(T)) redone under input u, `out` being an answer at
+  // (q, dq, i, T) under another input. Voltage mode only: the rest of the answer does not depend on u there.
+  void rerun_circuit(const Eigen::Ref<const Vector>& dq, const Eigen::Ref<const Vector>& current,
+                     const Eigen::Ref<const Vector>& temperature, const Eigen::Ref<const Vector>& u,
+                     Answer& out) const;
   // Every contact's terms at (q, dq), no solve (force, ddq and di untouched).
   void terms(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& dq, Answer& out) const;
   // Newton steps in the metric of Mc onto C = 0 for the contacts `rows`; throws std::domain_error
@@ -294,6 +299,9 @@ class Simulator {
   void touchdown();
   // The sticking contacts' drifted tangential velocity projected back to zero at a step's end.
   void hold_sticking();
+  // Whether located_, the model at the step's end, is `report` for the next step's start but for its
+  // circuit (voltage input: ddq and the forces do not depend on u): the state, the modes and the gain unchanged.
+  bool end_reusable() const;
   // The model at state x = [q, dq, i, T, ...] under u with the current contact modes (`full`: every
   // contact's terms too): the one place a state is cut into the model's arguments.
   void evaluate_at(const Eigen::Ref<const Vector>& x, const Vector& u, bool full, Answer& out) const;
@@ -309,9 +317,11 @@ class Simulator {
   Vector lower_, upper_;
   Vector y_, y_next_;  // q, dq, i, T, energies (a step writes the next into y_next_ and swaps)
   ContactModes modes_, report_modes_;
+  ContactModes start_modes_;  // a step's modes at its start, restored if it is refused
   Mask unilateral_, enforced_, coulomb_;
   bool any_unilateral_ = false, any_coulomb_ = false;
   bool end_evaluated_ = false;  // located_ holds the model at the state the last step ended in
+  double end_baumgarte_ = 0.0;  // the Baumgarte gain located_ was evaluated with
   std::vector<ContactEvent> events_;
   Answer stage_, located_;  // the later stages' answers; the model at a step's end or a trial event time
   Vector x_, y0_, y1_, k_[4], e_[4], k_end_, e_end_, k_first_, e_first_;
