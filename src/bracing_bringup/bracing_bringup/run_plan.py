@@ -144,11 +144,7 @@ class RunPlan:
         recorder += ["--niceness", "10"]  # the lockstep loop comes first
         recorder += ["--drain-idle", "0.05"]  # stopped only after the nodes' last messages are acknowledged
         recorder += ["--params-file", params_file, "--scenario", self.options.config.stem]  # surfaces, name
-        if self.node_params[SIMULATOR].get("record_batch", 0):
-            # A batch wakes the recorder ~20 times a second, not per message: deriving the scene as the
-            # batches come cost the loop ~2 % (2.09 -> 2.04 real-time factor, 2026-11-26) and spares the
-            # end of the run its whole backlog (~0.5 s of a 10 s run)
-            recorder += ["--from-batches", "--scene-backlog", "0"]
+        recorder += ["--from-batches"] if self.node_params[SIMULATOR].get("record_batch", 0) else []
         if self.expected_states:
             recorder += ["--expect-states", str(self.expected_states)]  # it closes the bag once it has them all
         nodes = ("--params-file", params_file)
