@@ -10,15 +10,15 @@ of :mod:`bracing_core.typestore`, walked by :mod:`bracing_core.cdr`); none is wr
 
 - The two messages on the lockstep critical path, state out / in (``sensor_msgs/JointState``:
   the simulator encodes, the controller decodes) and command out / in
-  (``bracing_msgs/MotorCommand``: the controller encodes, the simulator decodes), use a byte
+  (``bracing_msgs/MotorCommand``: the controller encodes, the simulator decodes), and the
+  controller's other message on every state (``ControllerState``), use a byte
   template derived from the definition (:func:`derive_template`). What is fixed for a run
   (strings, names, ``header.frame_id``, the mode, sequence lengths) is written into the
   template once; the numbers are packed per message with one ``struct`` call. A field added
   to the ``.msg`` needs no edit here: it takes its zero / empty default unless the encoder's
   spec gives it a value.
-- The other messages (``Clock``, ``WrenchStamped``, ``Contacts``, ``MotorState``,
-  ``ControllerState``) go through rosbags' generated serialiser
-  (``Typestore.serialize_cdr`` of the typestore's message classes).
+- The other messages (``Clock``, ``WrenchStamped``, ``Contacts``, ``MotorState``) go through
+  rosbags' generated serialiser (``Typestore.serialize_cdr`` of the typestore's message classes).
 - Decoders take the template's quick path when a message has the expected layout (the
   simulator's and controller's own), else rosbags' generated deserialiser reads any valid
   message of the type (a little faster than the hand-written reader it replaced).
@@ -39,15 +39,16 @@ Clock encode                           1.0                     2.0             r
 WrenchStamped encode                   1.3                     4.7             rosbags
 Contacts encode                        2.1                     8.8             rosbags
 MotorState encode                      2.0                     8.4             rosbags
-ControllerState encode                 2.7                     10.0            rosbags
+ControllerState encode                 2.7           2.1       10.0            derived
 =====================================  ============  ========  =======  =====  ========
 
 A decoder reading another layout (another frame id, names in another order) costs the
 template's check and rosbags: 9.7 us a JointState, 7.4 a MotorCommand (the hand-written
 reader: 10.5, 8.0). rosbags costs at most ~7 us a message more than a template for the
-five reports (+18 us a step for the simulator's four, +7 us for the controller's one), under
-the ~15 us a message past which a derived template would be used for them too; and they go
-out after the step's JointState / MotorCommand, not before it.
+simulator's four reports (+18 us a step), under the ~15 us a message past which a derived
+template would be used for them too; and they go out after the step's JointState, not before
+it. The controller's ControllerState took a template (2026-11-26): its ~8 us saved on every
+state leave the controller's callback as short as it can be (make bench's callback p50, issue 36).
 
 The bytes are what rclpy itself produces: plain CDR (XCDR1) with the little-endian
 encapsulation header, alignment relative to the end of that header. The tests check every
@@ -580,16 +581,13 @@ class MotorStateEncoder:
 
 
 class ControllerStateEncoder:
-    """bracing_msgs/ControllerState with fixed contact names.
-
-    ``command_length`` is the length of the commands encoded (kept for callers; the
-    serialiser takes any).
-    """
+    """bracing_msgs/ControllerState with fixed contact names and ``command_length`` (a byte template:
+    10 -> ~3 us a message against rosbags, on every state the controller answers)."""
 
     def __init__(self, contact_names: Sequence[str], command_length: int, frame_id: str = "world") -> None:
-        self._ser, self._frame_id = _Serializer(), frame_id
-        self._contact_names, self.command_length = list(contact_names), command_length
-        self._controller_state = _Messages(self._ser.store, CONTROLLER_STATE)
+        self.command_length = command_length
+        spec = _controller_state_spec(contact_names, command_length, frame_id)
+        self._template = derive_template(CONTROLLER_STATE, spec)
 
     def encode(
         self,
@@ -603,19 +601,31 @@ class ControllerStateEncoder:
         compute_time: float,
     ) -> bytes:
         """``brace_desired``/``brace_actual``: (p, 3) arrays."""
-        Point = self._ser.Point
-        message = self._controller_state(
-            header=self._ser.header(stamp_ns, self._frame_id),
-            hand_desired=Point(*hand_desired.tolist()),
-            hand_actual=Point(*hand_actual.tolist()),
-            contact_name=self._contact_names,
-            desired_normal_force=_float64s(desired_normal_force),
-            brace_desired=[Point(*p) for p in brace_desired.tolist()],
-            brace_actual=[Point(*p) for p in brace_actual.tolist()],
-            command=_float64s(command),
-            compute_time=float(compute_time),
+        return self._template.fill(
+            divmod(stamp_ns, 1_000_000_000),
+            hand_desired.tolist(),
+            hand_actual.tolist(),
+            desired_normal_force.tolist(),
+            brace_desired.ravel().tolist(),
+            brace_actual.ravel().tolist(),
+            command.tolist(),
+            (float(compute_time),),
         )
-        return self._ser.serialize(message, CONTROLLER_STATE)
+
+
+def _controller_state_spec(contact_names: Sequence[str], command_length: int, frame_id: str) -> dict[str, Any]:
+    p = len(contact_names)
+    return {
+        "header": {"stamp": PER_MESSAGE, "frame_id": frame_id},
+        "hand_desired": PER_MESSAGE,
+        "hand_actual": PER_MESSAGE,
+        "contact_name": list(contact_names),
+        "desired_normal_force": PerMessage(p),
+        "brace_desired": PerMessage(p),
+        "brace_actual": PerMessage(p),
+        "command": PerMessage(command_length),
+        "compute_time": PER_MESSAGE,
+    }
 
 
 # ----------------------------------------------------------------------------- decoding
