@@ -36,6 +36,7 @@ Mark = Callable[..., None]
 
 DRAWING_PROCESSES = 2
 _pool: ProcessPoolExecutor | None = None
+_preparing: threading.Thread | None = None  # prepare_drawing's, once started
 
 
 def drawing_pool() -> ProcessPoolExecutor:
@@ -54,16 +55,19 @@ def drawing_pool() -> ProcessPoolExecutor:
 
 def prepare_drawing() -> threading.Thread:
     """Start ``drawing_pool``'s processes in the background (its forkserver imports the plotting
-    libraries meanwhile: ~0.8 s of one core); the thread that starts them."""
+    libraries meanwhile: ~0.8 s of one core), once per process; the thread that starts them."""
+    global _preparing
+    if _preparing is not None:
+        return _preparing
 
     def start() -> None:
         pool = drawing_pool()
         for _ in range(DRAWING_PROCESSES):
             pool.submit(time.time)
 
-    thread = threading.Thread(target=start, name="prepare-drawing", daemon=True)
-    thread.start()
-    return thread
+    _preparing = threading.Thread(target=start, name="prepare-drawing", daemon=True)
+    _preparing.start()
+    return _preparing
 
 
 def report_series(

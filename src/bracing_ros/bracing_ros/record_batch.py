@@ -48,9 +48,7 @@ class RecordBatchPublisher:
 
     def publish(self, publisher: Publisher, data: bytes) -> None:
         """``data`` (CDR bytes) out on ``publisher``, and into the batch."""
-        start = time.perf_counter()
-        publisher.publish(data)
-        self.written_s += time.perf_counter() - start
+        self._write(publisher, data)
         if self._packer is not None:
             self._packer.add(self._index[id(publisher)], data)
 
@@ -65,10 +63,14 @@ class RecordBatchPublisher:
             return
         batch = self._packer.take()
         data = self._wire.encode(batch.sequence, batch.topics, batch.topic_of, batch.end, batch.data)
-        start = time.perf_counter()
-        self.publisher.publish(data)
-        self.written_s += time.perf_counter() - start
+        self._write(self.publisher, data)
         self.flow.sent()
+
+    def _write(self, publisher: Publisher, data: bytes) -> None:
+        """rclpy's publish, its time counted in ``written_s``."""
+        start = time.perf_counter()
+        publisher.publish(data)
+        self.written_s += time.perf_counter() - start
 
     def take_written(self) -> float:
         """The time [s] spent in rclpy's publish (the DDS writes) since the last call."""
