@@ -493,6 +493,26 @@ LOG_THROTTLE_PERIOD = Param(
     minimum=0.0,
 )
 
+# Both nodes have them (each its own value): what one subscribed message may carry, checked before any
+# per-element work, so no single message can stall a node's loop.
+MAX_MESSAGE_ELEMENTS = Param(
+    "max_message_elements",
+    Kind.INTEGER,
+    10000,
+    "the most elements (joint names, values, path poses) a subscribed message may carry; a longer one is "
+    "refused before any per-element work",
+    minimum=1,
+)
+MAX_NAME_LENGTH = Param(
+    "max_name_length",
+    Kind.INTEGER,
+    256,
+    "the longest name (joint, frame) a subscribed message may carry; a longer one is refused before any "
+    "per-element work",
+    "characters",
+    minimum=1,
+)
+
 # A plant that differs from the controller's model (the simulator's robot and motors only; the controller
 # keeps the scenario's). 1 and empty: the scenario's plant, bit for bit.
 PLANT_ERROR: tuple[Param, ...] = (
@@ -741,6 +761,8 @@ SIMULATOR: tuple[Param, ...] = (
         positive=True,
     ),
     LOG_THROTTLE_PERIOD,
+    MAX_MESSAGE_ELEMENTS,
+    MAX_NAME_LENGTH,
     *PLANT_ERROR,
     *SENSORS,
 )
@@ -898,6 +920,8 @@ CONTROLLER: tuple[Param, ...] = (
         positive=True,
     ),
     LOG_THROTTLE_PERIOD,
+    MAX_MESSAGE_ELEMENTS,
+    MAX_NAME_LENGTH,
 )
 
 NODE_PARAMETERS: dict[str, tuple[Param, ...]] = {"simulator": SIMULATOR, "controller": CONTROLLER}
