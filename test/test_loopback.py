@@ -27,6 +27,7 @@ from conftest import REPO_ROOT
 from ros_helpers import hold_test_domain, isolated_env, pair_argv, start
 
 from bracing_analysis.bag import read_series
+from bracing_ros.fastdds import FASTDDS_PROFILE, PROFILE_ENV
 
 PEER = str(REPO_ROOT / "test" / "netns_peer.py")
 PEER_SECONDS = 60.0  # its upper bound; it is stopped as soon as the run ends
@@ -88,9 +89,34 @@ def wait_for_stepping(output: Path, timeout: float = 60.0) -> None:
     raise AssertionError("the run never stepped")
 
 
-def test_every_socket_of_a_run_is_on_loopback(tmp_path: Path) -> None:
+# A profile a user may export: Fast DDS's default transports (every interface), a faster heartbeat.
+OPEN_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
+<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <data_writer profile_name="fast_heartbeat_writer" is_default_profile="true">
+    <times><heartbeatPeriod><sec>0</sec><nanosec>20000000</nanosec></heartbeatPeriod></times>
+  </data_writer>
+</profiles>
+"""
+
+
+def exported_profile(which: str, tmp_path: Path) -> dict[str, str]:
+    """The environment a shell may hand a run: nothing, the project's own loopback profile exported (as
+    an earlier by-hand tutorial suggested), or a profile of the user's that opens every interface."""
+    if which == "none":
+        return {}
+    if which == "project":
+        return {PROFILE_ENV: str(FASTDDS_PROFILE)}
+    path = tmp_path / "open.xml"
+    path.write_text(OPEN_PROFILE)
+    return {PROFILE_ENV: str(path)}
+
+
+@pytest.mark.parametrize("profile", ["none", "project", "open"])
+def test_every_socket_of_a_run_is_on_loopback(tmp_path: Path, profile: str) -> None:
+    """Whatever Fast DDS profile the shell exports: an open one is replaced, with a warning that says why."""
     output = tmp_path / "run"
-    proc = start(pair_argv(output, "--duration", RUN_S, "--no-animation"), isolated_env())
+    env = isolated_env(**exported_profile(profile, tmp_path))
+    proc = start(pair_argv(output, "--duration", RUN_S, "--no-animation"), env)
     try:
         wait_for_stepping(output)
         pids = run_processes(output)
@@ -103,6 +129,9 @@ def test_every_socket_of_a_run_is_on_loopback(tmp_path: Path) -> None:
     assert len(pids) == 4, pids  # bracing-pair, the simulator, the controller, the recorder
     assert all(sockets.values()), sockets  # each has its DDS sockets
     assert [s for found in sockets.values() for s in found if not s.startswith("127.0.0.1:")] == []
+    logs = {name: (output / "logs" / f"{name}.log").read_text() for name in ("simulator", "controller", "recorder")}
+    warned = [name for name, text in {"pair": out, **logs}.items() if f"{PROFILE_ENV}=" in text and "not used" in text]
+    assert warned == (["pair", "simulator", "controller", "recorder"] if profile == "open" else []), (warned, out)
 
 
 # -- from another network namespace ------------------------------------------------------------------

@@ -26,7 +26,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.signals import SignalHandlerOptions
 
 from bracing_msgs.msg import RunStatus
-from bracing_ros.fastdds import PROFILE_ENV, RANGE_ENV, use_fastdds_profile
+from bracing_ros.fastdds import PROFILE_ENV, RANGE_ENV, SKIP_ENV, use_fastdds_profile
 from bracing_ros.matching import create_waking_publisher
 
 STATUS_TOPIC = "run_status"
@@ -116,7 +116,7 @@ class StatusWatcher:
         # participant took Fast DDS's defaults (every interface, multicast), not the run's profile.
         saved = {key: os.environ.get(key) for key in self._environment}
         os.environ.update(self._environment)
-        profile = {key: os.environ.get(key) for key in (PROFILE_ENV, RANGE_ENV)}  # use_fastdds_profile's
+        profile = {key: os.environ.get(key) for key in (PROFILE_ENV, RANGE_ENV, SKIP_ENV)}  # use_fastdds_profile's
         use_fastdds_profile()
         try:
             rclpy.init(context=self._context, domain_id=self._domain_id, signal_handler_options=_NO_SIGNALS)
