@@ -27,6 +27,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.storage_mcap import McapReader
 from rosbags.typesys import Stores, get_typestore
 
+from bracing_analysis.bag_events import custom_data
 from bracing_analysis.bag_recovery import cut_files, recover_bag
 from bracing_bringup.recorder import LATCHED  # the QoS offer of a latched topic, as the recorder writes it
 
@@ -177,16 +178,16 @@ def full_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return output
 
 
-def _kill_recorder_once_a_chunk_is_written(output: Path, proc: subprocess.Popen[str]) -> None:
-    """SIGKILL to the run's recorder only, once the first chunk of its bag is on disk (rosbags writes a
+def _kill_once_a_chunk_is_written(output: Path, proc: subprocess.Popen[str], module: str) -> None:
+    """SIGKILL to one process of the run only, once the first chunk of its bag is on disk (rosbags writes a
     chunk per MiB of messages: before that, a killed recorder leaves nothing to recover). Its pid is the
-    one process whose command line is the recorder's into this run's bag."""
+    one process whose command line runs ``module`` with this run's files."""
     mcap = output / "bag" / "bag.mcap"
     deadline = time.monotonic() + 120.0  # generous: the run's start on a loaded 2-core machine
     while not (mcap.exists() and mcap.stat().st_size > 2**20 + 4096):
         assert proc.poll() is None and time.monotonic() < deadline, "the run ended before a chunk was written"
         time.sleep(0.02)
-    found = subprocess.run(["pgrep", "-f", f"bracing_bringup.recorder .*{output}"], capture_output=True, text=True)
+    found = subprocess.run(["pgrep", "-f", f"{module} .*{output}"], capture_output=True, text=True)
     (pid,) = [int(p) for p in found.stdout.split()]
     os.kill(pid, signal.SIGKILL)
 
@@ -196,7 +197,7 @@ def test_pair_recovers_the_bag_of_a_killed_recorder(tmp_path: Path, full_run: Pa
     output = tmp_path / "killed"
     proc = start(pair_argv(output, "--duration", "2", "--no-animation"), isolated_env())
     try:
-        _kill_recorder_once_a_chunk_is_written(output, proc)
+        _kill_once_a_chunk_is_written(output, proc, "bracing_bringup.recorder")
         out = proc.communicate(timeout=180)[0]
     finally:
         if proc.poll() is None:
@@ -220,6 +221,7 @@ def test_pair_recovers_the_bag_of_a_killed_recorder(tmp_path: Path, full_run: Pa
         assert 0 < len(stamps) < len(full[topic]) and stamps == full[topic][: len(stamps)], topic
         assert stamps == [k * DT_NS for k in range(len(stamps))], topic
     assert max(max(s) for s in cut.values() if s) == round(float(said.group(2)) * 1e9)
+    assert custom_data(output / "bag") == custom_data(full_run / "bag")  # the recorder's notes, given again
     positions, whole = _joint_positions(output / "bag"), _joint_positions(full_run / "bag")
     assert all(positions[stamp] == whole[stamp] for stamp in positions)  # lockstep: the same run, bit for bit
 
@@ -229,6 +231,21 @@ def test_pair_recovers_the_bag_of_a_killed_recorder(tmp_path: Path, full_run: Pa
 
 
 REPORT = [sys.executable, "-m", "bracing_analysis.report"]
+
+
+def test_a_killed_simulator_still_leaves_a_bag_closed_by_its_recorder(tmp_path: Path) -> None:
+    """As before: exit 1 naming the simulator; the recorder, stopped, closes the bag itself (nothing to recover)."""
+    output = tmp_path / "killed"
+    proc = start(pair_argv(output, "--duration", "2", "--no-animation"), isolated_env())
+    try:
+        _kill_once_a_chunk_is_written(output, proc, "bracing_sim.node")
+        out = proc.communicate(timeout=180)[0]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 1, out
+    assert "the simulator exited with code -9" in out and "simulator|" in out and "recovered" not in out
+    assert cut_files(output / "bag") == [] and len(_stamps(output / "bag")["/joint_states"]) > 100
 
 
 def test_report_recovers_a_bag_cut_short_and_says_so(tmp_path: Path, full_run: Path) -> None:
