@@ -31,6 +31,7 @@ from bracing_analysis.truth import (
     task_frames_from_json,
     true_positions,
 )
+from bracing_analysis.wrench_contacts import contacts_from_wrenches
 from bracing_core.typestore import (
     CONTACTS,
     CONTROLLER_STATE,
@@ -62,10 +63,14 @@ def resolve_bag(path: Path) -> Path:
 
 
 def read_series(bag: str | Path) -> BagSeries:
-    """Read a recorded run into time series. Raises BagReadError if unreadable."""
+    """Read a recorded run into time series. Raises BagReadError if unreadable.
+
+    A robot that publishes no ``contacts`` (a ros2_control robot's, ``--engine mujoco``) gets each
+    contact's series from its wrench (``wrench_contacts``)."""
     path = resolve_bag(Path(bag))
     series = _read_streams(path)
     read_ground_truth(series, path)
+    contacts_from_wrenches(series)
     return series
 
 

@@ -15,7 +15,7 @@ from rosbags.highlevel import AnyReader
 
 from bracing_analysis.series import BagSeries, ParameterChange, TargetSent
 from bracing_analysis.surfaces import SCENARIO_KEY, SURFACES_KEY, from_json
-from bracing_analysis.truth import TASK_AXES_KEY, task_axes_from_json
+from bracing_analysis.truth import INPUT_MODE_KEY, TASK_AXES_KEY, task_axes_from_json
 from bracing_core.typestore import MOTOR_COMMAND, PARAMETER_EVENT, PATH, POINT_STAMPED, RUN_STATUS, motor_command_modes
 
 _VALUE_FIELDS = {
@@ -30,6 +30,9 @@ _VALUE_FIELDS = {
     9: "string_array_value",
 }
 """rcl_interfaces/ParameterType -> the ParameterValue field that holds it."""
+
+INPUT_MODES = ("voltage", "torque")
+"""The controller's input modes (its ``input_mode`` parameter's choices)."""
 
 _Target = tuple[int, str, list[tuple[float, float, float]], list[int]]
 _ParameterEvent = tuple[int, str, dict[str, Any]]
@@ -107,8 +110,11 @@ def custom_data(path: Path) -> dict[str, str]:
 
 
 def describe(series: BagSeries, path: Path) -> None:
-    """The run's scenario, surfaces and task axes from the bag's metadata, into ``series``."""
+    """The run's scenario, surfaces and task axes from the bag's metadata, into ``series``; and its input
+    mode, should no motor_command say it (a ros2_control robot's run: the efforts go to its controller)."""
     data = custom_data(path)
+    if series.input_mode is None and data.get(INPUT_MODE_KEY) in INPUT_MODES:
+        series.input_mode = data[INPUT_MODE_KEY]
     series.scenario = data.get(SCENARIO_KEY) or None
     series.surfaces = from_json(data.get(SURFACES_KEY, "{}"))
     series.hand_axes, series.brace_task_axes = task_axes_from_json(data.get(TASK_AXES_KEY, "{}"))

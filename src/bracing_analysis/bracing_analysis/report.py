@@ -21,6 +21,11 @@ by side instead (``compare_*.png`` and ``compare.md``, see ``compare``: ratios t
 default the first; default output: the directory that holds the runs). Several bags without
 ``--compare``: a report for each. Exit code 2 on a missing or unreadable bag, or a baseline that
 is none of the runs.
+
+A bag cut short (its recorder killed before it closed the bag: no metadata.yaml, an mcap without its end)
+is first recovered in its directory, as ``ros2 bag reindex`` does (``bag_recovery``), and the report says
+so (a warning, also in summary.json). ``bracing-report --reindex BAG ...`` only recovers (a whole bag is
+left as it is).
 """
 
 from __future__ import annotations
@@ -34,6 +39,7 @@ from typing import Any
 
 from bracing_analysis.animation import DEFAULT_INTERVAL_S
 from bracing_analysis.bag import BagReadError, read_series, resolve_bag
+from bracing_analysis.bag_recovery import RecoveryError, recover_if_cut
 from bracing_analysis.compare import BaselineError, default_compare_dir, write_comparison
 from bracing_analysis.drawing import SUMMARY_FILE, report_series
 from bracing_analysis.summary import format_summary
@@ -61,6 +67,22 @@ def _previous_warnings(previous: dict[str, Any]) -> list[str]:
     return [str(w) for w in value] if isinstance(value, list) else []
 
 
+def recover_cut(bag: str | Path) -> str | None:
+    """Recover ``bag`` in place if it was cut short (``bag_recovery``); what to say of it, None if it is
+    whole. Raises BagReadError if it cannot be recovered."""
+    path = resolve_bag(Path(bag))
+    try:
+        recovered = recover_if_cut(path)
+    except RecoveryError as exc:
+        raise BagReadError(str(exc)) from exc
+    if recovered is None:
+        return None
+    return (
+        f"the bag was cut short (its recorder stopped before closing it) and recovered: {recovered.describe()}; "
+        "what it had not yet written is lost"
+    )
+
+
 def default_output_dir(bag: str | Path) -> Path:
     """The bag's parent directory (the run directory DIR of DIR/bag)."""
     return resolve_bag(Path(bag)).resolve().parent
@@ -79,14 +101,16 @@ def write_report(
     an existing summary.json there is kept, and so are its warnings (those the bag cannot show
     again: a target out of reach, slow real-time stepping). `animation_interval_s` is the sim time
     between animation frames (None: no animation); `urdf` (the text) animates a bag that lacks
-    robot_description. Raises BagReadError on an unreadable bag.
+    robot_description. A bag cut short is recovered first (``recover_cut``), said in the warnings.
+    Raises BagReadError on an unreadable bag.
     """
+    recovery = recover_cut(bag)
     series = read_series(bag)
     out = Path(output_dir) if output_dir is not None else default_output_dir(bag)
     previous = _previous(out / SUMMARY_FILE)
     if wall_time_s is None:
         wall_time_s = _previous_wall_time(previous)
-    warnings = _previous_warnings(previous)
+    warnings = ([recovery] if recovery else []) + _previous_warnings(previous)
     return report_series(series, out, wall_time_s, animation_interval_s, urdf, warnings=warnings)
 
 
@@ -121,6 +145,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--no-animation", action="store_true", help="skip the animation")
     parser.add_argument("--urdf", type=Path, default=None, help="URDF to animate a bag without robot_description")
+    parser.add_argument(
+        "--reindex",
+        action="store_true",
+        help="only recover each bag cut short (its recorder killed: no metadata.yaml, an mcap without its end) "
+        "in its directory, as `ros2 bag reindex` does: every complete message kept, the summary and metadata.yaml "
+        "written anew; a whole bag is left as it is",
+    )
     args = parser.parse_args(None if argv is None else list(argv))
     if args.frame_interval <= 0:
         parser.error("--frame-interval must be > 0")
@@ -129,7 +160,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.baseline is not None and not args.compare:
         parser.error("--baseline is for --compare")
     try:
+        if args.reindex:
+            return _reindex(args.bags)
         if args.compare:
+            for bag in args.bags:
+                recovery = recover_cut(bag)
+                if recovery:
+                    print(f"bracing-report: warning: {bag}: {recovery}")
             out = Path(args.output) if args.output is not None else default_compare_dir(args.bags)
             try:
                 written = write_comparison(args.bags, out, baseline=args.baseline)
@@ -155,6 +192,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (BagReadError, OSError) as exc:
         print(f"bracing-report: error: {exc}", file=sys.stderr)
         return 2
+    return 0
+
+
+def _reindex(bags: Sequence[str]) -> int:
+    """--reindex: recover each bag cut short; say what became of each."""
+    for bag in bags:
+        recovery = recover_cut(bag)
+        print(f"{bag}: {recovery or 'whole (it has its metadata.yaml and its end): left as it is'}")
     return 0
 
 

@@ -29,13 +29,17 @@ TASK_FRAMES_KEY = "bracing.task_frames"
 TASK_AXES_KEY = "bracing.task_axes"
 """Bag metadata (custom_data): JSON {"hand": [axis, ...], "braces": {contact: [axis, ...]}}, the world axes
 ("x", "y", "z") of the controller's tasks (``hand.axes``, ``contacts.<name>.brace_axes``)."""
+INPUT_MODE_KEY = "bracing.input_mode"
+"""Bag metadata (custom_data): the controller's ``input_mode`` (voltage | torque), the report's for a bag
+without motor_command (a ros2_control robot's: the controller's efforts go to its forward controller)."""
 HAND = "hand"
 AXES = ("x", "y", "z")
 
 
-def read_tasks(files: Sequence[str | Path]) -> tuple[dict[str, Any], dict[str, Any]]:
-    """The controller's task frames (``TASK_FRAMES_KEY``'s document) and task axes (``TASK_AXES_KEY``'s)
-    from these params files (later files win), read once. Raises ConfigError."""
+def read_task_notes(files: Sequence[str | Path], ground_truth: bool) -> dict[str, str]:
+    """What the recorder notes in the bag's metadata of the controller in these params files (later files
+    win), read once: its task axes (``TASK_AXES_KEY``), its input mode (``INPUT_MODE_KEY``) and, with
+    ``ground_truth``, its task frames (``TASK_FRAMES_KEY``). Raises ConfigError."""
     params: dict[str, Any] = {}
     for file in files:
         params.update(load_params_file(file, CONTROLLER))
@@ -46,7 +50,10 @@ def read_tasks(files: Sequence[str | Path]) -> tuple[dict[str, Any], dict[str, A
         HAND: list(values["hand.axes"]),
         "braces": {name: list(own.get("brace_axes") or ()) for name, own in braced.items()},
     }
-    return frames, axes
+    notes = {TASK_FRAMES_KEY: json.dumps(frames, sort_keys=True)} if ground_truth else {}
+    notes[TASK_AXES_KEY] = json.dumps(axes, sort_keys=True)
+    notes[INPUT_MODE_KEY] = str(values["input_mode"])
+    return notes
 
 
 def task_axes_from_json(text: str) -> tuple[list[str] | None, dict[str, list[str]]]:

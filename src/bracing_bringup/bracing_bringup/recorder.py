@@ -18,8 +18,11 @@ arrow from ``contact_wrench/<name>``). It derives them when idle and on stop (af
 drain), so a lockstep run is not slowed; ``--no-scene`` leaves them out. ``--params-file`` names the
 params files the nodes run with (as many as they got, in order): the bag's metadata then holds the
 contact surfaces (``surfaces``) and the world axes of the controller's tasks (``truth.TASK_AXES_KEY``: the
-report plots each), and the markers draw a sphere or a cylinder as one. ``--scenario``
+report plots each) and the controller's input mode (``truth.INPUT_MODE_KEY``: the report's for a bag without
+motor_command), and the markers draw a sphere or a cylinder as one. ``--scenario``
 names the scenario in the bag's metadata (default: the first params file's name), for the report.
+The metadata is written when the bag closes: a recorder killed before leaves its bag cut short, which
+``bracing_analysis.bag_recovery`` rewrites whole (``bag_notes`` gives its metadata again).
 
 The targets sent to the controller while it runs (``hand_target``, ``hand_path``,
 ``brace_target/<contact>``) are recorded as they come, at the sim time of the last ``/clock`` recorded
@@ -49,7 +52,6 @@ seconds, at most ``--drain-timeout`` seconds) and the bag is closed cleanly.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import signal
@@ -482,16 +484,32 @@ def _scenario_surfaces(files: Sequence[str]) -> dict[str, surfaces.Shape]:
         return {}
 
 
-def _tasks(files: Sequence[str]) -> tuple[dict[str, Any], dict[str, Any]]:
-    """The controller's task frames (the report judges the truth at them: truth.py) and task axes (the
-    report draws each); none if unreadable."""
+def _task_notes(files: Sequence[str], ground_truth: bool) -> dict[str, str]:
+    """The controller's task frames (the report judges the truth at them: truth.py), task axes (the report
+    draws each) and input mode, as the bag's custom_data; none if unreadable."""
     if not files:
-        return {}, {}
+        return {}
     try:
-        return truth.read_tasks(files)
+        return truth.read_task_notes(files, ground_truth)
     except ValueError as exc:  # ConfigError: the nodes will say the same, more loudly
         print(f"recorder: warning: no task frames or axes from {', '.join(files)}: {exc}", file=sys.stderr, flush=True)
-        return {}, {}
+        return {}
+
+
+def _scene_notes(scenario: str | None, shapes: Mapping[str, surfaces.Shape]) -> dict[str, str]:
+    """The scenario's name and contact surfaces, as the bag's custom_data."""
+    notes = {surfaces.SCENARIO_KEY: scenario} if scenario else {}
+    if shapes:
+        notes[surfaces.SURFACES_KEY] = surfaces.to_json(shapes)
+    return notes
+
+
+def bag_notes(params_files: Sequence[str], scenario: str | None, ground_truth: bool) -> dict[str, str]:
+    """The custom_data the recorder writes into the bag's metadata when it closes the bag (run with these
+    ``--params-file``, ``--scenario`` and ``--ground-truth``): what a bag recovered after its recorder died
+    is given again (``bracing_analysis.bag_recovery``)."""
+    scenario = scenario or (Path(params_files[0]).stem if params_files else None)
+    return {**_scene_notes(scenario, _scenario_surfaces(params_files)), **_task_notes(params_files, ground_truth)}
 
 
 def _parse(argv: Sequence[str]) -> argparse.Namespace:
@@ -580,21 +598,16 @@ class StopRequest:
 
 def _open_writer(output: Path, scenario: str | None, shapes: Mapping[str, surfaces.Shape]) -> Writer:
     writer = Writer(output, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
-    if scenario:
-        writer.set_custom_data(surfaces.SCENARIO_KEY, scenario)
-    if shapes:
-        writer.set_custom_data(surfaces.SURFACES_KEY, surfaces.to_json(shapes))
+    for key, value in _scene_notes(scenario, shapes).items():
+        writer.set_custom_data(key, value)
     writer.open()
     return writer
 
 
 def _write_task_metadata(writer: Writer, params_files: list[str], ground_truth: bool) -> None:
     """Read while the nodes start (custom_data is written when the bag closes): off the start's path."""
-    frames, axes = _tasks(params_files)
-    if ground_truth and frames:
-        writer.set_custom_data(truth.TASK_FRAMES_KEY, json.dumps(frames, sort_keys=True))
-    if axes:
-        writer.set_custom_data(truth.TASK_AXES_KEY, json.dumps(axes, sort_keys=True))
+    for key, value in _task_notes(params_files, ground_truth).items():
+        writer.set_custom_data(key, value)
 
 
 def _record_until_stopped(node: Recorder, args: argparse.Namespace, stop: StopRequest, contacts: list[str]) -> bool:

@@ -20,7 +20,7 @@ from typing import Any
 
 from bracing_bringup.domains import hold_domain
 from bracing_bringup.processes import Interrupted, Pair, environment
-from bracing_bringup.run_plan import MUJOCO, PARAMS_FILE, RunOptions, RunPlan, check_configs, plan_run, write_params
+from bracing_bringup.run_plan import PARAMS_FILE, RunOptions, RunPlan, check_configs, plan_run, write_params
 from bracing_bringup.timeline import BAG_CLOSED, FIRST_STEP, LAST_FILE, LAST_STEP, TIMELINE_FILE, Timeline
 from bracing_bringup.topics import missing_from_counts
 from bracing_bringup.viewurl import free_ports, view_url, wait_for_port
@@ -62,6 +62,8 @@ class _Outcome:
     code: int = 0
     message: str = ""
     warnings: list[str] = field(default_factory=list)  # the controller's configuration warnings (check_configs)
+    failed: str = ""  # the process whose failure ended the run
+    sim_time: float | None = None  # [s] the simulator's last status when the run failed
 
 
 def run_pair(options: RunOptions) -> RunResult:
@@ -143,7 +145,7 @@ def _supervise(pair: Pair, plan: RunPlan, domain: int, created: bool, start_wall
         outcome.code = 128 + int(pair.interrupted)
         outcome.message = f"interrupted ({signal.Signals(pair.interrupted).name}): nodes stopped, bag finalised"
     except _Failure as failure:
-        outcome.code = EXIT_FAILED
+        outcome.code, outcome.failed, outcome.sim_time = EXIT_FAILED, failure.process, pair.sim_time
         outcome.message = f"error: {failure.message}\n{pair.tail(failure.process)}"
     finally:
         if not finished or outcome.code != 0:
@@ -242,6 +244,9 @@ def _await_bag(pair: Pair) -> None:
         if pair.exit_code("simulator") is not None and pair.exit_code("controller") is not None:
             pair.interrupt("recorder")
         pair.wait_for_change(0.1)
+    code = pair.exit_code("recorder")
+    if RECORDER_CLOSED not in pair.seen and code not in (None, 0):
+        raise _Failure("recorder", f"the recorder exited with code {code} before it closed the bag")
 
 
 def _conclude(pair: Pair, plan: RunPlan, outcome: _Outcome, wall: float, created: bool) -> RunResult:
@@ -257,6 +262,9 @@ def _conclude(pair: Pair, plan: RunPlan, outcome: _Outcome, wall: float, created
         for name, process_code in pair.stop_all(ask=False).items():
             if process_code != 0 and code == 0 and name != "viewer":  # a viewer's end is no run's failure
                 code, message = EXIT_FAILED, f"error: the {name} exited with code {process_code}\n{pair.tail(name)}"
+    recovered = _recover_recording(pair, plan, outcome, wall, message) if code != 0 else None
+    if recovered is not None:
+        summary, message = recovered
     if code != 0 and timeline.at("simulator stepping") is None:
         # Nothing to keep from a run that never stepped: the same --output works again.
         _discard(out, created, keep_logs=True)
@@ -270,6 +278,66 @@ def _conclude(pair: Pair, plan: RunPlan, outcome: _Outcome, wall: float, created
             timeline.mark(phase, stamp)
     timeline.write(out)
     return RunResult(code, out, wall, summary, message, pair.logs, timeline)
+
+
+def _recorder_end(code: int | None) -> str:
+    """How the recorder ended, from its exit code (a signal's: negative)."""
+    if code is not None and code < 0:
+        return f"died (signal {-code}, {signal.Signals(-code).name})"
+    return "did not end" if code is None else f"exited with code {code}"
+
+
+def _recover_recording(
+    pair: Pair, plan: RunPlan, outcome: _Outcome, wall: float, message: str
+) -> tuple[dict[str, Any] | None, str] | None:
+    """A run that failed after its first step with its bag cut short (its recorder died before closing it):
+    the bag recovered (``bag_recovery``, with the notes the recorder would have written) and the report
+    drawn from it, the recovery said first in the message and in summary.json's warnings. (summary,
+    message); None if the bag is not cut short."""
+    from bracing_analysis.bag_recovery import RecoveryError, cut_files, recover_bag
+
+    out = plan.options.output
+    if pair.timeline.at("simulator stepping") is None or not cut_files(out / "bag"):
+        return None
+    from bracing_bringup.recorder import bag_notes  # rclpy: loaded already (the status watcher)
+
+    said = f"the recorder {_recorder_end(pair.exit_code('recorder'))}"
+    if outcome.failed == "recorder":  # said here, with what became of the bag
+        message = message.split("\n", 1)[1] if "\n" in message else ""
+    try:
+        notes = bag_notes([str(out / PARAMS_FILE)], plan.options.config.stem, plan.ground_truth)
+        recovered = recover_bag(out / "bag", notes)
+    except RecoveryError as exc:
+        return None, f"error: {said}; the recording is lost: {exc}\n{message}".rstrip("\n")
+    pair.timeline.mark("bag recovered")
+    # Two lower bounds of when it died: its last message written, the simulator's last progress status.
+    bounds = [t for t in (outcome.sim_time, recovered.last_s()) if t is not None]
+    said += f" at t >= {max(bounds):.3f} s" if bounds else ""
+    upto = f" up to t = {recovered.last_s():.3f} s" if recovered.last_s() is not None else ""
+    said += f"; the bag was recovered{upto}: {recovered.messages} messages (what it had not yet written is lost)"
+    summary = _draw_recovered(plan, wall, pair.timeline, [said, *outcome.warnings])
+    return summary, f"error: {said}\n{message}".rstrip("\n")
+
+
+def _draw_recovered(plan: RunPlan, wall: float, timeline: Timeline, warnings: list[str]) -> dict[str, Any] | None:
+    """The report of a recovered bag (no check that it is whole: it is not); None if it cannot be read."""
+    from bracing_analysis.animation import DEFAULT_INTERVAL_S
+    from bracing_analysis.bag import BagReadError, read_series
+    from bracing_analysis.drawing import report_series
+
+    try:
+        series = read_series(plan.options.output / "bag")
+    except BagReadError:
+        return None
+    interval = DEFAULT_INTERVAL_S if plan.options.animation else None
+    return report_series(
+        series,
+        plan.options.output,
+        wall_time_s=wall,
+        animation_interval_s=interval,
+        mark=timeline.mark,
+        warnings=warnings,
+    )
 
 
 def _discard(out: Path, created: bool, keep_logs: bool) -> None:
@@ -300,11 +368,6 @@ def _check_and_draw(
         return None, EXIT_FAILED, f"error: {exc}"
     timeline.mark("bag read")
     options, expected_states = plan.options, plan.expected_states
-    if options.engine == MUJOCO:  # no `contacts` topic: each contact's forces and residual from its wrench
-        from bracing_analysis.wrench_contacts import contacts_from_wrenches
-
-        contacts_from_wrenches(series)
-        series.input_mode = "torque"  # what MUJOCO_NEEDS set (no motor_command tells it)
     if expected_states:  # lockstep
         problems = missing_from_counts(series.topic_counts, plan.contacts, expected_states, "", plan.ground_truth)
         timeline.mark("bag checked")
