@@ -38,6 +38,7 @@ from bracing_ros.node_main import run
 from bracing_ros.qos import STREAM_QOS, SUBSCRIBE_QOS
 from bracing_ros.raw_messages import read_joint_state
 from bracing_ros.record_batch import RecordBatchPublisher
+from bracing_ros.sim_clock import guard_clock
 from bracing_ros.status import StatusPublisher
 from bracing_ros.waiter import SubscriptionWaiter
 
@@ -50,6 +51,7 @@ class ControllerNode(Node):
         self.status = StatusPublisher(self)  # what bracing-pair follows
         self.log = RosNodeLog(self, self.status, config.log_throttle_period)
         self.core = StateAnswerer(config, self.log)
+        guard_clock(self, self.log)  # use_sim_time: a bad /clock refused, not fatal (before the clock is set below)
         # This node's clock is the sim time of the last state answered (``sync_clock``): rclpy stamps
         # the /parameter_events of a change with it, so a recorded change sits on the run's time axis
         # (the wall clock's stamp could not be placed on it). As a TimeSource does for use_sim_time,
@@ -79,7 +81,7 @@ class ControllerNode(Node):
         # record_batch: the answers also reach the recorder in batches (it subscribes to those instead)
         self.batch = RecordBatchPublisher(self, [self.command_pub, self.state_pub], config.record_batch)
         self.core.start()
-        self.effort = EffortForward(self, config, self.joint_names) if self.effort_forward else None
+        self.effort = EffortForward(self, config, self.joint_names, self.log) if self.effort_forward else None
         self.target_topics = TargetTopics(self, self.core.targets, contact_names)
         self.status.say(RunStatus.CONFIGURED)
 
@@ -256,13 +258,19 @@ def spin(node: ControllerNode) -> int:
 
 
 def effort_tick(node: ControllerNode) -> None:
-    """One control period: the law on the latest state, unless it is refused (or there is none yet)."""
+    """One control period: the law on the latest state, unless it is refused (or there is none yet), or
+    older than state_timeout (then zero efforts, once a state has been answered: ``StateFreshness``)."""
     effort = node.effort
     assert effort is not None
     if effort.latest is None:
         return
     try:
-        node.answer(effort.latest, ("warning", "refused", "; no command sent"))
+        freshness = effort.freshness
+        now_ns = effort.now_ns() if freshness.enabled else 0
+        if freshness.usable(now_ns):
+            node.answer(effort.latest, ("warning", "refused", "; no command sent"))
+        if freshness.zero_due(now_ns):
+            effort.send_zeros()
     except Exception as exc:  # the last line of defence: no state may stop the controller
         node.log.limited("error", "internal", f"joint_states ignored: {type(exc).__name__}: {exc}")
 

@@ -33,6 +33,7 @@ from bracing_ros.node_log import RosNodeLog
 from bracing_ros.node_main import EXIT_DIVERGED, run
 from bracing_ros.qos import SUBSCRIBE_QOS
 from bracing_ros.raw_messages import read_motor_command
+from bracing_ros.sim_clock import guard_clock
 from bracing_ros.status import StatusPublisher
 from bracing_ros.waiter import SubscriptionWaiter
 from bracing_sim.topics import JOINT_COMMANDS_QOS, SimulatorTopics
@@ -60,6 +61,7 @@ class SimulatorNode(Node):
         else:  # joint_commands: ros2_control's JointStateTopicSystem's efforts
             self.create_subscription(JointState, config.joint_commands_topic, self.on_joint_command, JOINT_COMMANDS_QOS)
         self.log = RosNodeLog(self, self.status, config.log_throttle_period)
+        guard_clock(self, self.log)  # use_sim_time (its own /clock): a bad one refused, not fatal
         self.core = SimulatorStepper(config, self.plant, self.sim, self.log, self.topics)
         if config.command_source == "joint_commands":
             loop = f", current loop {config.motor_drive.bandwidth:g} rad/s" if self.core.drive is not None else ""
