@@ -9,6 +9,8 @@ participant in its domain that sends it the hostile /clock messages (bounded in 
 
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
 from pathlib import Path
 
@@ -16,11 +18,12 @@ import rclpy
 from builtin_interfaces.msg import Time
 from lockstep_driver import JOINTS
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from ros_helpers import isolated_env, node_argv, params_file, start
+from ros_helpers import isolated_env, node_argv, pair_argv, params_file, start
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from test_fuzz import Peer, start_peer
+from test_pair import _wait_for_progress, read_bag
 from test_stepping import Log
 
 from bracing_core.sim_clock import ClockGuard
@@ -286,3 +289,28 @@ def test_effort_forward_sends_zeros_once_its_state_is_older_than_state_timeout(t
     after_state = [c for t, c in seen_reset if t >= 1.1 + 2 * TICK]
     assert len(after_state) >= 15 and not any(_zero(c) for c in after_state), seen_reset
     assert "/clock refused: negative time (sec -1)" in log
+
+
+# -- a killed simulator: the controller's stop ---------------------------------------------------------
+def test_controller_stop_after_a_killed_simulator_says_what_happened(tmp_path: Path) -> None:
+    """bracing-pair (lockstep, the recorder on record_batch): SIGKILL on the simulator mid-run. The run
+    fails naming it; the controller, stopped, flushes the recorder's copy of its answers only (the
+    recorder acknowledges them) and says that the simulator's were not waited for, instead of waiting
+    10 s for a reader that DDS keeps matched until its lease ends and calling the answers lost."""
+    output = tmp_path / "run"
+    pair = start(pair_argv(output, "--duration", "30", "--no-animation"), isolated_env())
+    try:
+        _wait_for_progress(output)
+        found = subprocess.run(["pgrep", "-f", f"bracing_sim.node.*{output}"], capture_output=True, text=True)
+        (pid,) = [int(p) for p in found.stdout.split()]
+        os.kill(pid, signal.SIGKILL)
+        out = pair.communicate(timeout=120)[0]
+    finally:
+        if pair.poll() is None:
+            pair.kill()
+    assert pair.returncode == 1 and "simulator exited" in out, out[-3000:]
+    log = (output / "logs" / "controller.log").read_text()
+    assert "lost to it" not in log and "lost to whichever" not in log, log[-3000:]
+    assert "stopping: motor_command: the last answers are not acknowledged by bracing_simulator" in log, log[-3000:]
+    assert "not waited for: the recorder has them in record_batch" in log
+    read_bag(output / "bag")  # still readable
