@@ -9,6 +9,7 @@ participant in its domain that sends it the hostile /clock messages (bounded in 
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -17,7 +18,7 @@ from pathlib import Path
 import rclpy
 from builtin_interfaces.msg import Time
 from lockstep_driver import JOINTS
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from ros_helpers import isolated_env, node_argv, pair_argv, params_file, start
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -26,6 +27,7 @@ from test_fuzz import Peer, start_peer
 from test_pair import _wait_for_progress, read_bag
 from test_stepping import Log
 
+from bracing_bringup.domains import hold_domain
 from bracing_core.sim_clock import ClockGuard
 from bracing_core.state_freshness import StateFreshness
 from bracing_msgs.msg import RunStatus
@@ -208,6 +210,45 @@ def test_mujoco_robot_and_effort_forward_controller_survive_hostile_clocks(tmp_p
     # the law's efforts through the run: about one per step of 1 ms (the timer follows the robot's /clock)
     assert len(commands) >= 400, (len(commands), ctl_log[-3000:])
     assert any(abs(v) > 0.0 for command in commands for v in command)
+
+
+def test_mujoco_pair_survives_a_negative_clock_mid_run(tmp_path: Path) -> None:
+    """The reported run: bracing-pair --engine mujoco, and a peer that sends hostile /clock messages
+    mid-run (reliable and transient-local: they reach the recorder's /clock reader as well as the
+    controller's). The run ends as one without them: exit 0, the elbow braced throughout; the controller
+    refused the negative ones; the recorder kept them (at log time 0) and the bag reads."""
+    with hold_domain() as domain:
+        env = isolated_env(domain.domain_id)
+        output = tmp_path / "run"
+        argv = pair_argv(output, "--engine", "mujoco", "--mode", "torque", "--duration", "1", "--no-animation")
+        pair = start([*argv, "--domain-id", str(domain.domain_id)], env)
+        peer = start_peer(env, "hostile_clock")
+        try:
+            clocks: list[float] = []
+            peer.node.create_subscription(
+                Clock, "/clock", lambda m: clocks.append(m.clock.sec + m.clock.nanosec * 1e-9), 10
+            )
+            latched = QoSProfile(
+                depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+            )
+            hostile = peer.node.create_publisher(Clock, "/clock", latched)
+            assert peer.spin_until(lambda: bool(clocks) and clocks[-1] >= 0.3, 120), "the run never got to 0.3 s"
+            for _ in range(20):
+                for sec, nanosec in HOSTILE:
+                    hostile.publish(Clock(clock=Time(sec=sec, nanosec=nanosec)))
+                    peer.spin_until(lambda: False, 0.005)
+            out = pair.communicate(timeout=180)[0]
+        finally:
+            _close(peer)
+            if pair.poll() is None:
+                pair.kill()
+    assert pair.returncode == 0, out[-3000:]
+    summary = json.loads((output / "summary.json").read_text())
+    assert summary["contacts"]["elbow"]["active_fraction"] == 1.0
+    controller_log = (output / "logs" / "controller.log").read_text()
+    assert "/clock refused: negative time" in controller_log and "Traceback" not in controller_log
+    recorded = [m.clock.sec for _, m in read_bag(output / "bag")["/clock"]]
+    assert -1 in recorded and len(recorded) >= 1000
 
 
 TICK = 0.01  # [s] of sim time per /clock: one tick of the controller's timer at control_rate 100 Hz
