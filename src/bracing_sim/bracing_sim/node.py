@@ -6,6 +6,7 @@ warnings, the real-time pace); messages in are checked here and handed to it, wh
 through ``bracing_sim.topics``.
 Lockstep (default): publish state k, wait for the command stamped with state k's stamp, step with it
 held. Real-time: a wall-clock timer steps with the latest command.
+With ``use_sim_time`` it follows its own /clock, each message checked first (``bracing_ros.sim_clock``).
 """
 
 from __future__ import annotations
