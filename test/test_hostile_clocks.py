@@ -220,7 +220,7 @@ def test_mujoco_pair_survives_a_negative_clock_mid_run(tmp_path: Path) -> None:
     with hold_domain() as domain:
         env = isolated_env(domain.domain_id)
         output = tmp_path / "run"
-        argv = pair_argv(output, "--engine", "mujoco", "--mode", "torque", "--duration", "1", "--no-animation")
+        argv = pair_argv(output, "--engine", "mujoco", "--mode", "torque", "--duration", "3", "--no-animation")
         pair = start([*argv, "--domain-id", str(domain.domain_id)], env)
         peer = start_peer(env, "hostile_clock")
         try:
@@ -232,7 +232,14 @@ def test_mujoco_pair_survives_a_negative_clock_mid_run(tmp_path: Path) -> None:
                 depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
             )
             hostile = peer.node.create_publisher(Clock, "/clock", latched)
-            assert peer.spin_until(lambda: bool(clocks) and clocks[-1] >= 0.3, 120), "the run never got to 0.3 s"
+
+            def ready() -> bool:
+                """Matched with the controller's /clock reader (use_sim_time), the recorder's and this peer's;
+                the run 0.3 s in."""
+                return hostile.get_subscription_count() >= 3 and bool(clocks) and clocks[-1] >= 0.3
+
+            peer.spin_until(lambda: ready() or pair.poll() is not None, 120)
+            assert ready(), "the run ended before this peer had matched it"
             for _ in range(20):
                 for sec, nanosec in HOSTILE:
                     hostile.publish(Clock(clock=Time(sec=sec, nanosec=nanosec)))
@@ -248,7 +255,7 @@ def test_mujoco_pair_survives_a_negative_clock_mid_run(tmp_path: Path) -> None:
     controller_log = (output / "logs" / "controller.log").read_text()
     assert "/clock refused: negative time" in controller_log and "Traceback" not in controller_log
     recorded = [m.clock.sec for _, m in read_bag(output / "bag")["/clock"]]
-    assert -1 in recorded and len(recorded) >= 1000
+    assert -1 in recorded and len(recorded) >= 3000
 
 
 TICK = 0.01  # [s] of sim time per /clock: one tick of the controller's timer at control_rate 100 Hz
