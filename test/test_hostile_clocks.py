@@ -13,6 +13,7 @@ import json
 import os
 import signal
 import subprocess
+import sys
 from pathlib import Path
 
 import rclpy
@@ -22,7 +23,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from ros_helpers import isolated_env, node_argv, pair_argv, params_file, start
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64MultiArray, String
 from test_fuzz import Peer, start_peer
 from test_pair import _wait_for_progress, read_bag
 from test_stepping import Log
@@ -31,6 +32,7 @@ from bracing_bringup.domains import hold_domain
 from bracing_core.sim_clock import ClockGuard
 from bracing_core.state_freshness import StateFreshness
 from bracing_msgs.msg import RunStatus
+from bracing_ros.ack_window import AckWindow
 from bracing_ros.status import STATUS_QOS
 
 S = 1_000_000_000  # ns per s
@@ -362,3 +364,50 @@ def test_controller_stop_after_a_killed_simulator_says_what_happened(tmp_path: P
     assert "stopping: motor_command: the last answers are not acknowledged by bracing_simulator" in log, log[-3000:]
     assert "not waited for: the recorder has them in record_batch" in log
     read_bag(output / "bag")  # still readable
+
+
+SUBSCRIBER = """
+import rclpy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+rclpy.init()
+node = rclpy.create_node("doomed_subscriber")
+reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+node.create_subscription(String, "answers", lambda m: None, reliable)
+rclpy.spin(node)
+"""
+
+
+def test_ack_window_close_names_what_a_killed_subscriber_did_not_acknowledge() -> None:
+    """Without record_batch the stop waits for every subscriber of the answers: one killed (SIGKILL) stays
+    matched until its DDS lease ends (~20 s), so the wait ends at its timeout, and the line says which
+    messages are not known to have arrived (after the last every subscriber acknowledged) and who was
+    matched, not that they were lost to a subscriber that lives."""
+    env = isolated_env()
+    peer = start_peer(env, "answering")
+    child = subprocess.Popen([sys.executable, "-c", SUBSCRIBER], env=env)
+    try:
+        publisher = peer.node.create_publisher(String, "answers", RELIABLE)
+        flow = AckWindow(peer.node, [publisher], 100)
+        assert peer.spin_until(lambda: publisher.get_subscription_count() >= 1, 60)
+        for k in range(5):
+            publisher.publish(String(data=str(k)))
+            flow.sent()
+        assert flow.wait(30.0) and flow.acked_count == 5
+        child.kill()
+        child.wait(10)
+        for k in range(5, 8):
+            publisher.publish(String(data=str(k)))
+            flow.sent()
+        lines = flow.close(1.0)
+    finally:
+        if child.poll() is None:
+            child.kill()
+        _close(peer)
+    assert lines == [
+        (
+            "error",
+            "/answers: not every subscriber (doomed_subscriber) acknowledged the messages after the 5th of 8 "
+            "within 1 s: lost to whichever has not (a subscriber killed stays matched until its DDS lease ends, ~20 s)",
+        )
+    ]
