@@ -361,7 +361,7 @@ def test_controller_stop_after_a_killed_simulator_says_what_happened(tmp_path: P
     assert pair.returncode == 1 and "simulator exited" in out, out[-3000:]
     log = (output / "logs" / "controller.log").read_text()
     assert "lost to it" not in log and "lost to whichever" not in log, log[-3000:]
-    assert "stopping: motor_command: the last answers are not acknowledged by bracing_simulator" in log, log[-3000:]
+    assert "stopping: /motor_command: the last answers are not acknowledged by bracing_simulator" in log, log[-3000:]
     assert "not waited for: the recorder has them in record_batch" in log
     read_bag(output / "bag")  # still readable
 

@@ -194,11 +194,12 @@ class ControllerNode(Node):
             return self.flow.close(timeout_sec)
         self.batch.flush()
         lines = self.batch.flow.close(timeout_sec)
+        topic = self.command_pub.topic_name
         if not self.command_pub.wait_for_all_acked(Duration(seconds=0)):
-            names = ", ".join(sorted(i.node_name for i in self.get_subscriptions_info_by_topic("/motor_command")))
+            names = ", ".join(sorted(i.node_name for i in self.get_subscriptions_info_by_topic(topic)))
             lines.append((
                 "info",
-                f"motor_command: the last answers are not acknowledged by {names or 'no subscriber'} "
+                f"{topic}: the last answers are not acknowledged by {names or 'no subscriber'} "
                 "(not waited for: the recorder has them in record_batch; the simulator has stopped or left)",
             ))  # fmt: skip
         return lines
