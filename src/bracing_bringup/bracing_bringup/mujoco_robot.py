@@ -15,6 +15,7 @@ controllers' update, write, mj_step in one thread) each state waits for the cont
 over DDS: a step is taken once a command has come since the state before it, or after
 ``EFFORT_WAIT_S`` of wall time without one (then with the held command), so a slow machine slows the
 run down instead of starving the controller. That policy is ROS-free: ``bracing_core.stepping.HeldEffort``.
+With ``use_sim_time`` it follows its own /clock, each message checked first (``bracing_ros.sim_clock``).
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ from bracing_ros.matching import create_waking_publisher, wait_until
 from bracing_ros.node_log import RosNodeLog
 from bracing_ros.node_main import run
 from bracing_ros.qos import STREAM_QOS
+from bracing_ros.sim_clock import guard_clock
 from bracing_ros.status import StatusPublisher
 
 COMMAND_TOPIC = "effort_controller/commands"
@@ -82,6 +84,7 @@ class MujocoRobotNode(Node):
         self.command_sub = self.create_subscription(Float64MultiArray, COMMAND_TOPIC, self.on_command, COMMAND_QOS)
         self.status = StatusPublisher(self)
         self.log = RosNodeLog(self, self.status, self.config.log_throttle_period)
+        guard_clock(self, self.log)  # use_sim_time (its own /clock): a bad one refused, not fatal
         self.held = HeldEffort(self.joint_names, COMMAND_TOPIC, self.log)
         self.progress_due = Periodic(PROGRESS_PERIOD_S, time.monotonic).due
         self.log.info(

@@ -332,9 +332,10 @@ class Recorder(Node):
         return len(taken)
 
     def _write(self, topic: str, data: bytes) -> None:
-        """One message of a recorded topic (resolved name) into the bag, at its header stamp."""
+        """One message of a recorded topic (resolved name) into the bag, at its header stamp (at 0 if that
+        is negative: mcap's log time is unsigned; a negative /clock ended the recorder with OverflowError)."""
         connection, role = self._recorded[topic]
-        stamp = 0 if role == "description" else cdr_stamp_ns(data)
+        stamp = 0 if role == "description" else max(cdr_stamp_ns(data), 0)
         if role == "/clock":
             self._sim_time_ns = stamp
         self.writer.write(connection, stamp, data)

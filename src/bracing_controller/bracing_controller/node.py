@@ -15,6 +15,7 @@ import numpy as np
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import ClockType, ROSClock
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -38,6 +39,7 @@ from bracing_ros.node_main import run
 from bracing_ros.qos import STREAM_QOS, SUBSCRIBE_QOS
 from bracing_ros.raw_messages import read_joint_state
 from bracing_ros.record_batch import RecordBatchPublisher
+from bracing_ros.sim_clock import guard_clock
 from bracing_ros.status import StatusPublisher
 from bracing_ros.waiter import SubscriptionWaiter
 
@@ -50,6 +52,7 @@ class ControllerNode(Node):
         self.status = StatusPublisher(self)  # what bracing-pair follows
         self.log = RosNodeLog(self, self.status, config.log_throttle_period)
         self.core = StateAnswerer(config, self.log)
+        guard_clock(self, self.log)  # use_sim_time: a bad /clock refused, not fatal (before the clock is set below)
         # This node's clock is the sim time of the last state answered (``sync_clock``): rclpy stamps
         # the /parameter_events of a change with it, so a recorded change sits on the run's time axis
         # (the wall clock's stamp could not be placed on it). As a TimeSource does for use_sim_time,
@@ -79,7 +82,7 @@ class ControllerNode(Node):
         # record_batch: the answers also reach the recorder in batches (it subscribes to those instead)
         self.batch = RecordBatchPublisher(self, [self.command_pub, self.state_pub], config.record_batch)
         self.core.start()
-        self.effort = EffortForward(self, config, self.joint_names) if self.effort_forward else None
+        self.effort = EffortForward(self, config, self.joint_names, self.log) if self.effort_forward else None
         self.target_topics = TargetTopics(self, self.core.targets, contact_names)
         self.status.say(RunStatus.CONFIGURED)
 
@@ -179,10 +182,27 @@ class ControllerNode(Node):
             return self.batch.publisher.get_subscription_count() >= 1
         return self.command_pub.get_subscription_count() >= 2 and self.state_pub.get_subscription_count() >= 1
 
-    def close(self, timeout_sec: float) -> bool:
-        """Everything sent (the last batch too) acknowledged by every subscriber; whether it was in time."""
-        batched = self.batch.close(timeout_sec)
-        return self.flow.wait(timeout_sec) and batched
+    def close(self, timeout_sec: float) -> list[tuple[str, str]]:
+        """At the stop: the recorder's copy of the answers (record_batch's batches, or else both topics)
+        acknowledged, at most ``timeout_sec``; what did not happen, as (level, line) (none: all of it did).
+
+        The stop waits for the recorder's copy only. The simulator's (motor_command, with record_batch)
+        needs no flush: it has finished, stops with the run, or is gone; and a killed simulator's reader
+        stays matched until its DDS lease ends (~20 s), so waiting for it only held the stop 10 s.
+        """
+        if self.batch.publisher is None:
+            return self.flow.close(timeout_sec)
+        self.batch.flush()
+        lines = self.batch.flow.close(timeout_sec)
+        topic = self.command_pub.topic_name
+        if not self.command_pub.wait_for_all_acked(Duration(seconds=0)):
+            names = ", ".join(sorted(i.node_name for i in self.get_subscriptions_info_by_topic(topic)))
+            lines.append((
+                "info",
+                f"{topic}: the last answers are not acknowledged by {names or 'no subscriber'} "
+                "(not waited for: the recorder has them in record_batch; the simulator has stopped or left)",
+            ))  # fmt: skip
+        return lines
 
 
 def _stamp_ns(msg: WrenchStamped | MotorState) -> int:
@@ -248,21 +268,27 @@ def spin(node: ControllerNode) -> int:
             node.log.info(line)  # make bench's pair_step_breakdown_us
         # Stopped (bracing-pair stops the controller once the simulator is done): the last
         # answers must reach the recorder before this process and its publishers are gone.
-        if not node.close(timeout_sec=10.0):
-            node.get_logger().error("stopping with answers that a subscriber has not acknowledged (lost to it)")
+        for k, (level, line) in enumerate(node.close(timeout_sec=10.0)):
+            node.log.limited(level, f"stop-{k}", f"stopping: {line}")  # each said (a kind of its own)
         return 0
     except ExternalShutdownException:
         return 0
 
 
 def effort_tick(node: ControllerNode) -> None:
-    """One control period: the law on the latest state, unless it is refused (or there is none yet)."""
+    """One control period: the law on the latest state, unless it is refused (or there is none yet), or
+    older than state_timeout (then zero efforts, once a state has been answered: ``StateFreshness``)."""
     effort = node.effort
     assert effort is not None
     if effort.latest is None:
         return
     try:
-        node.answer(effort.latest, ("warning", "refused", "; no command sent"))
+        freshness = effort.freshness
+        now_ns = effort.now_ns() if freshness.enabled else 0
+        if freshness.usable(now_ns):
+            node.answer(effort.latest, ("warning", "refused", "; no command sent"))
+        if freshness.zero_due(now_ns):
+            effort.send_zeros()
     except Exception as exc:  # the last line of defence: no state may stop the controller
         node.log.limited("error", "internal", f"joint_states ignored: {type(exc).__name__}: {exc}")
 

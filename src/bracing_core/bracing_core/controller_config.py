@@ -40,6 +40,7 @@ class ControllerConfig:
     effort_command_topic: str = "effort_controller/commands"
     effort_command_joints: tuple[str, ...] = ()  # the published order; empty: robot.joint_names
     control_rate: float = 1000.0  # [Hz] effort_forward's timer
+    state_timeout: float = 0.0  # [s] node's clock; effort_forward: zeros, not a command, from an older state; 0 off
     target_max_velocity: float = 0.05  # [m/s] targets.max_velocity
     target_max_acceleration: float = 0.2  # [m/s^2] targets.max_acceleration
     max_message_elements: int = 10000  # the most names, values or poses a subscribed message may carry
@@ -85,6 +86,7 @@ class ControllerConfig:
             effort_command_topic=values["effort_command_topic"],
             effort_command_joints=tuple(values["effort_command_joints"]),
             control_rate=values["control_rate"],
+            state_timeout=values["state_timeout"],
             target_max_velocity=values["targets.max_velocity"],
             target_max_acceleration=values["targets.max_acceleration"],
             record_batch=values["record_batch"],

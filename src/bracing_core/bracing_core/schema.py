@@ -904,6 +904,16 @@ CONTROLLER: tuple[Param, ...] = (
     ),
     Param("control_rate", Kind.DOUBLE, 1000.0, "effort_forward: the command timer's rate", "Hz", positive=True),
     Param(
+        "state_timeout",
+        Kind.DOUBLE,
+        0.0,
+        "effort_forward: no command from a joint_states older than this on the node's clock (use_sim_time: "
+        "/clock); zero efforts instead until a state is answered again (the forward controller holds the last "
+        "command it gets, with no timeout, so silence would hold efforts computed from a stale state). 0: off",
+        "s",
+        minimum=0.0,
+    ),
+    Param(
         "targets.max_velocity",
         Kind.DOUBLE,
         0.05,

@@ -6,6 +6,7 @@ warnings, the real-time pace); messages in are checked here and handed to it, wh
 through ``bracing_sim.topics``.
 Lockstep (default): publish state k, wait for the command stamped with state k's stamp, step with it
 held. Real-time: a wall-clock timer steps with the latest command.
+With ``use_sim_time`` it follows its own /clock, each message checked first (``bracing_ros.sim_clock``).
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from bracing_ros.node_log import RosNodeLog
 from bracing_ros.node_main import EXIT_DIVERGED, run
 from bracing_ros.qos import SUBSCRIBE_QOS
 from bracing_ros.raw_messages import read_motor_command
+from bracing_ros.sim_clock import guard_clock
 from bracing_ros.status import StatusPublisher
 from bracing_ros.waiter import SubscriptionWaiter
 from bracing_sim.topics import JOINT_COMMANDS_QOS, SimulatorTopics
@@ -60,6 +62,7 @@ class SimulatorNode(Node):
         else:  # joint_commands: ros2_control's JointStateTopicSystem's efforts
             self.create_subscription(JointState, config.joint_commands_topic, self.on_joint_command, JOINT_COMMANDS_QOS)
         self.log = RosNodeLog(self, self.status, config.log_throttle_period)
+        guard_clock(self, self.log)  # use_sim_time (its own /clock): a bad one refused, not fatal
         self.core = SimulatorStepper(config, self.plant, self.sim, self.log, self.topics)
         if config.command_source == "joint_commands":
             loop = f", current loop {config.motor_drive.bandwidth:g} rad/s" if self.core.drive is not None else ""
