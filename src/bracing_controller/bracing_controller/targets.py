@@ -119,6 +119,8 @@ class TargetTopics:
     def apply(self, now_ns: int) -> None:
         """Check the latest target of each topic that came since the last call, the state stamped ``now_ns``
         the first that would follow it (a path's stamps are checked against it), and say the verdict."""
+        if not self.pending:  # the usual state: nothing came
+            return
         pending, self.pending = self.pending, {}
         for topic, data in pending.values():
             try:
