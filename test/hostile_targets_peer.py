@@ -15,6 +15,10 @@ python hostile_targets_peer.py X Y Z FLOOD_DY
        base_link on each of 20 states.
     It records the controller_state's desired hand, every echo it hears, and the wall time from sending
     the long path to hearing it refused.
+python hostile_targets_peer.py effort X Y Z
+    Against a controller with command_output effort_forward: publishes joint_states (the paper's start,
+    stamped 10 s) as joint_state_broadcaster would, sends a hand_path in the past (poses at 0.05 and
+    0.1 s), then, once it is refused, the hand target (X, Y, Z); records the verdicts (3 s at most).
 """
 
 from __future__ import annotations
@@ -60,7 +64,46 @@ def path_msg(poses: list[tuple[float, list[float]]], frame: str = "world") -> Pa
     return path
 
 
+def effort() -> None:
+    """See the module docstring (``effort``)."""
+    from rclpy.qos import qos_profile_system_default
+    from sensor_msgs.msg import JointState
+
+    target = [float(v) for v in sys.argv[2:5]]
+    rclpy.init()
+    node = rclpy.create_node("hostile_targets_peer")
+    states = node.create_publisher(JointState, "joint_states", qos_profile_system_default)
+    point_pub = node.create_publisher(PointStamped, "hand_target", 10)
+    path_pub = node.create_publisher(Path, "hand_path", 10)
+    verdicts: list[list[str]] = []
+    node.create_subscription(
+        DiagnosticStatus, "hand_path/refused", lambda m: verdicts.append(["refused", m.message]), 10
+    )
+    node.create_subscription(PointStamped, "hand_target/accepted", lambda m: verdicts.append(["accepted", ""]), 10)
+    q = [-0.6283185307179586, -1.8849555921538759, 2.5132741228718345, -1.2566370614359172]
+    state = JointState(name=["joint1", "joint2", "joint3", "joint4"], position=q, velocity=[0.0] * 4)
+    state.header.stamp.sec = 10
+    while min(pub.get_subscription_count() for pub in (states, point_pub, path_pub)) < 1:
+        rclpy.spin_once(node, timeout_sec=0.05)
+    end, sent = time.monotonic() + 3.0, 0
+    while time.monotonic() < end and len(verdicts) < 2:
+        states.publish(state)
+        if sent == 0 and time.monotonic() > end - 2.7:
+            path_pub.publish(path_msg([(0.05, target), (0.1, target)]))
+            sent = 1
+        elif sent == 1 and verdicts:
+            point_pub.publish(point_msg(target))
+            sent = 2
+        rclpy.spin_once(node, timeout_sec=0.01)
+    print(json.dumps({"verdicts": verdicts}))
+    node.destroy_node()
+    rclpy.shutdown()
+
+
 def main() -> None:
+    if sys.argv[1] == "effort":
+        effort()
+        return
     target = [float(v) for v in sys.argv[1:4]]
     flood_dy = float(sys.argv[4])
     rclpy.init()

@@ -188,3 +188,21 @@ def test_hostile_targets_refused_counted_and_never_drawn(tmp_path: Path) -> None
     for mark in figure.axes[0].lines[2:]:
         x, y = np.asarray(mark.get_xdata(), dtype=float), np.asarray(mark.get_ydata(), dtype=float)
         assert x.max() <= duration and y.max() <= TARGET[1] + 1e-12, (x.max(), y.max())
+
+
+def test_effort_forward_takes_targets_at_its_control_rate(tmp_path: Path) -> None:
+    """command_output effort_forward (targets taken by the executor, checked at the next tick): a path in
+    the past (the states stamped 10 s) refused with its reason, then a target accepted."""
+    ctl = {"input_mode": "torque", "command_output": "effort_forward", "control_rate": 100.0}
+    env = isolated_env()
+    controller = start(node_argv("bracing_controller.node", params_file(tmp_path, "bracing_controller", ctl)), env)
+    try:
+        argv = [sys.executable, PEER, "effort", *map(str, TARGET)]
+        peer = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=120)
+    finally:
+        log = _stop(controller)
+    assert peer.returncode == 0, peer.stdout + peer.stderr
+    verdicts = json.loads(peer.stdout.strip().splitlines()[-1])["verdicts"]
+    assert [v[0] for v in verdicts] == ["refused", "accepted"], (verdicts, log)
+    assert verdicts[0][1].startswith("hand_path refused: entirely in the past"), verdicts
+    assert "hand_target: moving to [0, 1, 0.7] and holding it" in log
