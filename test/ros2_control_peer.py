@@ -35,8 +35,10 @@ python ros2_control_peer.py constant-effort TAU_JSON
     JointStateTopicSystem holding one effort command (TAU_JSON, robot.joint_names order): sends it until
     the run ends, recording /clock, /robot_joint_states and motor_state.
 python ros2_control_peer.py target T_PUB X Y Z [FRAME]
-    a script sending the hand a target: waits for controller_state at t >= T_PUB, publishes a
-    PointStamped on hand_target, and records the controller_state's hand (desired, actual) until the run ends.
+    a script sending the hand a target: waits for controller_state at t >= T_PUB, publishes three
+    PointStamped on hand_target that the controller must refuse (each once it said it refused the one
+    before, on hand_target/refused), then the target, and records the controller_state's hand (desired,
+    actual) until the run ends.
 The path and target scripts subscribe to joint_states once matched with the controller: the simulator
 waits for them with min_subscribers 2.
 """
@@ -52,6 +54,7 @@ from typing import Any
 
 import numpy as np
 import rclpy
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PointStamped, PoseStamped
 from nav_msgs.msg import Path
 from rclpy.qos import (
@@ -187,28 +190,37 @@ def _follow_run(
 
 
 def target(node: rclpy.node.Node, t_pub: float, point: list[float], frame: str) -> dict[str, object]:
+    """Three targets the controller must refuse, each once the one before is refused (the latest of a
+    topic wins: sent at once, only the last would be taken), then ``point``."""
     pub = node.create_publisher(PointStamped, "hand_target", 10)
+    refused: list[str] = []
+    node.create_subscription(DiagnosticStatus, "hand_target/refused", lambda m: refused.append(m.message), 10)
+    bad = [([0.0, 5.0, 5.0], "world"), (point, "base_link"), ([math.nan, 1.0, 0.6], "world")]
     rows: list[list[float]] = []
     sent: list[float] = []
+    asked: list[int] = []
+
+    def send(where: list[float], in_frame: str) -> None:
+        msg = PointStamped()
+        msg.header.frame_id = in_frame
+        msg.point.x, msg.point.y, msg.point.z = where
+        pub.publish(msg)
 
     def on_state(msg: ControllerState) -> None:
         t = _stamp(msg)
         d, a = msg.hand_desired, msg.hand_actual
         rows.append([t, d.x, d.y, d.z, a.x, a.y, a.z])
-        if not sent and t >= t_pub:
-            for bad, bad_frame in (([0.0, 5.0, 5.0], "world"), (point, "base_link"), ([math.nan, 1.0, 0.6], "world")):
-                bad_msg = PointStamped()
-                bad_msg.header.frame_id = bad_frame
-                bad_msg.point.x, bad_msg.point.y, bad_msg.point.z = bad
-                pub.publish(bad_msg)
-            target_msg = PointStamped()
-            target_msg.header.frame_id = frame
-            target_msg.point.x, target_msg.point.y, target_msg.point.z = point
-            pub.publish(target_msg)
+        if sent or t < t_pub or len(asked) > len(refused):
+            return
+        if len(asked) < len(bad):
+            send(*bad[len(asked)])
+            asked.append(1)
+        else:
+            send(point, frame)
             sent.append(t)
 
     _follow_run(node, on_state, [pub], rows)
-    return {"sent_at": sent, "rows": rows}
+    return {"sent_at": sent, "rows": rows, "refused": refused}
 
 
 def _time_msg(t: float) -> object:

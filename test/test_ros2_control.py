@@ -267,7 +267,7 @@ def test_hand_path_and_brace_target_mid_run_recorded_and_drawn(tmp_path: Path) -
     the desired hand is the path's interpolation to 0.1 mm (it corrects a_max dt = 1.5 mm/s a step),
     the last pose exactly from 3.0 s; the desired brace point is the target exactly 1 s after it is
     sent (0.02 m takes ~0.25 s). The bag holds one message per target, at the sim time it came, and the
-    hand figure marks the path's poses at their stamps."""
+    controller's echo of each (accepted); the hand figure marks the path's poses at their stamps."""
     from bracing_analysis.bag import read_series
     from bracing_analysis.figures import plot_figure
     from bracing_bringup.view import write_rrd
@@ -280,7 +280,9 @@ def test_hand_path_and_brace_target_mid_run_recorded_and_drawn(tmp_path: Path) -
     recorder = _start_recorder(bag, env)
     ctl = {"targets.max_velocity": 0.3, "targets.max_acceleration": 1.5}
     controller = start(node_argv("bracing_controller.node", params_file(tmp_path, "bracing_controller", ctl)), env)
-    sim = {"duration": duration, "wait_for_recorder": True, "min_subscribers": 2}  # the controller and the script
+    # joint_states' subscribers: the controller, the recorder and the script (2 let a loaded machine start the
+    # run before the script listened: it then sent its path late, in the past)
+    sim = {"duration": duration, "wait_for_recorder": True, "min_subscribers": 3}
     simulator = start(node_argv("bracing_sim.node", params_file(tmp_path, "bracing_simulator", sim)), env)
     try:
         seen = _peer(["path", str(t_pub), json.dumps(poses), str(dy)], env)
@@ -303,6 +305,8 @@ def test_hand_path_and_brace_target_mid_run_recorded_and_drawn(tmp_path: Path) -
     # the bag, the report
     series = read_series(bag)
     assert series.topic_counts["/hand_path"] == 1 and series.topic_counts["/brace_target/elbow"] == 1, rec_log
+    accepted = series.topic_counts["/hand_path/accepted"], series.topic_counts["/brace_target/elbow/accepted"]
+    assert accepted == (1, 1) and not series.targets_refused, rec_log
     hand, elbow = sorted(series.targets, key=lambda s: s.task)[::-1]
     assert (hand.task, elbow.task) == ("hand", "elbow")
     np.testing.assert_array_equal(hand.points, [p[1:] for p in poses])
@@ -311,7 +315,7 @@ def test_hand_path_and_brace_target_mid_run_recorded_and_drawn(tmp_path: Path) -
     for target in (hand, elbow):  # recorded at the sim time it came (the last /clock before it)
         assert t_pub - 0.05 <= target.t <= sent[0] + 0.05, target.t
     figure = plot_figure("hand_y", series)
-    marks = [line for line in figure.axes[0].lines if line.get_label() == "hand_target / hand_path sent"]
+    marks = [line for line in figure.axes[0].lines if line.get_label() == "hand_target / hand_path accepted"]
     assert len(marks) == 1 and list(marks[0].get_xdata()) == pytest.approx([1.5, 2.5])
     assert list(marks[0].get_ydata()) == [1.0, 1.05]
     # bracing-view draws them too: the path's poses joined, the brace target a point

@@ -61,6 +61,7 @@ def recorded_topics_table() -> str:
     rows.append((topics.DESCRIPTION_TOPIC, typestore.STRING, "once"))
     rows += [(name, kind, "once" if name in once else "one per state") for name, kind in topics.SCENE_TOPICS.values()]
     rows += [(name, kind, "as sent") for name, kind in topics.target_topics([contact])]
+    rows += [(name, kind, "as the controller judged them") for name, kind in topics.target_verdict_topics([contact])]
     rows.append((topics.PARAMETER_EVENTS_TOPIC, typestore.PARAMETER_EVENT, "the controller's changes"))
     lines = ["| topic | type | in a lockstep bag |", "|---|---|---|"]
     lines += [f"| `{name}` | `{kind}` | {count} |" for name, kind, count in rows]
@@ -154,6 +155,9 @@ def outputs_page() -> str:
         "columns). A metric that does not apply to a run is `null`. The keys, in order (`SUMMARY_KEYS`, then\n"
         "`SUMMARY_EXTRA_KEYS`):\n\n" + key_table(summary.SUMMARY_KEYS + summary.SUMMARY_EXTRA_KEYS) + "\n"
         "Each contact's entry of `contacts` (`CONTACT_KEYS`):\n\n" + key_table(summary.CONTACT_KEYS) + "\n"
+        "`targets_refused`: {target topic: how many targets of it the controller refused} (`{}` when none; a\n"
+        "flood's targets superseded before the controller took them are neither followed nor counted); the\n"
+        "first refusal of each topic and kind is in `warnings`, with its count.\n\n"
         "## bench/latest.json\n\n"
         "What `make bench` writes (`bench/run.py`; `make test` runs it in a quick mode that checks every key is\n"
         "produced). The measured figures: [Performance](../results/performance.md).\n\n" + key_table(bench_keys())

@@ -13,10 +13,19 @@ import numpy as np
 import yaml
 from rosbags.highlevel import AnyReader
 
-from bracing_analysis.series import BagSeries, ParameterChange, TargetSent
+from bracing_analysis.series import BagSeries, ParameterChange, TargetRefused, TargetSent
 from bracing_analysis.surfaces import SCENARIO_KEY, SURFACES_KEY, from_json
 from bracing_analysis.truth import INPUT_MODE_KEY, TASK_AXES_KEY, task_axes_from_json
-from bracing_core.typestore import MOTOR_COMMAND, PARAMETER_EVENT, PATH, POINT_STAMPED, RUN_STATUS, motor_command_modes
+from bracing_core.targets import ACCEPTED, REFUSED, REFUSED_COUNT_KEY, REFUSED_KIND_KEY
+from bracing_core.typestore import (
+    DIAGNOSTIC_STATUS,
+    MOTOR_COMMAND,
+    PARAMETER_EVENT,
+    PATH,
+    POINT_STAMPED,
+    RUN_STATUS,
+    motor_command_modes,
+)
 
 _VALUE_FIELDS = {
     1: "bool_value",
@@ -35,6 +44,7 @@ INPUT_MODES = ("voltage", "torque")
 """The controller's input modes (its ``input_mode`` parameter's choices)."""
 
 _Target = tuple[int, str, list[tuple[float, float, float]], list[int]]
+_Refused = tuple[int, str, str, str, int]  # bag time [ns], topic, kind, why, refused on the topic so far
 _ParameterEvent = tuple[int, str, dict[str, Any]]
 
 
@@ -56,6 +66,7 @@ class RunEvents:
     parameter_events: list[_ParameterEvent]
     warnings: list[str]
     targets: list[_Target]
+    refused: list[_Refused]
 
     def apply(self, series: BagSeries, path: Path) -> None:
         """Into ``series`` (its ``t0_ns`` set): these events, and the bag's metadata (``describe``)."""
@@ -74,11 +85,17 @@ class RunEvents:
             )
             for stamp, task, points, times in self.targets
         ]
+        series.targets_refused = [
+            TargetRefused((stamp - t0) * 1e-9, topic, kind, why, count)
+            for stamp, topic, kind, why, count in self.refused
+        ]
         describe(series, path)
 
 
 def read_events(reader: AnyReader) -> RunEvents:
-    return RunEvents(_input_mode(reader), _parameter_events(reader), _recorded_warnings(reader), _targets(reader))
+    return RunEvents(
+        _input_mode(reader), _parameter_events(reader), _recorded_warnings(reader), _targets(reader), _refused(reader)
+    )
 
 
 def _decoded(reader: AnyReader, wanted: Callable[[Any], bool]) -> Iterator[tuple[Any, int, Any]]:
@@ -120,25 +137,49 @@ def describe(series: BagSeries, path: Path) -> None:
     series.hand_axes, series.brace_task_axes = task_axes_from_json(data.get(TASK_AXES_KEY, "{}"))
 
 
+def _target_task(topic: str) -> str | None:
+    """The task a target topic (resolved, namespaced or not) sends: "hand" or the contact's name; None for
+    another topic."""
+    if "brace_target/" in topic:
+        return topic.split("brace_target/", 1)[1]
+    return "hand" if topic.rsplit("/", 1)[-1] in ("hand_target", "hand_path") else None
+
+
 def _targets(reader: AnyReader) -> list[_Target]:
-    """(bag time [ns], task, points, pose stamps [ns]) of each recorded target, in time order."""
+    """(bag time [ns], task, points, pose stamps [ns]) of each target the controller accepted
+    (``<target>/accepted``), in time order. A bag from before the controller said so (no verdict
+    recorded, targets recorded) has those as sent."""
+    verdicts = [c for c in reader.connections if c.topic.endswith((f"/{ACCEPTED}", f"/{REFUSED}"))]
+    suffix = f"/{ACCEPTED}" if verdicts else ""
 
     def target(c: Any) -> bool:
-        return (
-            (c.msgtype == POINT_STAMPED and c.topic.rsplit("/", 1)[-1] == "hand_target")
-            or (c.msgtype == POINT_STAMPED and "brace_target/" in c.topic)
-            or (c.msgtype == PATH and c.topic.endswith("hand_path"))
-        )
+        topic = c.topic.removesuffix(suffix) if c.topic.endswith(suffix) else ""
+        return c.msgtype in (POINT_STAMPED, PATH) and topic != "" and _target_task(topic) is not None
 
     out: list[_Target] = []
     for conn, stamp, msg in _decoded(reader, target):
-        task = conn.topic.split("brace_target/", 1)[1] if "brace_target/" in conn.topic else "hand"
+        task = str(_target_task(conn.topic.removesuffix(suffix)))
         if conn.msgtype == PATH:
             points = [xyz(pose.pose.position) for pose in msg.poses]
             times = [stamp_ns(pose) for pose in msg.poses]
         else:
             points, times = [xyz(msg.point)], [stamp]
         out.append((stamp, task, points, times))
+    return sorted(out, key=lambda e: e[0])
+
+
+def _refused(reader: AnyReader) -> list[_Refused]:
+    """(bag time [ns], topic, kind, why, refused on that topic so far) of each target the controller
+    refused (``<target>/refused``), in time order."""
+
+    def wanted(c: Any) -> bool:
+        return c.msgtype == DIAGNOSTIC_STATUS and c.topic.endswith(f"/{REFUSED}")
+
+    out: list[_Refused] = []
+    for _, stamp, status in _decoded(reader, wanted):
+        values = {str(v.key): str(v.value) for v in status.values}
+        count = int(values.get(REFUSED_COUNT_KEY, "0")) if values.get(REFUSED_COUNT_KEY, "").isdigit() else 0
+        out.append((stamp, str(status.name), values.get(REFUSED_KIND_KEY, ""), str(status.message), count))
     return sorted(out, key=lambda e: e[0])
 
 

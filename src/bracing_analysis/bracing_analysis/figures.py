@@ -67,8 +67,9 @@ _HAND_FIGURES = {"y": "Figs. 6, 9, 13", "z": "Figs. 7, 10, 14"}
 
 
 def mark_targets(ax: Axes, series: BagSeries, task: str, axis: int, label: str) -> None:
-    """Each target sent to ``task`` while the run went: a marker where and when it arrived (a point), or
-    the path's poses at their stamps joined to the arrival (a path). A run without any draws nothing."""
+    """Each target the controller accepted for ``task`` while the run went (``series.targets``: never a
+    refused one): a marker where and when it was taken (a point), or the path's poses at their stamps
+    joined to when it was taken (a path). A run without any draws nothing."""
     for k, sent in enumerate(s for s in series.targets if s.task == task):
         first = label if k == 0 else None
         if len(sent.points) == 1 and sent.times[0] == sent.t:
@@ -85,7 +86,7 @@ def _plot_hand(series: BagSeries, axis: int, name: str) -> tuple[Figure, Axes]:
     # with sensors: what the controller believed, beside the truth
     if series.hand_measured.size and series.hand_measured.shape[0] == series.t.size:
         ax.plot(series.t, series.hand_measured[:, axis], ":", color="tab:green", label=f"as measured {name}_h")
-    mark_targets(ax, series, "hand", axis, "hand_target / hand_path sent")
+    mark_targets(ax, series, "hand", axis, "hand_target / hand_path accepted")
     return fig, ax
 
 
@@ -99,7 +100,7 @@ def _plot_brace(series: BagSeries, axis: int, name: str) -> tuple[Figure, Axes]:
             ax.plot(cs.t_ctrl, cs.brace_actual[:, axis], label=f"{cs.name} {name}")
             if cs.brace_measured.size and cs.brace_measured.shape[0] == cs.t_ctrl.size:  # with sensors: its view
                 ax.plot(cs.t_ctrl, cs.brace_measured[:, axis], ":", label=f"{cs.name} {name} as measured")
-            mark_targets(ax, series, cs.name, axis, f"brace_target/{cs.name} sent")
+            mark_targets(ax, series, cs.name, axis, f"brace_target/{cs.name} accepted")
     return fig, ax
 
 

@@ -66,12 +66,24 @@ class ParameterChange:
 
 @dataclass(frozen=True)
 class TargetSent:
-    """A target sent to the controller while it ran (hand_target, hand_path, brace_target/<contact>)."""
+    """A target the controller accepted while it ran (hand_target, hand_path, brace_target/<contact>), as
+    it echoed it on ``<target>/accepted``; in a bag from before it did, a target as it was sent."""
 
     t: float  # [s], the run's time base: when the recorder got it (the sim time of the last /clock)
     task: str  # "hand" or the contact's name
     points: FloatArray  # (poses, 3) [m], world (one row for a point)
     times: FloatArray  # (poses,) [s], the run's time base: a path's pose stamps; a point's = t
+
+
+@dataclass(frozen=True)
+class TargetRefused:
+    """A target the controller refused while it ran (recorded from ``<target>/refused``)."""
+
+    t: float  # [s], the run's time base: when the recorder got the refusal
+    topic: str  # the target's topic: hand_target, hand_path, brace_target/<contact>
+    kind: str  # the check it failed (bracing_core.targets.KINDS)
+    why: str  # the controller's words
+    count: int  # targets of that topic refused so far, this one included
 
 
 @dataclass
@@ -107,7 +119,8 @@ class BagSeries:
     hand_axes: list[str] | None = None
     brace_task_axes: dict[str, list[str]] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)  # what the nodes warned about (run_status), in time order
-    targets: list[TargetSent] = field(default_factory=list)  # sent while it ran, in time order
+    targets: list[TargetSent] = field(default_factory=list)  # accepted while it ran (older bags: sent), in time order
+    targets_refused: list[TargetRefused] = field(default_factory=list)  # refused while it ran, in time order
 
 
 def scenario_name(series: BagSeries) -> str:

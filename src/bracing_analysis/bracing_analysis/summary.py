@@ -2,7 +2,8 @@
 
 ``compute_summary(series, wall_time_s)`` returns the ``summary.json`` dict of a ``series.BagSeries``
 (keys: README, Topics and messages): SUMMARY_KEYS, then SUMMARY_EXTRA_KEYS (per-contact metrics
-``contact_metrics``, the input mode, whether the controller braced, the run's ``warnings``). A metric
+``contact_metrics``, the input mode, whether the controller braced, the run's ``warnings``, the targets
+the controller refused per topic, ``targets_refused``). A metric
 that does not apply to the run is None (null): the brace and force errors of a run with no braced
 contact, the copper loss of a torque-input run (no motor circuit), the constraint residual of a run
 where no contact ever held.
@@ -42,6 +43,7 @@ SUMMARY_EXTRA_KEYS = (
     "warnings",
     "motor_temperature_max_c",
     "motor_temperature_max_c_by_joint",
+    "targets_refused",
 )
 """summary.json's keys after SUMMARY_KEYS (added later: tools that read SUMMARY_KEYS by position keep working)."""
 
@@ -175,8 +177,34 @@ def compute_summary(
     out["max_penetration_m"] = max(penetrations) if penetrations else None
     out["input_mode"] = series.input_mode
     out["bracing"] = bool(braced) if series.t.size else None
-    out["warnings"] = list(dict.fromkeys([*warnings, *data_warnings(series), *series.warnings]))
+    out["targets_refused"] = targets_refused(series)
+    refusals = refusal_warnings(series)
+    out["warnings"] = list(dict.fromkeys([*warnings, *data_warnings(series), *series.warnings, *refusals]))
     return out
+
+
+def targets_refused(series: BagSeries) -> dict[str, int]:
+    """{target topic: how many targets of it the controller refused} ({} when none): the count its
+    last recorded refusal gives (each says the count so far), or the refusals recorded if more."""
+    out: dict[str, int] = {}
+    for refused in series.targets_refused:
+        out[refused.topic] = max(out.get(refused.topic, 0) + 1, refused.count)
+    return out
+
+
+def refusal_warnings(series: BagSeries) -> list[str]:
+    """The first refused target of each topic and kind, with how many were refused so (a line each,
+    never one per refusal: the counts are in ``targets_refused``)."""
+    first: dict[tuple[str, str], tuple[float, str]] = {}
+    counts: dict[tuple[str, str], int] = {}
+    for refused in series.targets_refused:
+        key = (refused.topic, refused.kind)
+        first.setdefault(key, (refused.t, refused.why))
+        counts[key] = counts.get(key, 0) + 1
+    return [
+        f"{why} (at t = {t:.3f} s; {counts[key]} {key[0]} target(s) refused so: summary.json's targets_refused)"
+        for key, (t, why) in first.items()
+    ]
 
 
 def data_warnings(series: BagSeries) -> list[str]:

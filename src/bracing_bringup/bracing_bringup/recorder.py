@@ -26,7 +26,9 @@ The metadata is written when the bag closes: a recorder killed before leaves its
 
 The targets sent to the controller while it runs (``hand_target``, ``hand_path``,
 ``brace_target/<contact>``) are recorded as they come, at the sim time of the last ``/clock`` recorded
-before each (their own stamps are the sender's); a run without any has none of these topics.
+before each (their own stamps are the sender's); a run without any has none of these topics. So is
+what the controller made of them (``<target>/accepted``, ``<target>/refused``): the report draws the
+accepted ones only and counts the refused ones.
 
 The controller's parameter changes while it runs (``ros2 param set``) are recorded from rclpy's
 ``/parameter_events``: the events of the run's controller that change a value, stamped by it with the
@@ -65,6 +67,7 @@ from types import FrameType
 from typing import Any, Literal
 
 import rclpy
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PointStamped, WrenchStamped
 from nav_msgs.msg import Path as PathMsg
 from rcl_interfaces.msg import ParameterEvent
@@ -92,6 +95,7 @@ from bracing_bringup.topics import (
     missing_from_counts,
     recorded_topics,
     target_topics,
+    target_verdict_topics,
 )
 from bracing_bringup.topics import expected_counts as expected_counts  # re-exported: the check lives in topics
 from bracing_core.kinematics import DescriptionError
@@ -102,6 +106,7 @@ from bracing_core.typestore import (
     CLOCK,
     CONTACTS,
     CONTROLLER_STATE,
+    DIAGNOSTIC_STATUS,
     JOINT_STATE,
     MOTOR_COMMAND,
     MOTOR_STATE,
@@ -165,7 +170,7 @@ PARAMETER_EVENTS_QOS = QoSProfile(
 """rclpy's own for /parameter_events: its publishers are volatile, which a transient-local
 subscription would not match. The targets' too (a script's, RViz's, MoveIt's publishers are volatile)."""
 
-_TARGET_TYPES: dict[str, type] = {POINT_STAMPED: PointStamped, PATH: PathMsg}
+_TARGET_TYPES: dict[str, type] = {POINT_STAMPED: PointStamped, PATH: PathMsg, DIAGNOSTIC_STATUS: DiagnosticStatus}
 
 
 _RCLPY_TYPES: dict[str, type] = {
@@ -290,7 +295,7 @@ class Recorder(Node):
         self.simulator_finished = False  # its FINISHED status came: nothing more from it
         self._targets: dict[Subscription, str] = {}
         self._target_connections: dict[Subscription, Connection] = {}
-        for topic, type_name in target_topics(self._contacts):
+        for topic, type_name in [*target_topics(self._contacts), *target_verdict_topics(self._contacts)]:
             sub = self.create_subscription(
                 _TARGET_TYPES[type_name], topic, _never_called, PARAMETER_EVENTS_QOS, raw=True
             )

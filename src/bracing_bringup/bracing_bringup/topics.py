@@ -10,10 +10,12 @@ from collections.abc import Mapping, Sequence
 
 from bracing_core.overrides import CONTROLLER
 from bracing_core.sensing import GROUND_TRUTH
+from bracing_core.targets import ACCEPTED, REFUSED, echo_topic
 from bracing_core.typestore import (
     CLOCK,
     CONTACTS,
     CONTROLLER_STATE,
+    DIAGNOSTIC_STATUS,
     JOINT_STATE,
     MARKER_ARRAY,
     MOTOR_COMMAND,
@@ -38,6 +40,15 @@ def target_topics(contacts: Sequence[str]) -> list[tuple[str, str]]:
         ("hand_path", PATH),
         *((f"brace_target/{name}", POINT_STAMPED) for name in contacts),
     ]
+
+
+def target_verdict_topics(contacts: Sequence[str]) -> list[tuple[str, str]]:
+    """(relative topic, ROS 2 type name) of what the controller made of each target it took:
+    ``<target>/accepted`` (as it follows it, once per change) and ``<target>/refused`` (why)."""
+    out = []
+    for topic, type_name in target_topics(contacts):
+        out += [(echo_topic(topic, ACCEPTED), type_name), (echo_topic(topic, REFUSED), DIAGNOSTIC_STATUS)]
+    return out
 
 
 RECORDER_NODE = "bracing_recorder"

@@ -43,6 +43,7 @@ from bracing_core.meshes import missing_warning, read_mesh
 from bracing_core.meshes import resolve as resolve_mesh
 from bracing_core.overrides import SIMULATOR
 from bracing_core.params import ConfigError
+from bracing_core.targets import ACCEPTED
 from bracing_core.typestore import (
     CONTACTS,
     CONTROLLER_STATE,
@@ -67,7 +68,9 @@ _TYPES = {
     "hand_target": POINT_STAMPED,
     "hand_path": PATH,
 }
-TARGET_COLOR = [0, 0, 0]  # a target sent while the run goes: black, as the report's marks
+TARGET_COLOR = [0, 0, 0]  # a target accepted while the run goes: black, as the report's marks
+_TARGETS = ("hand_target", "hand_path")
+_ACCEPTED = "/" + ACCEPTED  # the controller's echo of a target it follows (bracing_core.targets)
 
 
 def blueprint() -> rrb.Blueprint:
@@ -138,7 +141,8 @@ class Feed:
 
     def message(self, topic: str, msg: Any) -> None:
         """One message of a resolved or relative topic name (namespace ignored)."""
-        name = topic.lstrip("/")
+        # what the controller accepted (never a refused target); a bag from before it said so: as sent
+        name = topic.lstrip("/").removesuffix(_ACCEPTED)
         if "contact_wrench/" in name:
             self.wrench(name.rsplit("/", 1)[-1], msg)
             return
@@ -414,6 +418,8 @@ def replay_bag(bag: Path, recording: rr.RecordingStream, period_s: float = DEFAU
     recording.send_blueprint(blueprint())
     with AnyReader([path]) as reader:
         wanted = [c for c in reader.connections if c.msgtype in (*_TYPES.values(), WRENCH_STAMPED)]
+        if any(c.topic.endswith(_ACCEPTED) for c in reader.connections) or series.targets_refused:
+            wanted = [c for c in wanted if not _sent_target(c.topic)]  # the accepted ones are drawn instead
         described = [c for c in wanted if c.topic.endswith("robot_description")]
         for conn, _, raw in reader.messages(connections=described):
             feed.message(conn.topic, reader.deserialize(raw, conn.msgtype))
@@ -422,6 +428,11 @@ def replay_bag(bag: Path, recording: rr.RecordingStream, period_s: float = DEFAU
     if len(series.hand_desired):
         feed.paths(series.hand_desired, series.hand_actual)
     return feed
+
+
+def _sent_target(topic: str) -> bool:
+    """A target as sent (hand_target, hand_path, brace_target/<contact>), not the controller's echo of one."""
+    return not topic.endswith(_ACCEPTED) and ("brace_target/" in topic or topic.rsplit("/", 1)[-1] in _TARGETS)
 
 
 def write_rrd(bag: Path, rrd: Path, period_s: float = DEFAULT_PERIOD_S) -> dict[str, int]:
@@ -505,9 +516,11 @@ class Live:
         )
         contacts = [str(c) for c in node.declare_parameter("contacts", ["elbow"]).value or []]
         self._types = _rclpy_types()
-        self._later = [(t, ty) for t, ty in _TYPES.items() if t != "robot_description"]
+        self._later = [
+            (t + _ACCEPTED if t in _TARGETS else t, ty) for t, ty in _TYPES.items() if t != "robot_description"
+        ]
         self._later += [(f"contact_wrench/{c}", WRENCH_STAMPED) for c in contacts]
-        self._later += [(f"brace_target/{c}", POINT_STAMPED) for c in contacts]
+        self._later += [(f"brace_target/{c}{_ACCEPTED}", POINT_STAMPED) for c in contacts]
         self.topics: dict[Any, tuple[str, str]] = {}
         self._subscribe("robot_description", _TYPES["robot_description"], latched)
         self.status = None

@@ -83,7 +83,7 @@ class ControllerNode(Node):
         self.batch = RecordBatchPublisher(self, [self.command_pub, self.state_pub], config.record_batch)
         self.core.start()
         self.effort = EffortForward(self, config, self.joint_names, self.log) if self.effort_forward else None
-        self.target_topics = TargetTopics(self, self.core.targets, contact_names)
+        self.target_topics = TargetTopics(self, self.core.targets, contact_names, self.log)
         self.status.say(RunStatus.CONFIGURED)
 
     def sync_clock(self) -> None:
@@ -154,6 +154,7 @@ class ControllerNode(Node):
             return
         state = self.core.read_state(msg.name, msg.position, msg.velocity, msg.stamp_ns, refusal)
         if state is not None:
+            self.target_topics.apply(msg.stamp_ns)  # the latest of each that came: followed from this state on
             self.core.answer(msg.stamp_ns, *state, self.take_measurements, self.send)
 
     def send(self, answer: Answer) -> None:
@@ -242,24 +243,24 @@ def spin(node: ControllerNode) -> int:
         state_sub = node.listen()
         # The targets in the same wait: a wait of their own on every state cost ~15 % of the node's time
         # (py-spy, 2026-11-26).
-        waiter = SubscriptionWaiter(node, [state_sub, *targets.handlers])
+        waiter = SubscriptionWaiter(node, [state_sub, *targets.subscriptions])
         node.log.info("answering joint_states")
         node.command_out = work.mark
         node.status.say(RunStatus.STEPPING)
         while True:
-            states = 0
-            for subscription, msg in waiter.take_all(0.1):
+            states, taken = 0, waiter.take_all(0.1)
+            for subscription, msg in taken:
                 if subscription is state_sub:
                     work.begin()
                     node.on_state(msg)
                     work.end(node.batch.take_written())
                     states += 1
-                else:  # the states are taken first: a target is followed from the next state on
+                else:  # kept, the latest of each topic (states are taken first: followed from the next state on)
                     targets.take(subscription, msg)
-            answered += states
+            answered += len(taken)  # states and targets alike: a flood of targets spins the executor no more
             if not states:
                 node.batch.flush()  # the stream paused (or ended): what waits goes to the recorder now
-            if not states or answered >= 100:
+            if not taken or answered >= 100:
                 answered = 0
                 node.sync_clock()  # a parameter change is stamped with it
                 executor.spin_once(timeout_sec=0.0)  # parameter services and the like

@@ -1,70 +1,182 @@
-"""Targets while running, the ROS side: hand_target, hand_path and brace_target/<contact> in, a
-checked goal out to ``bracing_core.targets.TaskTargets`` (the policy), a warning for each refused one."""
+"""Targets while running, the ROS side: hand_target, hand_path and brace_target/<contact> in, checked by
+``bracing_core.targets.TaskTargets`` (the policy), the verdict out.
+
+A flood costs bounded work: messages are taken raw (bytes, no decoding) and only the latest of each
+topic is kept; it is decoded and checked once, when the next state is answered (``apply``), so at most
+one target per topic per state (the latest wins, as a new target replaces the one before anyway). A
+path's pose count and frame name length are read from its first bytes and checked before it is decoded.
+What is accepted, if it changes the task's goal, is echoed on ``<topic>/accepted`` and logged; what is
+refused goes out on ``<topic>/refused`` (its reason, kind and the count so far) with a warning, both
+rate-limited per topic and kind (``RosNodeLog.limited``).
+"""
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from functools import partial
+from dataclasses import dataclass
 from typing import Any
 
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Path
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 
-from bracing_core.targets import TargetError, TaskTargets
+from bracing_core.kinematics import WORLD_FRAME
+from bracing_core.node_log import NodeLog
+from bracing_core.targets import (
+    ACCEPTED,
+    REFUSED,
+    REFUSED_COUNT_KEY,
+    REFUSED_KIND_KEY,
+    Goal,
+    TargetError,
+    TaskTargets,
+    echo_topic,
+)
+from bracing_ros import wire
+from bracing_ros.raw_messages import path_sizes
 
 TARGET_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
-    depth=10,
+    depth=1,  # the latest wins: an older target waiting in the reader would be superseded anyway
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
 """What a script, RViz or MoveIt publishes by default (reliable); a transient-local publisher matches it too."""
+ECHO_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,  # at most one per topic per state: a recorder that lags a little still gets each
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
 
 
-def _seconds(stamp: object) -> float:
-    return int(stamp.sec) + int(stamp.nanosec) * 1e-9  # type: ignore[attr-defined]
+def _seconds(stamp: Any) -> float:
+    return int(stamp.sec) + int(stamp.nanosec) * 1e-9
+
+
+def _time(stamp_ns: int) -> Time:
+    sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+    return Time(sec=sec, nanosec=nanosec)
+
+
+@dataclass
+class TargetTopic:
+    """One target topic: its task, its kind of message and where its verdicts go."""
+
+    name: str  # hand_target, hand_path, brace_target/<contact>
+    task: int  # 0 the hand, 1 + j brace j
+    path: bool  # nav_msgs/Path (else geometry_msgs/PointStamped)
+    accepted: Publisher
+    refused: Publisher
+    refusals: int = 0
 
 
 class TargetTopics:
-    """The subscriptions; ``targets`` holds what was accepted (the node feeds it to the law)."""
+    """The subscriptions (``subscriptions``: the lockstep loop waits on them with its states) and the
+    latest target of each topic, checked into ``targets`` by ``apply``."""
 
-    def __init__(self, node: Node, targets: TaskTargets, contacts: list[str]) -> None:
-        self.node = node
-        self.targets = targets
-        self.handlers: dict[Subscription, Callable[[Any], None]] = {}
-        self._add(PointStamped, "hand_target", lambda m: self.on_point(0, m))
-        self._add(Path, "hand_path", self.on_path)
+    def __init__(self, node: Node, targets: TaskTargets, contacts: list[str], log: NodeLog) -> None:
+        self.node, self.targets, self.log = node, targets, log
+        self.topics: dict[Subscription, TargetTopic] = {}
+        self.pending: dict[str, tuple[TargetTopic, bytes]] = {}
+        self._add("hand_target", 0, False)
+        self._add("hand_path", 0, True)
         for j, name in enumerate(contacts):
-            self._add(PointStamped, f"brace_target/{name}", partial(self.on_point, j + 1))
+            self._add(f"brace_target/{name}", j + 1, False)
 
-    def _add(self, msg_type: type, topic: str, handler: Callable[[Any], None]) -> None:
-        self.handlers[self.node.create_subscription(msg_type, topic, handler, TARGET_QOS)] = handler
+    @property
+    def subscriptions(self) -> list[Subscription]:
+        return list(self.topics)
 
-    def take(self, subscription: Subscription, msg: Any) -> None:
-        """A target that came on ``subscription`` (the lockstep loop waits on them with its states)."""
-        self.handlers[subscription](msg)
+    def _add(self, name: str, task: int, path: bool) -> None:
+        msg_type = Path if path else PointStamped
+        node = self.node
+        topic = TargetTopic(
+            name,
+            task,
+            path,
+            node.create_publisher(msg_type, echo_topic(name, ACCEPTED), ECHO_QOS),
+            node.create_publisher(DiagnosticStatus, echo_topic(name, REFUSED), ECHO_QOS),
+        )
 
-    def on_point(self, task: int, msg: PointStamped) -> None:
-        p = msg.point
-        try:
-            self.targets.point(task, [p.x, p.y, p.z], msg.header.frame_id)
-        except TargetError as exc:
-            self.node.get_logger().warning(str(exc))
+        def keep(data: bytes) -> None:  # the executor's callback (effort_forward; the lockstep loop's `take`)
+            self.keep(topic, data)
+
+        self.topics[node.create_subscription(msg_type, name, keep, TARGET_QOS, raw=True)] = topic
+
+    def take(self, subscription: Subscription, data: bytes) -> None:
+        """A target (CDR bytes) that came on ``subscription`` (the lockstep loop takes them with its states)."""
+        self.keep(self.topics[subscription], data)
+
+    def keep(self, topic: TargetTopic, data: bytes) -> None:
+        self.pending[topic.name] = (topic, data)  # the latest wins
+
+    def apply(self, now_ns: int) -> None:
+        """Check the latest target of each topic that came since the last call, the state stamped ``now_ns``
+        the first that would follow it (a path's stamps are checked against it), and say the verdict."""
+        if not self.pending:  # the usual state: nothing came
             return
-        what = self.targets.tasks[task].what
-        self.node.get_logger().info(f"{what}: moving to [{p.x:.4g}, {p.y:.4g}, {p.z:.4g}] and holding it")
+        pending, self.pending = self.pending, {}
+        for topic, data in pending.values():
+            try:
+                goal, echo = self._path(topic, data, now_ns) if topic.path else self._point(topic, data)
+            except TargetError as exc:
+                self._refuse(topic, exc)
+                continue
+            if goal is None:  # the task's goal already: no change to say
+                continue
+            echo.header.stamp, echo.header.frame_id = _time(now_ns), WORLD_FRAME
+            topic.accepted.publish(echo)
+            self.log.limited("info", f"{topic.name} {ACCEPTED}", _accepted(topic, goal))
 
-    def on_path(self, msg: Path) -> None:
-        poses = list(msg.poses)
+    def _point(self, topic: TargetTopic, data: bytes) -> tuple[Goal | None, PointStamped]:
+        msg = _decoded(topic.name, data, PointStamped)
+        p = msg.point
+        return self.targets.point(topic.task, [p.x, p.y, p.z], msg.header.frame_id), msg
+
+    def _path(self, topic: TargetTopic, data: bytes, now_ns: int) -> tuple[Goal | None, Path]:
+        try:
+            sizes = path_sizes(data)
+        except wire.DecodeError as exc:
+            raise TargetError(f"{topic.name} refused: malformed ({exc})", "malformed") from None
+        if sizes is not None:  # before any per-pose work (decoding included)
+            frame_id_length, poses = sizes
+            self.targets.check_size(topic.name, poses, frame_id_length)
+        msg = _decoded(topic.name, data, Path)
+        self.targets.check_size(topic.name, len(msg.poses), len(msg.header.frame_id))
+        poses = msg.poses
         frames = [pose.header.frame_id or msg.header.frame_id for pose in poses]
         points = [[pose.pose.position.x, pose.pose.position.y, pose.pose.position.z] for pose in poses]
         times = [_seconds(pose.header.stamp) for pose in poses]
-        try:
-            self.targets.path(0, times, points, frames)
-        except TargetError as exc:
-            self.node.get_logger().warning(str(exc).replace("hand_target", "hand_path", 1))
-            return
-        self.node.get_logger().info(f"hand_path: {len(poses)} poses from t = {times[0]:.3f} s to {times[-1]:.3f} s")
+        return self.targets.path(topic.task, times, points, frames, now_ns * 1e-9, topic.name), msg
+
+    def _refuse(self, topic: TargetTopic, exc: TargetError) -> None:
+        topic.refusals += 1
+        self.log.limited("warning", f"{topic.name} {exc.kind}", str(exc))
+        values = [
+            KeyValue(key=REFUSED_KIND_KEY, value=exc.kind),
+            KeyValue(key=REFUSED_COUNT_KEY, value=str(topic.refusals)),
+        ]
+        status = DiagnosticStatus(level=DiagnosticStatus.WARN, name=topic.name, message=str(exc), values=values)
+        status.hardware_id = self.node.get_fully_qualified_name()
+        topic.refused.publish(status)
+
+
+def _decoded(name: str, data: bytes, msg_type: type) -> Any:
+    try:
+        return deserialize_message(data, msg_type)
+    except Exception as exc:  # rclpy raises its RMWError (and others) for bytes it cannot read
+        raise TargetError(f"{name} refused: malformed ({str(exc).split(', at /')[0][:200]})", "malformed") from None
+
+
+def _accepted(topic: TargetTopic, goal: Goal) -> str:
+    """The log line of an accepted target."""
+    if topic.path:
+        return f"{topic.name}: {len(goal.times)} poses from t = {goal.times[0]:.3f} s to {goal.times[-1]:.3f} s"
+    x, y, z = goal.points[0]
+    return f"{topic.name}: moving to [{x:.4g}, {y:.4g}, {z:.4g}] and holding it"

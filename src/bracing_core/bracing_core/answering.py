@@ -27,7 +27,7 @@ from bracing_core.measurements import Measurements
 from bracing_core.node_log import NodeLog
 from bracing_core.numbers import all_finite
 from bracing_core.params import ConfigError
-from bracing_core.targets import TaskSpec, TaskTargets
+from bracing_core.targets import TargetLimits, TaskSpec, TaskTargets
 from bracing_core.types import Vector
 
 STAMP_RANGE_NS = (-(2**31) * 1_000_000_000, 2**31 * 1_000_000_000)
@@ -80,7 +80,8 @@ def task_targets(law: DecoupledController) -> TaskTargets:
     for c in config.shared.braced_contacts:
         reach = frame_reach(plant.robot.model, plant.frame_id(c.frame, f"contacts.{c.name}.frame"))
         specs.append(TaskSpec(f"brace_target/{c.name}", c.brace_axes, reach))
-    return TaskTargets(specs, config.target_max_velocity, config.target_max_acceleration)
+    limits = TargetLimits(config.max_message_elements, config.max_name_length, config.target_max_horizon)
+    return TaskTargets(specs, config.target_max_velocity, config.target_max_acceleration, limits)
 
 
 @dataclass(frozen=True)

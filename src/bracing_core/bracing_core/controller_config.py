@@ -43,6 +43,7 @@ class ControllerConfig:
     state_timeout: float = 0.0  # [s] node's clock; effort_forward: zeros, not a command, from an older state; 0 off
     target_max_velocity: float = 0.05  # [m/s] targets.max_velocity
     target_max_acceleration: float = 0.2  # [m/s^2] targets.max_acceleration
+    target_max_horizon: float = 3600.0  # [s] targets.max_horizon: a hand_path's last pose at most this after now
     max_message_elements: int = 10000  # the most names, values or poses a subscribed message may carry
     max_name_length: int = 256  # [characters] the longest name a subscribed message may carry
     record_batch: int = 0  # answers per bracing_msgs/RecordBatch to the recorder; 0: off
@@ -89,6 +90,7 @@ class ControllerConfig:
             state_timeout=values["state_timeout"],
             target_max_velocity=values["targets.max_velocity"],
             target_max_acceleration=values["targets.max_acceleration"],
+            target_max_horizon=values["targets.max_horizon"],
             record_batch=values["record_batch"],
             max_message_elements=values["max_message_elements"],
             max_name_length=values["max_name_length"],

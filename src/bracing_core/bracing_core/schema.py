@@ -929,6 +929,15 @@ CONTROLLER: tuple[Param, ...] = (
         "m/s^2",
         positive=True,
     ),
+    Param(
+        "targets.max_horizon",
+        Kind.DOUBLE,
+        3600.0,
+        "hand_path: how far after now (the controller's time) its last pose may lie; a later one is refused (a "
+        "wall-clock stamp sent to a sim-time controller lies ~1.8e9 s ahead), as is a path entirely in the past",
+        "s",
+        positive=True,
+    ),
     LOG_THROTTLE_PERIOD,
     MAX_MESSAGE_ELEMENTS,
     MAX_NAME_LENGTH,

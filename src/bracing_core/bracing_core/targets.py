@@ -8,6 +8,13 @@ acceleration bounded (``targets.max_velocity`` / ``targets.max_acceleration``). 
 the law each update (``engine.Law.set_reference``): the law itself is unchanged, and rollouts, which
 have no topics and so no targets, run the configured paths exactly as before.
 
+What is refused (``TargetError``, with its ``kind``): another frame than world, a coordinate not finite,
+a point out of the frame's reach, and for a path: more poses than ``max_message_elements`` or a frame
+name longer than ``max_name_length`` (checked before any per-pose work), stamps out of order, a path
+entirely in the past (its last pose before now), or one that ends more than ``targets.max_horizon``
+after now (a wall-clock stamp sent to a sim-time controller ends ~1.8e9 s ahead). A goal equal to the
+task's current one is no change (``set`` says so: the node logs and echoes changes only).
+
 Why here and not in the engine: a target exists only where a ROS message brings it, the generator is
 a few vector operations per update (no model), and the engine keeps one small hook instead of a
 second kind of path whose timing depends on when messages come.
@@ -26,7 +33,62 @@ from bracing_core.types import Vector
 
 
 class TargetError(ValueError):
-    """A target that is refused: out of reach, in another frame, not finite, or a path out of order."""
+    """A target that is refused; ``kind`` names the check it failed (``KINDS``), the message says why."""
+
+    def __init__(self, message: str, kind: str) -> None:
+        super().__init__(message)
+        self.kind = kind
+
+
+KINDS = (
+    "frame",
+    "not finite",
+    "out of reach",
+    "too many poses",
+    "name too long",
+    "empty",
+    "stamps out of order",
+    "in the past",
+    "too far ahead",
+    "malformed",
+)
+"""The kinds of refusal (``TargetError.kind``): the node's log is rate-limited per topic and kind, and the
+summary's warnings quote the first refusal of each."""
+
+ACCEPTED = "accepted"
+REFUSED = "refused"
+"""``<topic>/accepted`` (the target as the controller follows it: the same type, stamped with the time of
+the first state that follows it, once per change) and ``<topic>/refused`` (diagnostic_msgs/DiagnosticStatus:
+why, its kind and the count so far, one per refused target): what the recorder keeps and the report draws."""
+REFUSED_KIND_KEY = "kind"
+REFUSED_COUNT_KEY = "refused"
+"""The ``values`` keys of a ``<topic>/refused`` DiagnosticStatus: the refusal's kind, and how many targets of
+that topic the controller has refused so far (the last one recorded is the total)."""
+
+
+def echo_topic(topic: str, verdict: str) -> str:
+    """Where the controller says what it made of a target of ``topic``: ``<topic>/accepted`` or ``/refused``."""
+    return f"{topic}/{verdict}"
+
+
+QUOTED_NAME_LENGTH = 40
+"""[characters] of a refused name quoted in a refusal (a hostile name can be megabytes long)."""
+
+
+def quoted(name: str) -> str:
+    """``name`` as a refusal quotes it: repr'd, cut to QUOTED_NAME_LENGTH characters with its length said."""
+    if len(name) <= QUOTED_NAME_LENGTH:
+        return repr(name)
+    return f"{name[:QUOTED_NAME_LENGTH]!r}... ({len(name)} characters)"
+
+
+@dataclass(frozen=True)
+class TargetLimits:
+    """What one target message may carry and when a path may lie (``max_horizon`` [s] after now)."""
+
+    max_poses: int = 10000  # max_message_elements
+    max_name_length: int = 256  # [characters] max_name_length
+    max_horizon: float = 3600.0  # [s] targets.max_horizon
 
 
 @dataclass(frozen=True)
@@ -55,17 +117,20 @@ def check_point(what: str, point: Sequence[float], frame_id: str, axes: Sequence
     than world, a non-finite coordinate, or out of the frame's reach along the task's ``axes``
     (``checks.frame_reach``: the reach check the controller does before a run)."""
     if frame_id != "world":
-        raise TargetError(f"{what} refused: frame {frame_id!r}, not 'world' (no TF here: give it in world)")
+        raise TargetError(
+            f"{what} refused: frame {quoted(frame_id)}, not 'world' (no TF here: give it in world)", "frame"
+        )
     p = np.asarray(point, dtype=float)
     if p.shape != (3,) or not np.isfinite(p).all():
-        raise TargetError(f"{what} refused: not finite ({p.tolist()})")
+        raise TargetError(f"{what} refused: not finite ({p.tolist()})", "not finite")
     if reach is not None:
         distance = float(np.linalg.norm((p - reach.anchor)[list(axes)]))
         if distance > reach.radius + 1e-9:
             names = ", ".join("xyz"[a] for a in axes)
             raise TargetError(
                 f"{what} refused: out of reach, [{', '.join(f'{v:.3g}' for v in p)}] is {distance:.3f} m from "
-                f"{reach.joint} along {names}, but the frame is never more than {reach.radius:.3f} m from it"
+                f"{reach.joint} along {names}, but the frame is never more than {reach.radius:.3f} m from it",
+                "out of reach",
             )
     return p
 
@@ -74,9 +139,9 @@ def path_goal(times: Sequence[float], points: Sequence[Vector]) -> Goal:
     """A path's goal, refusing an empty one or stamps that go back in time."""
     t = np.asarray(times, dtype=float)
     if t.size == 0:
-        raise TargetError("an empty path")
+        raise TargetError("an empty path", "empty")
     if not np.isfinite(t).all() or np.any(np.diff(t) < 0.0):
-        raise TargetError("the poses' stamps must be finite and non-decreasing")
+        raise TargetError("the poses' stamps must be finite and non-decreasing", "stamps out of order")
     return Goal(t, np.asarray(points, dtype=float).reshape(-1, 3))
 
 
@@ -134,36 +199,87 @@ class TaskSpec:
 class TaskTargets:
     """The targets of every task (0 the hand, 1 + j brace j) and the references that lead to them.
 
-    ``set_goal`` takes a checked goal (TargetError otherwise); ``references`` advances each retargeted
-    task's reference to t. A task's reference starts, at the first update after its first goal, from
-    the task's configured path at that instant (``path_at``): no jump in position or velocity."""
+    ``point`` and ``path`` check a target and set it as its task's goal (TargetError otherwise; None
+    when it equals the current goal: no change); ``references`` advances each retargeted task's
+    reference to t. A task's reference starts, at the first update after its first goal, from the
+    task's configured path at that instant (``path_at``): no jump in position or velocity."""
 
-    def __init__(self, tasks: Sequence[TaskSpec], max_velocity: float, max_acceleration: float) -> None:
+    def __init__(
+        self,
+        tasks: Sequence[TaskSpec],
+        max_velocity: float,
+        max_acceleration: float,
+        limits: TargetLimits = TargetLimits(),
+    ) -> None:
         self.tasks = list(tasks)
         self.max_velocity = max_velocity
         self.max_acceleration = max_acceleration
+        self.limits = limits
         self.goals: dict[int, Goal] = {}
         self.references: dict[int, Reference] = {}
 
-    def point(self, task: int, point: Sequence[float], frame_id: str) -> Goal:
+    def point(self, task: int, point: Sequence[float], frame_id: str) -> Goal | None:
         """A point to move to and hold (``hand_target``, ``brace_target/<contact>``), checked."""
         spec = self.tasks[task]
+        self.check_size(spec.what, 1, len(frame_id))
         p = check_point(spec.what, point, frame_id, spec.axes, spec.reach)
-        goal = Goal(np.zeros(1), p.reshape(1, 3))
-        self.goals[task] = goal
-        return goal
+        return self._set(task, Goal(np.zeros(1), p.reshape(1, 3)))
 
-    def path(self, task: int, times: Sequence[float], points: Sequence[Sequence[float]], frames: Sequence[str]) -> Goal:
-        """A timed path (``hand_path``: each pose's stamp [s] the time to be there), every point checked."""
+    def check_size(self, what: str, poses: int, frame_id_length: int) -> None:
+        """TargetError unless a message of ``poses`` poses whose longest frame name has
+        ``frame_id_length`` characters is within the limits: asked before any per-pose work."""
+        limits = self.limits
+        if poses > limits.max_poses:
+            raise TargetError(
+                f"{what} refused: {poses} poses, more than max_message_elements = {limits.max_poses}", "too many poses"
+            )
+        if frame_id_length > limits.max_name_length:
+            message = f"{what} refused: a frame name of {frame_id_length} characters, more than max_name_length"
+            raise TargetError(f"{message} = {limits.max_name_length}", "name too long")
+
+    def path(
+        self,
+        task: int,
+        times: Sequence[float],
+        points: Sequence[Sequence[float]],
+        frames: Sequence[str],
+        now: float,
+        what: str = "hand_path",
+    ) -> Goal | None:
+        """A timed path (``hand_path``: each pose's stamp [s] the time to be there), checked against
+        ``now`` [s] (the time of the state it would be followed from), every point checked."""
         spec = self.tasks[task]
+        self.check_size(what, len(points), max((len(f) for f in frames), default=0))
         checked = [
-            check_point(f"{spec.what} pose {k}", p, f, spec.axes, spec.reach)
+            check_point(f"{what} pose {k}", p, f, spec.axes, spec.reach)
             for k, (p, f) in enumerate(zip(points, frames, strict=True))
         ]
         try:
             goal = path_goal(times, checked)
         except TargetError as exc:
-            raise TargetError(f"{spec.what} refused: {exc}") from None
+            raise TargetError(f"{what} refused: {exc}", exc.kind) from None
+        last, horizon = float(goal.times[-1]), self.limits.max_horizon
+        if last < now:
+            raise TargetError(
+                f"{what} refused: entirely in the past (its last pose at {last:.6g} s, now {now:.6g} s)", "in the past"
+            )
+        if last > now + horizon:
+            raise TargetError(
+                f"{what} refused: its last pose at {last:.6g} s is more than targets.max_horizon = {horizon:g} s "
+                f"after now ({now:.6g} s; a wall-clock stamp for a sim-time controller?)",
+                "too far ahead",
+            )
+        return self._set(task, goal)
+
+    def _set(self, task: int, goal: Goal) -> Goal | None:
+        """The task's goal from now on; None if it is that already (no change)."""
+        current = self.goals.get(task)
+        if (
+            current is not None
+            and np.array_equal(current.times, goal.times)
+            and np.array_equal(current.points, goal.points)
+        ):
+            return None
         self.goals[task] = goal
         return goal
 

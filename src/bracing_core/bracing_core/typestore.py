@@ -34,6 +34,7 @@ RUN_STATUS = "bracing_msgs/msg/RunStatus"
 RECORD_BATCH = "bracing_msgs/msg/RecordBatch"
 POINT_STAMPED = "geometry_msgs/msg/PointStamped"
 PATH = "nav_msgs/msg/Path"
+DIAGNOSTIC_STATUS = "diagnostic_msgs/msg/DiagnosticStatus"
 
 
 def bracing_msgs_dir() -> Path:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import struct
 from typing import Any
 
 from rclpy.serialization import deserialize_message
@@ -35,3 +36,22 @@ def _deserialize(data: bytes, msg_type: type) -> Any:
         return deserialize_message(data, msg_type)
     except Exception as exc:  # rclpy raises its RMWError (and others) for bytes it cannot read
         raise wire.DecodeError(str(exc).split(", at /")[0]) from None
+
+
+def path_sizes(data: bytes) -> tuple[int, int] | None:
+    """(characters of its header's frame_id, poses) of a nav_msgs/Path taken raw, read from its first
+    bytes without touching a pose; None for an encapsulation this does not read (plain CDR only).
+
+    Raises ``wire.DecodeError`` for bytes too short to hold them."""
+    if len(data) < 4 or data[0] != 0 or data[1] not in (0, 1):  # CDR_BE, CDR_LE
+        return None
+    order = "<" if data[1] == 1 else ">"
+    try:
+        # encapsulation (4), stamp sec + nanosec (8), then frame_id: its length (NUL included) and bytes;
+        # the pose count is 4-aligned (relative to the encapsulation's end: the same, it is 4 bytes)
+        (length,) = struct.unpack_from(order + "I", data, 12)
+        at = 16 + length
+        (poses,) = struct.unpack_from(order + "I", data, at + (-at % 4))
+    except struct.error:
+        raise wire.DecodeError(f"{len(data)} bytes: too short for a nav_msgs/Path") from None
+    return max(length - 1, 0), poses
