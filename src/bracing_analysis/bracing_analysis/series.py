@@ -108,6 +108,10 @@ class BagSeries:
     brace_task_axes: dict[str, list[str]] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)  # what the nodes warned about (run_status), in time order
     targets: list[TargetSent] = field(default_factory=list)  # sent while it ran, in time order
+    # The controller's commands (rows: answers; columns: motor_names) [V, N m or N] and each joint's |command|
+    # saturation (0: none); empty where not recorded (summary.json's saturation_fraction is then null).
+    command: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+    command_limit: dict[str, float] = field(default_factory=dict)
 
 
 def scenario_name(series: BagSeries) -> str:

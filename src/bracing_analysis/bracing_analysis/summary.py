@@ -42,6 +42,7 @@ SUMMARY_EXTRA_KEYS = (
     "warnings",
     "motor_temperature_max_c",
     "motor_temperature_max_c_by_joint",
+    "saturation_fraction",
 )
 """summary.json's keys after SUMMARY_KEYS (added later: tools that read SUMMARY_KEYS by position keep working)."""
 
@@ -176,7 +177,19 @@ def compute_summary(
     out["input_mode"] = series.input_mode
     out["bracing"] = bool(braced) if series.t.size else None
     out["warnings"] = list(dict.fromkeys([*warnings, *data_warnings(series), *series.warnings]))
+    out["saturation_fraction"] = saturation_fraction(series)
     return out
+
+
+def saturation_fraction(series: BagSeries) -> dict[str, float] | None:
+    """Per joint, the fraction of the controller's commands at or beyond its saturation (|command| >= limit;
+    0 for a joint without one); None where no joint has a limit or no command or limit was recorded."""
+    limits = np.array([series.command_limit.get(name, 0.0) for name in series.motor_names], dtype=float)
+    command = series.command
+    if not np.any(limits > 0.0) or command.shape[0] == 0 or command.shape[1] != limits.size:
+        return None
+    at_limit = (np.abs(command) >= limits) & (limits > 0.0)
+    return {name: float(np.mean(at_limit[:, j])) for j, name in enumerate(series.motor_names)}
 
 
 def data_warnings(series: BagSeries) -> list[str]:

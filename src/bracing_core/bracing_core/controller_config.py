@@ -19,6 +19,7 @@ class HandTaskConfig:
     kp: tuple[float, ...]
     kd: tuple[float, ...]
     trajectory: TrajectoryConfig
+    ki: tuple[float, ...] = ()  # one per hand axis; empty: no integral action
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,7 @@ class ControllerConfig:
     max_message_elements: int = 10000  # the most names, values or poses a subscribed message may carry
     max_name_length: int = 256  # [characters] the longest name a subscribed message may carry
     record_batch: int = 0  # answers per bracing_msgs/RecordBatch to the recorder; 0: off
+    gains: str = "stiffness"  # | acceleration: task gains times the task-space inertia (units 1/s^2, 1/s, 1/s^3)
 
     @property
     def task_dimension(self) -> int:
@@ -63,7 +65,9 @@ class ControllerConfig:
         p = len(shared.braced_contacts)
         axes = axes_indices("hand.axes", values["hand.axes"])
         trajectory = trajectory_from_values("hand.trajectory.", values.values, values["hand.trajectory.point"])
-        hand = HandTaskConfig(values["hand.frame"], axes, values["hand.kp"], values["hand.kd"], trajectory)
+        hand = HandTaskConfig(
+            values["hand.frame"], axes, values["hand.kp"], values["hand.kd"], trajectory, tuple(values["hand.ki"])
+        )
         voltage_gain = values["voltage_gain"]
         if any(k <= 0.0 for k in voltage_gain):
             raise ConfigError(f"voltage_gain: K_V must be positive definite, got {list(voltage_gain)}")
@@ -90,6 +94,7 @@ class ControllerConfig:
             record_batch=values["record_batch"],
             max_message_elements=values["max_message_elements"],
             max_name_length=values["max_name_length"],
+            gains=values["gains"],
         )
         check_effort_forward(config)
         if config.task_dimension > n - p:

@@ -50,10 +50,23 @@ def axis_gains(axes: tuple[int, ...], gains: tuple[float, ...]) -> Vector:
 
 
 def task(
-    frame: str, axes: tuple[int, ...], kp: tuple[float, ...], kd: tuple[float, ...], path: TrajectoryConfig
+    frame: str,
+    axes: tuple[int, ...],
+    kp: tuple[float, ...],
+    kd: tuple[float, ...],
+    path: TrajectoryConfig,
+    ki: tuple[float, ...] = (),
 ) -> engine.Task:
-    """A PD task as the engine takes it: gains per world axis, the configured axes, the path."""
-    return engine.Task(frame, axis_gains(axes, kp), axis_gains(axes, kd), path.path(), list(axes))
+    """A PID task as the engine takes it: gains per world axis, the configured axes, the path (``ki`` empty:
+    no integral)."""
+    return engine.Task(
+        frame, axis_gains(axes, kp), axis_gains(axes, kd), path.path(), list(axes), integral_gains(axes, ki)
+    )
+
+
+def integral_gains(axes: tuple[int, ...], ki: tuple[float, ...]) -> Vector:
+    """A task's integral gains per world axis (zeros where none is configured)."""
+    return axis_gains(axes, ki) if ki else np.zeros(3)
 
 
 class DecoupledController:
@@ -76,7 +89,7 @@ class DecoupledController:
             engine.BracedContact(
                 engine_contact(contact),
                 c.desired_normal_force,
-                task(c.frame, c.brace_axes, c.kp, c.kd, c.trajectory),
+                task(c.frame, c.brace_axes, c.kp, c.kd, c.trajectory, c.ki),
                 c.feedback_kp,
                 c.feedback_ki,
             )
@@ -86,23 +99,25 @@ class DecoupledController:
             engine_robot(robot),
             engine_drive(robot, self.plant.motors, self.mode),
             self.plant.to_model_order(config.voltage_gain),
-            task(hand.frame, hand.axes, hand.kp, hand.kd, hand.trajectory),
+            task(hand.frame, hand.axes, hand.kp, hand.kd, hand.trajectory, hand.ki),
             braces,
             config.gravity_compensation,
             config.damping_lambda,
             config.null_space == "dynamically_consistent",
             float(self.contact_set.slip_epsilon),
             config.thermal_compensation,
-            self.plant.motors.voltage_limit if self.mode.value == "voltage" else self.plant.motors.torque_limit,
+            self.plant.command_limit,
             config.back_emf_compensation,
             self.plant.to_model_order(config.posture_kp),
             self.plant.to_model_order(config.posture_kd),
             self.plant.to_model_order(config.posture_rest) if config.posture_rest else np.zeros(0),
+            config.gains == "acceleration",
         )
 
     def retune(self, config: ControllerConfig) -> None:
-        """Take the tunable values of ``config`` (``schema`` ``tunable``: task gains, desired normal
-        forces, K_V) from the next update on. Everything else must be as this controller's."""
+        """Take the tunable values of ``config`` (``schema`` ``tunable``: task gains, integral gains included,
+        desired normal forces, K_V) from the next update on. Everything else must be as this controller's. An
+        integral gain set from zero starts its integral at zero; one set to zero forgets it."""
         self.config = config
         contacts = config.shared.braced_contacts
         self.desired_normal_force[:] = [c.desired_normal_force for c in contacts]
@@ -113,10 +128,12 @@ class DecoupledController:
             [axis_gains(c.brace_axes, c.kd) for c in contacts],
             self.desired_normal_force,
             self.plant.to_model_order(config.voltage_gain),
+            integral_gains(config.hand.axes, config.hand.ki),
+            [integral_gains(c.brace_axes, c.ki) for c in contacts],
         )
 
     def reset(self) -> None:
-        """Forget the targets taken from the first state (a new run starts)."""
+        """Forget the targets taken from the first state and the integrals (a new run starts)."""
         self.engine.reset()
 
     def check_task_rank(self, q0: Vector) -> None:

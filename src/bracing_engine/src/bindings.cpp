@@ -319,9 +319,11 @@ void bind_tasks(nb::module_& m) {
   nb::class_<Task>(m, "Task").def(
       "__init__",
       [](Task* task, std::string frame, const Vector3& kp, const Vector3& kd, const Path& path,
-         std::vector<int> axes) { new (task) Task{std::move(frame), kp, kd, path, std::move(axes)}; },
-      "frame"_a, "kp"_a, "kd"_a, "path"_a, "axes"_a,
-      "gains per world axis (zero: an axis the task does not use); the world axes it uses");
+         std::vector<int> axes, const Vector3& ki) {
+        new (task) Task{std::move(frame), kp, kd, path, std::move(axes), ki};
+      },
+      "frame"_a, "kp"_a, "kd"_a, "path"_a, "axes"_a, "ki"_a = Vector3(Vector3::Zero()),
+      "gains per world axis (zero: an axis the task does not use); the world axes it uses; integral gains");
 
   nb::class_<BracedContact>(m, "BracedContact")
       .def(
@@ -350,17 +352,18 @@ void bind_law(nb::module_& m) {
           "__init__",
           [](Law* law, const Robot& robot, const Drive& drive, Vector voltage_gain, const Task& hand,
              std::vector<BracedContact> braces, bool gravity_compensation, double damping_lambda,
-             bool dynamically_consistent, double slip_epsilon, bool thermal_compensation, double command_limit,
-             bool back_emf_compensation, Vector posture_kp, Vector posture_kd, Vector posture_rest) {
+             bool dynamically_consistent, double slip_epsilon, bool thermal_compensation, Vector command_limit,
+             bool back_emf_compensation, Vector posture_kp, Vector posture_kd, Vector posture_rest,
+             bool acceleration_gains) {
             new (law) Law(LawSpec{robot, drive, std::move(voltage_gain), hand, std::move(braces), gravity_compensation,
                                   damping_lambda, dynamically_consistent, slip_epsilon, thermal_compensation,
-                                  command_limit, back_emf_compensation, std::move(posture_kp), std::move(posture_kd),
-                                  std::move(posture_rest)});
+                                  std::move(command_limit), back_emf_compensation, std::move(posture_kp),
+                                  std::move(posture_kd), std::move(posture_rest), acceleration_gains});
           },
           "robot"_a, "drive"_a, "voltage_gain"_a, "hand"_a, "braces"_a, "gravity_compensation"_a, "damping_lambda"_a,
-          "dynamically_consistent"_a, "slip_epsilon"_a, "thermal_compensation"_a = false, "command_limit"_a = 0.0,
-          "back_emf_compensation"_a = false, "posture_kp"_a = Vector(), "posture_kd"_a = Vector(),
-          "posture_rest"_a = Vector())
+          "dynamically_consistent"_a, "slip_epsilon"_a, "thermal_compensation"_a = false,
+          "command_limit"_a = Vector(), "back_emf_compensation"_a = false, "posture_kp"_a = Vector(),
+          "posture_kd"_a = Vector(), "posture_rest"_a = Vector(), "acceleration_gains"_a = false)
       .def(
           "update",
           [](Law& law, double t, const Vector& q, const Vector& dq) {
@@ -389,7 +392,9 @@ void bind_law(nb::module_& m) {
            "the rank at q0 of the rows [(task: 0 the hand, 1 + j brace j; world axis)] within the motions the "
            "braced contacts allow")
       .def("retune", &Law::retune, "hand_kp"_a, "hand_kd"_a, "brace_kp"_a, "brace_kd"_a, "desired_normal_force"_a,
-           "voltage_gain"_a)
+           "voltage_gain"_a, "hand_ki"_a, "brace_ki"_a)
+      .def("task_integral", &Law::task_integral, "task"_a,
+           "task k's integral of its position error [m s] (0 the hand, 1 + j brace j), world axes")
       .def_prop_ro("desired_normal_force", &Law::desired_normal_force);
 }
 
@@ -473,19 +478,20 @@ void bind_rollout(nb::module_& m) {
   m.def(
       "rollout",
       [](Law& law, Simulator& simulator, long steps, double t0, double divergence_speed, double divergence_residual,
-         Sensors* sensors) {
+         Sensors* sensors, const Vector& command_limit) {
         Recording r;
         {
           nb::gil_scoped_release release;
-          rollout(law, simulator, steps, t0, divergence_speed, divergence_residual, r, sensors);
+          rollout(law, simulator, steps, t0, divergence_speed, divergence_residual, r, sensors, command_limit);
         }
         keep_filled_rows(r);
         return r;
       },
       "law"_a, "simulator"_a, "steps"_a, "t0"_a, "divergence_speed"_a, "divergence_residual"_a,
-      "sensors"_a.none() = nb::none(),
+      "sensors"_a.none() = nb::none(), "command_limit"_a = Vector(),
       "The closed loop for `steps` steps (and the final state's answer), all in C++: the Recording, stopped "
-      "early where a step is refused (step_status) or the node would refuse it (refusal).");
+      "early where a step is refused (step_status) or the node would refuse it (refusal); each applied |command| "
+      "saturated to command_limit (per joint, 0: none), the recording keeping the law's.");
 }
 
 }  // namespace
