@@ -28,9 +28,9 @@ ELBOW_KI = [100.0]  # [N/(m s)]
 SEGMENT_S = 1.0  # the waypoint's move [s]
 
 
-def hand_start(config: str = "paper_4link.yaml", shared: dict[str, Any] | None = None) -> np.ndarray:
+def hand_start(config: str = "paper_4link.yaml", sim: dict[str, Any] | None = None) -> np.ndarray:
     """The hand's first position (the law's kinematics at the start posture) [m]."""
-    scenario = rollout.build_scenario(CONFIG_DIR / config, {**TORQUE, **(shared or {})}, ctl=HELD)
+    scenario = rollout.build_scenario(CONFIG_DIR / config, TORQUE, sim=sim, ctl=HELD)
     assert scenario.controller is not None
     return np.asarray(scenario.controller.engine.task_positions(scenario.sim.position)[0])
 
@@ -301,3 +301,100 @@ def test_the_recommended_gains_track_the_circle(config: str, shared: dict[str, A
     recording = run_recorded(rollout.build_scenario(CONFIG_DIR / config, shared, ctl=ctl), 10.0)
     error = np.linalg.norm(recording.hand_actual - recording.hand_desired, axis=1)[recording.time >= 2.0]
     assert float(np.sqrt(np.mean(error**2))) < bound_m
+
+
+# -- the hand's orientation ------------------------------------------------------------------------------------
+def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rodrigues' rotation matrix about the unit ``axis`` by ``angle`` [rad]."""
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * k @ k
+
+
+def _quaternion(rotation: np.ndarray) -> list[float]:
+    """[x, y, z, w] of a rotation matrix (w > 0 here: rotations under pi)."""
+    w = 0.5 * np.sqrt(1.0 + np.trace(rotation))
+    x = (rotation[2, 1] - rotation[1, 2]) / (4.0 * w)
+    y = (rotation[0, 2] - rotation[2, 0]) / (4.0 * w)
+    z = (rotation[1, 0] - rotation[0, 1]) / (4.0 * w)
+    return [float(x), float(y), float(z), float(w)]
+
+
+PAPER = "paper_4link.yaml"
+# the paper arm turning its hand as well: three task rows (hand y, z; a turn about x) fill its n - p = 3, so the
+# elbow keeps its force but no position task of its own
+NO_BRACE_TASK = {"contacts.elbow.brace_axes": [], "contacts.elbow.kp": [], "contacts.elbow.kd": []}
+# and from a posture where it can: at the paper's (q3 = 0.8 pi) the hand's y, z and turn have rank 2 beside the
+# elbow's contact; 0.1 rad less at the third joint (the elbow, on links 1-2, stays where it was) has rank 3
+TURNABLE = {"initial_position": [-0.2 * np.pi, -0.6 * np.pi, 0.8 * np.pi - 0.1, -0.4 * np.pi]}
+
+
+def _hand_rotation(config: str, sim: dict[str, Any] | None = None) -> np.ndarray:
+    scenario = rollout.build_scenario(CONFIG_DIR / config, TORQUE, sim=sim, ctl=HELD)
+    robot = scenario.plant.robot
+    robot.compute(scenario.sim.position, scenario.sim.velocity)
+    return np.asarray(robot.data.oMf[robot.frame_id("hand")].rotation)
+
+
+def test_the_orientation_error_is_the_log_map_in_world_axes() -> None:
+    """A target turned from the hand's start by 0.4 rad about a tilted world axis u: the law's error at the start
+    is 0.4 u (log(R_d R^T) = log(Rot(u, 0.4))), hand-computed with Rodrigues' formula."""
+    start = _hand_rotation(PAPER, TURNABLE)
+    axis = np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0)
+    target = _rotation(axis, 0.4) @ start
+    ctl = {**HELD, **NO_BRACE_TASK, "hand.orientation.axes": ["x"], "hand.orientation.kp": [1.0]}
+    ctl |= {"hand.orientation.kd": [0.1], "hand.orientation.target": _quaternion(target)}
+    scenario = build_scenario(TORQUE, sim=TURNABLE, ctl=ctl)
+    assert scenario.controller is not None
+    answer = scenario.controller.update(0.0, scenario.sim.position, scenario.sim.velocity)
+    assert answer.orientation_error == pytest.approx(0.4 * axis, abs=1e-12)
+
+
+def test_a_held_orientation_is_reached_with_the_position() -> None:
+    """The paper arm, torque input, acceleration gains (hand and turn at 1 Hz, poles at -w), its hand held 1 cm
+    away and turned 0.05 rad about x (the plane's normal): within 1 mm and 5 mrad from 3 s on; summary.json's
+    hand_orientation_rms_error_rad (null without the task)."""
+    start = hand_start(PAPER, TURNABLE)
+    turn = _rotation(np.array([1.0, 0.0, 0.0]), 0.05) @ _hand_rotation(PAPER, TURNABLE)
+    w = 2.0 * np.pi * 1.0
+    ctl = {
+        **HELD,
+        **ACCELERATION,
+        **NO_BRACE_TASK,
+        "hand.kp": [3 * w**2] * 2,
+        "hand.kd": [3 * w] * 2,
+        "hand.ki": [w**3] * 2,
+        "hand.trajectory.type": "hold",
+        "hand.trajectory.point": (start + np.array([0.0, 0.01, 0.0])).tolist(),
+        "hand.orientation.axes": ["x"],
+        "hand.orientation.kp": [3 * w**2],
+        "hand.orientation.kd": [3 * w],
+        "hand.orientation.ki": [w**3],
+        "hand.orientation.target": _quaternion(turn),
+    }
+    recording = run_recorded(build_scenario(TORQUE, sim=TURNABLE, ctl=ctl), 5.0)
+    late = recording.time >= 3.0
+    assert np.linalg.norm(recording.hand_actual - recording.hand_desired, axis=1)[late].max() < 1e-3
+    assert np.linalg.norm(recording.hand_orientation_error, axis=1)[late].max() < 5e-3
+    assert np.linalg.norm(recording.hand_orientation_error[0]) == pytest.approx(0.05, abs=1e-12)
+    summary = summarize(recording, 1.0)
+    assert 0.0 < summary["hand_orientation_rms_error_rad"] < 5e-3
+    plain = summarize(run_recorded(build_scenario(TORQUE, ctl=HELD), 2.1), 1.0)
+    assert plain["hand_orientation_rms_error_rad"] is None
+
+
+def test_the_rank_check_counts_the_orientation_rows() -> None:
+    """A planar arm cannot turn its hand about y; orientation rows count in the task dimension; a quaternion
+    of norm 0 is refused."""
+    turn = {**NO_BRACE_TASK, "hand.orientation.kp": [1.0], "hand.orientation.kd": [0.1]}
+    with pytest.raises(ConfigError, match=r"hand\.orientation\.axes: frame 'hand' cannot rotate about y at the start"):
+        build_scenario(TORQUE, ctl={**turn, "hand.orientation.axes": ["y"]})
+    brace = {"hand.orientation.axes": ["x"], "hand.orientation.kp": [1.0], "hand.orientation.kd": [0.1]}
+    with pytest.raises(ConfigError, match=r"task dimension 4 \(hand 2 \+ orientation 1 \+ brace 1\) exceeds n - p"):
+        build_scenario(TORQUE, ctl=brace)
+    with pytest.raises(ConfigError, match=r"\[x\] with hand\.axes \[y, z\] needs 3 free directions .* the arm has 2"):
+        build_scenario(TORQUE, ctl={**turn, "hand.orientation.axes": ["x"]})  # the paper's posture
+    assert build_scenario(TORQUE, sim=TURNABLE, ctl={**turn, "hand.orientation.axes": ["x"]}).controller is not None
+    with pytest.raises(ConfigError, match=r"hand\.orientation\.target: a quaternion"):
+        build_scenario(
+            TORQUE, sim=TURNABLE, ctl={**turn, "hand.orientation.axes": ["x"], "hand.orientation.target": [0.0] * 4}
+        )

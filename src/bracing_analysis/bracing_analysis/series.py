@@ -111,6 +111,8 @@ class BagSeries:
     # The controller's commands (rows: answers; columns: motor_names) [V, N m or N] and each joint's |command|
     # saturation (0: none); empty where not recorded (summary.json's saturation_fraction is then null).
     command: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+    # the hand frame's orientation error per controller_state row [rad], world axes; (t, 0) or empty without the task
+    hand_orientation_error: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
     command_limit: dict[str, float] = field(default_factory=dict)
 
 

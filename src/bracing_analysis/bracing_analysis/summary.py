@@ -43,6 +43,7 @@ SUMMARY_EXTRA_KEYS = (
     "motor_temperature_max_c",
     "motor_temperature_max_c_by_joint",
     "saturation_fraction",
+    "hand_orientation_rms_error_rad",
 )
 """summary.json's keys after SUMMARY_KEYS (added later: tools that read SUMMARY_KEYS by position keep working)."""
 
@@ -141,6 +142,9 @@ def compute_summary(
         err = np.linalg.norm(series.hand_desired[mask] - series.hand_actual[mask], axis=1)
         out["hand_rms_error_m"] = _rms(err)
         out["hand_max_error_m"] = float(np.max(err))
+        turn = series.hand_orientation_error
+        if turn.shape[1] and turn.shape[0] == mask.size:  # |log(R_d R^T)|: the angle to the target orientation
+            out["hand_orientation_rms_error_rad"] = _rms(np.linalg.norm(turn[mask], axis=1))
 
     contacts = list(series.contacts.values())
     braced = [c for c in contacts if _braced(c)]

@@ -145,6 +145,8 @@ class Recording:
     joint_names: tuple[str, ...]  # model order (the columns of position, ...)
     input_mode: str
     warnings: tuple[str, ...] = ()  # the simulator's warnings about the run (watch.RunWatch), as its node says them
+    # the hand frame's orientation error log(R_d R^T) [rad], world axes; (N+1, 0) without an orientation task
+    hand_orientation_error: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     # each joint's |command| saturation (model order, 0: none) the simulator applied to ``command``
     command_limit: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
@@ -219,4 +221,5 @@ def run_recorded(scenario: Scenario, duration: float, divergence_checks: bool = 
         input_mode=scenario.plant.mode.value,
         warnings=tuple(warnings),
         command_limit=scenario.plant.command_limit,
+        hand_orientation_error=out.orientation_error if controller.config.orientation.axes else np.zeros((rows, 0)),
     )

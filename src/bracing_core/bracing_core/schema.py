@@ -828,6 +828,51 @@ CONTROLLER: tuple[Param, ...] = (
         tunable=True,
     ),
     Param(
+        "hand.orientation.axes",
+        Kind.STRING_ARRAY,
+        [],
+        "world axes (x, y, z) about which the hand frame's orientation is held (the error: the rotation's log map "
+        "in world axes); empty = no orientation task",
+    ),
+    Param(
+        "hand.orientation.kp",
+        Kind.DOUBLE_ARRAY,
+        [],
+        "orientation task stiffness, one per orientation axis (gains: acceleration: 1/s^2)",
+        "N m/rad",
+        length="hand.orientation.axes",
+        minimum=0.0,
+    ),
+    Param(
+        "hand.orientation.kd",
+        Kind.DOUBLE_ARRAY,
+        [],
+        "orientation task damping, one per orientation axis (gains: acceleration: 1/s)",
+        "N m s/rad",
+        length="hand.orientation.axes",
+        minimum=0.0,
+    ),
+    Param(
+        "hand.orientation.ki",
+        Kind.DOUBLE_ARRAY,
+        [],
+        "orientation task integral gain, one per orientation axis (anti-windup as hand.ki; gains: acceleration: "
+        "1/s^3); empty = none",
+        "N m/(rad s)",
+        length="hand.orientation.axes",
+        may_be_empty=True,
+        minimum=0.0,
+    ),
+    Param(
+        "hand.orientation.target",
+        Kind.DOUBLE_ARRAY,
+        [],
+        "the hand frame's orientation held, a quaternion [x, y, z, w] in world (normalised); empty = its first "
+        "measured orientation",
+        length=4,
+        may_be_empty=True,
+    ),
+    Param(
         "gains",
         Kind.STRING,
         "stiffness",
@@ -1013,6 +1058,7 @@ def _joint_hint(values: Sequence[str], read: Mapping[str, Any]) -> str:
 _HINTS: dict[str, Callable[[Sequence[str], Mapping[str, Any]], str]] = {
     "robot.joint_names": _joint_hint,
     "hand.axes": lambda values, read: f"one per hand axis {list(values)}",
+    "hand.orientation.axes": lambda values, read: f"one per orientation axis {list(values)}",
     "brace_axes": lambda values, read: f"one per brace axis {list(values)}",
     "robot.locked_joints": lambda values, read: f"one per locked joint {list(values)}",
 }

@@ -13,6 +13,7 @@
 #include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/algorithm/kinematics.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
+#include <pinocchio/spatial/explog.hpp>
 
 #include <Eigen/Dense>
 #include <Eigen/SVD>
@@ -98,6 +99,11 @@ struct Law::Impl {
   bool saturated = false;
   // per task (0 the hand, 1 + j brace j): the integral of its position error [m s] on the axes with a ki
   std::vector<Vector3> task_integral;
+  // the hand frame's orientation task: its target R_d (the first measured orientation unless configured) and
+  // the integral of its error [rad s]
+  bool orientation = false;
+  Matrix3 orientation_target = Matrix3::Identity();
+  Vector3 orientation_integral = Vector3::Zero();
   Vector temperature;  // the windings' measured temperatures [degC]
   Vector rest;         // the posture task's rest position (the first measured one unless configured)
   bool posture = false;
@@ -147,6 +153,13 @@ struct Law::Impl {
   void stack_acceleration(int k, const Vector3& acceleration, Vector& accelerations) const;
   // F = kp e + kd de + ki * integral e of task k; its integral advanced by dt first (held while saturated).
   Vector3 task_output(int k, const Vector3& error, const Vector3& velocity_error, double dt);
+  // kp e + kd de + ki z, z += e dt first on the axes with a ki (held while saturated; zeroed where ki is 0).
+  Vector3 pid(const Vector3& kp, const Vector3& kd, const Vector3& ki, const Vector3& error,
+              const Vector3& velocity_error, double dt, Vector3& integral) const;
+  // The hand frame's orientation task (its angular rows): the moment into l, or with acceleration gains its
+  // rows and angular accelerations (less dJ dq) appended; the error into `out`.
+  void orientation_torque(const Vector& dq, double dt, LawOutput& out, Vector& l, Eigen::MatrixXd& task_rows,
+                          Vector& task_accelerations);
   // J_s^T Lambda (a - J_s ddq): the input that gives the stacked task rows J_s the accelerations a (less their
   // drift dJ dq, already in a), Lambda^-1 = J_s X J_s^T with X = d ddq / d l, ddq the arm's acceleration without it.
   Vector task_space_torque(const Eigen::MatrixXd& task_rows, const Vector& accelerations,
@@ -194,6 +207,9 @@ Law::Law(const LawSpec& spec) : impl_(std::make_unique<Impl>()) {
     if (v->size() != 0 && v->size() != n) throw std::invalid_argument("law: one posture value per joint expected");
   if (spec.command_limit.size() != 0 && spec.command_limit.size() != n)
     throw std::invalid_argument("law: one command limit per joint expected");
+  for (int axis : spec.orientation.axes)
+    if (axis < 0 || axis > 2) throw std::invalid_argument("law: orientation axes are world axes 0-2");
+  m.orientation = !spec.orientation.axes.empty();
   m.posture = (spec.posture_kp.size() && spec.posture_kp.cwiseAbs().maxCoeff() > 0.0) ||
               (spec.posture_kd.size() && spec.posture_kd.cwiseAbs().maxCoeff() > 0.0);
   reset();
@@ -217,6 +233,7 @@ void Law::reset() {
   m.measured.assign(m.spec.braces.size(), false);
   m.integral.setZero(braces());
   m.task_integral.assign(m.frames.size(), Vector3::Zero());
+  m.orientation_integral.setZero();
   m.saturated = false;
   m.temperature = Vector::Constant(m.model.nv, m.spec.drive.ambient);
 }
@@ -293,6 +310,10 @@ double Law::null_space_speed(const Vector& dq) {
   for (std::size_t k = 0; k < m.frames.size(); ++k) {  // the Jacobians of the last update's pass
     m.jacobian = translational_jacobian(m.model, m.data, m.frames[k], m.frame_jacobian);
     m.stack(rows, k ? m.spec.braces[k - 1].task.axes : m.spec.hand.axes);
+    if (k == 0 && m.orientation) {  // the hand's angular rows
+      m.jacobian = m.frame_jacobian.bottomRows<3>();
+      m.stack(rows, m.spec.orientation.axes);
+    }
   }
   return bracing_engine::null_space_speed(rows, dq);
 }
@@ -316,6 +337,10 @@ Eigen::MatrixXd Law::allowed_task_rows(const Vector& q0, const std::vector<std::
   auto translational = [&](std::size_t k) {
     return Eigen::MatrixXd(translational_jacobian(m.model, m.data, m.frames[k], m.frame_jacobian));
   };
+  auto task_row = [&](std::size_t k, int axis) -> Eigen::RowVectorXd {  // axis 3-5: the angular rows
+    translational_jacobian(m.model, m.data, m.frames[k], m.frame_jacobian);
+    return m.frame_jacobian.row(axis);
+  };
   // the motions the braced contacts allow: I - J_c^+ J_c
   Eigen::MatrixXd allowed = Eigen::MatrixXd::Identity(n, n);
   if (p) {
@@ -333,8 +358,9 @@ Eigen::MatrixXd Law::allowed_task_rows(const Vector& q0, const std::vector<std::
   Eigen::MatrixXd out(static_cast<Eigen::Index>(rows.size()), n);
   for (std::size_t i = 0; i < rows.size(); ++i) {
     const auto [task, axis] = rows[i];
-    if (task < 0 || task > p || axis < 0 || axis > 2) throw std::invalid_argument("allowed_task_rows: no such row");
-    out.row(static_cast<Eigen::Index>(i)) = translational(static_cast<std::size_t>(task)).row(axis) * allowed;
+    if (task < 0 || task > p || axis < 0 || axis > (task == 0 ? 5 : 2))
+      throw std::invalid_argument("allowed_task_rows: no such row");
+    out.row(static_cast<Eigen::Index>(i)) = task_row(static_cast<std::size_t>(task), axis) * allowed;
   }
   return out;
 }
@@ -354,6 +380,8 @@ std::pair<int, int> Law::first_rankless_axis(const Vector& q0) {
   for (std::size_t k = 0; k < m.frames.size(); ++k) {
     const Task& task = k ? m.spec.braces[k - 1].task : m.spec.hand;
     for (int axis : task.axes) configured.emplace_back(static_cast<int>(k), axis);
+    if (k == 0 && m.orientation)
+      for (int axis : m.spec.orientation.axes) configured.emplace_back(0, 3 + axis);
   }
   const Eigen::MatrixXd rows = allowed_task_rows(q0, configured);
   for (Eigen::Index i = 0; i < rows.rows(); ++i)
@@ -402,27 +430,62 @@ double Law::Impl::advance_clock(double t, const Vector& q) {
     started = true;
     last_time = t;
     rest = spec.posture_rest.size() ? spec.posture_rest : q;
+    orientation_target = spec.orientation.has_target
+                             ? spec.orientation.target
+                             : Matrix3(pin::updateFramePlacement(model, data, frames[0]).rotation());
   }
   const double dt = t - last_time;  // since the last update (force feedback's integral)
   last_time = t;
   return dt;
 }
 
-Vector3 Law::Impl::task_output(int k, const Vector3& error, const Vector3& velocity_error, double dt) {
-  const Task& task = k ? spec.braces[k - 1].task : spec.hand;
-  const Vector3 force = task.kp.cwiseProduct(error) + task.kd.cwiseProduct(velocity_error);
-  if (task.ki.isZero()) {  // the paper's PD, bit for bit; an integral whose gain went to zero is forgotten
-    task_integral[k].setZero();
+Vector3 Law::Impl::pid(const Vector3& kp, const Vector3& kd, const Vector3& ki, const Vector3& error,
+                       const Vector3& velocity_error, double dt, Vector3& integral) const {
+  const Vector3 force = kp.cwiseProduct(error) + kd.cwiseProduct(velocity_error);
+  if (ki.isZero()) {  // the paper's PD, bit for bit; an integral whose gain went to zero is forgotten
+    integral.setZero();
     return force;
   }
-  Vector3& integral = task_integral[k];
   for (int axis = 0; axis < 3; ++axis) {
-    if (task.ki[axis] == 0.0)
+    if (ki[axis] == 0.0)
       integral[axis] = 0.0;
     else if (!saturated)  // conditional integration: the anti-windup
       integral[axis] += error[axis] * dt;
   }
-  return force + task.ki.cwiseProduct(integral);
+  return force + ki.cwiseProduct(integral);
+}
+
+Vector3 Law::Impl::task_output(int k, const Vector3& error, const Vector3& velocity_error, double dt) {
+  const Task& task = k ? spec.braces[k - 1].task : spec.hand;
+  return pid(task.kp, task.kd, task.ki, error, velocity_error, dt, task_integral[k]);
+}
+
+void Law::Impl::orientation_torque(const Vector& dq, double dt, LawOutput& out, Vector& l, Eigen::MatrixXd& task_rows,
+                                   Vector& task_accelerations) {
+  const OrientationTask& task = spec.orientation;
+  frame_jacobian.setZero();
+  pin::getFrameJacobian(model, data, frames[0], pin::LOCAL_WORLD_ALIGNED, frame_jacobian);
+  const Eigen::MatrixXd angular = frame_jacobian.bottomRows<3>();  // w = angular dq, world axes
+  const Matrix3 rotation = pin::updateFramePlacement(model, data, frames[0]).rotation();
+  out.orientation_error = pin::log3(Matrix3(orientation_target * rotation.transpose()));  // world axes
+  const Vector3 moment =
+      pid(task.kp, task.kd, task.ki, out.orientation_error, -(angular * dq), dt, orientation_integral);
+  if (spec.acceleration_gains) {
+    const Vector3 drift =  // dJ dq: the frame's angular acceleration at ddq = 0
+        pin::getFrameClassicalAcceleration(model, data, frames[0], pin::LOCAL_WORLD_ALIGNED).angular();
+    for (int axis : task.axes) {
+      task_accelerations.conservativeResize(task_accelerations.size() + 1);
+      task_accelerations[task_accelerations.size() - 1] = moment[axis] - drift[axis];
+    }
+  } else {
+    l.noalias() += angular.transpose() * moment;
+  }
+  if (spec.acceleration_gains || posture) {
+    for (int axis : task.axes) {
+      task_rows.conservativeResize(task_rows.rows() + 1, Eigen::NoChange);
+      task_rows.row(task_rows.rows() - 1) = angular.row(axis);
+    }
+  }
 }
 
 void Law::Impl::stack_acceleration(int k, const Vector3& acceleration, Vector& accelerations) const {
@@ -685,6 +748,8 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
   Eigen::MatrixXd task_rows(0, n);  // the configured axes' Jacobian rows, stacked (the posture's null space)
   Vector task_accelerations(0);     // acceleration gains: the tasks' PID accelerations along those rows
   Vector l = m.task_torque(t, dt, dq, out, brace_jacobians, task_rows, task_accelerations);
+  out.orientation_error.setZero();
+  if (m.orientation) m.orientation_torque(dq, dt, out, l, task_rows, task_accelerations);
   if (s.gravity_compensation) l += pin::computeGeneralizedGravity(m.model, m.data, q);
   if (m.posture) l += m.posture_torque(task_rows, q, dq);
   out.damped = false;

@@ -48,6 +48,7 @@ void size_recording(long rows, int n, int p, int b, bool sensed, Recording& out)
   for (RowMatrix* a : {&out.contact_position, &out.slip_velocity}) a->setZero(rows, 3 * p);
   for (RowMatrix* a : {&out.normal_force, &out.friction_force, &out.residual, &out.active}) a->setZero(rows, p);
   out.force_command.setZero(rows, b);
+  out.orientation_error.setZero(rows, 3);
   out.rows = 0;
   out.step_status = StepStatus::ok;
   out.refusal = Refusal::none;
@@ -85,6 +86,7 @@ void record_state(long k, double t, const Vector& y, const LawOutput& command, R
   out.brace_desired.row(k) = Eigen::Map<const Vector>(command.brace_desired.data(), 3 * b).transpose();
   out.brace_actual.row(k) = Eigen::Map<const Vector>(command.brace_actual.data(), 3 * b).transpose();
   if (b) out.force_command.row(k) = command.force_command.transpose();
+  out.orientation_error.row(k) = command.orientation_error.transpose();
   const Eigen::Index energies = kStates * n;
   out.energy.row(k) << y[energies + energy::consumed], y[energies + energy::net], y[energies + energy::copper_loss];
 }

@@ -39,6 +39,16 @@ struct Task {
   Vector3 ki = Vector3::Zero();  // integral gains (zero: no integral on that axis)
 };
 
+// The hand frame's orientation held about world axes (not in the paper): the error is the rotation's log map
+// in world axes, e = log(R_d R^T), and the moment kp e - kd w + ki * integral of e dt (w the frame's angular
+// velocity, world axes); with acceleration gains an angular acceleration, as Task's.
+struct OrientationTask {
+  std::vector<int> axes;  // world axes it uses (empty: no orientation task)
+  Vector3 kp = Vector3::Zero(), kd = Vector3::Zero(), ki = Vector3::Zero();  // per world axis
+  bool has_target = false;
+  Matrix3 target = Matrix3::Identity();  // R_d; without a target: the hand frame's first measured orientation
+};
+
 struct BracedContact {
   Contact contact;  // frame, surface, mu (the law's contact model: f_t = mu f_n along the slip)
   double desired_normal_force = 0.0;  // f_nd [N]
@@ -75,6 +85,7 @@ struct LawSpec {
   // accelerations and Lambda^-1 = J_s Mc^-1 N J_s^T (J_s the configured axes' rows, N the law's null-space
   // projector, with the sticking contacts' reactions), so each task axis accelerates as its gains say on any arm.
   bool acceleration_gains = false;
+  OrientationTask orientation;  // the hand frame's (no axes: none)
 };
 
 struct LawOutput {
@@ -82,6 +93,7 @@ struct LawOutput {
   Vector3 hand_desired, hand_actual;
   RowMatrix brace_desired, brace_actual;  // b x 3
   Vector force_command;                   // b: f_cmd [N], the force the law asked for (f_nd without feedback)
+  Vector3 orientation_error = Vector3::Zero();  // log(R_d R^T) of the hand frame [rad], world axes (an orientation task)
   bool damped = false;
 };
 
@@ -126,11 +138,12 @@ class Law {
               const Vector3& hand_ki, const std::vector<Vector3>& brace_ki);
   // Task k's integral of the position error [m s] (0 the hand, 1 + j brace j), world axes.
   Vector3 task_integral(int task) const;
-  // The first configured task axis (hand axes, then each brace's) that adds no rank to the stacked
-  // task Jacobian at q0 within the motions the braced contacts allow (the null space of J_c):
-  // (task index: 0 the hand, 1 + j brace j; world axis), or (-1, -1) if every axis adds one.
+  // The first configured task axis (hand axes, the hand's orientation axes, then each brace's) that adds no
+  // rank to the stacked task Jacobian at q0 within the motions the braced contacts allow (the null space of
+  // J_c): (task index: 0 the hand, 1 + j brace j; world axis 0-2, or 3-5 for the hand's rotation about
+  // axis - 3), or (-1, -1) if every axis adds one.
   std::pair<int, int> first_rankless_axis(const Vector& q0);
-  // The rank of those rows (task index, world axis: any of 0-2, configured or not) at q0 within the
+  // The rank of those rows (task index, axis as above: any, configured or not) at q0 within the
   // motions the braced contacts allow, with first_rankless_axis's tolerance: how many free directions
   // they have (what its messages count).
   int task_rank(const Vector& q0, const std::vector<std::pair<int, int>>& rows);
@@ -139,8 +152,8 @@ class Law {
   Vector desired_normal_force() const;
 
  private:
-  // Rows (task index: 0 the hand, 1 + j brace j; world axis) of the translational task Jacobians at q0,
-  // times I - J_c^+ J_c (the motions the braced contacts allow).
+  // Rows (task index: 0 the hand, 1 + j brace j; world axis, 3-5 the hand's angular rows) of the task
+  // Jacobians at q0, times I - J_c^+ J_c (the motions the braced contacts allow).
   Eigen::MatrixXd allowed_task_rows(const Vector& q0, const std::vector<std::pair<int, int>>& rows);
   struct Impl;
   std::unique_ptr<Impl> impl_;
@@ -162,6 +175,7 @@ struct Recording {
   // then hold the true positions (the law's kinematics at the true q), not the law's measured ones.
   RowMatrix measured_position, measured_velocity;
   RowMatrix force_command;                       // (N+1) x b: f_cmd of each brace [N]
+  RowMatrix orientation_error;                   // (N+1) x 3: the hand frame's log(R_d R^T) [rad] (zeros without the task)
   long rows = 0;                                 // rows filled
   StepStatus step_status = StepStatus::ok;       // not ok: the step from the last row's state was not taken
   Refusal refusal = Refusal::none;               // not none: the node refuses the step after the last row
