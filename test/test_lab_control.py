@@ -5,18 +5,22 @@ of steps at its limit in summary.json. In process (bracing_core.rollout: the eng
 from __future__ import annotations
 
 import itertools
+import json
 import xml.etree.ElementTree as ET
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 from conftest import CONFIG_DIR, build_scenario
+from ros_helpers import PAPER_YAML, pair_argv, run
 
 from bracing_core import rollout
 from bracing_core.params import ConfigError
 from bracing_core.rollout import Recording, run_recorded
-from bracing_experiments.experiment import summarize
+from bracing_experiments.experiment import execute_run, summarize
+from bracing_experiments.sweep import build_specs
 
 TORQUE = {"input_mode": "torque"}
 HELD = {"gravity_compensation": True}
@@ -319,6 +323,23 @@ def test_the_recommended_gains_track_the_circle(config: str, shared: dict[str, A
     recording = run_recorded(rollout.build_scenario(CONFIG_DIR / config, shared, ctl=ctl), 10.0)
     error = np.linalg.norm(recording.hand_actual - recording.hand_desired, axis=1)[recording.time >= 2.0]
     assert float(np.sqrt(np.mean(error**2))) < bound_m
+
+
+def test_the_pairs_saturation_fraction_is_the_in_process_runs(tmp_path: Path) -> None:
+    """Over DDS: bracing-pair with a torque limit per joint; the recorder notes the limits in the bag, the
+    report reads the bag's motor_command, and summary.json's saturation_fraction is the in-process run's."""
+    sets = ("input_mode=torque", "gravity_compensation=true", "motors.torque_limit=[20.0, 5.0, 2.0, 1.0]")
+    out = tmp_path / "limits"
+    done = run(
+        pair_argv(out, "--duration", "0.3", "--no-animation", *(a for s in sets for a in ("--set", s))), timeout=300
+    )
+    assert done.returncode == 0, done.stdout + done.stderr
+    pair = json.loads((out / "summary.json").read_text())["saturation_fraction"]
+    (spec,) = build_specs(PAPER_YAML, list(sets), zipped=False, duration=0.3)
+    in_process = execute_run(spec).summary
+    assert in_process is not None
+    assert pair == in_process["saturation_fraction"]
+    assert 0.0 < min(pair.values()) and max(pair.values()) < 1.0
 
 
 # -- the hand's orientation ------------------------------------------------------------------------------------

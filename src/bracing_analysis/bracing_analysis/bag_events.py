@@ -15,7 +15,7 @@ from rosbags.highlevel import AnyReader
 
 from bracing_analysis.series import BagSeries, ParameterChange, TargetSent
 from bracing_analysis.surfaces import SCENARIO_KEY, SURFACES_KEY, from_json
-from bracing_analysis.truth import TASK_AXES_KEY, task_axes_from_json
+from bracing_analysis.truth import COMMAND_LIMIT_KEY, TASK_AXES_KEY, command_limits_from_json, task_axes_from_json
 from bracing_core.typestore import MOTOR_COMMAND, PARAMETER_EVENT, PATH, POINT_STAMPED, RUN_STATUS, motor_command_modes
 
 _VALUE_FIELDS = {
@@ -112,6 +112,7 @@ def describe(series: BagSeries, path: Path) -> None:
     series.scenario = data.get(SCENARIO_KEY) or None
     series.surfaces = from_json(data.get(SURFACES_KEY, "{}"))
     series.hand_axes, series.brace_task_axes = task_axes_from_json(data.get(TASK_AXES_KEY, "{}"))
+    series.command_limit = command_limits_from_json(data.get(COMMAND_LIMIT_KEY, "{}"))
 
 
 def _targets(reader: AnyReader) -> list[_Target]:

@@ -595,6 +595,20 @@ def _write_task_metadata(writer: Writer, params_files: list[str], ground_truth: 
         writer.set_custom_data(truth.TASK_FRAMES_KEY, json.dumps(frames, sort_keys=True))
     if axes:
         writer.set_custom_data(truth.TASK_AXES_KEY, json.dumps(axes, sort_keys=True))
+    limits = _command_limits(params_files)
+    if any(limit > 0.0 for limit in limits.values()):  # summary.json's saturation_fraction
+        writer.set_custom_data(truth.COMMAND_LIMIT_KEY, json.dumps(limits, sort_keys=True))
+
+
+def _command_limits(files: Sequence[str]) -> dict[str, float]:
+    """The motors' |command| saturation by joint (truth.read_command_limits); none if unreadable."""
+    if not files:
+        return {}
+    try:
+        return truth.read_command_limits(files)
+    except (ValueError, OSError) as exc:  # ConfigError, an unreadable URDF: the nodes will say so too
+        print(f"recorder: warning: no command limits from {', '.join(files)}: {exc}", file=sys.stderr, flush=True)
+        return {}
 
 
 def _record_until_stopped(node: Recorder, args: argparse.Namespace, stop: StopRequest, contacts: list[str]) -> bool:
