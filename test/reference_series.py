@@ -26,7 +26,7 @@ from bracing_analysis.bag import (
 )
 from bracing_analysis.bag_events import RunEvents, read_events, stamp_ns, xyz
 from bracing_analysis.series import BagSeries, ContactSeries
-from bracing_core.typestore import CONTACTS, CONTROLLER_STATE, JOINT_STATE, STRING, WRENCH_STAMPED
+from bracing_core.typestore import CONTACTS, CONTROLLER_STATE, JOINT_STATE, MOTOR_COMMAND, STRING, WRENCH_STAMPED
 
 _Xyz = tuple[float, ...]
 
@@ -52,6 +52,7 @@ class _Streams:
     ctrl: list[tuple[int, Any]] = field(default_factory=list)
     contacts: list[tuple[int, Any]] = field(default_factory=list)
     motor: list[tuple[int, Any]] = field(default_factory=list)
+    commands: list[tuple[int, Any]] = field(default_factory=list)
 
 
 def _read(path: Path) -> tuple[_Streams, RunEvents]:
@@ -75,12 +76,14 @@ def _read(path: Path) -> tuple[_Streams, RunEvents]:
                     streams.ctrl.append((stamp, msg))
                 elif conn.msgtype == CONTACTS:
                     streams.contacts.append((stamp, msg))
+                elif conn.msgtype == MOTOR_COMMAND:
+                    streams.commands.append((stamp, msg))
                 else:
                     streams.motor.append((stamp, msg))
     except Exception as exc:  # rosbags raises many kinds on a damaged bag
         msg = f"cannot read bag {path}: {exc}"
         raise BagReadError(msg) from exc
-    for messages in (streams.joint, streams.ctrl, streams.contacts, streams.motor):
+    for messages in (streams.joint, streams.ctrl, streams.contacts, streams.motor, streams.commands):
         messages.sort(key=lambda x: x[0])
     return streams, events
 
@@ -116,6 +119,10 @@ def _series(streams: _Streams) -> BagSeries:
             series.motor_temperature = np.array(
                 [row if len(row) == width else [math.nan] * width for row in temperatures], dtype=float
             )
+    if streams.commands:  # by motor_state's names, else the first command's
+        names = series.motor_names or [str(n) for n in streams.commands[0][1].name]
+        values = [dict(zip(m.name, m.value, strict=False)) for _, m in streams.commands]
+        series.command = np.array([[v.get(n, math.nan) for n in names] for v in values], dtype=float)
     _contacts(series, streams, sec)
     return series
 

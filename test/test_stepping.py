@@ -295,7 +295,7 @@ def test_free_run_steps_with_the_latest_motor_command_and_keeps_no_other() -> No
 
 def test_joint_commands_in_voltage_mode_go_through_the_drive_which_a_refused_step_does_not_advance() -> None:
     core, _, _, _ = stepper(stepping="real_time", command_source="joint_commands")
-    assert core.drive is not None and core.effort_limit == 0.0
+    assert core.drive is not None and not np.any(core.effort_limit)
     core.start_real_time()
     core.offer_effort(np.array([0.5, 0.0, 0.0, 0.0]), False)
     core.tick()
@@ -312,7 +312,7 @@ def test_joint_commands_in_voltage_mode_go_through_the_drive_which_a_refused_ste
 def test_joint_commands_saturate_efforts_to_the_torque_limit_in_torque_mode() -> None:
     shared = {"input_mode": "torque", "motors.torque_limit": 2.0}
     core, log, _, _ = stepper(shared, stepping="real_time", command_source="joint_commands")
-    assert core.drive is None and core.effort_limit == 2.0
+    assert core.drive is None and core.effort_limit.tolist() == [2.0] * 4
     core.offer_effort(np.full(4, 2.0), True)
     assert log.reports == [("warning", "saturated", "/robot_joint_commands saturated to +/-2.0")]
 

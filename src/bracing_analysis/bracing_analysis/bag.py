@@ -36,6 +36,7 @@ from bracing_core.typestore import (
     CONTACTS,
     CONTROLLER_STATE,
     JOINT_STATE,
+    MOTOR_COMMAND,
     MOTOR_STATE,
     STRING,
     WRENCH_STAMPED,
@@ -133,7 +134,7 @@ def wanted_connections(reader: AnyReader, counts: dict[str, int]) -> list[Any]:
         for c in reader.connections
         if not is_ground_truth(c.topic)  # read_ground_truth's, after the rest
         and (
-            c.msgtype in (JOINT_STATE, CONTACTS, CONTROLLER_STATE, MOTOR_STATE)
+            c.msgtype in (JOINT_STATE, CONTACTS, CONTROLLER_STATE, MOTOR_STATE, MOTOR_COMMAND)
             or (c.msgtype == WRENCH_STAMPED and WRENCH_TOPIC in c.topic)
             or (c.msgtype == STRING and c.topic.endswith(DESCRIPTION_TOPIC))
         )
@@ -211,16 +212,16 @@ def _per_contact(messages: _Messages, sequence: str, name: str) -> dict[str, _Ro
     return dict(sorted(rows.items(), key=lambda item: item[1].first))
 
 
-def _joint_positions(joint: _Messages, names: list[str]) -> FloatArray:
-    """by_name per layout: every JointState's positions in the order of ``names``."""
+def _joint_positions(joint: _Messages, names: list[str], field: str = "position") -> FloatArray:
+    """by_name per layout: every JointState's positions (or MotorCommand's ``value``s) in the order of ``names``."""
     blocks: list[tuple[Layout, list[str | None]]] = []
     for layout in joint.layouts:
-        count, own = layout.lengths["position"], layout.texts("name")
+        count, own = layout.lengths[field], layout.texts("name")
         if own == names:
-            paths: list[str | None] = [f"position[{j}]" for j in range(count)]
+            paths: list[str | None] = [f"{field}[{j}]" for j in range(count)]
         else:  # as by_name's dict: zip stops at the shorter list, a repeated name's last position wins
             where = dict(zip(own, range(count), strict=False))
-            paths = [f"position[{where[n]}]" if n in where else None for n in names]
+            paths = [f"{field}[{where[n]}]" if n in where else None for n in names]
         blocks.append((layout, paths))
     widths = {len(paths) for _, paths in blocks}
     if len(widths) > 1:  # what np.array raises on ragged rows (the per-message reading)
@@ -231,6 +232,18 @@ def _joint_positions(joint: _Messages, names: list[str]) -> FloatArray:
         for k, path in enumerate(paths):
             out[layout.index, k] = math.nan if path is None else layout.values[path]
     return out[joint.order]
+
+
+def _commands(command: _Messages, names: list[str]) -> FloatArray:
+    """Every motor_command's values by ``names`` (motor_state's: the model's order; none: the first command's);
+    empty where there are none or they disagree in length (saturation_fraction is then null)."""
+    if not command.count:
+        return np.zeros((0, 0))
+    first = next(layout for layout in command.layouts if np.any(layout.index == command.order[0]))
+    try:
+        return _joint_positions(command, names or first.texts("name"), "value")
+    except ValueError:
+        return np.zeros((0, 0))
 
 
 def _motor_temperatures(motor: _Messages) -> tuple[list[str], FloatArray]:
@@ -261,7 +274,8 @@ def _match(rows: _Rows, crow: _Rows) -> tuple[NDArray[np.int64], FloatArray]:
 def _read_streams(path: Path) -> BagSeries:
     """The bag's streams (each kind of message decoded column-wise, ``columns.decode``) and events."""
     counts: dict[str, int] = {}
-    raws: dict[_Kind, list[bytes]] = {(t, ""): [] for t in (JOINT_STATE, CONTROLLER_STATE, CONTACTS, MOTOR_STATE)}
+    kinds = (JOINT_STATE, CONTROLLER_STATE, CONTACTS, MOTOR_STATE, MOTOR_COMMAND)
+    raws: dict[_Kind, list[bytes]] = {(t, ""): [] for t in kinds}
     try:
         with AnyReader([path]) as reader:
             wanted = wanted_connections(reader, counts)
@@ -311,6 +325,7 @@ def _series(messages: dict[_Kind, _Messages], texts: list[Layout], counts: dict[
         series.energy_net = motor.by_stamp("energy_net").astype(float)
         series.copper_loss = motor.by_stamp("copper_loss").astype(float)
         series.motor_names, series.motor_temperature = _motor_temperatures(motor)
+    series.command = _commands(messages[(MOTOR_COMMAND, "")], series.motor_names)
     sim_rows = _per_contact(sim, "contacts", "contacts[{j}].name")
     ctrl_rows = _per_contact(ctrl, "contact_name", "contact_name[{j}]")
     for name in list(sim_rows) + [n for n in ctrl_rows if n not in sim_rows]:

@@ -15,7 +15,13 @@ from rosbags.highlevel import AnyReader
 
 from bracing_analysis.series import BagSeries, ParameterChange, TargetRefused, TargetSent
 from bracing_analysis.surfaces import SCENARIO_KEY, SURFACES_KEY, from_json
-from bracing_analysis.truth import INPUT_MODE_KEY, TASK_AXES_KEY, task_axes_from_json
+from bracing_analysis.truth import (
+    COMMAND_LIMIT_KEY,
+    INPUT_MODE_KEY,
+    TASK_AXES_KEY,
+    command_limits_from_json,
+    task_axes_from_json,
+)
 from bracing_core.targets import ACCEPTED, REFUSED, REFUSED_COUNT_KEY, REFUSED_KIND_KEY
 from bracing_core.typestore import (
     DIAGNOSTIC_STATUS,
@@ -135,6 +141,7 @@ def describe(series: BagSeries, path: Path) -> None:
     series.scenario = data.get(SCENARIO_KEY) or None
     series.surfaces = from_json(data.get(SURFACES_KEY, "{}"))
     series.hand_axes, series.brace_task_axes = task_axes_from_json(data.get(TASK_AXES_KEY, "{}"))
+    series.command_limit = command_limits_from_json(data.get(COMMAND_LIMIT_KEY, "{}"))
 
 
 def _target_task(topic: str) -> str | None:

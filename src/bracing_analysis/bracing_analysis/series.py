@@ -121,6 +121,12 @@ class BagSeries:
     warnings: list[str] = field(default_factory=list)  # what the nodes warned about (run_status), in time order
     targets: list[TargetSent] = field(default_factory=list)  # accepted while it ran (older bags: sent), in time order
     targets_refused: list[TargetRefused] = field(default_factory=list)  # refused while it ran, in time order
+    # The controller's commands (rows: answers; columns: motor_names) [V, N m or N] and each joint's |command|
+    # saturation (0: none); empty where not recorded (summary.json's saturation_fraction is then null).
+    command: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+    # the hand frame's orientation error per controller_state row [rad], world axes; (t, 0) or empty without the task
+    hand_orientation_error: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+    command_limit: dict[str, float] = field(default_factory=dict)
 
 
 def scenario_name(series: BagSeries) -> str:

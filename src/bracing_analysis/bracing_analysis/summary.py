@@ -44,6 +44,8 @@ SUMMARY_EXTRA_KEYS = (
     "motor_temperature_max_c",
     "motor_temperature_max_c_by_joint",
     "targets_refused",
+    "saturation_fraction",
+    "hand_orientation_rms_error_rad",
 )
 """summary.json's keys after SUMMARY_KEYS (added later: tools that read SUMMARY_KEYS by position keep working)."""
 
@@ -142,6 +144,9 @@ def compute_summary(
         err = np.linalg.norm(series.hand_desired[mask] - series.hand_actual[mask], axis=1)
         out["hand_rms_error_m"] = _rms(err)
         out["hand_max_error_m"] = float(np.max(err))
+        turn = series.hand_orientation_error
+        if turn.shape[1] and turn.shape[0] == mask.size:  # |log(R_d R^T)|: the angle to the target orientation
+            out["hand_orientation_rms_error_rad"] = _rms(np.linalg.norm(turn[mask], axis=1))
 
     contacts = list(series.contacts.values())
     braced = [c for c in contacts if _braced(c)]
@@ -180,6 +185,7 @@ def compute_summary(
     out["targets_refused"] = targets_refused(series)
     refusals = refusal_warnings(series)
     out["warnings"] = list(dict.fromkeys([*warnings, *data_warnings(series), *series.warnings, *refusals]))
+    out["saturation_fraction"] = saturation_fraction(series)
     return out
 
 
@@ -205,6 +211,17 @@ def refusal_warnings(series: BagSeries) -> list[str]:
         f"{why} (at t = {t:.3f} s; {counts[key]} {key[0]} target(s) refused so: summary.json's targets_refused)"
         for key, (t, why) in first.items()
     ]
+
+
+def saturation_fraction(series: BagSeries) -> dict[str, float] | None:
+    """Per joint, the fraction of the controller's commands at or beyond its saturation (|command| >= limit;
+    0 for a joint without one); None where no joint has a limit or no command or limit was recorded."""
+    limits = np.array([series.command_limit.get(name, 0.0) for name in series.motor_names], dtype=float)
+    command = series.command
+    if not np.any(limits > 0.0) or command.shape[0] == 0 or command.shape[1] != limits.size:
+        return None
+    at_limit = (np.abs(command) >= limits) & (limits > 0.0)
+    return {name: float(np.mean(at_limit[:, j])) for j, name in enumerate(series.motor_names)}
 
 
 def data_warnings(series: BagSeries) -> list[str]:

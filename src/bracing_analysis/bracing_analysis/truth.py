@@ -13,6 +13,7 @@ the tasks' world axes (``TASK_AXES_KEY``: the report draws the hand and each bra
 from __future__ import annotations
 
 import json
+import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -20,7 +21,8 @@ from typing import Any
 import numpy as np
 
 from bracing_core import schema
-from bracing_core.overrides import CONTROLLER
+from bracing_core.overrides import CONTROLLER, SIMULATOR
+from bracing_core.params import ConfigError, resolve_file
 from bracing_core.rcl_yaml import load_params_file
 from bracing_core.sensing import GROUND_TRUTH
 
@@ -32,6 +34,9 @@ TASK_AXES_KEY = "bracing.task_axes"
 INPUT_MODE_KEY = "bracing.input_mode"
 """Bag metadata (custom_data): the controller's ``input_mode`` (voltage | torque), the report's for a bag
 without motor_command (a ros2_control robot's: the controller's efforts go to its forward controller)."""
+COMMAND_LIMIT_KEY = "bracing.command_limit"
+"""Bag metadata (custom_data): JSON {joint: |command| saturation} of the simulator's motors (0: none; only
+written where a joint has one): summary.json's saturation_fraction."""
 HAND = "hand"
 AXES = ("x", "y", "z")
 
@@ -54,6 +59,44 @@ def read_task_notes(files: Sequence[str | Path], ground_truth: bool) -> dict[str
     notes[TASK_AXES_KEY] = json.dumps(axes, sort_keys=True)
     notes[INPUT_MODE_KEY] = str(values["input_mode"])
     return notes
+
+
+def read_command_limits(files: Sequence[str | Path]) -> dict[str, float]:
+    """Each joint's |command| saturation in the simulator's input mode (motors.voltage_limit [V], or
+    motors.torque_limit / the URDF's <limit effort> [N m or N]; 0: none) from these params files (later files
+    win), by joint name. Raises ConfigError."""
+    params: dict[str, Any] = {}
+    for file in files:
+        params.update(load_params_file(file, SIMULATOR))
+    values = schema.read("simulator", params)
+    names = list(values["robot.joint_names"])
+    if values["input_mode"] == "voltage":
+        return dict.fromkeys(names, float(values["motors.voltage_limit"]))
+    if values["motors.torque_limit_from_urdf"]:
+        urdf = resolve_file(values["robot.urdf"], "robot.urdf", [Path(f).resolve().parent for f in files])
+        try:
+            joints = list(ET.parse(urdf).getroot().iter("joint"))
+            efforts = {
+                joint.get("name"): float(element.get("effort", 0.0))
+                for joint in joints
+                if (element := joint.find("limit")) is not None
+            }
+        except (ET.ParseError, ValueError) as exc:
+            raise ConfigError(f"robot.urdf: no <limit effort> to read from {urdf}: {exc}") from None
+        return {name: max(efforts.get(name, 0.0), 0.0) for name in names}
+    given = list(values["motors.torque_limit"])
+    return dict(zip(names, given * len(names) if len(given) == 1 else given, strict=False))
+
+
+def command_limits_from_json(text: str) -> dict[str, float]:
+    """``COMMAND_LIMIT_KEY``'s document; {} where it is not {joint: number}."""
+    try:
+        document = json.loads(text)
+    except ValueError:
+        return {}
+    if not isinstance(document, dict):
+        return {}
+    return {str(k): float(v) for k, v in document.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
 
 
 def task_axes_from_json(text: str) -> tuple[list[str] | None, dict[str, list[str]]]:

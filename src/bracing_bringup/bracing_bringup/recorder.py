@@ -54,6 +54,7 @@ seconds, at most ``--drain-timeout`` seconds) and the bag is closed cleanly.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import signal
@@ -515,7 +516,8 @@ def bag_notes(params_files: Sequence[str], scenario: str | None, ground_truth: b
     ``--params-file``, ``--scenario`` and ``--ground-truth``): what a bag recovered after its recorder died
     is given again (``bracing_analysis.bag_recovery``)."""
     scenario = scenario or (Path(params_files[0]).stem if params_files else None)
-    return {**_scene_notes(scenario, _scenario_surfaces(params_files)), **_task_notes(params_files, ground_truth)}
+    notes = {**_scene_notes(scenario, _scenario_surfaces(params_files)), **_task_notes(params_files, ground_truth)}
+    return {**notes, **_command_limit_notes(params_files)}
 
 
 def _parse(argv: Sequence[str]) -> argparse.Namespace:
@@ -612,8 +614,23 @@ def _open_writer(output: Path, scenario: str | None, shapes: Mapping[str, surfac
 
 def _write_task_metadata(writer: Writer, params_files: list[str], ground_truth: bool) -> None:
     """Read while the nodes start (custom_data is written when the bag closes): off the start's path."""
-    for key, value in _task_notes(params_files, ground_truth).items():
+    for key, value in {**_task_notes(params_files, ground_truth), **_command_limit_notes(params_files)}.items():
         writer.set_custom_data(key, value)
+
+
+def _command_limit_notes(files: Sequence[str]) -> dict[str, str]:
+    """The motors' |command| saturation by joint (truth.read_command_limits), where a joint has one, as the
+    bag's custom_data (summary.json's saturation_fraction); none if unreadable."""
+    if not files:
+        return {}
+    try:
+        limits = truth.read_command_limits(files)
+    except (ValueError, OSError) as exc:  # ConfigError, an unreadable URDF: the nodes will say so too
+        print(f"recorder: warning: no command limits from {', '.join(files)}: {exc}", file=sys.stderr, flush=True)
+        return {}
+    if not any(limit > 0.0 for limit in limits.values()):
+        return {}
+    return {truth.COMMAND_LIMIT_KEY: json.dumps(limits, sort_keys=True)}
 
 
 def _record_until_stopped(node: Recorder, args: argparse.Namespace, stop: StopRequest, contacts: list[str]) -> bool:

@@ -112,6 +112,7 @@ class ContactConfig:
     feedback_kp: float = 0.0  # force_feedback.kp (dimensionless); 0 0: the paper's feed-forward law
     feedback_ki: float = 0.0  # force_feedback.ki [1/s]
     feedback_topic: str = ""  # force_feedback.topic: a WrenchStamped in world axes; empty = contact_wrench/<name>
+    ki: tuple[float, ...] = ()  # one per brace axis; empty: no integral action
 
     @property
     def braced(self) -> bool:
@@ -157,6 +158,7 @@ class ContactConfig:
             feedback_kp=feedback[0] if desired is not None else 0.0,
             feedback_ki=feedback[1] if desired is not None else 0.0,
             feedback_topic=values["force_feedback.topic"] or f"contact_wrench/{name}",
+            ki=tuple(values["ki"] or ()) if desired is not None else (),
         )
 
     def contact(self, enforced: bool = True) -> Contact:
@@ -181,6 +183,7 @@ class SharedConfig:
     bracing: bool = True
     free_space: bool = False  # the surfaces only watched
     package_paths: tuple[str, ...] = ()  # robot.package_paths: where package://NAME/... meshes are looked up
+    torque_limit_from_urdf: bool = False  # motors.torque_limit_from_urdf: each joint's URDF <limit effort>
 
     @property
     def braced_contacts(self) -> tuple[ContactConfig, ...]:
@@ -195,7 +198,7 @@ class SharedConfig:
             motors = MotorParams(
                 **{f: np.array(values[f"motors.{f}"]) for f in MOTOR_FIELDS},
                 voltage_limit=values["motors.voltage_limit"],
-                torque_limit=values["motors.torque_limit"],
+                torque_limit=np.array(values["motors.torque_limit"], dtype=float),
                 thermal=values["motors.thermal"],
                 ambient_temperature=values["motors.ambient_temperature"],
                 temperature_coefficient=values["motors.temperature_coefficient"],
@@ -224,6 +227,7 @@ class SharedConfig:
             values["bracing"],
             values["free_space"],
             package_paths=tuple(values["robot.package_paths"]),
+            torque_limit_from_urdf=values["motors.torque_limit_from_urdf"],
         )
 
 
@@ -251,6 +255,12 @@ def joint_names_mismatch(actuated: Sequence[str], model: Sequence[str], listed: 
             f"{'it' if len(extra) == 1 else 'them'} to robot.joint_names with a value in every per-joint list"
         )
     return f"robot.joint_names {list(listed)} do not match the model's joints {list(model)}: {'; '.join(problems)}"
+
+
+def urdf_effort_limits(robot: RobotModel) -> Vector:
+    """Each joint's URDF <limit effort> [N m or N], model order; 0 (no limit) where the URDF gives none."""
+    effort = np.array(robot.model.effortLimit, dtype=float)
+    return np.where(np.isfinite(effort) & (effort < 1e300), np.maximum(effort, 0.0), 0.0)
 
 
 class Plant:
@@ -282,6 +292,8 @@ class Plant:
         self.config = config
         self.joint_names = self.robot.joint_names  # model order: the order of every message
         self.motors = config.motors.selected(self.order)
+        if config.torque_limit_from_urdf:
+            self.motors = dataclasses.replace(self.motors, torque_limit=urdf_effort_limits(self.robot))
         self._check_transmissions()
         self.mode = config.input_mode
         enforced = not config.free_space
@@ -342,6 +354,14 @@ class Plant:
     def thermal(self) -> bool:
         """The windings' temperatures are modelled (voltage input and motors.thermal)."""
         return thermal_applies(self.motors, self.mode)
+
+    @property
+    def command_limit(self) -> Vector:
+        """Each joint's |command| saturation in its input mode (model order; 0: none): motors.voltage_limit [V]
+        in voltage mode, motors.torque_limit (or the URDF's efforts) [N m or N] in torque mode."""
+        if self.mode is InputMode.VOLTAGE:
+            return np.full(self.robot.nv, self.motors.voltage_limit)
+        return np.array(self.motors.torque_limit, dtype=float)
 
     def to_model_order(self, values: Sequence[float]) -> np.ndarray:
         """Per-joint values in robot.joint_names order -> model order (locked joints dropped)."""

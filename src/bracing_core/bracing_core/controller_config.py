@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +20,36 @@ class HandTaskConfig:
     kp: tuple[float, ...]
     kd: tuple[float, ...]
     trajectory: TrajectoryConfig
+    ki: tuple[float, ...] = ()  # one per hand axis; empty: no integral action
+
+
+@dataclass(frozen=True)
+class OrientationConfig:
+    """hand.orientation.*: the hand frame's orientation held about world axes (no axes: none)."""
+
+    axes: tuple[int, ...] = ()
+    kp: tuple[float, ...] = ()
+    kd: tuple[float, ...] = ()
+    ki: tuple[float, ...] = ()  # empty: no integral
+    target: tuple[float, float, float, float] | None = None  # [x, y, z, w], normalised; None: the first measured
+
+    @classmethod
+    def from_values(cls, values: schema.Values) -> OrientationConfig:
+        axes = axes_indices("hand.orientation.axes", values["hand.orientation.axes"])
+        target = values["hand.orientation.target"]
+        quaternion = None
+        if target:
+            norm = math.sqrt(sum(v * v for v in target))
+            if not norm > 1e-9:
+                raise ConfigError(f"hand.orientation.target: a quaternion [x, y, z, w] of norm > 0, got {list(target)}")
+            quaternion = (target[0] / norm, target[1] / norm, target[2] / norm, target[3] / norm)
+        return cls(
+            axes,
+            tuple(values["hand.orientation.kp"]),
+            tuple(values["hand.orientation.kd"]),
+            tuple(values["hand.orientation.ki"]),
+            quaternion,
+        )
 
 
 @dataclass(frozen=True)
@@ -47,10 +78,13 @@ class ControllerConfig:
     max_message_elements: int = 10000  # the most names, values or poses a subscribed message may carry
     max_name_length: int = 256  # [characters] the longest name a subscribed message may carry
     record_batch: int = 0  # answers per bracing_msgs/RecordBatch to the recorder; 0: off
+    gains: str = "stiffness"  # | acceleration: task gains times the task-space inertia (units 1/s^2, 1/s, 1/s^3)
+    orientation: OrientationConfig = OrientationConfig()  # hand.orientation.*
 
     @property
     def task_dimension(self) -> int:
-        return len(self.hand.axes) + sum(len(c.brace_axes) for c in self.shared.braced_contacts)
+        braces = sum(len(c.brace_axes) for c in self.shared.braced_contacts)
+        return len(self.hand.axes) + len(self.orientation.axes) + braces
 
     @classmethod
     def from_params(cls, params: Params, search_dirs: Sequence[Path] = ()) -> ControllerConfig:
@@ -65,7 +99,9 @@ class ControllerConfig:
         p = len(shared.braced_contacts)
         axes = axes_indices("hand.axes", values["hand.axes"])
         trajectory = trajectory_from_values("hand.trajectory.", values.values, values["hand.trajectory.point"])
-        hand = HandTaskConfig(values["hand.frame"], axes, values["hand.kp"], values["hand.kd"], trajectory)
+        hand = HandTaskConfig(
+            values["hand.frame"], axes, values["hand.kp"], values["hand.kd"], trajectory, tuple(values["hand.ki"])
+        )
         voltage_gain = values["voltage_gain"]
         if any(k <= 0.0 for k in voltage_gain):
             raise ConfigError(f"voltage_gain: K_V must be positive definite, got {list(voltage_gain)}")
@@ -94,13 +130,18 @@ class ControllerConfig:
             record_batch=values["record_batch"],
             max_message_elements=values["max_message_elements"],
             max_name_length=values["max_name_length"],
+            gains=values["gains"],
+            orientation=OrientationConfig.from_values(values),
         )
         check_effort_forward(config)
         if config.task_dimension > n - p:
+            turn = len(config.orientation.axes)
+            parts = f"hand {len(axes)}" + (f" + orientation {turn}" if turn else "")
             raise ConfigError(
-                f"task dimension {config.task_dimension} (hand {len(axes)} + brace "
-                f"{config.task_dimension - len(axes)}) exceeds n - p = {n} - {p} = {n - p}: "
-                "the null space of B cannot hold them; remove hand.axes or contacts.<name>.brace_axes"
+                f"task dimension {config.task_dimension} ({parts} + brace {config.task_dimension - len(axes) - turn}) "
+                f"exceeds n - p = {n} - {p} = {n - p}: the null space of B cannot hold them; remove hand.axes"
+                + (", hand.orientation.axes" if turn else "")
+                + " or contacts.<name>.brace_axes"
             )
         return config
 

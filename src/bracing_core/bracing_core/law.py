@@ -17,11 +17,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import pinocchio as pin
 
 import bracing_engine as engine
 from bracing_core import schema
 from bracing_core.config import Plant
-from bracing_core.controller_config import ControllerConfig
+from bracing_core.controller_config import ControllerConfig, OrientationConfig
 from bracing_core.dynamics import engine_contact, engine_drive, engine_robot
 from bracing_core.params import ConfigError
 from bracing_core.trajectory import TrajectoryConfig
@@ -39,6 +40,7 @@ class ControlOutput:
     desired_normal_force: Vector  # (p,) [N]
     damped: bool  # True when B was near-singular and a damped inverse was used
     force_command: Vector = field(default_factory=lambda: np.zeros(0))  # (p,) f_cmd [N]: f_nd without feedback
+    orientation_error: Vector = field(default_factory=lambda: np.zeros(3))  # the hand's log(R_d R^T) [rad], world
 
 
 def axis_gains(axes: tuple[int, ...], gains: tuple[float, ...]) -> Vector:
@@ -50,10 +52,35 @@ def axis_gains(axes: tuple[int, ...], gains: tuple[float, ...]) -> Vector:
 
 
 def task(
-    frame: str, axes: tuple[int, ...], kp: tuple[float, ...], kd: tuple[float, ...], path: TrajectoryConfig
+    frame: str,
+    axes: tuple[int, ...],
+    kp: tuple[float, ...],
+    kd: tuple[float, ...],
+    path: TrajectoryConfig,
+    ki: tuple[float, ...] = (),
 ) -> engine.Task:
-    """A PD task as the engine takes it: gains per world axis, the configured axes, the path."""
-    return engine.Task(frame, axis_gains(axes, kp), axis_gains(axes, kd), path.path(), list(axes))
+    """A PID task as the engine takes it: gains per world axis, the configured axes, the path (``ki`` empty:
+    no integral)."""
+    return engine.Task(
+        frame, axis_gains(axes, kp), axis_gains(axes, kd), path.path(), list(axes), integral_gains(axes, ki)
+    )
+
+
+def orientation_task(config: OrientationConfig) -> engine.OrientationTask:
+    """The hand frame's orientation task as the engine takes it (gains per world axis; R_d from the quaternion)."""
+    target = None
+    if config.target is not None:
+        x, y, z, w = config.target
+        target = pin.Quaternion(w, x, y, z).toRotationMatrix()
+    axes = config.axes
+    return engine.OrientationTask(
+        list(axes), axis_gains(axes, config.kp), axis_gains(axes, config.kd), integral_gains(axes, config.ki), target
+    )
+
+
+def integral_gains(axes: tuple[int, ...], ki: tuple[float, ...]) -> Vector:
+    """A task's integral gains per world axis (zeros where none is configured)."""
+    return axis_gains(axes, ki) if ki else np.zeros(3)
 
 
 class DecoupledController:
@@ -76,7 +103,7 @@ class DecoupledController:
             engine.BracedContact(
                 engine_contact(contact),
                 c.desired_normal_force,
-                task(c.frame, c.brace_axes, c.kp, c.kd, c.trajectory),
+                task(c.frame, c.brace_axes, c.kp, c.kd, c.trajectory, c.ki),
                 c.feedback_kp,
                 c.feedback_ki,
             )
@@ -86,23 +113,26 @@ class DecoupledController:
             engine_robot(robot),
             engine_drive(robot, self.plant.motors, self.mode),
             self.plant.to_model_order(config.voltage_gain),
-            task(hand.frame, hand.axes, hand.kp, hand.kd, hand.trajectory),
+            task(hand.frame, hand.axes, hand.kp, hand.kd, hand.trajectory, hand.ki),
             braces,
             config.gravity_compensation,
             config.damping_lambda,
             config.null_space == "dynamically_consistent",
             float(self.contact_set.slip_epsilon),
             config.thermal_compensation,
-            self.plant.motors.voltage_limit if self.mode.value == "voltage" else self.plant.motors.torque_limit,
+            self.plant.command_limit,
             config.back_emf_compensation,
             self.plant.to_model_order(config.posture_kp),
             self.plant.to_model_order(config.posture_kd),
             self.plant.to_model_order(config.posture_rest) if config.posture_rest else np.zeros(0),
+            config.gains == "acceleration",
+            orientation_task(config.orientation),
         )
 
     def retune(self, config: ControllerConfig) -> None:
-        """Take the tunable values of ``config`` (``schema`` ``tunable``: task gains, desired normal
-        forces, K_V) from the next update on. Everything else must be as this controller's."""
+        """Take the tunable values of ``config`` (``schema`` ``tunable``: task gains, integral gains included,
+        desired normal forces, K_V) from the next update on. Everything else must be as this controller's. An
+        integral gain set from zero starts its integral at zero; one set to zero forgets it."""
         self.config = config
         contacts = config.shared.braced_contacts
         self.desired_normal_force[:] = [c.desired_normal_force for c in contacts]
@@ -113,10 +143,12 @@ class DecoupledController:
             [axis_gains(c.brace_axes, c.kd) for c in contacts],
             self.desired_normal_force,
             self.plant.to_model_order(config.voltage_gain),
+            integral_gains(config.hand.axes, config.hand.ki),
+            [integral_gains(c.brace_axes, c.ki) for c in contacts],
         )
 
     def reset(self) -> None:
-        """Forget the targets taken from the first state (a new run starts)."""
+        """Forget the targets taken from the first state and the integrals (a new run starts)."""
         self.engine.reset()
 
     def check_task_rank(self, q0: Vector) -> None:
@@ -131,31 +163,43 @@ class DecoupledController:
         task, axis = self.engine.first_rankless_axis(q0)
         if task < 0:
             return
-        contacts = self.config.shared.braced_contacts
-        tasks = [("hand.axes", self.config.hand.frame, self.config.hand.axes)]
-        tasks += [(f"contacts.{c.name}.brace_axes", c.frame, c.brace_axes) for c in contacts]
-        parameter, frame, axes = tasks[task]
-        if self.engine.task_rank(q0, [(task, axis)]) == 0:
+        tasks = self._rank_tasks()
+        # the engine's row (task, axis): the hand's rotation rows are task 0's axes 3-5
+        index = next(i for i, t in enumerate(tasks) if t.task == task and t.offset == (3 if axis >= 3 else 0))
+        current, axis = tasks[index], axis % 3
+        parameter, frame, axes = current.parameter, current.frame, current.axes
+        if self.engine.task_rank(q0, current.rows([axis])) == 0:
+            verb = "rotate about" if current.offset else "move along"
             raise ConfigError(
-                f"{parameter}: frame {frame!r} cannot move along {'xyz'[axis]} at the start (that direction adds "
+                f"{parameter}: frame {frame!r} cannot {verb} {'xyz'[axis]} at the start (that direction adds "
                 "no rank to the task Jacobian, within the motions the braced contacts allow); remove the axis"
             )
         own = list(axes[: axes.index(axis) + 1])  # this task's axes so far: each alone is free
-        free = self.engine.task_rank(q0, [(task, a) for a in own])
+        free = self.engine.task_rank(q0, current.rows(own))
         if free < len(own):
             keep = {1: "one", 2: "two"}.get(free, str(free))
             raise ConfigError(
                 f"{parameter}: {_axes_text(own)} needs {len(own)} free directions beside the contacts; frame "
                 f"{frame!r} has {free} along them at the start (each axis alone has one): keep {keep} of them"
             )
-        before = [(k, a) for k, (_, _, task_axes) in enumerate(tasks[:task]) for a in task_axes]
-        rows = [*before, *((task, a) for a in own)]
-        others = "; ".join(f"{name} {_axes_text(task_axes)}" for name, _, task_axes in tasks[:task] if task_axes)
+        rows = [row for t in tasks[:index] for row in t.rows(list(t.axes))] + current.rows(own)
+        others = "; ".join(f"{t.parameter} {_axes_text(t.axes)}" for t in tasks[:index] if t.axes)
         raise ConfigError(
             f"{parameter}: {_axes_text(own)} with {others} needs {len(rows)} free directions beside the contacts; "
             f"the arm has {self.engine.task_rank(q0, rows)} for them at the start (each task alone has enough): "
             "remove an axis from one of them"
         )
+
+    def _rank_tasks(self) -> list[_RankTask]:
+        """The configured tasks in the engine's order (the hand, its orientation, each brace)."""
+        config = self.config
+        tasks = [_RankTask("hand.axes", config.hand.frame, config.hand.axes, 0, 0)]
+        tasks.append(_RankTask("hand.orientation.axes", config.hand.frame, config.orientation.axes, 0, 3))
+        contacts = config.shared.braced_contacts
+        tasks += [
+            _RankTask(f"contacts.{c.name}.brace_axes", c.frame, c.brace_axes, k + 1, 0) for k, c in enumerate(contacts)
+        ]
+        return tasks
 
     def update(self, t: float, q: Vector, dq: Vector) -> ControlOutput:
         """The command for the measured state (q, dq) at time t [s] (model joint order)."""
@@ -170,6 +214,7 @@ class DecoupledController:
             self.desired_normal_force.copy(),
             out.damped,
             out.force_command,
+            out.orientation_error,
         )
 
     @property
@@ -193,6 +238,21 @@ class DecoupledController:
     def measure_temperature(self, temperature: Vector) -> None:
         """The windings' measured temperatures [degC], model joint order (motor_state)."""
         self.engine.measure_temperature(np.asarray(temperature, dtype=float))
+
+
+@dataclass(frozen=True)
+class _RankTask:
+    """A configured task as the rank check names it: its parameter, frame, world axes, the engine's task index
+    and the offset of its rows (3: the hand's rotation rows)."""
+
+    parameter: str
+    frame: str
+    axes: tuple[int, ...]
+    task: int
+    offset: int
+
+    def rows(self, axes: list[int]) -> list[tuple[int, int]]:
+        return [(self.task, self.offset + a) for a in axes]
 
 
 def _axes_text(axes: list[int] | tuple[int, ...]) -> str:

@@ -51,7 +51,8 @@ class MotorParams:
     torque_constant K [V s/rad] (= K_T = K_E), resistance R [ohm], inductance L [H],
     rotor_inertia I_m [kg m^2], gear_ratio k, gear_damping d_m [N m s/rad] (motor side),
     transmission_radius rho [m] (0: a revolute joint; > 0: a prismatic joint's wheel or pinion).
-    voltage_limit / torque_limit: |command| saturation, 0 = none.
+    voltage_limit: |v| saturation [V], 0 = none; torque_limit: each joint's |tau| saturation [N m or N] (one value
+    is every joint's), 0 = none.
     thermal: the winding temperatures are integrated (voltage mode) and R = R(T); resistance is then
     R_20. thermal_resistance R_th [K/W], heat_capacity C_th [J/K] (empty: the defaults above),
     ambient_temperature T_a [degC], temperature_coefficient alpha [1/K].
@@ -64,7 +65,7 @@ class MotorParams:
     gear_ratio: Vector
     gear_damping: Vector
     voltage_limit: float = 0.0
-    torque_limit: float = 0.0
+    torque_limit: Vector = field(default_factory=lambda: np.zeros(1))  # one value (every joint's) or one per joint
     transmission_radius: Vector = field(default_factory=lambda: np.zeros(0))  # empty: every joint revolute
     thermal_resistance: Vector = field(default_factory=lambda: np.zeros(0))  # empty: THERMAL_RESISTANCE each
     heat_capacity: Vector = field(default_factory=lambda: np.zeros(0))  # empty: HEAT_CAPACITY each
@@ -74,6 +75,10 @@ class MotorParams:
 
     def __post_init__(self) -> None:
         n = len(self.torque_constant)
+        limit = np.asarray(self.torque_limit, dtype=float).reshape(-1)
+        if limit.size not in (1, n):
+            raise ValueError(f"motors.torque_limit: expected one value or {n} (one per joint), got {limit.tolist()}")
+        object.__setattr__(self, "torque_limit", np.full(n, limit[0]) if limit.size == 1 else limit)
         if not len(self.transmission_radius):
             object.__setattr__(self, "transmission_radius", np.zeros(n))
         for name, default in _THERMAL_DEFAULTS.items():
@@ -93,7 +98,7 @@ class MotorParams:
         for name in ("rotor_inertia", "gear_damping", "transmission_radius"):
             if np.any(getattr(self, name) < 0.0):
                 raise ValueError(f"motors.{name}: values must be >= 0, got {getattr(self, name).tolist()}")
-        if self.voltage_limit < 0.0 or self.torque_limit < 0.0:
+        if self.voltage_limit < 0.0 or np.any(self.torque_limit < 0.0) or not np.all(np.isfinite(self.torque_limit)):
             raise ValueError("motors.voltage_limit / torque_limit must be >= 0 (0 = no limit)")
         if not (np.isfinite(self.ambient_temperature) and np.isfinite(self.temperature_coefficient)):
             raise ValueError("motors.ambient_temperature / temperature_coefficient must be finite")
@@ -133,7 +138,7 @@ class MotorParams:
         return MotorParams(
             **values,
             voltage_limit=self.voltage_limit,
-            torque_limit=self.torque_limit,
+            torque_limit=self.torque_limit[order],
             thermal=self.thermal,
             ambient_temperature=self.ambient_temperature,
             temperature_coefficient=self.temperature_coefficient,

@@ -14,7 +14,7 @@ controller answers state k, the simulator steps with that command held.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -145,6 +145,10 @@ class Recording:
     joint_names: tuple[str, ...]  # model order (the columns of position, ...)
     input_mode: str
     warnings: tuple[str, ...] = ()  # the simulator's warnings about the run (watch.RunWatch), as its node says them
+    # the hand frame's orientation error log(R_d R^T) [rad], world axes; (N+1, 0) without an orientation task
+    hand_orientation_error: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    # each joint's |command| saturation (model order, 0: none) the simulator applied to ``command``
+    command_limit: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Every field as an array (for an .npz; the names as string arrays, no pickles)."""
@@ -176,7 +180,10 @@ def run_recorded(scenario: Scenario, duration: float, divergence_checks: bool = 
     if scenario.sim_config is not None:
         watch = RunWatch(scenario.plant, scenario.sim_config, sim, at_start=sim.steps_taken == 0)
     events = len(sim.events)
-    out = sim.rollout(controller.engine, steps, *limits, sensors=scenario.sensors())
+    # the commands saturated as the simulator node saturates them (motors.voltage_limit / torque_limit)
+    out = sim.rollout(
+        controller.engine, steps, *limits, sensors=scenario.sensors(), command_limit=scenario.plant.command_limit
+    )
     rows, p, braced = steps + 1, len(scenario.plant.contact_set), len(controller.contact_set)
     warnings: list[str] = []
     if watch is not None:
@@ -213,4 +220,6 @@ def run_recorded(scenario: Scenario, duration: float, divergence_checks: bool = 
         joint_names=tuple(scenario.plant.joint_names),
         input_mode=scenario.plant.mode.value,
         warnings=tuple(warnings),
+        command_limit=scenario.plant.command_limit,
+        hand_orientation_error=out.orientation_error if controller.config.orientation.axes else np.zeros((rows, 0)),
     )

@@ -249,15 +249,20 @@ class Simulator:
         divergence_speed: float = np.inf,
         divergence_residual: float = np.inf,
         sensors: engine.Sensors | None = None,
+        command_limit: Vector | None = None,
     ) -> engine.Recording:
         """The closed loop with ``law`` (a ``bracing_engine.Law``) for ``steps`` steps, in the engine:
         per state k = 0..steps what the nodes publish in lockstep (``bracing_engine.rollout``; the
         last state answered and evaluated without a step). Raises as ``step`` does, and
         DivergenceError where the simulator node would refuse a step (speed above
         ``divergence_speed`` [rad/s], a held contact further than ``divergence_residual`` [m] off).
-        ``sensors``: what the law reads and when its commands land (None: exact and instant)."""
+        ``sensors``: what the law reads and when its commands land (None: exact and instant). ``command_limit``:
+        each joint's |command| saturation (model order, 0: none), as the simulator node applies it."""
+        limit = np.zeros(0) if command_limit is None else np.asarray(command_limit, dtype=float)
         try:
-            out = engine.rollout(law, self.engine, int(steps), self.t0, divergence_speed, divergence_residual, sensors)
+            out = engine.rollout(
+                law, self.engine, int(steps), self.t0, divergence_speed, divergence_residual, sensors, limit
+            )
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
         finally:

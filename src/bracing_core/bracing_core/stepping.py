@@ -113,6 +113,17 @@ def joint_command_drive(config: SimulatorConfig, plant: Plant) -> CurrentLoopDri
     return CurrentLoopDrive(gains, motors.reflected_constant, motors.voltage_limit)
 
 
+def limit_text(limit: Vector, joint_names: Sequence[str]) -> str:
+    """Per-joint command limits as a warning names them: +/-value when every joint has the same one."""
+    if np.all(limit == limit[0]):
+        return f"+/-{float(limit[0])}"
+    return (
+        "each joint's limit ("
+        + ", ".join(f"{n} +/-{float(v)}" for n, v in zip(joint_names, limit, strict=False) if v > 0)
+        + ")"
+    )
+
+
 class SimulatorStepper:
     """The simulator node's stepping (see the module docstring). ``clock``: wall time [s], monotonic."""
 
@@ -128,8 +139,7 @@ class SimulatorStepper:
         self.config, self.plant, self.sim = config, plant, sim
         self.log, self.outlet, self.clock = log, outlet, clock
         self.mode = config.shared.input_mode
-        motors = plant.motors
-        self.limit = motors.voltage_limit if self.mode is InputMode.VOLTAGE else motors.torque_limit
+        self.limit = plant.command_limit  # per joint, model order (0: none)
         self.step_ns = round(config.step * 1e9)
         self.total_steps = round(config.duration / config.step) if config.duration > 0 else None
         # What the controller receives, as a real arm measures it (sensors.*); None: exact.
@@ -241,22 +251,25 @@ class SimulatorStepper:
             )
             return
         if saturated:  # said only of a command that is applied
-            self.warn_first("saturated", f"motor_command saturated to +/-{self.limit}")
+            self.warn_first("saturated", f"motor_command saturated to {limit_text(self.limit, self.plant.joint_names)}")
         if self.config.stepping == "lockstep":
             self.pending[stamp_ns] = command
         else:  # real_time and free_run hold the latest
             self.latest_command = (self.clock(), command)
 
     @property
-    def effort_limit(self) -> float:
-        """joint_commands: the limit efforts are saturated to (0: none; the drive's voltage limit applies)."""
-        return self.plant.motors.torque_limit if self.drive is None else 0.0
+    def effort_limit(self) -> Vector:
+        """joint_commands: each joint's limit efforts are saturated to (0: none; the drive's voltage limit applies)."""
+        return self.plant.motors.torque_limit if self.drive is None else np.zeros(self.sim.n)
 
     def offer_effort(self, command: Vector, saturated: bool) -> None:
         """A valid joint_commands effort command [N m or N, link side] (real time: held)."""
         if saturated:
             self.log.limited(
-                "warning", "saturated", f"{self.config.joint_commands_topic} saturated to +/-{self.effort_limit}"
+                "warning",
+                "saturated",
+                f"{self.config.joint_commands_topic} saturated to "
+                f"{limit_text(self.effort_limit, self.plant.joint_names)}",
             )
         self.latest_command = (self.clock(), command)
 

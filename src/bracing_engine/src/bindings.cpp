@@ -49,7 +49,7 @@ void keep_filled_rows(Recording& r) {
   for (RowMatrix* a : {&r.position, &r.velocity, &r.current, &r.temperature, &r.command, &r.hand_desired,
                        &r.hand_actual, &r.brace_desired, &r.brace_actual, &r.contact_position, &r.slip_velocity,
                        &r.normal_force, &r.friction_force, &r.residual, &r.active, &r.energy,
-                       &r.measured_position, &r.measured_velocity, &r.force_command})
+                       &r.measured_position, &r.measured_velocity, &r.force_command, &r.orientation_error})
     a->conservativeResize(std::min<Eigen::Index>(r.rows, a->rows()), Eigen::NoChange);
 }
 
@@ -319,9 +319,24 @@ void bind_tasks(nb::module_& m) {
   nb::class_<Task>(m, "Task").def(
       "__init__",
       [](Task* task, std::string frame, const Vector3& kp, const Vector3& kd, const Path& path,
-         std::vector<int> axes) { new (task) Task{std::move(frame), kp, kd, path, std::move(axes)}; },
-      "frame"_a, "kp"_a, "kd"_a, "path"_a, "axes"_a,
-      "gains per world axis (zero: an axis the task does not use); the world axes it uses");
+         std::vector<int> axes, const Vector3& ki) {
+        new (task) Task{std::move(frame), kp, kd, path, std::move(axes), ki};
+      },
+      "frame"_a, "kp"_a, "kd"_a, "path"_a, "axes"_a, "ki"_a = Vector3(Vector3::Zero()),
+      "gains per world axis (zero: an axis the task does not use); the world axes it uses; integral gains");
+
+  nb::class_<OrientationTask>(m, "OrientationTask")
+      .def(
+          "__init__",
+          [](OrientationTask* task, std::vector<int> axes, const Vector3& kp, const Vector3& kd, const Vector3& ki,
+             std::optional<Matrix3> target) {
+            new (task) OrientationTask{std::move(axes), kp, kd, ki, target.has_value(),
+                                       target.value_or(Matrix3(Matrix3::Identity()))};
+          },
+          "axes"_a = std::vector<int>(), "kp"_a = Vector3(Vector3::Zero()), "kd"_a = Vector3(Vector3::Zero()),
+          "ki"_a = Vector3(Vector3::Zero()), "target"_a.none() = nb::none(),
+          "the hand frame's orientation held about world axes (gains per world axis); target R_d, None: the first "
+          "measured orientation");
 
   nb::class_<BracedContact>(m, "BracedContact")
       .def(
@@ -344,23 +359,26 @@ void bind_law(nb::module_& m) {
       .def_ro("brace_desired", &LawOutput::brace_desired, "b x 3")
       .def_ro("brace_actual", &LawOutput::brace_actual, "b x 3")
       .def_ro("force_command", &LawOutput::force_command, "f_cmd per brace [N] (f_nd without feedback)")
+      .def_ro("orientation_error", &LawOutput::orientation_error, "the hand frame's log(R_d R^T) [rad], world axes")
       .def_ro("damped", &LawOutput::damped);
   nb::class_<Law>(m, "Law")
       .def(
           "__init__",
           [](Law* law, const Robot& robot, const Drive& drive, Vector voltage_gain, const Task& hand,
              std::vector<BracedContact> braces, bool gravity_compensation, double damping_lambda,
-             bool dynamically_consistent, double slip_epsilon, bool thermal_compensation, double command_limit,
-             bool back_emf_compensation, Vector posture_kp, Vector posture_kd, Vector posture_rest) {
+             bool dynamically_consistent, double slip_epsilon, bool thermal_compensation, Vector command_limit,
+             bool back_emf_compensation, Vector posture_kp, Vector posture_kd, Vector posture_rest,
+             bool acceleration_gains, const OrientationTask& orientation) {
             new (law) Law(LawSpec{robot, drive, std::move(voltage_gain), hand, std::move(braces), gravity_compensation,
                                   damping_lambda, dynamically_consistent, slip_epsilon, thermal_compensation,
-                                  command_limit, back_emf_compensation, std::move(posture_kp), std::move(posture_kd),
-                                  std::move(posture_rest)});
+                                  std::move(command_limit), back_emf_compensation, std::move(posture_kp),
+                                  std::move(posture_kd), std::move(posture_rest), acceleration_gains, orientation});
           },
           "robot"_a, "drive"_a, "voltage_gain"_a, "hand"_a, "braces"_a, "gravity_compensation"_a, "damping_lambda"_a,
-          "dynamically_consistent"_a, "slip_epsilon"_a, "thermal_compensation"_a = false, "command_limit"_a = 0.0,
-          "back_emf_compensation"_a = false, "posture_kp"_a = Vector(), "posture_kd"_a = Vector(),
-          "posture_rest"_a = Vector())
+          "dynamically_consistent"_a, "slip_epsilon"_a, "thermal_compensation"_a = false,
+          "command_limit"_a = Vector(), "back_emf_compensation"_a = false, "posture_kp"_a = Vector(),
+          "posture_kd"_a = Vector(), "posture_rest"_a = Vector(), "acceleration_gains"_a = false,
+          "orientation"_a = OrientationTask())
       .def(
           "update",
           [](Law& law, double t, const Vector& q, const Vector& dq) {
@@ -389,7 +407,9 @@ void bind_law(nb::module_& m) {
            "the rank at q0 of the rows [(task: 0 the hand, 1 + j brace j; world axis)] within the motions the "
            "braced contacts allow")
       .def("retune", &Law::retune, "hand_kp"_a, "hand_kd"_a, "brace_kp"_a, "brace_kd"_a, "desired_normal_force"_a,
-           "voltage_gain"_a)
+           "voltage_gain"_a, "hand_ki"_a, "brace_ki"_a)
+      .def("task_integral", &Law::task_integral, "task"_a,
+           "task k's integral of its position error [m s] (0 the hand, 1 + j brace j), world axes")
       .def_prop_ro("desired_normal_force", &Law::desired_normal_force);
 }
 
@@ -467,25 +487,27 @@ void bind_rollout(nb::module_& m) {
       .def_ro("measured_position", &Recording::measured_position, "(0 rows without sensors)")
       .def_ro("measured_velocity", &Recording::measured_velocity)
       .def_ro("force_command", &Recording::force_command)
+      .def_ro("orientation_error", &Recording::orientation_error, "rows x 3: the hand's log(R_d R^T) [rad]")
       .def_ro("step_status", &Recording::step_status, "not ok: the step from the last row's state was refused")
       .def_ro("refusal", &Recording::refusal, "not none: the node refuses the step after the last row")
       .def_ro("measured", &Recording::measured, "the refusal's speed, temperature or residual");
   m.def(
       "rollout",
       [](Law& law, Simulator& simulator, long steps, double t0, double divergence_speed, double divergence_residual,
-         Sensors* sensors) {
+         Sensors* sensors, const Vector& command_limit) {
         Recording r;
         {
           nb::gil_scoped_release release;
-          rollout(law, simulator, steps, t0, divergence_speed, divergence_residual, r, sensors);
+          rollout(law, simulator, steps, t0, divergence_speed, divergence_residual, r, sensors, command_limit);
         }
         keep_filled_rows(r);
         return r;
       },
       "law"_a, "simulator"_a, "steps"_a, "t0"_a, "divergence_speed"_a, "divergence_residual"_a,
-      "sensors"_a.none() = nb::none(),
+      "sensors"_a.none() = nb::none(), "command_limit"_a = Vector(),
       "The closed loop for `steps` steps (and the final state's answer), all in C++: the Recording, stopped "
-      "early where a step is refused (step_status) or the node would refuse it (refusal).");
+      "early where a step is refused (step_status) or the node would refuse it (refusal); each applied |command| "
+      "saturated to command_limit (per joint, 0: none), the recording keeping the law's.");
 }
 
 }  // namespace

@@ -13,6 +13,7 @@
 #include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/algorithm/kinematics.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
+#include <pinocchio/spatial/explog.hpp>
 
 #include <Eigen/Dense>
 #include <Eigen/SVD>
@@ -69,6 +70,13 @@ struct BraceRows {
   std::vector<int> sticking;
 };
 
+// How the arm, under the law's torque for a null-space input l, accelerates (acceleration gains): ddq at l and
+// d ddq / d l, the contacts' forces as the law holds them and the sticking ones' reactions included.
+struct ArmResponse {
+  Vector acceleration;       // ddq [rad/s^2 or m/s^2]
+  Eigen::MatrixXd mobility;  // n x n
+};
+
 struct Law::Impl {
   LawSpec spec;
   pin::Model model;
@@ -89,6 +97,13 @@ struct Law::Impl {
   Vector integral;
   double last_time = 0.0;
   bool saturated = false;
+  // per task (0 the hand, 1 + j brace j): the integral of its position error [m s] on the axes with a ki
+  std::vector<Vector3> task_integral;
+  // the hand frame's orientation task: its target R_d (the first measured orientation unless configured) and
+  // the integral of its error [rad s]
+  bool orientation = false;
+  Matrix3 orientation_target = Matrix3::Identity();
+  Vector3 orientation_integral = Vector3::Zero();
   Vector temperature;  // the windings' measured temperatures [degC]
   Vector rest;         // the posture task's rest position (the first measured one unless configured)
   bool posture = false;
@@ -128,17 +143,42 @@ struct Law::Impl {
   // The stages of Law::update.
   // The first state's positions start the paths; returns the time since the last update.
   double advance_clock(double t, const Vector& q);
-  // l: the PD tasks along their axes (eq. 39), each task's desired and actual positions into `out`; the
-  // braces' Jacobians into `brace_jacobians` (3b x n) and, with a posture task, the configured rows into `task_rows`.
-  Vector task_torque(double t, const Vector& dq, LawOutput& out, Eigen::MatrixXd& brace_jacobians,
-                     Eigen::MatrixXd& task_rows);
+  // l: the PID tasks along their axes (eq. 39), each task's desired and actual positions into `out`; the
+  // braces' Jacobians into `brace_jacobians` (3b x n) and, with a posture task or acceleration gains, the
+  // configured rows into `task_rows`. With acceleration gains l is zero and the tasks' accelerations along
+  // those rows go to `task_accelerations` instead (task_space_torque turns them into torques).
+  Vector task_torque(double t, double dt, const Vector& dq, LawOutput& out, Eigen::MatrixXd& brace_jacobians,
+                     Eigen::MatrixXd& task_rows, Vector& task_accelerations);
+  // Appends task k's PID acceleration less its drift dJ dq along its axes to `accelerations` (acceleration gains).
+  void stack_acceleration(int k, const Vector3& acceleration, Vector& accelerations) const;
+  // F = kp e + kd de + ki * integral e of task k; its integral advanced by dt first (held while saturated).
+  Vector3 task_output(int k, const Vector3& error, const Vector3& velocity_error, double dt);
+  // kp e + kd de + ki z, z += e dt first on the axes with a ki (held while saturated; zeroed where ki is 0).
+  Vector3 pid(const Vector3& kp, const Vector3& kd, const Vector3& ki, const Vector3& error,
+              const Vector3& velocity_error, double dt, Vector3& integral) const;
+  // The hand frame's orientation task (its angular rows): the moment into l, or with acceleration gains its
+  // rows and angular accelerations (less dJ dq) appended; the error into `out`.
+  void orientation_torque(const Vector& dq, double dt, LawOutput& out, Vector& l, Eigen::MatrixXd& task_rows,
+                          Vector& task_accelerations);
+  // J_s^T Lambda (a - J_s ddq): the input that gives the stacked task rows J_s the accelerations a (less their
+  // drift dJ dq, already in a), Lambda^-1 = J_s X J_s^T with X = d ddq / d l, ddq the arm's acceleration without it.
+  Vector task_space_torque(const Eigen::MatrixXd& task_rows, const Vector& accelerations,
+                           const ArmResponse& response) const;
+  // Mc^-1 x, from the Cholesky factor of the last decompose.
+  Vector mass_solve(Vector x) const;
+  // Mc^-1 (n x n), from the Cholesky factor of the last decompose.
+  Eigen::MatrixXd mass_inverse();
   // The braced contacts' rows at the state of the last rigid_body_terms (f_cmd into `out`).
   BraceRows brace_rows(const Eigen::MatrixXd& brace_jacobians, const Vector& dq, double dt, LawOutput& out);
-  // tau while no brace sticks: B^+ (a - A f_nd) + (I - B^+ B) l.
-  Vector sliding_torque(const BraceRows& rows, const Vector& bias, const Vector& l, bool& damped);
+  // tau while no brace sticks: B^+ (a - A f_nd) + (I - B^+ B) l. `response` (if given): how the arm answers it.
+  Vector sliding_torque(const BraceRows& rows, const Vector& bias, const Vector& l, bool& damped,
+                        ArmResponse* response = nullptr);
   // tau with sticking braces: their point constraints' normal forces f_nd, their tangential forces in the cone.
   Vector sticking_torque(const BraceRows& rows, const Eigen::MatrixXd& brace_jacobians, const Vector& bias,
-                         const Vector& l, bool& damped);
+                         const Vector& l, bool& damped, ArmResponse* response = nullptr);
+  // tau for l: the contacts' law (or l itself without braces).
+  Vector contact_torque(const BraceRows* rows, const Eigen::MatrixXd& brace_jacobians, const Vector& bias,
+                        const Vector& l, bool& damped, ArmResponse* response = nullptr);
 };
 
 Law::Law(const LawSpec& spec) : impl_(std::make_unique<Impl>()) {
@@ -165,6 +205,11 @@ Law::Law(const LawSpec& spec) : impl_(std::make_unique<Impl>()) {
   m.measured_force.setZero(braces(), 3);
   for (const Vector* v : {&spec.posture_kp, &spec.posture_kd, &spec.posture_rest})
     if (v->size() != 0 && v->size() != n) throw std::invalid_argument("law: one posture value per joint expected");
+  if (spec.command_limit.size() != 0 && spec.command_limit.size() != n)
+    throw std::invalid_argument("law: one command limit per joint expected");
+  for (int axis : spec.orientation.axes)
+    if (axis < 0 || axis > 2) throw std::invalid_argument("law: orientation axes are world axes 0-2");
+  m.orientation = !spec.orientation.axes.empty();
   m.posture = (spec.posture_kp.size() && spec.posture_kp.cwiseAbs().maxCoeff() > 0.0) ||
               (spec.posture_kd.size() && spec.posture_kd.cwiseAbs().maxCoeff() > 0.0);
   reset();
@@ -187,6 +232,8 @@ void Law::reset() {
   m.overridden.assign(m.frames.size(), false);
   m.measured.assign(m.spec.braces.size(), false);
   m.integral.setZero(braces());
+  m.task_integral.assign(m.frames.size(), Vector3::Zero());
+  m.orientation_integral.setZero();
   m.saturated = false;
   m.temperature = Vector::Constant(m.model.nv, m.spec.drive.ambient);
 }
@@ -263,6 +310,10 @@ double Law::null_space_speed(const Vector& dq) {
   for (std::size_t k = 0; k < m.frames.size(); ++k) {  // the Jacobians of the last update's pass
     m.jacobian = translational_jacobian(m.model, m.data, m.frames[k], m.frame_jacobian);
     m.stack(rows, k ? m.spec.braces[k - 1].task.axes : m.spec.hand.axes);
+    if (k == 0 && m.orientation) {  // the hand's angular rows
+      m.jacobian = m.frame_jacobian.bottomRows<3>();
+      m.stack(rows, m.spec.orientation.axes);
+    }
   }
   return bracing_engine::null_space_speed(rows, dq);
 }
@@ -286,6 +337,10 @@ Eigen::MatrixXd Law::allowed_task_rows(const Vector& q0, const std::vector<std::
   auto translational = [&](std::size_t k) {
     return Eigen::MatrixXd(translational_jacobian(m.model, m.data, m.frames[k], m.frame_jacobian));
   };
+  auto task_row = [&](std::size_t k, int axis) -> Eigen::RowVectorXd {  // axis 3-5: the angular rows
+    translational_jacobian(m.model, m.data, m.frames[k], m.frame_jacobian);
+    return m.frame_jacobian.row(axis);
+  };
   // the motions the braced contacts allow: I - J_c^+ J_c
   Eigen::MatrixXd allowed = Eigen::MatrixXd::Identity(n, n);
   if (p) {
@@ -303,8 +358,9 @@ Eigen::MatrixXd Law::allowed_task_rows(const Vector& q0, const std::vector<std::
   Eigen::MatrixXd out(static_cast<Eigen::Index>(rows.size()), n);
   for (std::size_t i = 0; i < rows.size(); ++i) {
     const auto [task, axis] = rows[i];
-    if (task < 0 || task > p || axis < 0 || axis > 2) throw std::invalid_argument("allowed_task_rows: no such row");
-    out.row(static_cast<Eigen::Index>(i)) = translational(static_cast<std::size_t>(task)).row(axis) * allowed;
+    if (task < 0 || task > p || axis < 0 || axis > (task == 0 ? 5 : 2))
+      throw std::invalid_argument("allowed_task_rows: no such row");
+    out.row(static_cast<Eigen::Index>(i)) = task_row(static_cast<std::size_t>(task), axis) * allowed;
   }
   return out;
 }
@@ -324,6 +380,8 @@ std::pair<int, int> Law::first_rankless_axis(const Vector& q0) {
   for (std::size_t k = 0; k < m.frames.size(); ++k) {
     const Task& task = k ? m.spec.braces[k - 1].task : m.spec.hand;
     for (int axis : task.axes) configured.emplace_back(static_cast<int>(k), axis);
+    if (k == 0 && m.orientation)
+      for (int axis : m.spec.orientation.axes) configured.emplace_back(0, 3 + axis);
   }
   const Eigen::MatrixXd rows = allowed_task_rows(q0, configured);
   for (Eigen::Index i = 0; i < rows.rows(); ++i)
@@ -341,20 +399,28 @@ int Law::task_rank(const Vector& q0, const std::vector<std::pair<int, int>>& row
 }
 
 void Law::retune(const Vector3& hand_kp, const Vector3& hand_kd, const std::vector<Vector3>& brace_kp,
-                 const std::vector<Vector3>& brace_kd, const Vector& desired_normal_force, const Vector& voltage_gain) {
+                 const std::vector<Vector3>& brace_kd, const Vector& desired_normal_force, const Vector& voltage_gain,
+                 const Vector3& hand_ki, const std::vector<Vector3>& brace_ki) {
   LawSpec& s = impl_->spec;
   const std::size_t b = s.braces.size();
-  if (brace_kp.size() != b || brace_kd.size() != b || static_cast<std::size_t>(desired_normal_force.size()) != b ||
-      voltage_gain.size() != s.voltage_gain.size())
+  if (brace_kp.size() != b || brace_kd.size() != b || brace_ki.size() != b ||
+      static_cast<std::size_t>(desired_normal_force.size()) != b || voltage_gain.size() != s.voltage_gain.size())
     throw std::invalid_argument("retune: sizes differ from the law's");
   s.hand.kp = hand_kp;
   s.hand.kd = hand_kd;
+  s.hand.ki = hand_ki;
   for (std::size_t j = 0; j < b; ++j) {
     s.braces[j].task.kp = brace_kp[j];
     s.braces[j].task.kd = brace_kd[j];
+    s.braces[j].task.ki = brace_ki[j];
     s.braces[j].desired_normal_force = desired_normal_force[j];
   }
   s.voltage_gain = voltage_gain;
+}
+
+Vector3 Law::task_integral(int task) const {
+  if (task < 0 || task > braces()) throw std::out_of_range("task_integral: no such task");
+  return impl_->task_integral[static_cast<std::size_t>(task)];
 }
 
 double Law::Impl::advance_clock(double t, const Vector& q) {
@@ -364,14 +430,76 @@ double Law::Impl::advance_clock(double t, const Vector& q) {
     started = true;
     last_time = t;
     rest = spec.posture_rest.size() ? spec.posture_rest : q;
+    orientation_target = spec.orientation.has_target
+                             ? spec.orientation.target
+                             : Matrix3(pin::updateFramePlacement(model, data, frames[0]).rotation());
   }
   const double dt = t - last_time;  // since the last update (force feedback's integral)
   last_time = t;
   return dt;
 }
 
-Vector Law::Impl::task_torque(double t, const Vector& dq, LawOutput& out, Eigen::MatrixXd& brace_jacobians,
-                              Eigen::MatrixXd& task_rows) {
+Vector3 Law::Impl::pid(const Vector3& kp, const Vector3& kd, const Vector3& ki, const Vector3& error,
+                       const Vector3& velocity_error, double dt, Vector3& integral) const {
+  const Vector3 force = kp.cwiseProduct(error) + kd.cwiseProduct(velocity_error);
+  if (ki.isZero()) {  // the paper's PD, bit for bit; an integral whose gain went to zero is forgotten
+    integral.setZero();
+    return force;
+  }
+  for (int axis = 0; axis < 3; ++axis) {
+    if (ki[axis] == 0.0)
+      integral[axis] = 0.0;
+    else if (!saturated)  // conditional integration: the anti-windup
+      integral[axis] += error[axis] * dt;
+  }
+  return force + ki.cwiseProduct(integral);
+}
+
+Vector3 Law::Impl::task_output(int k, const Vector3& error, const Vector3& velocity_error, double dt) {
+  const Task& task = k ? spec.braces[k - 1].task : spec.hand;
+  return pid(task.kp, task.kd, task.ki, error, velocity_error, dt, task_integral[k]);
+}
+
+void Law::Impl::orientation_torque(const Vector& dq, double dt, LawOutput& out, Vector& l, Eigen::MatrixXd& task_rows,
+                                   Vector& task_accelerations) {
+  const OrientationTask& task = spec.orientation;
+  frame_jacobian.setZero();
+  pin::getFrameJacobian(model, data, frames[0], pin::LOCAL_WORLD_ALIGNED, frame_jacobian);
+  const Eigen::MatrixXd angular = frame_jacobian.bottomRows<3>();  // w = angular dq, world axes
+  const Matrix3 rotation = pin::updateFramePlacement(model, data, frames[0]).rotation();
+  out.orientation_error = pin::log3(Matrix3(orientation_target * rotation.transpose()));  // world axes
+  const Vector3 moment =
+      pid(task.kp, task.kd, task.ki, out.orientation_error, -(angular * dq), dt, orientation_integral);
+  if (spec.acceleration_gains) {
+    const Vector3 drift =  // dJ dq: the frame's angular acceleration at ddq = 0
+        pin::getFrameClassicalAcceleration(model, data, frames[0], pin::LOCAL_WORLD_ALIGNED).angular();
+    for (int axis : task.axes) {
+      task_accelerations.conservativeResize(task_accelerations.size() + 1);
+      task_accelerations[task_accelerations.size() - 1] = moment[axis] - drift[axis];
+    }
+  } else {
+    l.noalias() += angular.transpose() * moment;
+  }
+  if (spec.acceleration_gains || posture) {
+    for (int axis : task.axes) {
+      task_rows.conservativeResize(task_rows.rows() + 1, Eigen::NoChange);
+      task_rows.row(task_rows.rows() - 1) = angular.row(axis);
+    }
+  }
+}
+
+void Law::Impl::stack_acceleration(int k, const Vector3& acceleration, Vector& accelerations) const {
+  const Task& task = k ? spec.braces[k - 1].task : spec.hand;
+  // dJ dq: the frame's classical acceleration at ddq = 0 (rigid_body_terms' pass)
+  const Vector3 drift = pin::getFrameClassicalAcceleration(model, data, frames[k], pin::LOCAL_WORLD_ALIGNED).linear();
+  const Eigen::Index before = accelerations.size();
+  accelerations.conservativeResize(before + static_cast<Eigen::Index>(task.axes.size()));
+  for (std::size_t i = 0; i < task.axes.size(); ++i)
+    accelerations[before + static_cast<Eigen::Index>(i)] = acceleration[task.axes[i]] - drift[task.axes[i]];
+}
+
+Vector Law::Impl::task_torque(double t, double dt, const Vector& dq, LawOutput& out, Eigen::MatrixXd& brace_jacobians,
+                              Eigen::MatrixXd& task_rows, Vector& task_accelerations) {
   Vector l = Vector::Zero(model.nv);
   for (int k = 0; k < static_cast<int>(frames.size()); ++k) {
     const Task& task = k ? spec.braces[k - 1].task : spec.hand;
@@ -385,9 +513,14 @@ Vector Law::Impl::task_torque(double t, const Vector& dq, LawOutput& out, Eigen:
     } else {
       task.path.sample(starts[k], t, desired, desired_velocity);
     }
-    const Vector3 force = task.kp.cwiseProduct(desired - position) + task.kd.cwiseProduct(desired_velocity - velocity);
-    l.noalias() += jacobian.transpose() * force;
-    if (posture) stack(task_rows, task.axes);
+    const Vector3 force = task_output(k, desired - position, desired_velocity - velocity, dt);
+    if (spec.acceleration_gains) {
+      stack_acceleration(k, force, task_accelerations);
+      stack(task_rows, task.axes);
+    } else {
+      l.noalias() += jacobian.transpose() * force;
+      if (posture) stack(task_rows, task.axes);
+    }
     if (k == 0) {
       out.hand_desired = desired;
       out.hand_actual = position;
@@ -432,7 +565,8 @@ BraceRows Law::Impl::brace_rows(const Eigen::MatrixXd& brace_jacobians, const Ve
   return rows;
 }
 
-Vector Law::Impl::sliding_torque(const BraceRows& rows, const Vector& bias, const Vector& l, bool& damped) {
+Vector Law::Impl::sliding_torque(const BraceRows& rows, const Vector& bias, const Vector& l, bool& damped,
+                                 ArmResponse* response) {
   const int n = model.nv, p = static_cast<int>(rows.jc.rows());
   Eigen::MatrixXd b(p, n);  // B = J_c Mc^-1 (Mc symmetric)
   mass_inverse_rows(model, data, rows.jc, y_column, b);
@@ -443,7 +577,12 @@ Vector Law::Impl::sliding_torque(const BraceRows& rows, const Vector& bias, cons
           ? Eigen::MatrixXd((b * rows.jc.transpose()).partialPivLu().solve(rows.jc).transpose())
           : pseudo_inverse(b, spec.damping_lambda, damped);
   // tau = B^+ (a - A f_nd) + (I - B^+ B) l = l + B^+ ((a - A f_nd) - B l)
-  return l + b_pinv * (a_vector - a_matrix * rows.f_nd - b * l);
+  Vector torque = l + b_pinv * (a_vector - a_matrix * rows.f_nd - b * l);
+  if (response) {  // f_n = f_cmd: Mc ddq = tau - bias + W^T f_cmd; B (I - B^+ B) = 0, so l leaves f_n alone
+    response->acceleration = mass_solve(torque - bias + rows.w.transpose() * rows.f_nd);
+    response->mobility = mass_inverse() * (Eigen::MatrixXd::Identity(n, n) - b_pinv * b);
+  }
+  return torque;
 }
 
 namespace {
@@ -508,7 +647,7 @@ bool cone_correction(const StickRows& s, const BraceRows& braces, const LawSpec&
 }  // namespace
 
 Vector Law::Impl::sticking_torque(const BraceRows& rows, const Eigen::MatrixXd& brace_jacobians, const Vector& bias,
-                                  const Vector& l, bool& damped) {
+                                  const Vector& l, bool& damped, ArmResponse* response) {
   // A sticking contact is a point constraint (its normal and tangential rows R, forces through
   // W): lambda = G^-1 (R Mc^-1 (h + g + Dc dq - tau) - gamma_R), G = R Mc^-1 W^T. The law asks
   // only the normal forces S lambda to be f_nd: C tau = e with C = S G^-1 R Mc^-1 and
@@ -531,14 +670,69 @@ Vector Law::Impl::sticking_torque(const BraceRows& rows, const Eigen::MatrixXd& 
   } else {
     c_pinv = pseudo_inverse(c_matrix, spec.damping_lambda, damped);
   }
-  Vector torque = l + c_pinv * (e - c_matrix * l);
-  // The tangential forces this torque asks of the sticking contacts; where one leaves the cone, the
-  // least torque in the null space of C (f_n stays f_nd) brings it back.
-  const Vector lambda = g_lu.solve(y.transpose() * (bias - torque) - s.gamma);
-  Vector change;
-  if (cone_correction(s, rows, spec, lambda, p, change))  // -G^-1 R Mc^-1 d tau = change (its normal part zero)
-    torque -= g_inv_rows.completeOrthogonalDecomposition().solve(change);
+  // tau for l: l + C^+ (e - C l); where a sticking contact's tangential force would leave the cone, the
+  // least torque in the null space of C (f_n stays f_nd) brings it back onto it.
+  auto torque_for = [&](const Vector& task_input) {
+    Vector torque = task_input + c_pinv * (e - c_matrix * task_input);
+    const Vector lambda = g_lu.solve(y.transpose() * (bias - torque) - s.gamma);
+    Vector change;
+    if (cone_correction(s, rows, spec, lambda, p, change))  // -G^-1 R Mc^-1 d tau = change (its normal part zero)
+      torque -= g_inv_rows.completeOrthogonalDecomposition().solve(change);
+    return torque;
+  };
+  const Vector torque = torque_for(l);
+  if (response) {  // ddq = Mc^-1 (tau - bias + W^T lambda), lambda = G^-1 (R Mc^-1 (bias - tau) - gamma_R): the held rows
+    const Vector lambda = g_lu.solve(y.transpose() * (bias - torque) - s.gamma);
+    response->acceleration = mass_solve(torque - bias + s.wr.transpose() * lambda);
+    const int n = model.nv;
+    Eigen::MatrixXd w_inverse(s.wr.rows(), n);  // W Mc^-1
+    mass_inverse_rows(model, data, s.wr, y_column, w_inverse);
+    // d tau / d l: (I - C^+ C) and the cone's correction (piecewise affine in l: a difference is exact in its piece)
+    Eigen::MatrixXd torque_rate(n, n);
+    const double h = 1e-6 * std::max(1.0, l.cwiseAbs().maxCoeff());
+    for (int i = 0; i < n; ++i) {
+      Vector nudged = l;
+      nudged[i] += h;
+      torque_rate.col(i) = (torque_for(nudged) - torque) / h;
+    }
+    response->mobility = (mass_inverse() - w_inverse.transpose() * g_inv_rows) * torque_rate;
+  }
   return torque;
+}
+
+Eigen::MatrixXd Law::Impl::mass_inverse() {
+  const int n = model.nv;
+  Eigen::MatrixXd out(n, n);
+  mass_inverse_rows(model, data, Eigen::MatrixXd::Identity(n, n), y_column, out);  // Mc^-1 symmetric
+  return out;
+}
+
+Vector Law::Impl::mass_solve(Vector x) const {
+  pin::cholesky::solve(model, data, x);
+  return x;
+}
+
+Vector Law::Impl::task_space_torque(const Eigen::MatrixXd& task_rows, const Vector& accelerations,
+                                    const ArmResponse& response) const {
+  if (task_rows.rows() == 0) return Vector::Zero(model.nv);
+  const Eigen::MatrixXd inverse_inertia = task_rows * response.mobility * task_rows.transpose();  // Lambda^-1
+  // least squares where the rows are dependent (a singular posture): no force along a direction nothing moves
+  const Vector forces =
+      inverse_inertia.completeOrthogonalDecomposition().solve(accelerations - task_rows * response.acceleration);
+  return task_rows.transpose() * forces;
+}
+
+Vector Law::Impl::contact_torque(const BraceRows* rows, const Eigen::MatrixXd& brace_jacobians, const Vector& bias,
+                                 const Vector& l, bool& damped, ArmResponse* response) {
+  if (!rows) {
+    if (response) {
+      response->acceleration = mass_solve(l - bias);
+      response->mobility = mass_inverse();
+    }
+    return l;
+  }
+  return rows->sticking.empty() ? sliding_torque(*rows, bias, l, damped, response)
+                                : sticking_torque(*rows, brace_jacobians, bias, l, damped, response);
 }
 
 void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
@@ -552,21 +746,33 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
   out.brace_actual.resize(p, 3);
   Eigen::MatrixXd brace_jacobians(3 * p, n);
   Eigen::MatrixXd task_rows(0, n);  // the configured axes' Jacobian rows, stacked (the posture's null space)
-  Vector l = m.task_torque(t, dq, out, brace_jacobians, task_rows);
+  Vector task_accelerations(0);     // acceleration gains: the tasks' PID accelerations along those rows
+  Vector l = m.task_torque(t, dt, dq, out, brace_jacobians, task_rows, task_accelerations);
+  out.orientation_error.setZero();
+  if (m.orientation) m.orientation_torque(dq, dt, out, l, task_rows, task_accelerations);
   if (s.gravity_compensation) l += pin::computeGeneralizedGravity(m.model, m.data, q);
   if (m.posture) l += m.posture_torque(task_rows, q, dq);
   out.damped = false;
-  if (p == 0) {
+  if (p == 0 && !s.acceleration_gains) {
     out.torque = l;
   } else {
     pin::cholesky::decompose(m.model, m.data);
-    const BraceRows rows = m.brace_rows(brace_jacobians, dq, dt, out);
+    BraceRows rows;
+    if (p) rows = m.brace_rows(brace_jacobians, dq, dt, out);
+    const BraceRows* braced = p ? &rows : nullptr;
     const Vector bias = m.data.nle + s.drive.damping.cwiseProduct(dq);  // h + g + Dc dq
-    out.torque = rows.sticking.empty() ? m.sliding_torque(rows, bias, l, out.damped)
-                                       : m.sticking_torque(rows, brace_jacobians, bias, l, out.damped);
+    if (s.acceleration_gains) {  // ddq is affine in l: the task part from how the constrained arm answers l
+      ArmResponse response;
+      bool ignored = false;
+      m.contact_torque(braced, brace_jacobians, bias, l, ignored, &response);
+      l += m.task_space_torque(task_rows, task_accelerations, response);
+    }
+    out.torque = m.contact_torque(braced, brace_jacobians, bias, l, out.damped);
   }
   out.command = voltage_command(out.torque, dq);
-  m.saturated = s.command_limit > 0.0 && out.command.cwiseAbs().maxCoeff() >= s.command_limit;
+  m.saturated = false;
+  for (Eigen::Index i = 0; i < s.command_limit.size() && i < out.command.size(); ++i)
+    if (s.command_limit[i] > 0.0 && std::abs(out.command[i]) >= s.command_limit[i]) m.saturated = true;
 }
 
 }  // namespace bracing_engine

@@ -1,4 +1,5 @@
 // The closed loop (law + simulator) stepped in C++: what the nodes do in lockstep, recorded per state.
+#include <algorithm>
 #include <stdexcept>
 
 #include "bracing_engine/law.hpp"
@@ -47,6 +48,7 @@ void size_recording(long rows, int n, int p, int b, bool sensed, Recording& out)
   for (RowMatrix* a : {&out.contact_position, &out.slip_velocity}) a->setZero(rows, 3 * p);
   for (RowMatrix* a : {&out.normal_force, &out.friction_force, &out.residual, &out.active}) a->setZero(rows, p);
   out.force_command.setZero(rows, b);
+  out.orientation_error.setZero(rows, 3);
   out.rows = 0;
   out.step_status = StepStatus::ok;
   out.refusal = Refusal::none;
@@ -84,6 +86,7 @@ void record_state(long k, double t, const Vector& y, const LawOutput& command, R
   out.brace_desired.row(k) = Eigen::Map<const Vector>(command.brace_desired.data(), 3 * b).transpose();
   out.brace_actual.row(k) = Eigen::Map<const Vector>(command.brace_actual.data(), 3 * b).transpose();
   if (b) out.force_command.row(k) = command.force_command.transpose();
+  out.orientation_error.row(k) = command.orientation_error.transpose();
   const Eigen::Index energies = kStates * n;
   out.energy.row(k) << y[energies + energy::consumed], y[energies + energy::net], y[energies + energy::copper_loss];
 }
@@ -102,16 +105,26 @@ void record_report(long k, const Simulator& simulator, Recording& out) {
   }
 }
 
+// `command` with each |value| saturated to its joint's limit (0: none), as the simulator node saturates one.
+Vector saturated(const Vector& command, const Vector& limit) {
+  Vector out = command;
+  for (Eigen::Index i = 0; i < out.size() && i < limit.size(); ++i)
+    if (limit[i] > 0.0) out[i] = std::clamp(out[i], -limit[i], limit[i]);
+  return out;
+}
+
 }  // namespace
 
 void rollout(Law& law, Simulator& simulator, long steps, double t0, double divergence_speed,
-             double divergence_residual, Recording& out, Sensors* sensors) {
+             double divergence_residual, Recording& out, Sensors* sensors, const Vector& command_limit) {
   const int n = simulator.nv(), p = simulator.dynamics().contact_count(), b = law.braces();
   const long rows = steps + 1;
   if (sensors && sensors->exact()) sensors = nullptr;  // the paper's exact, instant sensing: bit for bit as without
   size_recording(rows, n, p, b, sensors != nullptr, out);
   const std::vector<int> braced = brace_rows(law, simulator);
   LawOutput command;
+  const bool limited = command_limit.size() && command_limit.maxCoeff() > 0.0;
+  Vector limited_command;
   for (long k = 0; k < rows; ++k) {
     const double t = t0 + static_cast<double>(simulator.steps_taken) * simulator.step_size();
     const Vector& y = simulator.state();
@@ -119,7 +132,9 @@ void rollout(Law& law, Simulator& simulator, long steps, double t0, double diver
     answer(law, sensors, t, y.head(n), y.segment(n, n), k, command, out);
     record_state(k, t, y, command, out);
     // the final state gets its reports without a step, as the simulator node's finish() does
-    const Vector& applied = sensors ? sensors->delay(command.command) : command.command;
+    if (limited) limited_command = saturated(command.command, command_limit);
+    const Vector& sent = limited ? limited_command : command.command;  // what the simulator node applies
+    const Vector& applied = sensors ? sensors->delay(sent) : sent;
     if (k < steps) {
       const StepStatus status = simulator.step(applied);
       if (status != StepStatus::ok) {

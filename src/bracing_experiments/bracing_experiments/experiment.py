@@ -68,6 +68,9 @@ def series_from_recording(rec: Recording) -> BagSeries:
         motor_temperature=rec.temperature,
         warnings=list(rec.warnings),  # what the simulator node would have said on run_status
         input_mode=rec.input_mode,
+        command=rec.command,
+        hand_orientation_error=rec.hand_orientation_error,
+        command_limit=dict(zip(rec.joint_names, rec.command_limit.tolist(), strict=True)),
     )
     braced = {name: b for b, name in enumerate(rec.braced_names)}
     for j, name in enumerate(rec.contact_names):

@@ -33,9 +33,10 @@ def command_vector(
     mode_code: int,
     joint_names: Sequence[str],
     mode: InputMode,
-    limit: float = 0.0,
+    limit: float | Vector = 0.0,
 ) -> tuple[Vector, bool]:
-    """The command in ``joint_names`` order, and whether it was saturated to ``limit`` (0 = none)."""
+    """The command in ``joint_names`` order, and whether it was saturated to ``limit`` (one value, or one per joint
+    of ``joint_names``; 0 = none)."""
     expected_code = MODE_CODES[mode]
     if mode_code != expected_code:
         got = {v: k.value for k, v in MODE_CODES.items()}.get(mode_code, f"unknown ({mode_code})")
@@ -44,7 +45,7 @@ def command_vector(
 
 
 def _in_order(
-    names: Sequence[str], values: Sequence[float] | Vector, joint_names: Sequence[str], noun: str, limit: float
+    names: Sequence[str], values: Sequence[float] | Vector, joint_names: Sequence[str], noun: str, limit: float | Vector
 ) -> tuple[Vector, bool]:
     """``values`` named by ``names`` in ``joint_names`` order, checked finite and saturated to ``limit``
     (0 = none): the command and whether it was saturated. ``noun`` names the values in the errors."""
@@ -58,10 +59,10 @@ def _in_order(
     if not np.isfinite(u).all():
         bad = [j for j, v in zip(joint_names, u, strict=True) if not np.isfinite(v)]
         raise CommandError("non-finite", f"non-finite {noun} for {bad}")
-    saturated = False
-    if limit > 0.0 and np.any(np.abs(u) > limit):
-        u = np.clip(u, -limit, limit)
-        saturated = True
+    bound = np.where(np.asarray(limit) > 0.0, limit, np.inf)  # per joint; 0: none
+    saturated = bool(np.any(np.abs(u) > bound))
+    if saturated:
+        u = np.clip(u, -bound, bound)
     return u, saturated
 
 
@@ -81,7 +82,7 @@ def _by_name(names: Sequence[str], values: Sequence[float] | Vector, joint_names
 
 
 def effort_vector(
-    names: Sequence[str], efforts: Sequence[float] | Vector, joint_names: Sequence[str], limit: float = 0.0
+    names: Sequence[str], efforts: Sequence[float] | Vector, joint_names: Sequence[str], limit: float | Vector = 0.0
 ) -> tuple[Vector, bool]:
     """A sensor_msgs/JointState command's efforts (ros2_control's JointStateTopicSystem: joints by
     name, the effort interface filled) in ``joint_names`` order, and whether they were saturated to

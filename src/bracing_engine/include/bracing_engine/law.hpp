@@ -28,12 +28,25 @@ struct Path {
   void sample(const Vector3& start, double t, Vector3& position, Vector3& velocity) const;
 };
 
-// A PD task on a frame's origin along world axes: the gains are per world axis (zero: unused).
+// A PID task on a frame's origin along world axes: the gains are per world axis (zero: unused).
+// F = kp e + kd de + ki * integral of e dt, e = r_d - r: a force [N] (stiffness gains) or, with
+// LawSpec::acceleration_gains, the task acceleration [m/s^2] the task-space inertia turns into one.
 struct Task {
   std::string frame;
   Vector3 kp = Vector3::Zero(), kd = Vector3::Zero();
   Path path;
   std::vector<int> axes;  // the world axes it uses, as configured (the rank check names them)
+  Vector3 ki = Vector3::Zero();  // integral gains (zero: no integral on that axis)
+};
+
+// The hand frame's orientation held about world axes (not in the paper): the error is the rotation's log map
+// in world axes, e = log(R_d R^T), and the moment kp e - kd w + ki * integral of e dt (w the frame's angular
+// velocity, world axes); with acceleration gains an angular acceleration, as Task's.
+struct OrientationTask {
+  std::vector<int> axes;  // world axes it uses (empty: no orientation task)
+  Vector3 kp = Vector3::Zero(), kd = Vector3::Zero(), ki = Vector3::Zero();  // per world axis
+  bool has_target = false;
+  Matrix3 target = Matrix3::Identity();  // R_d; without a target: the hand frame's first measured orientation
 };
 
 struct BracedContact {
@@ -59,7 +72,8 @@ struct LawSpec {
   // v = K_V tau R(T) / R_20 from the measured winding temperatures (voltage mode, thermal drive): the
   // current, and so the torque, the law asks for stays as the windings warm (not in the paper).
   bool thermal_compensation = false;
-  double command_limit = 0.0;  // |command| where the motors saturate (0: none): force feedback's anti-windup
+  // |command| per joint (model order) where the motors saturate (0 or empty: none): the integrals' anti-windup
+  Vector command_limit;
   // The motor model inverted (voltage mode; not in the paper): v = R tau / K_m + K_m dq, R = R(T) with thermal
   // compensation, else R_20: the motor delivers the law's torque in steady state, back-EMF and all (K_V unused).
   bool back_emf_compensation = false;
@@ -67,6 +81,11 @@ struct LawSpec {
   // N^T = I - J^T (J Mc^-1 J^T)^-1 J Mc^-1 for the stacked task rows J, so it leaves the tasks' accelerations alone.
   Vector posture_kp, posture_kd;  // per joint (empty: zeros) [N m/rad or N/m], [N m s/rad or N s/m]
   Vector posture_rest;            // per joint [rad or m]; empty: the first measured position
+  // Gains in acceleration units (not in the paper): the stacked task forces are Lambda a, a the tasks' PID
+  // accelerations and Lambda^-1 = J_s Mc^-1 N J_s^T (J_s the configured axes' rows, N the law's null-space
+  // projector, with the sticking contacts' reactions), so each task axis accelerates as its gains say on any arm.
+  bool acceleration_gains = false;
+  OrientationTask orientation;  // the hand frame's (no axes: none)
 };
 
 struct LawOutput {
@@ -74,6 +93,7 @@ struct LawOutput {
   Vector3 hand_desired, hand_actual;
   RowMatrix brace_desired, brace_actual;  // b x 3
   Vector force_command;                   // b: f_cmd [N], the force the law asked for (f_nd without feedback)
+  Vector3 orientation_error = Vector3::Zero();  // log(R_d R^T) of the hand frame [rad], world axes (an orientation task)
   bool damped = false;
 };
 
@@ -111,14 +131,19 @@ class Law {
   double null_space_speed(const Vector& dq);
   // The hand's and each brace point's positions at q (the law's kinematics): b + 1 rows.
   RowMatrix task_positions(const Vector& q);
-  // The tunable values: task gains (per world axis), f_nd and K_V.
+  // The tunable values: task gains (per world axis), f_nd and K_V. An integral gain set to zero clears its
+  // integral; one set from zero starts its integral at zero (no kick).
   void retune(const Vector3& hand_kp, const Vector3& hand_kd, const std::vector<Vector3>& brace_kp,
-              const std::vector<Vector3>& brace_kd, const Vector& desired_normal_force, const Vector& voltage_gain);
-  // The first configured task axis (hand axes, then each brace's) that adds no rank to the stacked
-  // task Jacobian at q0 within the motions the braced contacts allow (the null space of J_c):
-  // (task index: 0 the hand, 1 + j brace j; world axis), or (-1, -1) if every axis adds one.
+              const std::vector<Vector3>& brace_kd, const Vector& desired_normal_force, const Vector& voltage_gain,
+              const Vector3& hand_ki, const std::vector<Vector3>& brace_ki);
+  // Task k's integral of the position error [m s] (0 the hand, 1 + j brace j), world axes.
+  Vector3 task_integral(int task) const;
+  // The first configured task axis (hand axes, the hand's orientation axes, then each brace's) that adds no
+  // rank to the stacked task Jacobian at q0 within the motions the braced contacts allow (the null space of
+  // J_c): (task index: 0 the hand, 1 + j brace j; world axis 0-2, or 3-5 for the hand's rotation about
+  // axis - 3), or (-1, -1) if every axis adds one.
   std::pair<int, int> first_rankless_axis(const Vector& q0);
-  // The rank of those rows (task index, world axis: any of 0-2, configured or not) at q0 within the
+  // The rank of those rows (task index, axis as above: any, configured or not) at q0 within the
   // motions the braced contacts allow, with first_rankless_axis's tolerance: how many free directions
   // they have (what its messages count).
   int task_rank(const Vector& q0, const std::vector<std::pair<int, int>>& rows);
@@ -127,8 +152,8 @@ class Law {
   Vector desired_normal_force() const;
 
  private:
-  // Rows (task index: 0 the hand, 1 + j brace j; world axis) of the translational task Jacobians at q0,
-  // times I - J_c^+ J_c (the motions the braced contacts allow).
+  // Rows (task index: 0 the hand, 1 + j brace j; world axis, 3-5 the hand's angular rows) of the task
+  // Jacobians at q0, times I - J_c^+ J_c (the motions the braced contacts allow).
   Eigen::MatrixXd allowed_task_rows(const Vector& q0, const std::vector<std::pair<int, int>>& rows);
   struct Impl;
   std::unique_ptr<Impl> impl_;
@@ -150,6 +175,7 @@ struct Recording {
   // then hold the true positions (the law's kinematics at the true q), not the law's measured ones.
   RowMatrix measured_position, measured_velocity;
   RowMatrix force_command;                       // (N+1) x b: f_cmd of each brace [N]
+  RowMatrix orientation_error;                   // (N+1) x 3: the hand frame's log(R_d R^T) [rad] (zeros without the task)
   long rows = 0;                                 // rows filled
   StepStatus step_status = StepStatus::ok;       // not ok: the step from the last row's state was not taken
   Refusal refusal = Refusal::none;               // not none: the node refuses the step after the last row
@@ -161,8 +187,11 @@ struct Recording {
 // early where the simulator node would refuse a step (step_status, refusal). `sensors` (may be null: exact and
 // instant): what the law reads of each state and when its commands land. The law's force feedback
 // reads each braced contact's force of the previous step's report, its thermal compensation the
-// previous state's temperatures: what the nodes have when they answer a state in lockstep.
+// previous state's temperatures: what the nodes have when they answer a state in lockstep. `command_limit`
+// (per joint, model order; 0 or empty: none): each applied |command| is saturated to it, as the simulator node
+// saturates a motor_command (the recording keeps the law's command, as the bag does).
 void rollout(Law& law, Simulator& simulator, long steps, double t0, double divergence_speed,
-             double divergence_residual, Recording& out, Sensors* sensors = nullptr);
+             double divergence_residual, Recording& out, Sensors* sensors = nullptr,
+             const Vector& command_limit = Vector());
 
 }  // namespace bracing_engine
