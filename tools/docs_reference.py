@@ -152,7 +152,11 @@ def outputs_page() -> str:
         "# Output keys\n\n" + GENERATED + "## summary.json\n\n"
         "Every run's `summary.json` (`bracing_analysis.summary.compute_summary`; a sweep's table has the same\n"
         "columns). A metric that does not apply to a run is `null`. The keys, in order (`SUMMARY_KEYS`, then\n"
-        "`SUMMARY_EXTRA_KEYS`):\n\n" + key_table(summary.SUMMARY_KEYS + summary.SUMMARY_EXTRA_KEYS) + "\n"
+        "`SUMMARY_EXTRA_KEYS`):\n\n"
+        + key_table(summary.SUMMARY_KEYS + summary.SUMMARY_EXTRA_KEYS)
+        + "\n"
+        + summary.OUTCOME_KEYS_DOC
+        + "\n\n"
         "Each contact's entry of `contacts` (`CONTACT_KEYS`):\n\n" + key_table(summary.CONTACT_KEYS) + "\n"
         "## bench/latest.json\n\n"
         "What `make bench` writes (`bench/run.py`; `make test` runs it in a quick mode that checks every key is\n"

@@ -61,10 +61,12 @@ def desired_force_warning(name: str, force: float, t: float | None = None) -> st
 
 
 def let_go_warning(name: str, t: float) -> str:
-    """A braced contact released from its surface at ``t`` [s]."""
+    """A braced contact released from its surface at ``t`` [s], and what to change if its force is fed back."""
     return (
         f"contact {name!r} let go of its surface at t = {t:.3f} s although the controller braces it: from then on "
-        "its force law acts on a contact that is not there (a unilateral contact releases when the force would pull)"
+        "its force law acts on a contact that is not there (a unilateral contact releases when the force would pull); "
+        f"if its force is fed back, the force loop outran the arm: lower contacts.{name}.force_feedback.ki and .kp "
+        "(docs/model.md derives them from the motors)"
     )
 
 

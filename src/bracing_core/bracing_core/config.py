@@ -486,10 +486,18 @@ def circuit_substeps(plant: Plant, q0: Vector, step: float) -> int:
     h |lambda| <= RK4_ACCURATE_STEP keep classic RK4 stable and accurate; below it one sub-step, as every
     shipped scenario had (bit for bit). ``substeps`` larger than this is kept.
     """
-    motors = plant.motors
     if plant.mode is not InputMode.VOLTAGE:
         return 1
-    robot = plant.robot
+    fastest = electromechanical_rate(plant, q0)
+    if step * fastest <= STIFF_STEP:
+        return 1
+    return math.ceil(step * fastest / RK4_ACCURATE_STEP)
+
+
+def electromechanical_rate(plant: Plant, q0: Vector) -> float:
+    """[1/s] the fastest eigenvalue's magnitude of the motors' linear electromechanical system at ``q0``
+    (``circuit_substeps``)."""
+    motors, robot = plant.motors, plant.robot
     inertia = pin.crba(robot.model, robot.data, np.asarray(q0, dtype=float))
     inertia = np.triu(inertia) + np.triu(inertia, 1).T + np.diag(motors.reflected_inertia)
     inverse = np.linalg.inv(inertia)
@@ -500,10 +508,7 @@ def circuit_substeps(plant: Plant, q0: Vector, step: float) -> int:
             [np.diag(-k_m / motors.inductance), np.diag(-motors.resistance / motors.inductance)],
         ]
     )
-    fastest = float(np.max(np.abs(np.linalg.eigvals(system))))
-    if step * fastest <= STIFF_STEP:
-        return 1
-    return math.ceil(step * fastest / RK4_ACCURATE_STEP)
+    return float(np.max(np.abs(np.linalg.eigvals(system))))
 
 
 UNILATERAL_PROJECTION_M = 0.05
