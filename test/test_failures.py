@@ -95,14 +95,16 @@ def test_a_stiff_circuit_stepped_without_its_sub_steps_hints_them() -> None:
 
 def test_a_contact_lost_under_force_feedback_says_what_to_change() -> None:
     """A unilateral elbow on a geared arm with force gains faster than the arm (kp 5, ki 100 1/s) lets go at
-    3 ms: the warning and the hint name its force_feedback gains; without feedback the let-go says nothing
-    of them."""
+    3 ms: the warning names its force_feedback gains and the ones derived for these motors (the circuit
+    settles within a step: kp 0.3, ki 100 /s), the hint says to lower them; without feedback no hint."""
     shared = {**geared(), "contacts.elbow.unilateral": True}
     fast = {"contacts.elbow.force_feedback.kp": 5.0, "contacts.elbow.force_feedback.ki": 100.0}
     bemf = {"voltage_law.back_emf_compensation": True}
     lost = run_recorded(build_scenario({**shared, **fast}, ctl=bemf), 0.5, keep_failure=True)
     let_go = [w for w in lost.warnings if "let go" in w]
-    assert let_go and "contacts.elbow.force_feedback.ki" in let_go[0]
+    assert (
+        let_go and "contacts.elbow.force_feedback.kp and .ki (for these motors: kp <= 0.3, ki <= 100 /s)" in let_go[0]
+    )
     assert lost.status == OK and lost.hint is not None and "contacts.elbow.force_feedback.kp" in lost.hint
     assert compute_summary(BagSeries(), warnings=let_go, fed_back=["elbow"])["hint"] == lost.hint  # as the pair says
     assert compute_summary(BagSeries(), warnings=let_go)["hint"] is None  # no force feedback: not this cause

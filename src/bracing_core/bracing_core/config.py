@@ -66,6 +66,7 @@ def trajectory_from_values(prefix: str, values: Mapping[str, Any], point: Sequen
         point=(point[0], point[1], point[2]) if point else None,
         waypoints=tuple((flat[k], flat[k + 1], flat[k + 2]) for k in range(0, len(flat) - 2, 3)),
         segment_time=values[prefix + "segment_time"],
+        start_ramp=values[prefix + "start_ramp"],
     )
 
 
@@ -379,6 +380,7 @@ class SimulatorConfig:
     max_message_elements: int = 10000  # the most names, values or poses a subscribed message may carry
     max_name_length: int = 256  # [characters] the longest name a subscribed message may carry
     record_batch: int = 0  # states per bracing_msgs/RecordBatch to the recorder; 0: off
+    initial_current: str = "zero"  # voltage input: zero | steady (the first command's steady current)
     plant_error: PlantError = field(default_factory=PlantError)
     sensors: SensorConfig = field(default_factory=SensorConfig)
     command_source: str = "motor_command"  # | joint_commands (ros2_control's JointStateTopicSystem)
@@ -456,6 +458,7 @@ def build_simulator(config: SimulatorConfig) -> tuple[Plant, Simulator]:
         simulator = Simulator(plant.dynamics(config.baumgarte), config.step, q0, dq0, substeps)
     except ValueError as exc:
         raise ConfigError(str(exc)) from None
+    simulator.engine.steady_start = config.initial_current == "steady"
     check_start(plant, simulator, config.contact_tolerance)
     return plant, simulator
 

@@ -59,9 +59,10 @@ STIFF_HINT = (
     "simulator's substeps >= {needed} or a shorter step (the controller's gains then also see the faster circuit)"
 )
 LET_GO_HINT = (
-    "contact {name!r} let go under force feedback: the force loop is faster than the arm and its motors follow, "
-    "so it pulls the contact off; lower contacts.{name}.force_feedback.kp and .ki (ki below the loop's "
-    "bandwidth: docs/model.md, force feedback with voltage input), or set them to 0 (the paper's feed-forward)"
+    "contact {name!r} let go under force feedback: the force loop outran the arm and pulled the contact off; lower "
+    "contacts.{name}.force_feedback.kp and .ki to the gains the warning derives from the motors (kp below 1 where "
+    "the circuit settles within a control period: docs/model.md, force feedback with voltage input), or set them "
+    "to 0 (the paper's feed-forward)"
 )
 REACH_HINT = (
     "a target is out of reach (see the warning): move it within the arm's reach, or take the task axis "

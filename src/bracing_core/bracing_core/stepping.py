@@ -160,6 +160,8 @@ class SimulatorStepper:
         ]
         if sim.substeps > config.substeps:
             lines.append(f"stiff motor circuits: {sim.substeps} RK4 sub-steps per step (substeps {config.substeps})")
+        if config.initial_current == "steady" and self.mode is InputMode.VOLTAGE:
+            lines.append("initial_current: steady: the windings start at the first command's steady current")
         if config.project_initial_position:
             given = self.plant.to_model_order(config.initial_position)
             projected = dict(zip(self.plant.joint_names, sim.position.round(9).tolist(), strict=True))
