@@ -18,12 +18,16 @@ force loop's gains from the circuit's L / R and the control period.
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 from conftest import build_scenario
+from ros_helpers import pair_argv, run
 from test_real_arm import geared
 
+from bracing_analysis.bag import read_series
 from bracing_core.checks import force_feedback_gains
 from bracing_core.rollout import Recording, run_recorded
 
@@ -116,3 +120,18 @@ def test_the_derived_gains_hold_a_geared_arm_on_its_table_where_kp_1_sits_on_its
     assert np.max(held.normal_force[:, 0]) < 1.5 * F_ND
     chatter = braced(2.0, 10.0)
     assert np.mean(chatter.active[:, 0]) < 0.9  # 83 %: on and off the table
+
+
+def test_the_pair_starts_as_cleanly_as_the_in_process_loop(tmp_path: Path) -> None:
+    """Through the nodes (initial_current is the simulator's, start_ramp the controller's): the bag's
+    forces are the in-process run's, within 1.5 f_nd from the first state."""
+    settings = {**geared(), **STEADY, **INVERTED, **RAMP}
+    sets = [f"--set={key}={json.dumps(value)}" for key, value in settings.items()]
+    output = tmp_path / "run"
+    done = run(pair_argv(output, "--duration", "0.2", "--no-animation", *sets), timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    force = read_series(output / "bag").contacts["elbow"].normal_force
+    assert abs(force[0] - F_ND) < 1e-6 and np.max(force) < 1.5 * F_ND
+    in_process = servo_run(STEADY, RAMP, t=0.2).normal_force[:, 0]
+    assert np.allclose(force, in_process, rtol=0.0, atol=1e-9)
+    assert json.loads((output / "summary.json").read_text())["status"] == "ok"
