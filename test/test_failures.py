@@ -19,6 +19,7 @@ from ros_helpers import pair_argv, run
 from test_real_arm import geared, wrist_params
 
 from bracing_analysis.bag import read_series
+from bracing_analysis.report import write_report
 from bracing_analysis.series import BagSeries
 from bracing_analysis.summary import compute_summary
 from bracing_core.failures import FAILED, OK, History, diagnose, stiff_circuit
@@ -135,3 +136,5 @@ def test_the_pair_writes_the_failed_runs_summary_and_bag_up_to_the_divergence(tm
     assert series.joint_t[-1] >= failed_at - 1e-9  # the state the refused step started from is there
     assert series.topic_counts["/joint_states"] == round(series.joint_t[-1] / 1e-3) + 1  # and every one before
     assert summary["sim_time_s"] >= failed_at - 1e-9
+    redrawn = write_report(output / "bag", animation_interval_s=None)  # bracing-report keeps why it failed
+    assert (redrawn["status"], redrawn["error"], redrawn["hint"]) == (FAILED, summary["error"], summary["hint"])
