@@ -331,7 +331,13 @@ def _draw_failure(
     except BagReadError as exc:
         return None, f"{outcome.message}\nerror: {exc}"
     timeline.mark("bag read")
-    failure = diagnose_pair(plan, series, _divergence(pair), outcome.warnings)
+    reason = _divergence(pair)
+    try:
+        failure = diagnose_pair(plan, series, reason, outcome.warnings)
+    except Exception as exc:  # the diagnosis is a help: its own fault must not cost the run its summary
+        from bracing_core.failures import FAILED, Failure
+
+        failure = Failure(FAILED, f"{reason} (what ran away could not be told: {type(exc).__name__}: {exc})", None)
     summary = _draw(plan, series, wall, timeline, outcome.warnings, failure.keys())
     message = f"error: {failure.error}" + (f"\nhint: {failure.hint}" if failure.hint else "")
     return (
