@@ -147,8 +147,10 @@ def test_pair_reports_divergence_and_keeps_the_bag(tmp_path: Path) -> None:
     )
     config.write_text(text.replace("divergence_residual: 0.01", "divergence_residual: 1.0e-30"))
     done = run(pair_argv(tmp_path / "run", config=config), timeout=120)
-    assert done.returncode == 1
-    assert "simulator exited with code 3" in done.stderr and "divergence_residual" in done.stderr
+    assert done.returncode == 3, done.stdout + done.stderr  # a divergence (test_failures: its summary and hint)
+    assert "simulation diverged at t = " in done.stderr and "divergence_residual" in done.stderr
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["status"] == "failed" and "divergence_residual" in summary["error"]
     from rosbags.highlevel import AnyReader
 
     with AnyReader([tmp_path / "run" / "bag"]) as reader:

@@ -211,7 +211,8 @@ def test_a_table_that_pulls_is_warned_and_a_one_sided_one_lets_go_instead() -> N
         "the contact lets go instead"
     )
     one_sided = _in_process("contacts.elbow.desired_normal_force=0.5", "contacts.elbow.unilateral=true", duration=10.0)
-    assert one_sided["warnings"] == [checks.let_go_warning("elbow", 3.348)]
+    paper_gains = checks.force_feedback_gains(0.17 / 0.6, 1e-3)  # the paper's motors' L / R at 1 ms
+    assert one_sided["warnings"] == [checks.let_go_warning("elbow", 3.348, paper_gains)]
     assert _in_process("contacts.elbow.desired_normal_force=1.0", duration=10.0)["warnings"] == []
 
 
@@ -267,7 +268,7 @@ def test_a_bounce_is_neither_an_arrival_nor_a_let_go() -> None:
     assert watch.finish() == []  # reached: no "never touched"
     watch.events([ContactEvent(0.0204, "elbow", "release")])
     (gone,) = watch.states([0.021], [False], [0.0], [0.0])
-    assert gone == checks.let_go_warning("elbow", 0.0204)
+    assert gone == checks.let_go_warning("elbow", 0.0204, checks.force_feedback_gains(0.17 / 0.6, 1e-3))
 
 
 def _pair(tmp_path: Path, name: str, *sets: str, extra: tuple[str, ...] = (), duration: str = "0.3") -> Path:

@@ -153,7 +153,11 @@ def outputs_page() -> str:
         "# Output keys\n\n" + GENERATED + "## summary.json\n\n"
         "Every run's `summary.json` (`bracing_analysis.summary.compute_summary`; a sweep's table has the same\n"
         "columns). A metric that does not apply to a run is `null`. The keys, in order (`SUMMARY_KEYS`, then\n"
-        "`SUMMARY_EXTRA_KEYS`):\n\n" + key_table(summary.SUMMARY_KEYS + summary.SUMMARY_EXTRA_KEYS) + "\n"
+        "`SUMMARY_EXTRA_KEYS`):\n\n"
+        + key_table(summary.SUMMARY_KEYS + summary.SUMMARY_EXTRA_KEYS)
+        + "\n"
+        + summary.OUTCOME_KEYS_DOC
+        + "\n\n"
         "Each contact's entry of `contacts` (`CONTACT_KEYS`):\n\n" + key_table(summary.CONTACT_KEYS) + "\n"
         "`targets_refused`: {target topic: how many targets of it the controller refused} (`{}` when none; a\n"
         "flood's targets superseded before the controller took them are neither followed nor counted); the\n"

@@ -16,7 +16,7 @@ import os
 import sys
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from functools import partial
 from pathlib import Path
@@ -79,15 +79,18 @@ def report_series(
     mark: Mark | None = None,
     parallel: bool = True,
     warnings: Sequence[str] = (),
+    outcome: Mapping[str, str | None] | None = None,
+    fed_back: Sequence[str] = (),
 ) -> dict[str, Any]:
     """Write summary.json, the plots and (unless ``animation_interval_s`` is None) the animation of
     ``series`` into ``out``; the summary.
 
     With ``parallel`` (and a second core) ``drawing_pool`` draws the files, else this process.
     ``mark(what, wall time)`` is called for each file written. ``warnings``: the run's that the
-    bag cannot show (``compute_summary``)."""
+    bag cannot show, ``outcome`` a failed run's status, error and hint, ``fed_back`` the contacts under force
+    feedback (``compute_summary``)."""
     out.mkdir(parents=True, exist_ok=True)
-    summary = compute_summary(series, wall_time_s=wall_time_s, warnings=warnings)
+    summary = compute_summary(series, wall_time_s=wall_time_s, warnings=warnings, outcome=outcome, fed_back=fed_back)
     (out / SUMMARY_FILE).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     if mark is not None:
         mark(SUMMARY_FILE)

@@ -83,6 +83,13 @@ def recover_cut(bag: str | Path) -> str | None:
     )
 
 
+def _previous_outcome(previous: dict[str, Any]) -> dict[str, str | None] | None:
+    """A failed run's status, error and hint (the bag shows that it stopped, not why)."""
+    if previous.get("status") != "failed":
+        return None
+    return {key: None if previous.get(key) is None else str(previous[key]) for key in ("status", "error", "hint")}
+
+
 def default_output_dir(bag: str | Path) -> Path:
     """The bag's parent directory (the run directory DIR of DIR/bag)."""
     return resolve_bag(Path(bag)).resolve().parent
@@ -99,10 +106,10 @@ def write_report(
 
     The output directory defaults to the bag's parent. Without `wall_time_s`, the one in
     an existing summary.json there is kept, and so are its warnings (those the bag cannot show
-    again: a target out of reach, slow real-time stepping). `animation_interval_s` is the sim time
-    between animation frames (None: no animation); `urdf` (the text) animates a bag that lacks
-    robot_description. A bag cut short is recovered first (``recover_cut``), said in the warnings.
-    Raises BagReadError on an unreadable bag.
+    again: a target out of reach, slow real-time stepping) and a failed run's status, error and hint.
+    `animation_interval_s` is the sim time between animation frames (None: no animation); `urdf` (the
+    text) animates a bag that lacks robot_description. A bag cut short is recovered first
+    (``recover_cut``), said in the warnings. Raises BagReadError on an unreadable bag.
     """
     recovery = recover_cut(bag)
     series = read_series(bag)
@@ -111,7 +118,8 @@ def write_report(
     if wall_time_s is None:
         wall_time_s = _previous_wall_time(previous)
     warnings = ([recovery] if recovery else []) + _previous_warnings(previous)
-    return report_series(series, out, wall_time_s, animation_interval_s, urdf, warnings=warnings)
+    outcome = _previous_outcome(previous)
+    return report_series(series, out, wall_time_s, animation_interval_s, urdf, warnings=warnings, outcome=outcome)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -11,7 +11,7 @@ where no contact ever held.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from bracing_analysis.series import BagSeries, ContactSeries, FloatArray
 from bracing_core import checks
+from bracing_core.failures import succeeded
 
 HAND_ERROR_T_MIN_S = 2.0
 """Hand errors are taken over t >= this [s] (after the initial transient)."""
@@ -46,8 +47,25 @@ SUMMARY_EXTRA_KEYS = (
     "targets_refused",
     "saturation_fraction",
     "hand_orientation_rms_error_rad",
+    "status",
+    "error",
+    "hint",
 )
 """summary.json's keys after SUMMARY_KEYS (added later: tools that read SUMMARY_KEYS by position keep working)."""
+
+OUTCOME_KEYS_DOC = (
+    "`status` is `ok` for a run that ran to its end, `failed` for one the simulator stopped (a divergence: "
+    "bracing-pair exits 3); a failed run still writes every key, measured up to the failure, and its bag holds "
+    "every state up to it. `error` (null for ok): what stopped it, the joints that ran away (their speed "
+    "0.05 s before the failure and at it) and, near a singular posture, the joints along the tasks' lost "
+    "direction. `hint` (or null): what to change, for a known cause (`bracing_core.failures`): a joint at its "
+    "limit that no task sees (`null_space_posture`), a target out of reach, a singular posture, a stiff motor "
+    "circuit (`substeps`), a braced contact lost under force feedback (its `force_feedback` gains); an ok run "
+    "carries the hint of a target out of reach or a contact lost under force feedback when its warnings name "
+    "them. An in-process run gives the same three "
+    "(`bracing_core.rollout.run_recorded(..., keep_failure=True)`)."
+)
+"""What summary.json's status, error and hint mean (the output reference's text)."""
 
 CONTACT_KEYS = (
     "braced",
@@ -125,7 +143,11 @@ def contact_metrics(cs: ContactSeries) -> dict[str, Any]:
 
 
 def compute_summary(
-    series: BagSeries, wall_time_s: float | None = None, warnings: Sequence[str] = ()
+    series: BagSeries,
+    wall_time_s: float | None = None,
+    warnings: Sequence[str] = (),
+    outcome: Mapping[str, str | None] | None = None,
+    fed_back: Sequence[str] = (),
 ) -> dict[str, Any]:
     """The summary.json dict (keys: SUMMARY_KEYS, then SUMMARY_EXTRA_KEYS, in that order).
 
@@ -136,6 +158,9 @@ def compute_summary(
     ``contacts`` has every contact of the ``contacts`` topic (``contact_metrics``). ``warnings``:
     the given ones (what the data cannot show: a target out of reach), then ``data_warnings``, then
     what the nodes warned about during the run (``series.warnings``: the bag's run_status), each once.
+    ``status``, ``error`` and ``hint``: ``outcome``'s (a failed run's, ``failures.diagnose``); without
+    one, ok, no error, and the hint of a known cause the warnings name (``failures.succeeded``; ``fed_back``:
+    the braced contacts under force feedback).
     """
     out: dict[str, Any] = dict.fromkeys(SUMMARY_KEYS + SUMMARY_EXTRA_KEYS)
 
@@ -186,6 +211,7 @@ def compute_summary(
     refusals = refusal_warnings(series)
     out["warnings"] = list(dict.fromkeys([*warnings, *data_warnings(series), *series.warnings, *refusals]))
     out["saturation_fraction"] = saturation_fraction(series)
+    out.update(outcome if outcome is not None else succeeded(out["warnings"], fed_back).keys())
     return out
 
 

@@ -6,11 +6,13 @@
 
 Writes DIR/params.yaml (every parameter the nodes ran with), DIR/bag/ (mcap), DIR/logs/*.log,
 DIR/summary.json, the report's PNGs and animation, and DIR/timeline.json (where the wall time
-went: see ``timeline``). Exit 0 on success; non-zero with the failing process's log tail
-otherwise. Ctrl-C stops the nodes and still leaves a readable bag. A recorder that dies before it
-closes the bag (kill -9) leaves it cut short: the bag is recovered (``bracing_analysis.bag_recovery``),
-the report drawn from it, and the run says so (output and summary.json's warnings) and exits 1. A run
-that fails (or is stopped) before its first step keeps only its logs, so the same --output works again.
+went: see ``timeline``). Exit 0 on success; 3 when the simulation diverged (summary.json, the
+report and the bag up to the failure are written; its ``error`` names what ran away, its ``hint`` what
+to change); otherwise non-zero with the failing process's log tail. Ctrl-C stops the nodes and
+still leaves a readable bag. A recorder that dies before it closes the bag (kill -9) leaves it cut
+short: the bag is recovered (``bracing_analysis.bag_recovery``), the report drawn from it, and the
+run says so (output and summary.json's warnings) and exits 1. A run that fails (or is stopped)
+before its first step keeps only its logs, so the same --output works again.
 
 ``--engine mujoco``: the robot is MuJoCo's (``bracing_bringup.mujoco_robot``, a mujoco_ros2_control
 robot's topic face) and the controller runs unchanged with ``command_output: effort_forward``,

@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bracing_bringup.domains import hold_domain
 from bracing_bringup.processes import Interrupted, Pair, environment
@@ -24,9 +24,19 @@ from bracing_bringup.run_plan import PARAMS_FILE, RunOptions, RunPlan, check_con
 from bracing_bringup.timeline import BAG_CLOSED, FIRST_STEP, LAST_FILE, LAST_STEP, TIMELINE_FILE, Timeline
 from bracing_bringup.topics import missing_from_counts
 from bracing_bringup.viewurl import free_ports, view_url, wait_for_port
+from bracing_core.overrides import CONTROLLER, SIMULATOR
 from bracing_core.params import ConfigError
 
+if TYPE_CHECKING:
+    from bracing_core.failures import Failure
+
+DIVERGED = "error: simulation diverged at t = "
+"""How the simulator's log gives a divergence (bracing_sim.node says it so)."""
+
 EXIT_FAILED = 1
+EXIT_DIVERGED = 3
+"""The simulator's exit code when the simulation diverged (bracing_ros.node_main), and then bracing-pair's:
+its summary.json says what ran away (``error``) and what to change (``hint``)."""
 VIEWER_START_S = 60.0  # [s] --view: how long the viewer may take to serve its page before the run goes on without
 FINISHED = "simulator finished"
 """The simulator's last status: every subscriber has acknowledged everything it sent."""
@@ -55,6 +65,10 @@ class _Failure(Exception):
         self.process, self.message = process, message
 
 
+class _Diverged(_Failure):
+    """The simulator stopped on a divergence: the run's bag and summary are still written, up to it."""
+
+
 @dataclass
 class _Outcome:
     """How the supervised part of a run ended."""
@@ -64,6 +78,7 @@ class _Outcome:
     warnings: list[str] = field(default_factory=list)  # the controller's configuration warnings (check_configs)
     failed: str = ""  # the process whose failure ended the run
     sim_time: float | None = None  # [s] the simulator's last status when the run failed
+    diverged: bool = False  # the simulator stopped on a divergence: the report is drawn from the bag up to it
 
 
 def run_pair(options: RunOptions) -> RunResult:
@@ -144,6 +159,10 @@ def _supervise(pair: Pair, plan: RunPlan, domain: int, created: bool, start_wall
     except Interrupted:
         outcome.code = 128 + int(pair.interrupted)
         outcome.message = f"interrupted ({signal.Signals(pair.interrupted).name}): nodes stopped, bag finalised"
+    except _Diverged as failure:
+        outcome.code, outcome.diverged = EXIT_DIVERGED, True
+        outcome.message = f"error: {failure.message}\n{pair.tail(failure.process)}"
+        _keep_bag(pair, outcome)
     except _Failure as failure:
         outcome.code, outcome.failed, outcome.sim_time = EXIT_FAILED, failure.process, pair.sim_time
         outcome.message = f"error: {failure.message}\n{pair.tail(failure.process)}"
@@ -216,6 +235,8 @@ def _follow_stepping(pair: Pair, plan: RunPlan, start_wall: float) -> None:
         for name in ("simulator", "controller", "recorder"):
             exit_code = pair.exit_code(name)
             # The recorder may close the bag and exit by itself once it has every message.
+            if name == "simulator" and exit_code == EXIT_DIVERGED and FINISHED not in pair.seen:
+                raise _Diverged(name, "the simulation diverged")
             if exit_code is not None and FINISHED not in pair.seen and (name != "recorder" or exit_code != 0):
                 raise _Failure(name, f"the {name} exited with code {exit_code} during the run")
         t, now = pair.sim_time, time.monotonic()
@@ -230,6 +251,16 @@ def _follow_stepping(pair: Pair, plan: RunPlan, start_wall: float) -> None:
             raise _Failure("simulator", f"no simulation progress for {options.stall_timeout:g} s (hung)")
     if tty:
         pair.say("")
+
+
+def _keep_bag(pair: Pair, outcome: _Outcome) -> None:
+    """After a divergence: the simulator sent every state up to it before it exited; the controller stops
+    and the recorder closes the bag with all of them (``_await_bag``), so the report can be drawn."""
+    try:
+        _await_bag(pair)
+    except (_Failure, Interrupted) as exc:
+        outcome.diverged = False  # no bag to read: the run fails as any other
+        outcome.message += f"\n{exc}"
 
 
 def _await_bag(pair: Pair) -> None:
@@ -255,6 +286,9 @@ def _conclude(pair: Pair, plan: RunPlan, outcome: _Outcome, wall: float, created
     out, timeline = plan.options.output, pair.timeline
     code, message, summary = outcome.code, outcome.message, None
     timeline.add(pair.events)
+    if outcome.diverged:  # the report of what ran until the divergence; the exit code stays
+        pair.stop_all(ask=False)
+        summary, message = _draw_failure(plan, pair, wall, timeline, outcome)
     if code == 0:
         timeline.mark(BAG_CLOSED, timeline.at("recorder closed the bag"))
         # The report is drawn while the processes finish exiting (their exit codes are checked after).
@@ -315,29 +349,22 @@ def _recover_recording(
     said += f" at t >= {max(bounds):.3f} s" if bounds else ""
     upto = f" up to t = {recovered.last_s():.3f} s" if recovered.last_s() is not None else ""
     said += f"; the bag was recovered{upto}: {recovered.messages} messages (what it had not yet written is lost)"
-    summary = _draw_recovered(plan, wall, pair.timeline, [said, *outcome.warnings])
+    summary = _draw_recovered(plan, wall, pair.timeline, [said, *outcome.warnings], said)
     return summary, f"error: {said}\n{message}".rstrip("\n")
 
 
-def _draw_recovered(plan: RunPlan, wall: float, timeline: Timeline, warnings: list[str]) -> dict[str, Any] | None:
-    """The report of a recovered bag (no check that it is whole: it is not); None if it cannot be read."""
-    from bracing_analysis.animation import DEFAULT_INTERVAL_S
+def _draw_recovered(
+    plan: RunPlan, wall: float, timeline: Timeline, warnings: list[str], error: str
+) -> dict[str, Any] | None:
+    """The report of a recovered bag (no check that it is whole: it is not), its summary's status failed with
+    ``error``; None if it cannot be read."""
     from bracing_analysis.bag import BagReadError, read_series
-    from bracing_analysis.drawing import report_series
 
     try:
         series = read_series(plan.options.output / "bag")
     except BagReadError:
         return None
-    interval = DEFAULT_INTERVAL_S if plan.options.animation else None
-    return report_series(
-        series,
-        plan.options.output,
-        wall_time_s=wall,
-        animation_interval_s=interval,
-        mark=timeline.mark,
-        warnings=warnings,
-    )
+    return _draw(plan, series, wall, timeline, warnings, {"status": "failed", "error": error, "hint": None})
 
 
 def _discard(out: Path, created: bool, keep_logs: bool) -> None:
@@ -352,14 +379,70 @@ def _discard(out: Path, created: bool, keep_logs: bool) -> None:
         out.rmdir()
 
 
+def _draw_failure(
+    plan: RunPlan, pair: Pair, wall: float, timeline: Timeline, outcome: _Outcome
+) -> tuple[dict[str, Any] | None, str]:
+    """The summary and report of a run the simulator stopped on a divergence, from its bag (every state up
+    to the failure: no lockstep count to check), with ``status`` failed, the ``error`` (the simulator's, and
+    what ran away) and the ``hint`` (``failures.diagnose``); the message says both."""
+    from bracing_analysis.bag import BagReadError, read_series
+
+    try:
+        series = read_series(plan.options.output / "bag")
+    except BagReadError as exc:
+        return None, f"{outcome.message}\nerror: {exc}"
+    timeline.mark("bag read")
+    reason = _divergence(pair)
+    try:
+        failure = diagnose_pair(plan, series, reason, outcome.warnings)
+    except Exception as exc:  # the diagnosis is a help: its own fault must not cost the run its summary
+        from bracing_core.failures import FAILED, Failure
+
+        failure = Failure(FAILED, f"{reason} (what ran away could not be told: {type(exc).__name__}: {exc})", None)
+    summary = _draw(plan, series, wall, timeline, outcome.warnings, failure.keys())
+    message = f"error: {failure.error}" + (f"\nhint: {failure.hint}" if failure.hint else "")
+    return (
+        summary,
+        message + f"\n(summary.json, the bag and the report hold the run up to the failure: {plan.options.output})",
+    )
+
+
+def _divergence(pair: Pair) -> str:
+    """What the simulator said of its divergence (its log's line), without the prefix."""
+    log = pair.logs.get("simulator")
+    lines = log.read_text(errors="replace").splitlines() if log is not None and log.exists() else []
+    said = [line.split(DIVERGED, 1)[1] for line in lines if DIVERGED in line]
+    return f"simulation diverged at t = {said[-1]}" if said else "the simulation diverged (see the simulator's log)"
+
+
+def diagnose_pair(plan: RunPlan, series: Any, reason: str, warnings: list[str]) -> Failure:
+    """``failures.diagnose`` of a pair run from its bag: the joint states up to the failure (velocities by
+    differences), the nodes' configurations as the run built them, every warning of the run."""
+    import numpy as np
+
+    from bracing_core.failures import History, diagnose
+    from bracing_core.rollout import build_scenario_from_params
+
+    scenario = build_scenario_from_params(plan.node_params[SIMULATOR], plan.node_params[CONTROLLER], plan.search)
+    assert scenario.controller is not None
+    names = list(scenario.plant.joint_names)
+    columns = [series.joint_names.index(name) for name in names] if series.joint_t.size else []
+    position = series.joint_position[:, columns] if columns else np.zeros((0, len(names)))
+    velocity = np.zeros_like(position)
+    if series.joint_t.size > 1:
+        velocity = np.asarray(np.gradient(position, series.joint_t, axis=0))
+    history = History(series.joint_t, position, velocity, names)
+    step = (scenario.sim.step_size, scenario.sim.substeps)
+    said = [*warnings, *series.warnings]
+    return diagnose(reason, history, scenario.plant, scenario.controller.config, step, said)
+
+
 def _check_and_draw(
     plan: RunPlan, wall: float, timeline: Timeline, warnings: list[str]
 ) -> tuple[dict[str, Any] | None, int, str]:
     """Read the bag once: check it (a lockstep run promises every step), then write the summary
     (with ``warnings``), the figures and the animation from what was read. (summary, exit code, message)."""
-    from bracing_analysis.animation import DEFAULT_INTERVAL_S
     from bracing_analysis.bag import BagReadError, read_series  # rosbags ~100 ms, bag replay only, where used
-    from bracing_analysis.drawing import report_series
 
     out = plan.options.output
     try:
@@ -367,15 +450,39 @@ def _check_and_draw(
     except BagReadError as exc:
         return None, EXIT_FAILED, f"error: {exc}"
     timeline.mark("bag read")
-    options, expected_states = plan.options, plan.expected_states
+    expected_states = plan.expected_states
     if expected_states:  # lockstep
         problems = missing_from_counts(series.topic_counts, plan.contacts, expected_states, "", plan.ground_truth)
         timeline.mark("bag checked")
         if problems:
             return None, EXIT_FAILED, "error: the bag is incomplete (lost messages): " + "; ".join(problems)
-    interval = DEFAULT_INTERVAL_S if options.animation else None
+    return _draw(plan, series, wall, timeline, warnings), 0, ""
+
+
+def _draw(
+    plan: RunPlan,
+    series: Any,
+    wall: float,
+    timeline: Timeline,
+    warnings: list[str],
+    outcome: dict[str, str | None] | None = None,
+) -> dict[str, Any]:
+    """summary.json (``outcome``: its status, error and hint; None: from the warnings), the figures and the
+    animation of ``series``."""
+    from bracing_analysis.animation import DEFAULT_INTERVAL_S
+    from bracing_analysis.drawing import report_series
+    from bracing_core.failures import fed_back
+
+    interval = DEFAULT_INTERVAL_S if plan.options.animation else None
     summary = report_series(
-        series, out, wall_time_s=wall, animation_interval_s=interval, mark=timeline.mark, warnings=warnings
+        series,
+        plan.options.output,
+        wall_time_s=wall,
+        animation_interval_s=interval,
+        mark=timeline.mark,
+        warnings=warnings,
+        outcome=outcome,
+        fed_back=fed_back(plan.node_params[CONTROLLER]),
     )
     timeline.mark(LAST_FILE)
-    return summary, 0, ""
+    return summary

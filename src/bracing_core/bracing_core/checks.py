@@ -60,11 +60,39 @@ def desired_force_warning(name: str, force: float, t: float | None = None) -> st
     )
 
 
-def let_go_warning(name: str, t: float) -> str:
-    """A braced contact released from its surface at ``t`` [s]."""
+FORCE_LOOP_DAMPING = 0.6
+"""The damping ratio ``force_feedback_gains`` gives a force loop behind a slow motor circuit."""
+STIFF_FORCE_GAINS = (0.3, 0.1)
+"""(kp, ki h) of a force loop whose circuit settles within a control period h: the torque-input loop's
+gains (kp 0.3, ki 100 /s at 1 ms), which keep its Jury conditions (alpha kp < 1, alpha (2 kp + ki h) < 2)
+for a force response alpha up to 2.8 times the model's."""
+
+
+def force_feedback_gains(time_constant: float, step: float) -> tuple[float, float]:
+    """(kp, ki [1/s]) for ``contacts.<name>.force_feedback`` given the motor circuit's time constant
+    ``time_constant`` = L / R [s] (0 with torque input) and the control period ``step`` [s].
+
+    A circuit that settles within a step (a geared servo, L / R 0.2 ms at 1 ms; torque input) leaves the
+    force loop the discrete one of torque input: kp 0.3, ki 0.1 / h (``STIFF_FORCE_GAINS``; kp near 1 sits
+    on its stability limit, and a geared wrist chatters on and off its table above it). A slower circuit
+    (the paper's motors, L / R 0.28 s) makes it second order, tau_e s^2 + (1 + kp) s + ki = 0: kp 1 and
+    ki = (1 + kp)^2 / (4 zeta^2 tau_e) give it the damping ratio zeta = ``FORCE_LOOP_DAMPING`` (9.9 /s there)."""
+    if time_constant <= step:
+        kp, ki_step = STIFF_FORCE_GAINS
+        return kp, ki_step / step
+    kp = 1.0
+    return kp, (1.0 + kp) ** 2 / (4.0 * FORCE_LOOP_DAMPING**2 * time_constant)
+
+
+def let_go_warning(name: str, t: float, gains: tuple[float, float] | None = None) -> str:
+    """A braced contact released from its surface at ``t`` [s], and what to change if its force is fed back
+    (``gains``: ``force_feedback_gains`` for the arm's motors, if known)."""
+    derived = f" (for these motors: kp <= {gains[0]:.3g}, ki <= {gains[1]:.3g} /s)" if gains is not None else ""
     return (
         f"contact {name!r} let go of its surface at t = {t:.3f} s although the controller braces it: from then on "
-        "its force law acts on a contact that is not there (a unilateral contact releases when the force would pull)"
+        "its force law acts on a contact that is not there (a unilateral contact releases when the force would pull); "
+        f"if its force is fed back, the force loop outran the arm: lower contacts.{name}.force_feedback.kp and .ki"
+        f"{derived} (docs/model.md derives them from the motors)"
     )
 
 

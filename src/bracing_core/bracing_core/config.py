@@ -66,6 +66,7 @@ def trajectory_from_values(prefix: str, values: Mapping[str, Any], point: Sequen
         point=(point[0], point[1], point[2]) if point else None,
         waypoints=tuple((flat[k], flat[k + 1], flat[k + 2]) for k in range(0, len(flat) - 2, 3)),
         segment_time=values[prefix + "segment_time"],
+        start_ramp=values[prefix + "start_ramp"],
     )
 
 
@@ -399,6 +400,7 @@ class SimulatorConfig:
     max_message_elements: int = 10000  # the most names, values or poses a subscribed message may carry
     max_name_length: int = 256  # [characters] the longest name a subscribed message may carry
     record_batch: int = 0  # states per bracing_msgs/RecordBatch to the recorder; 0: off
+    initial_current: str = "zero"  # voltage input: zero | steady (the first command's steady current)
     plant_error: PlantError = field(default_factory=PlantError)
     sensors: SensorConfig = field(default_factory=SensorConfig)
     command_source: str = "motor_command"  # | joint_commands (ros2_control's JointStateTopicSystem)
@@ -476,6 +478,7 @@ def build_simulator(config: SimulatorConfig) -> tuple[Plant, Simulator]:
         simulator = Simulator(plant.dynamics(config.baumgarte), config.step, q0, dq0, substeps)
     except ValueError as exc:
         raise ConfigError(str(exc)) from None
+    simulator.engine.steady_start = config.initial_current == "steady"
     check_start(plant, simulator, config.contact_tolerance)
     return plant, simulator
 
@@ -506,10 +509,18 @@ def circuit_substeps(plant: Plant, q0: Vector, step: float) -> int:
     h |lambda| <= RK4_ACCURATE_STEP keep classic RK4 stable and accurate; below it one sub-step, as every
     shipped scenario had (bit for bit). ``substeps`` larger than this is kept.
     """
-    motors = plant.motors
     if plant.mode is not InputMode.VOLTAGE:
         return 1
-    robot = plant.robot
+    fastest = electromechanical_rate(plant, q0)
+    if step * fastest <= STIFF_STEP:
+        return 1
+    return math.ceil(step * fastest / RK4_ACCURATE_STEP)
+
+
+def electromechanical_rate(plant: Plant, q0: Vector) -> float:
+    """[1/s] the fastest eigenvalue's magnitude of the motors' linear electromechanical system at ``q0``
+    (``circuit_substeps``)."""
+    motors, robot = plant.motors, plant.robot
     inertia = pin.crba(robot.model, robot.data, np.asarray(q0, dtype=float))
     inertia = np.triu(inertia) + np.triu(inertia, 1).T + np.diag(motors.reflected_inertia)
     inverse = np.linalg.inv(inertia)
@@ -520,10 +531,7 @@ def circuit_substeps(plant: Plant, q0: Vector, step: float) -> int:
             [np.diag(-k_m / motors.inductance), np.diag(-motors.resistance / motors.inductance)],
         ]
     )
-    fastest = float(np.max(np.abs(np.linalg.eigvals(system))))
-    if step * fastest <= STIFF_STEP:
-        return 1
-    return math.ceil(step * fastest / RK4_ACCURATE_STEP)
+    return float(np.max(np.abs(np.linalg.eigvals(system))))
 
 
 UNILATERAL_PROJECTION_M = 0.05

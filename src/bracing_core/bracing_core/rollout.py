@@ -21,8 +21,10 @@ from typing import Any
 import numpy as np
 
 import bracing_engine as engine
+from bracing_core.checks import configuration_warnings
 from bracing_core.config import Plant, SimulatorConfig, build_simulator
 from bracing_core.controller_config import ControllerConfig
+from bracing_core.failures import Failure, History, diagnose, succeeded
 from bracing_core.law import DecoupledController
 from bracing_core.overrides import CONTROLLER, SIMULATOR, NodeOverrides, node_params
 from bracing_core.simulator import Energy, Simulator
@@ -149,6 +151,9 @@ class Recording:
     hand_orientation_error: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     # each joint's |command| saturation (model order, 0: none) the simulator applied to ``command``
     command_limit: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    status: str = "ok"  # summary.json's: ok | failed (run_recorded's keep_failure)
+    error: str | None = None  # what stopped the run, what ran away (failures.diagnose)
+    hint: str | None = None  # what to change, for a known cause (failures)
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Every field as an array (for an .npz; the names as string arrays, no pickles)."""
@@ -160,12 +165,16 @@ class Recording:
         return out
 
 
-def run_recorded(scenario: Scenario, duration: float, divergence_checks: bool = True) -> Recording:
+def run_recorded(
+    scenario: Scenario, duration: float, divergence_checks: bool = True, keep_failure: bool = False
+) -> Recording:
     """The lockstep loop of the nodes, recording what they publish (the engine's rollout).
 
     Stops where the simulator node refuses to go on (``divergence_checks``, with the scenario's
     simulator configuration): DivergenceError for a non-finite state or force, a joint faster
-    than ``divergence_speed`` or a held contact further than ``divergence_residual`` off its surface.
+    than ``divergence_speed`` or a held contact further than ``divergence_residual`` off its surface;
+    with ``keep_failure`` the recording up to there instead, and the recording's ``status``, ``error``
+    and ``hint`` as bracing-pair's summary.json has them (``failures``), for a run that ends well too.
     The simulator's warnings about the run (``watch.RunWatch`` over the recorded states, as the node
     watches the states it reports) are the recording's ``warnings`` (none without the scenario's
     simulator configuration).
@@ -181,15 +190,18 @@ def run_recorded(scenario: Scenario, duration: float, divergence_checks: bool = 
         watch = RunWatch(scenario.plant, scenario.sim_config, sim, at_start=sim.steps_taken == 0)
     events = len(sim.events)
     # the commands saturated as the simulator node saturates them (motors.voltage_limit / torque_limit)
-    out = sim.rollout(
-        controller.engine, steps, *limits, sensors=scenario.sensors(), command_limit=scenario.plant.command_limit
-    )
-    rows, p, braced = steps + 1, len(scenario.plant.contact_set), len(controller.contact_set)
+    limit = scenario.plant.command_limit
+    out = sim.rollout_to_failure(controller.engine, steps, *limits, sensors=scenario.sensors(), command_limit=limit)
+    error = sim.rollout_error(out, *limits)
+    if error is not None and not keep_failure:
+        raise error
+    rows, p, braced = out.time.size, len(scenario.plant.contact_set), len(controller.contact_set)
     warnings: list[str] = []
     if watch is not None:
         watch.events(sim.events[events:])
         warnings = watch.start() + watch.states(out.time, out.active, out.normal_force, out.residual)
-        warnings += watch.finish()
+        warnings += [] if error is not None else watch.finish()
+    outcome = _outcome(scenario, out, error, warnings) if keep_failure else Failure("ok", None, None)
     return Recording(
         time=out.time,
         position=out.position,
@@ -222,4 +234,20 @@ def run_recorded(scenario: Scenario, duration: float, divergence_checks: bool = 
         warnings=tuple(warnings),
         command_limit=scenario.plant.command_limit,
         hand_orientation_error=out.orientation_error if controller.config.orientation.axes else np.zeros((rows, 0)),
+        status=outcome.status,
+        error=outcome.error,
+        hint=outcome.hint,
     )
+
+
+def _outcome(scenario: Scenario, out: engine.Recording, error: Exception | None, warnings: list[str]) -> Failure:
+    """status, error and hint of an in-process run, as bracing-pair's summary.json says them."""
+    controller = scenario.controller
+    assert controller is not None
+    said = [*configuration_warnings(controller.config, controller.plant), *warnings]
+    if error is None:
+        feedback = [c.name for c in controller.config.shared.braced_contacts if c.feedback_kp or c.feedback_ki]
+        return succeeded(said, feedback)
+    history = History(out.time, out.position, out.velocity, scenario.plant.joint_names)
+    step = (scenario.sim.step_size, scenario.sim.substeps)
+    return diagnose(str(error), history, scenario.plant, controller.config, step, said)

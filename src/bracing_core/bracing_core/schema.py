@@ -167,6 +167,18 @@ def trajectory_params(
             positive=True,
             nodes=nodes,
         ),
+        Param(
+            prefix + "start_ramp",
+            Kind.DOUBLE,
+            0.0,
+            "> 0: the reference starts where the task point is, at rest: over this T the path's time runs as "
+            "tau = T (x^3 - x^4 / 2), x = t / T (then t - T / 2: the path runs T / 2 late) and the offset from "
+            "the first measured position to the path's start fades on a minimum-jerk profile, so the law's first "
+            "steps ask for no jump (the kick of a voltage-input start); 0: the path as given",
+            "s",
+            minimum=0.0,
+            nodes=nodes,
+        ),
     )
 
 
@@ -648,6 +660,14 @@ SIMULATOR: tuple[Param, ...] = (
         "rad/s or m/s",
         length="robot.joint_names",
         may_be_empty=True,
+    ),
+    Param(
+        "initial_current",
+        Kind.STRING,
+        "zero",
+        "voltage input: the windings' currents at t = 0: zero (at rest), or steady: the steady current of the "
+        "first command, i = (v - K_m dq) / R(T), as a drive that is powered and holding when the run starts",
+        choices=("zero", "steady"),
     ),
     Param("step", Kind.DOUBLE, 0.001, "integration step (one control period in lockstep)", "s", positive=True),
     Param("substeps", Kind.INTEGER, 1, "RK4 sub-steps per step (input held)", minimum=1),

@@ -258,20 +258,42 @@ class Simulator:
         ``divergence_speed`` [rad/s], a held contact further than ``divergence_residual`` [m] off).
         ``sensors``: what the law reads and when its commands land (None: exact and instant). ``command_limit``:
         each joint's |command| saturation (model order, 0: none), as the simulator node applies it."""
+        out = self.rollout_to_failure(law, steps, divergence_speed, divergence_residual, sensors, command_limit)
+        error = self.rollout_error(out, divergence_speed, divergence_residual)
+        if error is not None:
+            raise error
+        return out
+
+    def rollout_to_failure(
+        self,
+        law: engine.Law,
+        steps: int,
+        divergence_speed: float = np.inf,
+        divergence_residual: float = np.inf,
+        sensors: engine.Sensors | None = None,
+        command_limit: Vector | None = None,
+    ) -> engine.Recording:
+        """``rollout`` that returns what it recorded up to a failure instead of raising
+        (``rollout_error`` says why it stopped; its arrays are cut to the rows filled)."""
         limit = np.zeros(0) if command_limit is None else np.asarray(command_limit, dtype=float)
         try:
-            out = engine.rollout(
+            return engine.rollout(
                 law, self.engine, int(steps), self.t0, divergence_speed, divergence_residual, sensors, limit
             )
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
         finally:
             self._take_events()
-        self._raise_for(out.step_status, self.time)  # a step refused: the state is the one it started from
-        if out.refusal is not engine.Refusal.none:  # a step taken whose result the node refuses: the last row's
+
+    def rollout_error(
+        self, out: engine.Recording, divergence_speed: float = np.inf, divergence_residual: float = np.inf
+    ) -> DivergenceError | None:
+        """The error a rollout that stopped early raises (None if it ran to its end)."""
+        error = self._error_for(out.step_status, self.time)  # a step refused: the state is the one it started from
+        if error is None and out.refusal is not engine.Refusal.none:  # a step taken whose result the node refuses
             reason = _refusal_reason(out.refusal, out.measured, divergence_speed, divergence_residual)
-            raise DivergenceError(f"{reason} after the step at t = {out.time[-1]:.3f} s")
-        return out
+            error = DivergenceError(f"{reason} after the step at t = {out.time[-1]:.3f} s")
+        return error
 
     def check(self, divergence_speed: float, divergence_residual: float) -> float:
         """The largest |C| of a held contact after the step just taken, or DivergenceError saying why
@@ -285,17 +307,24 @@ class Simulator:
         return float(measured)
 
     def _raise_for(self, status: engine.StepStatus, time: float) -> None:
-        """The error of a step from ``time`` that the engine refused (diverged or a joint limit), if any."""
+        """Raise the error of a step from ``time`` that the engine refused (diverged or a joint limit), if any."""
+        error = self._error_for(status, time)
+        if error is not None:
+            raise error
+
+    def _error_for(self, status: engine.StepStatus, time: float) -> DivergenceError | None:
+        """The error of a step from ``time`` that the engine refused, None for a step taken."""
         if status is engine.StepStatus.diverged:
-            raise DivergenceError(f"non-finite state after the step at t = {time:.6f} s; state kept")
+            return DivergenceError(f"non-finite state after the step at t = {time:.6f} s; state kept")
         if status is engine.StepStatus.joint_limit:
             robot, j = self.dynamics.robot, self.engine.failed_joint
             unit = "m" if robot.prismatic[j] else "rad"
-            raise JointLimitError(
+            return JointLimitError(
                 f"joint {robot.joint_names[j]!r} would leave its URDF limits [{robot.lower_limits[j]:g}, "
                 f"{robot.upper_limits[j]:g}] {unit} (q = {self.engine.failed_position:.6g}) in the step at "
                 f"t = {time:.6f} s; state kept"
             )
+        return None
 
     def _take_events(self) -> None:
         """The engine's new release and touchdown events into ``events``."""

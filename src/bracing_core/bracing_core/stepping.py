@@ -170,6 +170,8 @@ class SimulatorStepper:
         ]
         if sim.substeps > config.substeps:
             lines.append(f"stiff motor circuits: {sim.substeps} RK4 sub-steps per step (substeps {config.substeps})")
+        if config.initial_current == "steady" and self.mode is InputMode.VOLTAGE:
+            lines.append("initial_current: steady: the windings start at the first command's steady current")
         if config.project_initial_position:
             given = self.plant.to_model_order(config.initial_position)
             projected = dict(zip(self.plant.joint_names, sim.position.round(9).tolist(), strict=True))
@@ -404,8 +406,31 @@ class SimulatorStepper:
             if self.advance(command):
                 return
             self.refuse(command)
+            if self.runs_away_anyway():  # no command can save it: stop now, not after the watchdog's wait
+                raise DivergenceError(f"{self.refusal} (under the command and under the watchdog's too)")
         if not self.advance(self.watchdog_command()):
             raise DivergenceError(f"{self.refusal} (under the watchdog's command: {self.config.watchdog_policy})")
+
+    def runs_away_anyway(self) -> bool:
+        """Whether the watchdog's command (the held one or zero, ``watchdog_policy``) is refused too: the state
+        runs away under any command, so waiting ``command_timeout`` for another one only delays the error
+        (and keeps the recorder from the last states). Tried and taken back; ``refusal`` is kept."""
+        sim, refusal = self.sim, self.refusal
+        command = self.command if self.config.watchdog_policy == "hold" else np.zeros(sim.n)
+        checkpoint = sim.checkpoint()
+        try:
+            with np.errstate(over="ignore", invalid="ignore"):
+                sim.step_answer(self.sensors.delay(command) if self.sensors is not None else command)
+                sim.check(self.config.divergence_speed, self.config.divergence_residual)
+                finite = all_finite(self.state_effort(command))
+        except (DivergenceError, np.linalg.LinAlgError):
+            finite = False
+        finally:
+            sim.restore(checkpoint)
+            if self.sensors is not None:
+                self.sensors.take_back()
+        self.refusal = refusal
+        return not finite
 
     def finish_lockstep(self, receive: Callable[[float], None]) -> None:
         """The run's end: the final state's reports under the answer to it (if it comes in time)."""

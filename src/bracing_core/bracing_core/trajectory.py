@@ -40,6 +40,7 @@ class TrajectoryConfig:
     point: tuple[float, float, float] | None  # hold: None = the first measured position
     waypoints: tuple[tuple[float, float, float], ...]
     segment_time: float  # [s]
+    start_ramp: float = 0.0  # [s] > 0: the path starts from rest (its time warped over the first start_ramp)
 
     def path(self) -> engine.Path:
         """The path as the engine runs it.
@@ -48,7 +49,10 @@ class TrajectoryConfig:
         sin th e_v), th = direction 2 pi t / period + phase (the paper's hand: center (0, 1.1, 0.6),
         radius 0.2, period 10 s, direction -1, plane (y, z)). waypoints: from the first measured
         position through each waypoint in turn, rest to rest, each segment of ``segment_time``
-        seconds on the minimum-jerk profile s(u) = 10 u^3 - 15 u^4 + 6 u^5, then the last held."""
+        seconds on the minimum-jerk profile s(u) = 10 u^3 - 15 u^4 + 6 u^5, then the last held. With a
+        ``start_ramp`` T > 0, each at the warped time tau(t) = T (x^3 - x^4 / 2), x = t / T, until T, then
+        t - T / 2, plus the offset from the first measured position to the path's start times 1 - s(x)
+        (minimum jerk): the reference starts where the point is, at rest."""
         u, v = self.plane
         return engine.Path(
             engine.PathKind[self.kind],
@@ -62,6 +66,7 @@ class TrajectoryConfig:
             None if self.point is None else np.asarray(self.point, dtype=float),
             [np.asarray(w, dtype=float) for w in self.waypoints],
             self.segment_time,
+            self.start_ramp,
         )
 
     def build(self, start: Sequence[float]) -> Trajectory:

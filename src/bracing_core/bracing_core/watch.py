@@ -69,6 +69,7 @@ class RunWatch:
         self._held = np.array(simulator.active, dtype=bool).reshape(len(contacts))  # at the last state seen
         self._reached = self._held & self._braced  # braced contacts that have held on their surfaces
         self._let_go = np.zeros(len(contacts), dtype=bool)
+        self._force_gains = checks.force_feedback_gains(circuit_time_constant(plant), config.step)
         self._events: dict[tuple[str, str], list[float]] = {}  # (contact, release | touchdown) -> times
         self._states = 0
         self._pulls = np.zeros(self._bilateral.size, dtype=int)
@@ -140,7 +141,8 @@ class RunWatch:
             if drops.size:
                 self._let_go[j] = True  # for good: said once, whatever it does next
                 t = float(times[first + int(drops[0])])
-                out.append(checks.let_go_warning(self.names[j], self._event_time(self.names[j], "release", t)))
+                at = self._event_time(self.names[j], "release", t)
+                out.append(checks.let_go_warning(self.names[j], at, self._force_gains))
         return out
 
     def _count_pulls(self, times: np.ndarray, normal_force: np.ndarray) -> None:
@@ -208,3 +210,11 @@ def _projection(plant: Plant, given: np.ndarray, projected: np.ndarray) -> str |
         for k in far
     ]
     return checks.projection_warning(moves, f"{PROJECTION_MOVE_RAD:g} rad ({PROJECTION_MOVE_M:g} m)")
+
+
+def circuit_time_constant(plant: Plant) -> float:
+    """[s] the slowest motor circuit's L / R (voltage input), 0 with torque input (no circuit)."""
+    if plant.mode.value != "voltage":
+        return 0.0
+    motors = plant.motors
+    return float(np.max(motors.inductance / motors.resistance)) if motors.inductance.size else 0.0

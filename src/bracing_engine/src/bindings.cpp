@@ -281,6 +281,9 @@ void bind_simulator(nb::module_& m) {
       .def_prop_ro("modes", [](const Simulator& s) { return s.modes(); })
       .def("set_modes", &Simulator::set_modes, "modes"_a)
       .def_rw("steps_taken", &Simulator::steps_taken)
+      .def_rw("steady_start", &Simulator::steady_start,
+              "voltage input: the first step starts its windings at its command's steady current")
+      .def("hold_current", &Simulator::hold_current, "u"_a, "the windings at their steady current under u, now")
       .def_ro("failed_joint", &Simulator::failed_joint)
       .def_ro("failed_position", &Simulator::failed_position)
       .def_prop_ro("event_count", [](const Simulator& s) { return s.events().size(); })
@@ -301,12 +304,16 @@ void bind_tasks(nb::module_& m) {
       .def(
           "__init__",
           [](Path* path, PathKind kind, const Vector3& center, double radius, double period, double direction, double phase,
-             int u, int v, std::optional<Vector3> point, std::vector<Vector3> waypoints, double segment_time) {
-            new (path) Path{kind, center, radius, period, direction, phase, u, v,
-                            point.has_value(), point.value_or(Vector3::Zero()), std::move(waypoints), segment_time};
+             int u, int v, std::optional<Vector3> point, std::vector<Vector3> waypoints, double segment_time,
+             double start_ramp) {
+            new (path) Path{kind,         center,        radius,
+                            period,       direction,     phase,
+                            u,            v,             point.has_value(),
+                            point.value_or(Vector3::Zero()), std::move(waypoints), segment_time,
+                            start_ramp};
           },
           "kind"_a, "center"_a, "radius"_a, "period"_a, "direction"_a, "phase"_a, "u"_a, "v"_a, "point"_a.none(),
-          "waypoints"_a, "segment_time"_a)
+          "waypoints"_a, "segment_time"_a, "start_ramp"_a = 0.0)
       .def(
           "sample",
           [](const Path& path, const Vector3& start, double t) {

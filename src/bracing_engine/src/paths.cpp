@@ -20,7 +20,31 @@ double floor_div(double t, double step) {
 
 }  // namespace
 
+// With a start ramp T the reference starts where the task point is, at rest. The path's own time runs as
+// tau(t) = T (x^3 - x^4 / 2), x = t / T, until T, then t - T / 2 (tau' = 3 x^2 - 2 x^3 rises from 0 to 1 with
+// zero slope at both ends), and the offset from the first measured position to the path's start fades on
+// the minimum-jerk profile 1 - s(x): no step in position or speed for the law's first update to answer.
 void Path::sample(const Vector3& start, double t, Vector3& position, Vector3& velocity) const {
+  if (!(start_ramp > 0.0)) {
+    sample_at(start, t, position, velocity);
+    return;
+  }
+  if (t >= start_ramp) {
+    sample_at(start, t - 0.5 * start_ramp, position, velocity);
+    return;
+  }
+  const double x = t > 0.0 ? t / start_ramp : 0.0;
+  sample_at(start, start_ramp * x * x * x * (1.0 - 0.5 * x), position, velocity);
+  velocity *= x * x * (3.0 - 2.0 * x);
+  Vector3 origin, unused;
+  sample_at(start, 0.0, origin, unused);
+  const Vector3 offset = start - origin;
+  const double s = x * x * x * (10.0 + x * (-15.0 + 6.0 * x));
+  position += (1.0 - s) * offset;
+  velocity -= 30.0 * x * x * (1.0 - x) * (1.0 - x) / start_ramp * offset;
+}
+
+void Path::sample_at(const Vector3& start, double t, Vector3& position, Vector3& velocity) const {
   velocity.setZero();
   switch (kind) {
     case PathKind::hold:

@@ -187,9 +187,20 @@ void Simulator::rk4(const Vector& y0, double h, const Vector& u, Vector& y1) {
   y1.tail(kEnergies).noalias() += w[0] * e_[0] + w[1] * e_[1] + w[2] * e_[2] + w[3] * e_[3];
 }
 
+void Simulator::hold_current(const Vector& u) {
+  const Drive& drive = dynamics_->drive();
+  if (!drive.voltage) return;  // torque input: no circuit
+  const int n = n_;
+  Vector resistance;
+  drive.resistance_at(y_.segment(3 * n, n), resistance);
+  y_.segment(2 * n, n) =
+      (u - drive.torque_constant.cwiseProduct(y_.segment(n, n))).cwiseQuotient(resistance);
+}
+
 StepStatus Simulator::step(const Vector& u) {
   const int n = n_;
   if (u.size() != n) throw std::invalid_argument("command: one value per joint expected");
+  if (steady_start && steps_taken == 0) hold_current(u);
   start(u);  // the modes at the start; `report` is the first stage
   start_modes_ = modes_;
   const std::size_t event_count = events_.size();

@@ -39,6 +39,12 @@ from bracing_ros.status import StatusPublisher
 from bracing_ros.waiter import SubscriptionWaiter
 from bracing_sim.topics import JOINT_COMMANDS_QOS, SimulatorTopics
 
+DIVERGED = "error: simulation diverged at t = "
+"""How the simulator's stderr gives a divergence (bracing-pair's summary.json ``error`` reads it there)."""
+FLUSH_AT_FAILURE_S = 10.0
+"""[s] wall the simulator waits, after a divergence, for the recorder to acknowledge what it sent: the last
+batch and the flow window take milliseconds on an idle machine; a loaded one may need seconds."""
+
 
 class SimulatorNode(Node):
     def __init__(self, **kwargs: object) -> None:
@@ -211,7 +217,9 @@ def spin(node: SimulatorNode) -> int:
             spin_real_time(node, executor)
     except DivergenceError as exc:
         node.get_logger().fatal(f"simulation diverged at t = {node.sim.time:.6f} s: {exc}")
-        print(f"error: simulation diverged at t = {node.sim.time:.6f} s: {exc}", file=sys.stderr, flush=True)
+        print(f"{DIVERGED}{node.sim.time:.6f} s: {exc}", file=sys.stderr, flush=True)
+        # Every state up to the failure reaches the recorder (the last batch too): the moment to see.
+        node.topics.close(timeout_sec=FLUSH_AT_FAILURE_S)
         return EXIT_DIVERGED
     except KeyboardInterrupt:  # stopped mid-run: what was sent still reaches the recorder, if it can soon
         node.topics.close(timeout_sec=2.0)

@@ -253,6 +253,11 @@ class Simulator {
   const std::vector<ContactEvent>& events() const { return events_; }
   // Where the energy integral `slot` is in the state.
   Eigen::Index energy_index(energy::Slot slot) const { return kStates * n_ + slot; }
+  // Voltage input: the windings start at the steady current of the first step's command (i = (u - K_m dq) / R(T),
+  // set as that step starts), as a drive that is powered and holding when the run starts; false: i = 0.
+  bool steady_start = false;
+  // The windings' currents set to their steady value under u at the current state (voltage input).
+  void hold_current(const Vector& u);
   long steps_taken = 0;
   Answer report;
   int failed_joint = -1;         // the joint a refused step would have taken past its limit

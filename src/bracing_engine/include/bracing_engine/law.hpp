@@ -23,9 +23,14 @@ struct Path {
   Vector3 point = Vector3::Zero();  // hold; without a point: the first measured position
   std::vector<Vector3> waypoints;
   double segment_time = 1.0;
+  double start_ramp = 0.0;  // [s] > 0: the path starts at the first measured position, at rest (paths.cpp)
 
   // Desired position and velocity at t, given the first measured position `start`.
   void sample(const Vector3& start, double t, Vector3& position, Vector3& velocity) const;
+
+ private:
+  // The path at its own time tau (no start ramp).
+  void sample_at(const Vector3& start, double tau, Vector3& position, Vector3& velocity) const;
 };
 
 // A PID task on a frame's origin along world axes: the gains are per world axis (zero: unused).
