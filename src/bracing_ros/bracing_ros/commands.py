@@ -42,7 +42,7 @@ def command_vector(
     expected_code = MODE_CODES[mode]
     if mode_code != expected_code:
         got = {v: k.value for k, v in MODE_CODES.items()}.get(mode_code, f"unknown ({mode_code})")
-        raise CommandError(f"mode-{mode_code}", f"mode {got} but the simulator is configured for {mode.value} input")
+        raise CommandError("mode", f"mode {got} but the simulator is configured for {mode.value} input")
     return _in_order(names, values, joint_names, "values", limit, limits)
 
 
