@@ -141,8 +141,10 @@ def test_joint_state_refusals_have_kinds_without_numbers() -> None:
 def test_a_stop_signal_while_rclpy_converts_a_message_is_a_keyboard_interrupt(monkeypatch: pytest.MonkeyPatch) -> None:
     """A signal handler that runs while rclpy builds a taken message's Python object made pybind11 raise
     RuntimeError ("Unable to convert call argument '0' to Python object") instead of the KeyboardInterrupt
-    (87 % of 300 alarms here): the waiter and the nodes' executor raise the KeyboardInterrupt. Real rclpy,
-    its own publisher and subscription in this process; SIGALRM plays the stop signal."""
+    (87 % of 300 alarms here): the waiter raises the KeyboardInterrupt. Real rclpy, its own publisher and
+    subscription in this process; SIGALRM plays the stop signal. An alarm whose KeyboardInterrupt Python
+    itself swallows (one that lands in a finaliser: "Exception ignored in") ends its trial after 1 s
+    with none, which is not what is tested here."""
     monkeypatch.setattr(stop_signal, "_requested", False)
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     context = Context()
@@ -157,22 +159,30 @@ def test_a_stop_signal_while_rclpy_converts_a_message_is_a_keyboard_interrupt(mo
         waiter = SubscriptionWaiter(node, subscription)
         message = JointState(name=["joint1"] * 50, position=[0.0] * 50)
         for trial in range(100):
-            for _ in range(100):
-                publisher.publish(message)
-            signal.setitimer(signal.ITIMER_REAL, 0.0005 + (trial % 7) * 0.0003)
-            try:
-                while True:
-                    if not waiter.take(0.01):
-                        for _ in range(100):
-                            publisher.publish(message)
-            except BaseException as exc:  # what a stopping node sees
-                outcomes[type(exc).__name__] = outcomes.get(type(exc).__name__, 0) + 1
-            finally:
-                signal.setitimer(signal.ITIMER_REAL, 0)
+            outcome = _take_until_interrupted(waiter, publisher, message, 0.0005 + (trial % 7) * 0.0003)
+            outcomes[outcome] = outcomes.get(outcome, 0) + 1
     finally:
         signal.signal(signal.SIGALRM, previous)
         rclpy.try_shutdown(context=context)
-    assert outcomes == {"KeyboardInterrupt": 100}
+    assert "RuntimeError" not in outcomes and outcomes.get("KeyboardInterrupt", 0) >= 90, outcomes
+
+
+def _take_until_interrupted(waiter: SubscriptionWaiter, publisher: Any, message: JointState, alarm_s: float) -> str:
+    """Take the flood's messages until an alarm in ``alarm_s`` interrupts it: what was raised (or "none" after 1 s)."""
+    for _ in range(100):
+        publisher.publish(message)
+    signal.setitimer(signal.ITIMER_REAL, alarm_s)
+    try:
+        give_up = time.monotonic() + 1.0
+        while time.monotonic() < give_up:
+            if not waiter.take(0.01):
+                for _ in range(100):
+                    publisher.publish(message)
+        return "none"
+    except BaseException as exc:  # what a stopping node sees
+        return type(exc).__name__
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
 
 
 # -- over DDS: the node's output as it comes -----------------------------------------------------------
