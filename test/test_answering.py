@@ -45,7 +45,7 @@ def test_joint_states_are_matched_by_name_and_refused_with_the_reason() -> None:
     ]
     for names, position, velocity, stamp in bad:
         assert core.read_state(names, position, velocity, stamp, ("warning", "refused", "; no command sent")) is None
-    assert [kind for _, kind, _ in log.reports] == ["missing", "duplicate", "non-finite", "4", "stamp"]
+    assert [kind for _, kind, _ in log.reports] == ["missing", "duplicate", "non-finite", "length", "stamp"]
     assert all(level == "warning" and m.startswith("joint_states refused: ") for level, _, m in log.reports)
     assert log.reports[0][2].endswith("; no command sent")
 

@@ -3,10 +3,11 @@
 As a mujoco_ros2_control robot running a ``JointGroupEffortController`` named ``effort_controller``,
 a ``joint_state_broadcaster`` and a ``force_torque_sensor_broadcaster`` per contact: it subscribes
 ``effort_controller/commands`` (std_msgs/Float64MultiArray, one effort per joint of robot.joint_names
-in that order; a wrong length or a non-finite value is refused with a rate-limited error and the
-held command kept) and publishes ``joint_states``, ``/clock`` and ``contact_wrench/<contact>``
-(geometry_msgs/WrenchStamped, frame ``world``: MuJoCo's contact force on the robot at the contact
-sphere), and ``robot_description`` (latched) for the recorder's /tf. Node name and parameters are the
+in that order; a message larger than max_message_elements or max_name_length, a wrong length or a
+non-finite value is refused with a rate-limited error and the held command kept) and publishes
+``joint_states``, ``/clock`` and ``contact_wrench/<contact>`` (geometry_msgs/WrenchStamped, frame
+``world``: MuJoCo's contact force on the robot at the contact sphere), and ``robot_description``
+(latched) for the recorder's /tf. Node name and parameters are the
 simulator's (``bracing_simulator``: robot, contacts, gravity, step, duration), so bracing-pair follows
 it on run_status as it follows our simulator (``bracing-pair --engine mujoco``).
 
@@ -35,6 +36,7 @@ from std_msgs.msg import Float64MultiArray, String
 from bracing_bringup.mujoco_plant import MujocoRobot
 from bracing_core import schema
 from bracing_core.config import SimulatorConfig
+from bracing_core.message_limits import MessageLimits, SizeError
 from bracing_core.stepping import PROGRESS_PERIOD_S, HeldEffort, Periodic
 from bracing_msgs.msg import RunStatus
 from bracing_ros import parameters, wire
@@ -43,10 +45,13 @@ from bracing_ros.matching import create_waking_publisher, wait_until
 from bracing_ros.node_log import RosNodeLog
 from bracing_ros.node_main import run
 from bracing_ros.qos import STREAM_QOS
+from bracing_ros.raw_messages import read_checked
 from bracing_ros.sim_clock import guard_clock
 from bracing_ros.status import StatusPublisher
+from bracing_ros.stop_signal import StoppableExecutor
 
 COMMAND_TOPIC = "effort_controller/commands"
+FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
 COMMAND_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
@@ -81,7 +86,11 @@ class MujocoRobotNode(Node):
         self.joint_wire = wire.JointStateEncoder(self.joint_names)
         self.clock_wire = wire.ClockEncoder()
         self.wrench_wire = wire.WrenchStampedEncoder("world")
-        self.command_sub = self.create_subscription(Float64MultiArray, COMMAND_TOPIC, self.on_command, COMMAND_QOS)
+        # Raw: a message's sizes are checked before its elements are decoded.
+        self.limits = MessageLimits.of(self.config)
+        self.command_sub = self.create_subscription(
+            Float64MultiArray, COMMAND_TOPIC, self.on_command, COMMAND_QOS, raw=True
+        )
         self.status = StatusPublisher(self)
         self.log = RosNodeLog(self, self.status, self.config.log_throttle_period)
         guard_clock(self, self.log)  # use_sim_time (its own /clock): a bad one refused, not fatal
@@ -94,8 +103,14 @@ class MujocoRobotNode(Node):
         )
         self.status.say(RunStatus.CONFIGURED, 0.0)
 
-    def on_command(self, msg: Float64MultiArray) -> None:
-        self.held.offer([float(v) for v in msg.data])
+    def on_command(self, data: bytes) -> None:
+        try:
+            values = read_checked(data, FLOAT64_MULTI_ARRAY, Float64MultiArray, self.limits).data
+        except (wire.DecodeError, SizeError) as exc:
+            kind = exc.kind if isinstance(exc, SizeError) else "malformed"
+            self.log.limited("error", kind, f"{COMMAND_TOPIC} refused: {exc}")
+            return
+        self.held.offer(values)
 
     def publish_state(self) -> None:
         """joint_states (effort: the held command), /clock, then each contact's wrench, at MuJoCo's time."""
@@ -144,7 +159,7 @@ def wait_for_peers(node: MujocoRobotNode, executor: SingleThreadedExecutor) -> N
 
 
 def spin(node: MujocoRobotNode) -> int:
-    executor = SingleThreadedExecutor()
+    executor = StoppableExecutor()
     executor.add_node(node)
     try:
         wait_for_peers(node, executor)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable
 from functools import partial
+from typing import Any
 
 import numpy as np
 from geometry_msgs.msg import WrenchStamped
@@ -28,7 +29,9 @@ from bracing_controller.targets import TargetTopics
 from bracing_core import schema
 from bracing_core.answering import Answer, StateAnswerer
 from bracing_core.controller_config import ControllerConfig
+from bracing_core.message_limits import SizeError
 from bracing_core.step_timing import WorkTimer
+from bracing_core.typestore import MOTOR_STATE, WRENCH_STAMPED
 from bracing_msgs.msg import ControllerState, MotorCommand, MotorState, RunStatus
 from bracing_ros import parameters, wire
 from bracing_ros.ack_window import AckWindow
@@ -37,10 +40,11 @@ from bracing_ros.matching import create_waking_publisher, wait_until
 from bracing_ros.node_log import RosNodeLog
 from bracing_ros.node_main import run
 from bracing_ros.qos import STREAM_QOS, SUBSCRIBE_QOS
-from bracing_ros.raw_messages import read_joint_state
+from bracing_ros.raw_messages import read_checked, read_joint_state
 from bracing_ros.record_batch import RecordBatchPublisher
 from bracing_ros.sim_clock import guard_clock
 from bracing_ros.status import StatusPublisher
+from bracing_ros.stop_signal import StoppableExecutor
 from bracing_ros.waiter import SubscriptionWaiter
 
 
@@ -73,7 +77,7 @@ class ControllerNode(Node):
         # Messages travel as CDR bytes built by ``wire`` (rclpy's message classes cost more than the DDS write).
         self.command_wire = wire.MotorCommandEncoder(self.joint_names, MODE_CODES[config.shared.input_mode])
         self.state_wire = wire.ControllerStateEncoder(contact_names, len(self.joint_names))
-        self.state_reader = wire.JointStateDecoder(self.joint_names)
+        self.state_reader = wire.JointStateDecoder(self.joint_names, self.core.limits)  # sizes checked first
         # Force feedback and thermal compensation read contact_wrench/<name> and motor_state (``listen``).
         self.measurement_waiter: SubscriptionWaiter | None = None
         self.wrench_subs: dict[Subscription, str] = {}
@@ -111,13 +115,18 @@ class ControllerNode(Node):
         measurements = self.core.measurements
         if measurements is not None:
             # the executor (spun between states) and the waiter (while a state waits) both hand them to the core
+            # raw: a message's sizes are checked before its elements are decoded
             self.wrench_subs = {
-                self.create_subscription(WrenchStamped, topic, partial(self.on_wrench, name), SUBSCRIBE_QOS): name
+                self.create_subscription(
+                    WrenchStamped, topic, partial(self.on_wrench, name), SUBSCRIBE_QOS, raw=True
+                ): name
                 for name, topic in zip(measurements.forces, measurements.topics, strict=True)
             }
             subs = list(self.wrench_subs)
             if measurements.temperature:
-                subs.append(self.create_subscription(MotorState, "motor_state", self.on_temperature, SUBSCRIBE_QOS))
+                subs.append(
+                    self.create_subscription(MotorState, "motor_state", self.on_temperature, SUBSCRIBE_QOS, raw=True)
+                )
             self.measurement_waiter = SubscriptionWaiter(self, subs)
         return state_sub
 
@@ -130,12 +139,31 @@ class ControllerNode(Node):
             else:
                 self.on_temperature(msg)
 
-    def on_wrench(self, contact: str, msg: WrenchStamped) -> None:
-        f = msg.wrench.force
-        self.core.take_force(contact, _stamp_ns(msg), np.array([f.x, f.y, f.z]), msg.header.frame_id)
+    def on_wrench(self, contact: str, data: bytes) -> None:
+        """A contact's measured force (CDR bytes), to the core unless it cannot be read."""
+        measurements = self.core.measurements
+        assert measurements is not None  # subscribed to only if the law reads them
+        topic = measurements.topics[measurements.forces.index(contact)]
+        msg = self.read_measurement(data, topic, WRENCH_STAMPED, WrenchStamped)
+        if msg is not None:
+            f = msg.wrench.force
+            self.core.take_force(
+                contact, wire.stamp_ns(msg.header.stamp), np.array([f.x, f.y, f.z]), msg.header.frame_id
+            )
 
-    def on_temperature(self, msg: MotorState) -> None:
-        self.core.take_temperature(_stamp_ns(msg), np.array(msg.temperature))
+    def on_temperature(self, data: bytes) -> None:
+        """The windings' temperatures (motor_state, CDR bytes), to the core unless they cannot be read."""
+        msg = self.read_measurement(data, "motor_state", MOTOR_STATE, MotorState)
+        if msg is not None:
+            self.core.take_temperature(wire.stamp_ns(msg.header.stamp), np.asarray(msg.temperature, dtype=float))
+
+    def read_measurement(self, data: bytes, topic: str, typename: str, msg_type: type) -> Any:
+        """A measurement's message from ``topic``, or None after saying why it cannot be read (its size, its bytes)."""
+        try:
+            return read_checked(data, typename, msg_type, self.core.limits)
+        except (wire.DecodeError, SizeError) as exc:
+            self.log.limited("error", "measurement", f"ignored: {topic}: {exc}")
+            return None
 
     def on_state(self, data: bytes) -> None:
         try:
@@ -148,9 +176,10 @@ class ControllerNode(Node):
         refused (``refusal``: severity, verdict and what follows, as ``StateAnswerer.read_state``)."""
         try:
             msg = read_joint_state(data, self.state_reader)
-        except wire.DecodeError as exc:
+        except (wire.DecodeError, SizeError) as exc:
             severity, verdict, then = refusal
-            self.log.limited(severity, "malformed", f"joint_states {verdict}: {exc}{then}")
+            kind = exc.kind if isinstance(exc, SizeError) else "malformed"
+            self.log.limited(severity, kind, f"joint_states {verdict}: {exc}{then}")
             return
         state = self.core.read_state(msg.name, msg.position, msg.velocity, msg.stamp_ns, refusal)
         if state is not None:
@@ -206,10 +235,6 @@ class ControllerNode(Node):
         return lines
 
 
-def _stamp_ns(msg: WrenchStamped | MotorState) -> int:
-    return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
-
-
 def wait_for_outputs(node: ControllerNode, executor: SingleThreadedExecutor) -> None:
     """Before the first state: the recorder (wait_for_recorder) and the simulator on this node's outputs."""
     if node.config.wait_for_recorder:
@@ -235,7 +260,7 @@ def spin(node: ControllerNode) -> int:
     in between."""
     if node.effort is not None:
         return spin_effort_forward(node)
-    executor = SingleThreadedExecutor()
+    executor = StoppableExecutor()
     executor.add_node(node)
     answered, work, targets = 0, WorkTimer(), node.target_topics
     try:
@@ -298,7 +323,7 @@ def spin_effort_forward(node: ControllerNode) -> int:
     """Subscribe joint_states, then send the law's efforts at control_rate until stopped."""
     effort = node.effort
     assert effort is not None
-    executor = SingleThreadedExecutor()
+    executor = StoppableExecutor()
     executor.add_node(node)
     node.create_subscription(JointState, "joint_states", effort.on_state, STATE_QOS, raw=True)
     node.create_timer(1.0 / node.config.control_rate, lambda: effort_tick(node))

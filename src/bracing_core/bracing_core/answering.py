@@ -1,7 +1,8 @@
 """The controller node's policy, without ROS: how one joint state becomes the law's answer.
 
-Per state: a joint state that cannot be answered (lengths, a joint missing, not finite, a stamp out of
-``builtin_interfaces/Time``) is refused with a rate-limited report; a retune takes effect; the force
+Per state: a joint state that cannot be answered (larger than ``MessageLimits``, lengths, a joint
+missing, not finite, a stamp out of ``builtin_interfaces/Time``) is refused with a report rate-limited
+by its kind; a retune takes effect; the force
 and temperature reports of the step before wait briefly (``Measurements``, ``MEASUREMENT_WAIT_S``); the
 targets that came are fed to the law (``TaskTargets``); the law's failure or a non-finite output
 refuses the state; a damped inverse is reported; every ``NULL_SPACE_CHECK_EVERY`` states the null
@@ -24,6 +25,7 @@ from bracing_core.controller_config import ControllerConfig
 from bracing_core.kinematics import WORLD_FRAME
 from bracing_core.law import ControlOutput, DecoupledController
 from bracing_core.measurements import Measurements
+from bracing_core.message_limits import DEFAULT_LIMITS, MessageLimits, SizeError, quote_names
 from bracing_core.node_log import NodeLog
 from bracing_core.numbers import all_finite
 from bracing_core.params import ConfigError
@@ -40,30 +42,50 @@ MEASUREMENT_WAIT_S = 0.5
 
 
 class StateError(ValueError):
-    """A joint_states message the controller cannot use."""
+    """A joint_states message the controller cannot use; ``kind`` (a word, no number) keys its rate limit."""
+
+    def __init__(self, kind: str, message: str) -> None:
+        super().__init__(message)
+        self.kind = kind
 
 
 def joint_vectors(
-    names: list[str], position: Vector, velocity: Vector, stamp_ns: int, joint_names: list[str]
+    names: list[str],
+    position: Vector,
+    velocity: Vector,
+    stamp_ns: int,
+    joint_names: list[str],
+    limits: MessageLimits = DEFAULT_LIMITS,
 ) -> tuple[Vector, Vector]:
-    """(q, dq) in ``joint_names`` order from a joint state's joints matched by name."""
+    """(q, dq) in ``joint_names`` order from a joint state's joints matched by name; sizes checked first,
+    then every check linear in the names."""
+    try:
+        limits.check_count("name", len(names))
+        limits.check_count("position", len(position))
+        limits.check_count("velocity", len(velocity))
+    except SizeError as exc:
+        raise StateError(exc.kind, str(exc)) from None
     if len(position) != len(names) or len(velocity) != len(names):
-        raise StateError(f"{len(names)} names, {len(position)} positions, {len(velocity)} velocities")
+        raise StateError("length", f"{len(names)} names, {len(position)} positions, {len(velocity)} velocities")
     if names == joint_names:  # the simulator's order: nothing to match
         q, dq = position, velocity
     else:
+        try:
+            limits.check_name("name", max(names, key=len, default=""))
+        except SizeError as exc:
+            raise StateError(exc.kind, str(exc)) from None
         if len(set(names)) != len(names):
-            raise StateError("duplicate joint names")
+            raise StateError("duplicate", "duplicate joint names")
         index = {name: k for k, name in enumerate(names)}
         missing = [j for j in joint_names if j not in index]
         if missing:
-            raise StateError(f"missing joints {missing}")
+            raise StateError("missing", f"missing joints {quote_names(missing)}")
         order = [index[j] for j in joint_names]
         q, dq = position[order], velocity[order]
     if not (np.isfinite(q).all() and np.isfinite(dq).all()):
-        raise StateError("non-finite position or velocity")
+        raise StateError("non-finite", "non-finite position or velocity")
     if not STAMP_RANGE_NS[0] <= stamp_ns < STAMP_RANGE_NS[1]:  # a nanosec field >= 1e9 can push it out
-        raise StateError(f"stamp {stamp_ns} ns cannot be answered (builtin_interfaces/Time: int32 seconds)")
+        raise StateError("stamp", f"stamp {stamp_ns} ns cannot be answered (builtin_interfaces/Time: int32 seconds)")
     return q, dq
 
 
@@ -108,6 +130,7 @@ class StateAnswerer:
         self.law = DecoupledController(config)
         self.log, self.clock, self.timer = log, clock, timer
         self.joint_names = list(self.law.plant.joint_names)
+        self.limits = MessageLimits.of(config)  # what one subscribed message may carry
         self.measurements = Measurements.for_law(self.law)  # None: the law reads no measurement
         self.targets = task_targets(self.law)
         self.retuned: ControllerConfig | None = None  # applied at the next update
@@ -193,10 +216,10 @@ class StateAnswerer:
         """(q, dq) of a joint state in the law's joint order, or None after reporting why it cannot be
         answered; ``refusal``: (severity, verdict, what follows), e.g. ("error", "ignored", "")."""
         try:
-            return joint_vectors(names, position, velocity, stamp_ns, self.joint_names)
+            return joint_vectors(names, position, velocity, stamp_ns, self.joint_names, self.limits)
         except StateError as exc:
             severity, verdict, then = refusal
-            self.log.limited(severity, str(exc).split(" ")[0], f"joint_states {verdict}: {exc}{then}")
+            self.log.limited(severity, exc.kind, f"joint_states {verdict}: {exc}{then}")
             return None
 
     def answer(

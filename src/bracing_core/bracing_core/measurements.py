@@ -15,6 +15,7 @@ import numpy as np
 
 from bracing_core.kinematics import WORLD_FRAME as WORLD
 from bracing_core.law import DecoupledController
+from bracing_core.message_limits import shorten
 from bracing_core.types import Vector
 
 
@@ -44,15 +45,19 @@ class Measurements:
         if value.shape != (3,) or not np.isfinite(value).all():
             return f"{topic}: force {value.tolist()} is not 3 finite numbers"
         if frame not in (WORLD, ""):
-            return f"{topic}: frame_id {frame!r}: force feedback takes forces in world axes (frame_id {WORLD!r})"
+            return (
+                f"{topic}: frame_id {shorten(frame)!r}: force feedback takes forces in world axes (frame_id {WORLD!r})"
+            )
         if contact in self.forces:
             self._force[contact] = (stamp_ns, value)
         return None
 
     def take_temperature(self, stamp_ns: int, temperature: Vector, joints: int) -> str | None:
         """Keep the windings' temperatures [degC] (model order); why not, if they are refused."""
+        if len(temperature) != joints:  # before any work per element: the message may hold any number
+            return f"motor_state: {len(temperature)} temperatures, not {joints} (one per joint)"
         value = np.asarray(temperature, dtype=float)
-        if value.shape != (joints,) or not np.isfinite(value).all():
+        if not np.isfinite(value).all():
             return f"motor_state: temperature {value.tolist()} is not {joints} finite numbers"
         self._temperature = (stamp_ns, value)
         return None

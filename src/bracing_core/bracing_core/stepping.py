@@ -228,15 +228,25 @@ class SimulatorStepper:
         else:
             self.log.limited("warning", kind, message)
 
+    @property
+    def command_topic(self) -> str:
+        """Where the commands come from: motor_command, or joint_commands_topic (command_source)."""
+        config = self.config
+        return "motor_command" if config.command_source == "motor_command" else config.joint_commands_topic
+
     def refuse(self, command: Vector) -> None:
-        """Say that ``command`` was refused because its step is not finite, naming its largest value."""
+        """Say that ``command`` (from ``command_topic``) was refused because its step is not finite,
+        naming its largest value (with the drive: the voltage its current loop set for the effort)."""
         j = int(np.argmax(np.abs(command)))
         unit = "V" if self.mode is InputMode.VOLTAGE else "N m"
+        value = f"{self.plant.joint_names[j]} = {command[j]:.6g} {unit}"
+        if self.drive is not None:
+            value = f"the current loop's voltage for its efforts: {value}"
         self.log.limited(
             "error",
             "absurd",
-            f"motor_command rejected: its step at t = {self.sim.time:.6f} s would not be finite "
-            f"({self.plant.joint_names[j]} = {command[j]:.6g} {unit}; {self.refusal}); the state is kept",
+            f"{self.command_topic} rejected: its step at t = {self.sim.time:.6f} s would not be finite "
+            f"({value}; {self.refusal}); the state is kept",
         )
 
     # -- commands -------------------------------------------------------------------
@@ -479,8 +489,7 @@ class SimulatorStepper:
         if latest is not None and self.clock() - latest[0] <= config.command_timeout:
             return latest[1]
         if latest is not None:
-            source = "motor_command" if config.command_source == "motor_command" else config.joint_commands_topic
-            self.warn_first("watchdog", f"{source} stale: applying zero")
+            self.warn_first("watchdog", f"{self.command_topic} stale: applying zero")
         return np.zeros(self.sim.n)
 
     def _applied(self, request: Vector) -> Vector:
@@ -517,7 +526,7 @@ class HeldEffort:
         self.command = np.zeros(len(self.joints))  # held until a valid one replaces it
         self.commands = 0  # valid commands taken so far
 
-    def offer(self, values: Sequence[float]) -> None:
+    def offer(self, values: Sequence[float] | Vector) -> None:
         """A Float64MultiArray's values: held, or refused with the reason."""
         n = len(self.joints)
         problem = None

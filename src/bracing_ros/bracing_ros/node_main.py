@@ -3,7 +3,6 @@ line and an exit code."""
 
 from __future__ import annotations
 
-import signal
 import sys
 from collections.abc import Callable
 
@@ -15,15 +14,12 @@ from rclpy.signals import SignalHandlerOptions
 
 from bracing_core import rcl_yaml
 from bracing_core.params import ConfigError
+from bracing_ros import stop_signal
 from bracing_ros.fastdds import use_fastdds_profile
 from bracing_ros.lifetime import report_faults, stop_with_parent
 
 EXIT_CONFIG = 2
 EXIT_DIVERGED = 3
-
-
-def _interrupt(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt()
 
 
 def run(node_factory: Callable[[], Node], spin: Callable[[Node], int], args: list[str] | None = None) -> int:
@@ -33,13 +29,10 @@ def run(node_factory: Callable[[], Node], spin: Callable[[Node], int], args: lis
     node: Node | None = None
     try:
         try:
-            # Python's own SIGINT handling (KeyboardInterrupt) instead of rclpy's, which shuts the
+            # KeyboardInterrupt on SIGINT and SIGTERM instead of rclpy's handling, which shuts the
             # context down at once: a node stopping must still flush what its subscribers have
-            # not acknowledged (see AckWindow), and that needs a live context. SIGTERM alike.
-            signal.signal(signal.SIGTERM, _interrupt)
-            # Even when started with SIGINT ignored (a background job of a script, nohup): bracing-pair
-            # stops the nodes with it. Seen: the controller of a backgrounded make bench ignored it.
-            signal.signal(signal.SIGINT, signal.default_int_handler)
+            # not acknowledged (see AckWindow), and that needs a live context.
+            stop_signal.install()
             stop_with_parent()
             use_fastdds_profile()
             rclpy.init(args=args if args is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)

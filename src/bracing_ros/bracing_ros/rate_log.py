@@ -6,9 +6,17 @@ import time
 
 from rclpy.node import Node
 
+from bracing_core.message_limits import shorten
+
+MAX_LINE_CHARACTERS = 1000
+"""A report's characters at most (a longer one is cut, saying how long it was): the last line of
+defence of a log's size, whatever a refusal quotes of the message it refuses."""
+
 
 class RateLimitedLog:
-    """At most one message per ``kind`` per ``period`` seconds, with a count of those held back.
+    """At most one message per ``kind`` per ``period`` seconds, with a count of those held back, each
+    at most MAX_LINE_CHARACTERS long. ``kind`` must be a word for the kind of report, never text with
+    numbers from the message (each would be a kind of its own, with a rate limit of its own).
 
     rclpy's throttle is per call site; one site reporting several kinds of bad input
     would hide all but the first kind. rclpy also fixes a call site's severity at its
@@ -29,7 +37,9 @@ class RateLimitedLog:
             return
         held = self._held.pop(kind, 0)
         self._last[kind] = now
-        text = message + (f" ({held} more like this since the last report)" if held else "")
+        text = shorten(message, MAX_LINE_CHARACTERS)
+        if held:
+            text += f" ({held} more like this since the last report)"
         if level == "error":
             self._logger.error(text)
         elif level == "warning":

@@ -8,6 +8,7 @@ from typing import Any
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 
+from bracing_core.message_limits import MessageLimits
 from bracing_msgs.msg import MotorCommand
 from bracing_ros import wire
 
@@ -29,6 +30,15 @@ def read_motor_command(data: bytes, decoder: wire.MotorCommandDecoder) -> wire.M
         return decoder.decode(data)
     except wire.UnsupportedEncoding:
         return wire.motor_command_data(_deserialize(data, MotorCommand))
+
+
+def read_checked(data: bytes, typename: str, msg_type: type, limits: MessageLimits) -> Any:
+    """A message of ``typename`` (``msg_type``, rclpy's class) taken raw (CDR bytes), its sizes checked
+    against ``limits`` before its elements are decoded (``SizeError``); see :func:`read_joint_state`."""
+    try:
+        return wire.decode_checked(data, typename, limits)
+    except wire.UnsupportedEncoding:
+        return _deserialize(data, msg_type)
 
 
 def _deserialize(data: bytes, msg_type: type) -> Any:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import partial
 from typing import Any
 
 from rclpy.executors import ExternalShutdownException
@@ -10,6 +11,8 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerGuardCondition
 from rclpy.subscription import Subscription
+
+from bracing_ros.stop_signal import taking
 
 
 class SubscriptionWaiter:
@@ -52,6 +55,7 @@ class SubscriptionWaiter:
         messages = []
         for subscription in subscriptions:
             handle = subscription.handle
-            while (taken := handle.take_message(subscription.msg_type, subscription.raw)) is not None:
+            take = partial(handle.take_message, subscription.msg_type, subscription.raw)
+            while (taken := taking(take)) is not None:
                 messages.append((subscription, taken[0]))
         return messages

@@ -69,6 +69,7 @@ from rosbags.interfaces import Nodetype
 
 from bracing_core import cdr
 from bracing_core.cdr import FieldDesc
+from bracing_core.message_limits import MessageLimits, check_cdr_sizes
 from bracing_core.types import Vector
 from bracing_core.typestore import (
     CLOCK,
@@ -662,16 +663,19 @@ class JointStateData:
 
 
 class JointStateDecoder:
-    """Reads JointStates, quickly when they have the layout of ``JointStateEncoder(names)``."""
+    """Reads JointStates, quickly when they have the layout of ``JointStateEncoder(names)``. Another
+    layout is checked against ``limits`` from its length fields first (``SizeError``), if given."""
 
-    def __init__(self, names: Sequence[str]) -> None:
-        self._names = list(names)
+    def __init__(self, names: Sequence[str], limits: MessageLimits | None = None) -> None:
+        self._names, self._limits = list(names), limits
         self._template = derive_template(JOINT_STATE, _joint_state_spec(names, ""))
         bracing_typestore().get_msgdef(JOINT_STATE)  # the general reader's code, generated now
 
     def decode(self, data: bytes) -> JointStateData:
         values = self._template.read(data)
         if values is None:
+            if self._limits is not None:
+                check_cdr_sizes(bracing_typestore(), JOINT_STATE, data, self._limits)
             return decode_joint_state(data)
         (sec, nanosec), position, velocity, effort = values
         return JointStateData(
@@ -708,16 +712,19 @@ class MotorCommandData:
 
 
 class MotorCommandDecoder:
-    """Reads MotorCommands, quickly when they have the layout of ``MotorCommandEncoder(names, mode)``."""
+    """Reads MotorCommands, quickly when they have the layout of ``MotorCommandEncoder(names, mode)``;
+    another layout is checked against ``limits`` first, as ``JointStateDecoder``'s."""
 
-    def __init__(self, names: Sequence[str], mode: int) -> None:
-        self._names, self._mode = list(names), mode
+    def __init__(self, names: Sequence[str], mode: int, limits: MessageLimits | None = None) -> None:
+        self._names, self._mode, self._limits = list(names), mode, limits
         self._template = derive_template(MOTOR_COMMAND, _motor_command_spec(names, mode))
         bracing_typestore().get_msgdef(MOTOR_COMMAND)
 
     def decode(self, data: bytes) -> MotorCommandData:
         values = self._template.read(data)
         if values is None:
+            if self._limits is not None:
+                check_cdr_sizes(bracing_typestore(), MOTOR_COMMAND, data, self._limits)
             return decode_motor_command(data)
         (sec, nanosec), value = values
         return MotorCommandData(sec * 1_000_000_000 + nanosec, self._mode, self._names.copy(), np.array(value))
@@ -731,3 +738,10 @@ def decode_motor_command(data: bytes) -> MotorCommandData:
 def motor_command_data(msg: Any) -> MotorCommandData:
     """The numbers of a MotorCommand message object (rosbags' or rclpy's)."""
     return MotorCommandData(stamp_ns(msg.header.stamp), int(msg.mode), list(msg.name), np.array(msg.value, dtype=float))
+
+
+def decode_checked(data: bytes, typename: str, limits: MessageLimits) -> Any:
+    """Any valid message of ``typename`` from its CDR bytes (rosbags' message object), checked against
+    ``limits`` from its length fields before its elements are decoded (``SizeError``)."""
+    check_cdr_sizes(bracing_typestore(), typename, data, limits)
+    return _deserialize(data, typename)

@@ -23,6 +23,7 @@ from sensor_msgs.msg import JointState
 from bracing_core import schema
 from bracing_core.config import SimulatorConfig, build_simulator
 from bracing_core.meshes import missing_warning
+from bracing_core.message_limits import MessageLimits, SizeError
 from bracing_core.simulator import DivergenceError
 from bracing_core.step_timing import WorkTimer
 from bracing_core.stepping import SimulatorStepper
@@ -33,9 +34,10 @@ from bracing_ros.matching import wait_until
 from bracing_ros.node_log import RosNodeLog
 from bracing_ros.node_main import EXIT_DIVERGED, run
 from bracing_ros.qos import SUBSCRIBE_QOS
-from bracing_ros.raw_messages import read_motor_command
+from bracing_ros.raw_messages import read_joint_state, read_motor_command
 from bracing_ros.sim_clock import guard_clock
 from bracing_ros.status import StatusPublisher
+from bracing_ros.stop_signal import StoppableExecutor
 from bracing_ros.waiter import SubscriptionWaiter
 from bracing_sim.topics import JOINT_COMMANDS_QOS, SimulatorTopics
 
@@ -59,14 +61,19 @@ class SimulatorNode(Node):
         # Its meshes as file:// paths of the files found here (robot.package_paths): viewers need no package index.
         description, missing_meshes = self.plant.description()
         self.topics.publish_description(description)
-        self.command_reader = wire.MotorCommandDecoder(self.joint_names, MODE_CODES[config.shared.input_mode])
+        # Both command topics are taken raw: a message's sizes are checked before its elements are decoded.
+        self.limits = limits = MessageLimits.of(config)
+        self.command_reader = wire.MotorCommandDecoder(self.joint_names, MODE_CODES[config.shared.input_mode], limits)
+        self.joint_command_reader = wire.JointStateDecoder(self.joint_names, limits)
         self.command_sub: Subscription | None = None  # motor_command (command_source motor_command)
         if config.command_source == "motor_command":
             self.command_sub = self.create_subscription(
                 MotorCommand, "motor_command", self.on_command, SUBSCRIBE_QOS, raw=True
             )
         else:  # joint_commands: ros2_control's JointStateTopicSystem's efforts
-            self.create_subscription(JointState, config.joint_commands_topic, self.on_joint_command, JOINT_COMMANDS_QOS)
+            self.create_subscription(
+                JointState, config.joint_commands_topic, self.on_joint_command, JOINT_COMMANDS_QOS, raw=True
+            )
         self.log = RosNodeLog(self, self.status, config.log_throttle_period)
         guard_clock(self, self.log)  # use_sim_time (its own /clock): a bad one refused, not fatal
         self.core = SimulatorStepper(config, self.plant, self.sim, self.log, self.topics)
@@ -82,15 +89,18 @@ class SimulatorNode(Node):
         self.status.say(RunStatus.CONFIGURED, self.sim.time)
 
     # -- messages in ----------------------------------------------------------------
-    def on_joint_command(self, msg: JointState) -> None:
-        """ros2_control's JointStateTopicSystem's efforts [N m or N, link side], checked."""
+    def on_joint_command(self, data: bytes) -> None:
+        """ros2_control's JointStateTopicSystem's efforts [N m or N, link side] (CDR bytes), checked."""
+        topic = self.config.joint_commands_topic
         try:
-            u, saturated = effort_vector(list(msg.name), list(msg.effort), self.joint_names, self.core.effort_limit)
-        except CommandError as exc:
-            self.log.limited("error", exc.kind, f"{self.config.joint_commands_topic} rejected: {exc}")
+            msg = read_joint_state(data, self.joint_command_reader)
+            u, saturated = effort_vector(msg.name, msg.effort, self.joint_names, self.core.effort_limit, self.limits)
+        except (wire.DecodeError, SizeError, CommandError) as exc:
+            kind = exc.kind if isinstance(exc, (SizeError, CommandError)) else "malformed"
+            self.log.limited("error", kind, f"{topic} rejected: {exc}")
             return
         except Exception as exc:  # the last line of defence: no message may stop the simulator
-            self.log.limited("error", "internal", f"joint command rejected: {type(exc).__name__}: {exc}")
+            self.log.limited("error", "internal", f"{topic} rejected: {type(exc).__name__}: {exc}")
             return
         self.core.offer_effort(u, saturated)
 
@@ -105,11 +115,13 @@ class SimulatorNode(Node):
         try:
             msg = read_motor_command(data, self.command_reader)
             core = self.core
-            u, saturated = command_vector(msg.name, msg.value, msg.mode, self.joint_names, core.mode, core.limit)
+            u, saturated = command_vector(
+                msg.name, msg.value, msg.mode, self.joint_names, core.mode, core.limit, self.limits
+            )
         except wire.DecodeError as exc:
             self.log.limited("error", "malformed", f"motor_command rejected: {exc}")
             return
-        except CommandError as exc:
+        except (SizeError, CommandError) as exc:
             self.log.limited("error", exc.kind, f"motor_command rejected: {exc}")
             return
         self.core.offer(msg.stamp_ns, u, saturated)
@@ -208,7 +220,7 @@ def spin_real_time(node: SimulatorNode, executor: SingleThreadedExecutor) -> Non
 
 
 def spin(node: SimulatorNode) -> int:
-    executor = SingleThreadedExecutor()
+    executor = StoppableExecutor()
     executor.add_node(node)
     try:
         if node.config.stepping == "lockstep":
