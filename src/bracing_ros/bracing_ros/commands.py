@@ -42,8 +42,11 @@ def command_vector(
     of ``joint_names``; 0 = none)."""
     expected_code = MODE_CODES[mode]
     if mode_code != expected_code:
-        got = {v: k.value for k, v in MODE_CODES.items()}.get(mode_code, f"unknown ({mode_code})")
-        raise CommandError("mode", f"mode {got} but the simulator is configured for {mode.value} input")
+        known = {v: k.value for k, v in MODE_CODES.items()}
+        got = known.get(mode_code, f"unknown ({mode_code})")
+        # Two kinds, whatever the value: another known mode, or a value no mode has (255 of them).
+        kind = "mode" if mode_code in known else "mode-unknown"
+        raise CommandError(kind, f"mode {got} but the simulator is configured for {mode.value} input")
     return _in_order(names, values, joint_names, "values", limit, limits)
 
 
