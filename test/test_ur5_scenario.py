@@ -9,7 +9,6 @@ short run of the pair shows that the nodes run the file end to end as the rollou
 
 from __future__ import annotations
 
-import hashlib
 import json
 from pathlib import Path
 
@@ -20,6 +19,7 @@ from ros_helpers import pair_argv, run
 from rosbags.highlevel import AnyReader
 
 from bracing_core.meshes import find_package, mesh_uris, resolved_description
+from bracing_core.params import ConfigError, resolve_file
 from bracing_core.rcl_yaml import load_params_file
 from bracing_core.rollout import Recording, build_scenario, run_recorded
 
@@ -67,12 +67,18 @@ def test_the_arm_is_example_robot_datas_own() -> None:
     urdf = scenario.sim_config.shared.urdf
     assert urdf == (package / "robots/ur_description/urdf/ur5_robot.urdf").resolve()
     text = urdf.read_text()
-    assert hashlib.sha256(text.encode()).hexdigest() == hashlib.sha256(urdf.read_bytes()).hexdigest()
     assert len(mesh_uris(text)) == 14  # 7 links, a visual and a collision mesh each
     _, missing = resolved_description(text)
     assert missing == []
     assert not list(CONFIG_DIR.glob("ur5*.urdf"))
     np.testing.assert_array_equal(scenario.plant.motors.torque_limit, [150.0, 150.0, 150.0, 28.0, 28.0, 28.0])
+
+
+def test_a_package_urdf_that_is_not_installed_is_refused_saying_where_it_was_looked_for() -> None:
+    with pytest.raises(ConfigError, match=r"robot.urdf: 'package://no_such_robots/a.urdf' not found .*cmeel prefix"):
+        resolve_file("package://no_such_robots/a.urdf", "robot.urdf")
+    with pytest.raises(ConfigError, match="not found"):  # the package is there, the file is not
+        resolve_file("package://example-robot-data/robots/none.urdf", "robot.urdf")
 
 
 def test_torque_input_tracks_the_circle_and_holds_the_tool(torque: Recording) -> None:
