@@ -15,8 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import CONFIG_DIR
-from ros_helpers import pair_argv, run
-from rosbags.highlevel import AnyReader
+from ros_helpers import bag_joint_positions, pair_argv, run
 
 from bracing_core.meshes import find_package, mesh_uris, resolved_description
 from bracing_core.params import ConfigError, resolve_file
@@ -151,11 +150,7 @@ def test_the_pair_runs_it_as_the_in_process_loop(tmp_path: Path) -> None:
     argv = pair_argv(output, "--duration", str(seconds), "--no-animation", config=UR5)
     done = run(argv, timeout=300)
     assert done.returncode == 0, done.stdout + done.stderr
-    with AnyReader([output / "bag"]) as reader:
-        connections = [c for c in reader.connections if c.topic == "/joint_states"]
-        states = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=connections)]
-    states.sort(key=lambda m: (m.header.stamp.sec, m.header.stamp.nanosec))
-    positions = np.array([m.position for m in states])
+    positions = bag_joint_positions(output / "bag")
     reference = run_recorded(build_scenario(UR5), seconds)
     np.testing.assert_allclose(positions, reference.position, rtol=0, atol=1e-9)
     summary = json.loads((output / "summary.json").read_text())
