@@ -4,7 +4,10 @@ the tool point draws a circle of radius 3 cm parallel to the table, its roll and
 gains in acceleration units at the recommended bandwidths.
 
 The targets are measured on one turn (5 s) of the in-process rollout, the engine the pair runs; one
-short run of the pair shows that the nodes run the file end to end as the rollout does.
+short run of the pair shows that the nodes run the file end to end as the rollout does. It is not in
+test_scenarios.py's list: there torque input must hold f_n = f_nd to 1e-9 at every step, and here the
+wrist breaking free of the table (Coulomb stick, then slip, at t = 0.543 s) takes f_n to 11.6 N for a
+moment (eq. 40 assumes the contact slides); the oracle (test_oracle.py) checks its plant step by step.
 """
 
 from __future__ import annotations
