@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 
 from bracing_bringup.domains import hold_domain
@@ -125,3 +126,14 @@ def pair_argv(output: Path, *extra: str, config: Path = PAPER_YAML) -> list[str]
         "--quiet",
         *extra,
     ]
+
+
+def bag_joint_positions(bag: Path) -> np.ndarray:
+    """(N, n) the recorded /joint_states positions of a run's bag, in stamp order."""
+    from rosbags.highlevel import AnyReader  # only the tests that read bags need it
+
+    with AnyReader([bag]) as reader:
+        connections = [c for c in reader.connections if c.topic == "/joint_states"]
+        states = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=connections)]
+    states.sort(key=lambda m: (m.header.stamp.sec, m.header.stamp.nanosec))
+    return np.array([m.position for m in states])

@@ -69,6 +69,22 @@ CYLINDER = {  # the elbow at the bottom of a pipe of radius 0.6 m along x, from 
     "contacts.elbow.radius": 0.6,
     "contacts.elbow.inside": True,
 }
+# The UR5's plant as shipped under the law the reference has (the paper's, stiffness gains); its own knobs
+# (acceleration gains, orientation, integral, back-EMF law, start ramp, force feedback): test_ur5_scenario.py
+UR5_PAPER_LAW = {
+    "gains": "stiffness",
+    "hand.ki": [],
+    **{f"hand.orientation.{key}": [] for key in ("axes", "kp", "kd", "ki")},
+    "voltage_law.back_emf_compensation": False,
+    "null_space_posture.kd": [0.0] * 6,
+    "hand.trajectory.start_ramp": 0.0,
+}
+UR5_NO_FEEDBACK = {  # and held both ways: the windings from 0 A kick the wrist off a one-sided table
+    "contacts.wrist.force_feedback.kp": 0.0,
+    "contacts.wrist.force_feedback.ki": 0.0,
+    "contacts.wrist.unilateral": False,
+}
+CONTROLLER_OVERRIDES = {"ur5_table": UR5_PAPER_LAW}  # of the scenarios below
 # name: (file, shared overrides, simulator overrides)
 SCENARIOS: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
     "paper_4link": ("paper_4link.yaml", {}, {}),
@@ -82,6 +98,8 @@ SCENARIOS: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
     "mobile_8joint_locked": ("mobile_8joint.yaml", {"robot.locked_joints": ["base_joint"]}, {}),
     "writing_desk": ("writing_desk.yaml", {}, {}),
     "writing_desk_fast_pen": ("writing_desk.yaml", {"contacts.pen.trajectory.segment_time": 0.4}, {}),
+    # the reference's RK4 takes the configured sub-steps and starts the windings at 0 A
+    "ur5_table": ("ur5_table.yaml", UR5_NO_FEEDBACK, {"initial_current": "zero", "substeps": 13}),
 }
 MODES = ("voltage", "torque")
 
@@ -358,7 +376,8 @@ def build(name: str, mode: str) -> Scenario:
     # The reference has the paper's regularised friction (Coulomb stick and slip: test_friction.py).
     names = load_params_file(CONFIG / file, "bracing_simulator")["contacts.names"]
     regularized = {f"contacts.{name}.friction_model": "regularized" for name in names}
-    return build_scenario(CONFIG / file, shared={**regularized, **shared, "input_mode": mode}, sim=sim)
+    ctl = CONTROLLER_OVERRIDES.get(name, {})
+    return build_scenario(CONFIG / file, shared={**regularized, **shared, "input_mode": mode}, sim=sim, ctl=ctl)
 
 
 # -- the tests -----------------------------------------------------------------------------------

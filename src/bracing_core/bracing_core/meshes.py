@@ -3,8 +3,10 @@
 A published arm's URDF names its meshes ``package://NAME/meshes/...``. ``find_package`` looks NAME up
 where ROS does, in this order: the ament index (``ament_index_python`` if installed, else each
 ``AMENT_PREFIX_PATH`` entry's ``share/NAME``), ``ROS_PACKAGE_PATH`` (each entry that is NAME, or holds
-NAME/), then ``robot.package_paths`` (directories holding NAME/). A plain relative path is taken from
-the URDF's directory.
+NAME/), then ``robot.package_paths`` (directories holding NAME/), then the Python environment's cmeel
+prefix (``site-packages/cmeel.prefix/share/NAME``, where pip's cmeel wheels such as pinocchio and
+example-robot-data install their share directories). A plain relative path is taken from the URDF's
+directory.
 
 ``resolved_description`` writes each mesh it finds as a ``file://`` URI of its absolute path: what the
 simulator publishes on ``robot_description``, so that RViz, Foxglove (desktop) and bracing-view
@@ -22,6 +24,7 @@ from __future__ import annotations
 import html
 import os
 import re
+import sys
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -53,9 +56,19 @@ def _ament_share(name: str) -> Path | None:
         return None
 
 
+def _cmeel_share(name: str) -> Path | None:
+    """``share/NAME`` of a cmeel prefix on ``sys.path`` (a pip wheel's ROS-style share directory)."""
+    for entry in sys.path:
+        share = Path(entry or ".") / "cmeel.prefix" / "share" / name
+        if share.is_dir():
+            return share
+    return None
+
+
 def find_package(name: str, package_paths: Sequence[str | Path] = ()) -> Path | None:
     """The directory of package ``name``: the ament index, then ``ROS_PACKAGE_PATH``, then
-    ``package_paths`` (directories holding ``name/``); None if none has it."""
+    ``package_paths`` (directories holding ``name/``), then the environment's cmeel prefix; None if
+    none has it."""
     if not name or "/" in name or name in (".", ".."):
         return None
     share = _ament_share(name)
@@ -69,7 +82,7 @@ def find_package(name: str, package_paths: Sequence[str | Path] = ()) -> Path | 
     for held in (Path(e).expanduser() / name for e in package_paths):
         if held.is_dir():
             return held
-    return None
+    return _cmeel_share(name)
 
 
 def resolve(uri: str, package_paths: Sequence[str | Path] = (), base: Path | None = None) -> Path | None:
@@ -125,7 +138,8 @@ def missing_warning(missing: Sequence[str]) -> str:
     """The one warning for the meshes that cannot be found (``missing``: their URDF filenames)."""
     return (
         f"{len(missing)} mesh file(s) of the URDF not found, those links drawn as capsules: {', '.join(missing)} "
-        "(a package://NAME/... path is looked up in the ament index, ROS_PACKAGE_PATH and robot.package_paths, "
+        "(a package://NAME/... path is looked up in the ament index, ROS_PACKAGE_PATH, robot.package_paths and the "
+        "Python environment's cmeel prefix, "
         "a relative one next to the URDF)"
     )
 

@@ -22,7 +22,18 @@ class ConfigError(ValueError):
 
 
 def resolve_file(name: str, parameter: str, search_dirs: Sequence[Path] = ()) -> Path:
-    """Find a configuration file: as given, then in the usual config directories."""
+    """Find a configuration file: as given, then in the usual config directories; a ``package://NAME/...``
+    name in package NAME wherever a URDF's meshes are looked up (``meshes.find_package``)."""
+    if name.startswith("package://"):
+        from bracing_core.meshes import resolve  # a leaf module: no import cycle
+
+        found = resolve(name)
+        if found is None:
+            raise ConfigError(
+                f"{parameter}: {name!r} not found (the package is looked up in the ament index, ROS_PACKAGE_PATH "
+                "and the Python environment's cmeel prefix: is it installed?)"
+            )
+        return found
     path = Path(name).expanduser()
     if path.is_absolute():
         if path.is_file():

@@ -190,7 +190,8 @@ SHARED: tuple[Param, ...] = (
         REQUIRED,
         "URDF of the robot (pinocchio loads it; link damping D from "
         "<dynamics damping>); a relative name is looked up in the working directory, next to the scenario "
-        "file, $BRACING_ROOT/config and share/bracing_bringup/config",
+        "file, $BRACING_ROOT/config and share/bracing_bringup/config; package://NAME/... in package NAME (the ament "
+        "index, ROS_PACKAGE_PATH, the Python environment's cmeel prefix: example-robot-data's robots)",
     ),
     Param(
         "robot.joint_names",
@@ -227,7 +228,8 @@ SHARED: tuple[Param, ...] = (
         Kind.STRING_ARRAY,
         [],
         "directories in which a package://NAME/... mesh path of the URDF is looked up (DIR/NAME/...), after the "
-        "ament index and ROS_PACKAGE_PATH; a relative one is taken from the URDF's directory. Meshes found are "
+        "ament index and ROS_PACKAGE_PATH (and before the Python environment's cmeel prefix); a relative one is "
+        "taken from the URDF's directory. Meshes found are "
         "published on robot_description as file:// paths; those not found are named in one warning",
     ),
     Param(
