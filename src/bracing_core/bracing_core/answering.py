@@ -27,7 +27,7 @@ from bracing_core.measurements import Measurements
 from bracing_core.node_log import NodeLog
 from bracing_core.numbers import all_finite
 from bracing_core.params import ConfigError
-from bracing_core.targets import TargetLimits, TaskSpec, TaskTargets
+from bracing_core.targets import OrientationSpec, TargetLimits, TaskSpec, TaskTargets
 from bracing_core.types import Vector
 
 STAMP_RANGE_NS = (-(2**31) * 1_000_000_000, 2**31 * 1_000_000_000)
@@ -81,7 +81,10 @@ def task_targets(law: DecoupledController) -> TaskTargets:
         reach = frame_reach(plant.robot.model, plant.frame_id(c.frame, f"contacts.{c.name}.frame"))
         specs.append(TaskSpec(f"brace_target/{c.name}", c.brace_axes, reach))
     limits = TargetLimits(config.max_message_elements, config.max_name_length, config.target_max_horizon)
-    return TaskTargets(specs, config.target_max_velocity, config.target_max_acceleration, limits)
+    orientation = OrientationSpec(
+        config.orientation.axes, config.target_max_angular_velocity, config.target_max_angular_acceleration
+    )
+    return TaskTargets(specs, config.target_max_velocity, config.target_max_acceleration, limits, orientation)
 
 
 @dataclass(frozen=True)
@@ -229,11 +232,16 @@ class StateAnswerer:
         self.previous_ns = stamp_ns
 
     def follow_targets(self, t: float) -> None:
-        """Feed the law each retargeted task's reference at t (hand_target, hand_path, brace_target/<contact>)."""
+        """Feed the law each retargeted task's reference at t (hand_target, hand_path, brace_target/<contact>,
+        hand_pose_target: its orientation too)."""
         if not self.targets.goals or self.previous_ns is None:  # no target, or the law has no path start yet
             return
-        for task, (position, velocity) in self.targets.advance(t, self.law.engine.path_sample).items():
-            self.law.engine.set_reference(task, position, velocity)
+        engine = self.law.engine
+        for task, (position, velocity) in self.targets.advance(t, engine.path_sample).items():
+            engine.set_reference(task, position, velocity)
+        turn = self.targets.advance_orientation(t, engine.orientation_reference)
+        if turn is not None:
+            engine.set_orientation_reference(*turn)
 
     def watch_null_space(self, out: ControlOutput, dq: Vector, t: float) -> None:
         """Every NULL_SPACE_CHECK_EVERY states, until said once: warn of joints running in the null space."""

@@ -1043,6 +1043,23 @@ CONTROLLER: tuple[Param, ...] = (
         positive=True,
     ),
     Param(
+        "targets.max_angular_velocity",
+        Kind.DOUBLE,
+        0.5,
+        "hand_pose_target: the orientation task's reference turns toward the pose's orientation at most this fast",
+        "rad/s",
+        positive=True,
+    ),
+    Param(
+        "targets.max_angular_acceleration",
+        Kind.DOUBLE,
+        2.0,
+        "hand_pose_target: the orientation reference's angular acceleration, at most (no kick: it starts at rest "
+        "from the orientation held)",
+        "rad/s^2",
+        positive=True,
+    ),
+    Param(
         "targets.max_horizon",
         Kind.DOUBLE,
         3600.0,
