@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import build_scenario
+from conftest import build_scenario, node_params
 from ros_helpers import PAPER_YAML, REPO_ROOT, isolated_env, node_argv, pair_argv, params_file, run, start
 from test_lab_control import (
     ACCELERATION,
@@ -164,6 +164,37 @@ def test_a_held_pose_target_is_reached_without_a_kick() -> None:
     assert np.linalg.norm(turn, axis=1)[late].max() < 5e-3
     goal = pin.Quaternion(pose[6], *pose[3:6]).toRotationMatrix()
     assert np.array_equal(held[-1], goal)  # the reference ends on the pose's orientation
+
+
+def test_a_retuned_orientation_target_is_turned_to_without_a_kick() -> None:
+    """hand.orientation.target set while running (ros2 param set): turned to as a pose's orientation, R_d at
+    most max_angular_velocity a step, within 5 mrad from 3 s after; emptied, or set without an orientation
+    task, it is refused with the reason."""
+    scenario = build_scenario(TORQUE, sim=TURNABLE, ctl=TURN)
+    assert scenario.controller is not None
+    core, sim = StateAnswerer(scenario.controller.config, Log(), Clock()), scenario.sim
+    values = node_params("bracing_controller", TORQUE, TURN)
+    goal = rotation(np.array([1.0, 0.0, 0.0]), 0.05) @ _hand_rotation(PAPER, TURNABLE)
+    sent: list[Answer] = []
+    held: list[np.ndarray] = []
+    for k in range(4000):
+        if k == 500:
+            assert core.retune(dict(values), [("hand.orientation.target", _quaternion(goal))]) is None
+        core.answer(k * STEP_NS, sim.position, sim.velocity, lambda _: None, sent.append)
+        held.append(np.asarray(core.law.engine.orientation_reference()))
+        sim.step(sent[-1].output.command)
+    steps = [float(np.linalg.norm(pin.log3(b @ a.T))) for a, b in itertools.pairwise(held)]
+    assert 0.0 < max(steps) <= MAX_TURN * STEP_NS * 1e-9 + 1e-12
+    assert np.abs(held[-1] - goal).max() < 1e-12
+    turn = np.array([a.output.orientation_error for a in sent])
+    assert np.linalg.norm(turn, axis=1)[3500:].max() < 5e-3
+    emptied = core.retune(dict(values), [("hand.orientation.target", [])])
+    assert emptied is not None and "cannot be emptied while running" in emptied
+    plain = StateAnswerer(build_scenario(TORQUE, ctl=HELD).controller.config, Log(), Clock())  # type: ignore[union-attr]
+    refused = plain.retune(
+        node_params("bracing_controller", TORQUE, HELD), [("hand.orientation.target", [0, 0, 0, 1.0])]
+    )
+    assert refused is not None and "set hand.orientation.axes" in refused
 
 
 def _sets(pairs: dict[str, Any]) -> list[str]:

@@ -67,6 +67,19 @@ def joint_vectors(
     return q, dq
 
 
+def orientation_retune_refusal(config: ControllerConfig, retuned: ControllerConfig) -> str | None:
+    """Why hand.orientation.target cannot change so while running (None: it can): emptied (there is no first
+    measured orientation to go back to), or set without an orientation task."""
+    before, after = config.orientation.target, retuned.orientation.target
+    if after == before:
+        return None
+    if after is None:
+        return "hand.orientation.target: cannot be emptied while running (set the orientation to hold instead)"
+    if not retuned.orientation.axes:
+        return "hand.orientation.target: no orientation task to turn (set hand.orientation.axes before the run)"
+    return None
+
+
 def task_targets(law: DecoupledController) -> TaskTargets:
     """The targets of the law's tasks (the hand, then each braced contact), with their reach."""
     config, plant = law.config, law.plant
@@ -147,6 +160,9 @@ class StateAnswerer:
             config = ControllerConfig.from_params(values)
         except ConfigError as exc:
             return str(exc)
+        refused = orientation_retune_refusal(self.config, config)
+        if refused is not None:
+            return refused
         self.retuned = config
         self.log.info("retuned (from the next update): " + ", ".join(f"{name} = {value}" for name, value in changes))
         changed = {name for name, _ in changes}
@@ -209,6 +225,9 @@ class StateAnswerer:
         unless the law fails on it or its output is not finite (then nothing is sent)."""
         if self.retuned is not None:
             self.law.retune(self.retuned)
+            target = self.retuned.orientation.target
+            if target != self.config.orientation.target and target is not None:  # turned to, as a pose's
+                self.targets.turn_to(target)
             self.config, self.retuned = self.retuned, None
         t = stamp_ns * 1e-9
         self.measure(receive)
@@ -234,8 +253,9 @@ class StateAnswerer:
     def follow_targets(self, t: float) -> None:
         """Feed the law each retargeted task's reference at t (hand_target, hand_path, brace_target/<contact>,
         hand_pose_target: its orientation too)."""
-        if not self.targets.goals or self.previous_ns is None:  # no target, or the law has no path start yet
-            return
+        targets = self.targets
+        if not (targets.goals or targets.orientation_goal is not None) or self.previous_ns is None:
+            return  # no target, or the law has no path start yet
         engine = self.law.engine
         for task, (position, velocity) in self.targets.advance(t, engine.path_sample).items():
             engine.set_reference(task, position, velocity)

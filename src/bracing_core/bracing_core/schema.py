@@ -888,9 +888,10 @@ CONTROLLER: tuple[Param, ...] = (
         Kind.DOUBLE_ARRAY,
         [],
         "the hand frame's orientation held, a quaternion [x, y, z, w] in world (normalised); empty = its first "
-        "measured orientation",
+        "measured orientation. Set while running: turned to as a hand_pose_target's orientation (no kick)",
         length=4,
         may_be_empty=True,
+        tunable=True,
     ),
     Param(
         "gains",

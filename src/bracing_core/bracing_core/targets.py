@@ -342,9 +342,19 @@ class TaskTargets:
                 "no orientation task",
             )
         moved = self._set(0, Goal(np.zeros(1), p.reshape(1, 3)))
+        turned = self.turn_to_rotation(rotation)
+        return self.goals[0] if moved is not None or turned else None
+
+    def turn_to(self, quaternion: Sequence[float]) -> bool:
+        """The orientation task's goal from now on, a quaternion [x, y, z, w] (hand.orientation.target set while
+        running: checked by the configuration); whether it changed."""
+        return self.turn_to_rotation(check_quaternion("hand.orientation.target", quaternion))
+
+    def turn_to_rotation(self, rotation: Vector) -> bool:
+        """The orientation task's goal from now on, a rotation matrix (world); whether it changed."""
         turned = self.orientation_goal is None or not np.array_equal(self.orientation_goal, rotation)
         self.orientation_goal = rotation
-        return self.goals[0] if moved is not None or turned else None
+        return turned
 
     def advance_orientation(self, t: float, held: Callable[[], Vector]) -> tuple[Vector, Vector] | None:
         """The orientation task's R_d and angular velocity at t toward the pose's orientation (None before a
