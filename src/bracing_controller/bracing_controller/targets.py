@@ -197,4 +197,5 @@ def _accepted(topic: TargetTopic, goal: Goal) -> str:
     if topic.msg_type is Path:
         return f"{topic.name}: {len(goal.times)} poses from t = {goal.times[0]:.3f} s to {goal.times[-1]:.3f} s"
     x, y, z = goal.points[0]
-    return f"{topic.name}: moving to [{x:.4g}, {y:.4g}, {z:.4g}] and holding it"
+    turning = " and its orientation" if topic.msg_type is PoseStamped else ""
+    return f"{topic.name}: moving to [{x:.4g}, {y:.4g}, {z:.4g}]{turning} and holding it"
