@@ -60,6 +60,7 @@ def recorded_topics_table() -> str:
     rows = [(name, kind, "one per state") for name, kind in topics.recorded_topics([contact], ground_truth=True)]
     rows.append((topics.DESCRIPTION_TOPIC, typestore.STRING, "once"))
     rows += [(name, kind, "once" if name in once else "one per state") for name, kind in topics.SCENE_TOPICS.values()]
+    rows += [(name, kind, "one per state where published") for name, kind in topics.OPTIONAL_STATE_TOPICS]
     rows += [(name, kind, "as sent") for name, kind in topics.target_topics([contact])]
     rows += [(name, kind, "as the controller judged them") for name, kind in topics.target_verdict_topics([contact])]
     rows.append((topics.PARAMETER_EVENTS_TOPIC, typestore.PARAMETER_EVENT, "the controller's changes"))

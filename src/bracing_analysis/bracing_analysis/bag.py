@@ -32,6 +32,7 @@ from bracing_analysis.truth import (
     true_positions,
 )
 from bracing_analysis.wrench_contacts import contacts_from_wrenches
+from bracing_core.targets import ORIENTATION_ERROR_TOPIC
 from bracing_core.typestore import (
     CONTACTS,
     CONTROLLER_STATE,
@@ -39,6 +40,7 @@ from bracing_core.typestore import (
     MOTOR_COMMAND,
     MOTOR_STATE,
     STRING,
+    VECTOR3_STAMPED,
     WRENCH_STAMPED,
 )
 
@@ -137,6 +139,7 @@ def wanted_connections(reader: AnyReader, counts: dict[str, int]) -> list[Any]:
             c.msgtype in (JOINT_STATE, CONTACTS, CONTROLLER_STATE, MOTOR_STATE, MOTOR_COMMAND)
             or (c.msgtype == WRENCH_STAMPED and WRENCH_TOPIC in c.topic)
             or (c.msgtype == STRING and c.topic.endswith(DESCRIPTION_TOPIC))
+            or (c.msgtype == VECTOR3_STAMPED and c.topic.endswith("/" + ORIENTATION_ERROR_TOPIC))
         )
     ]
 
@@ -326,12 +329,27 @@ def _series(messages: dict[_Kind, _Messages], texts: list[Layout], counts: dict[
         series.copper_loss = motor.by_stamp("copper_loss").astype(float)
         series.motor_names, series.motor_temperature = _motor_temperatures(motor)
     series.command = _commands(messages[(MOTOR_COMMAND, "")], series.motor_names)
+    turn = messages.get((VECTOR3_STAMPED, ""))
+    if turn is not None and turn.count:
+        series.hand_orientation_error = _per_state_row(turn, ctrl, "vector")
     sim_rows = _per_contact(sim, "contacts", "contacts[{j}].name")
     ctrl_rows = _per_contact(ctrl, "contact_name", "contact_name[{j}]")
     for name in list(sim_rows) + [n for n in ctrl_rows if n not in sim_rows]:
         wrench = messages.get((WRENCH_STAMPED, name))
         series.contacts[name] = _contact(name, sim_rows.get(name), wrench, ctrl_rows.get(name), sec)
     return series
+
+
+def _per_state_row(messages: _Messages, ctrl: _Messages, path: str) -> FloatArray:
+    """The vector at ``path`` of ``messages`` (stamped with the state they answer) on each controller_state row,
+    by stamp (the last of a stamp; NaN where a row has none)."""
+    stamps, values = messages.stamp[messages.order], messages.xyz(path)
+    rows = ctrl.stamp[ctrl.order]
+    at = np.searchsorted(stamps, rows, side="right") - 1
+    found = (at >= 0) & (stamps[np.clip(at, 0, None)] == rows)
+    out = np.full((rows.size, 3), math.nan)
+    out[found] = values[at[found]]
+    return out
 
 
 def _contact(

@@ -22,13 +22,14 @@ from bracing_analysis.truth import (
     command_limits_from_json,
     task_axes_from_json,
 )
-from bracing_core.targets import ACCEPTED, REFUSED, REFUSED_COUNT_KEY, REFUSED_KIND_KEY
+from bracing_core.targets import ACCEPTED, POSE_TOPIC, REFUSED, REFUSED_COUNT_KEY, REFUSED_KIND_KEY
 from bracing_core.typestore import (
     DIAGNOSTIC_STATUS,
     MOTOR_COMMAND,
     PARAMETER_EVENT,
     PATH,
     POINT_STAMPED,
+    POSE_STAMPED,
     RUN_STATUS,
     motor_command_modes,
 )
@@ -149,7 +150,7 @@ def _target_task(topic: str) -> str | None:
     another topic."""
     if "brace_target/" in topic:
         return topic.split("brace_target/", 1)[1]
-    return "hand" if topic.rsplit("/", 1)[-1] in ("hand_target", "hand_path") else None
+    return "hand" if topic.rsplit("/", 1)[-1] in ("hand_target", "hand_path", POSE_TOPIC) else None
 
 
 def _targets(reader: AnyReader) -> list[_Target]:
@@ -161,7 +162,7 @@ def _targets(reader: AnyReader) -> list[_Target]:
 
     def target(c: Any) -> bool:
         topic = c.topic.removesuffix(suffix) if c.topic.endswith(suffix) else ""
-        return c.msgtype in (POINT_STAMPED, PATH) and topic != "" and _target_task(topic) is not None
+        return c.msgtype in (POINT_STAMPED, PATH, POSE_STAMPED) and topic != "" and _target_task(topic) is not None
 
     out: list[_Target] = []
     for conn, stamp, msg in _decoded(reader, target):
@@ -169,6 +170,8 @@ def _targets(reader: AnyReader) -> list[_Target]:
         if conn.msgtype == PATH:
             points = [xyz(pose.pose.position) for pose in msg.poses]
             times = [stamp_ns(pose) for pose in msg.poses]
+        elif conn.msgtype == POSE_STAMPED:  # its position drawn (its orientation is in hand_orientation_error)
+            points, times = [xyz(msg.pose.position)], [stamp]
         else:
             points, times = [xyz(msg.point)], [stamp]
         out.append((stamp, task, points, times))

@@ -111,6 +111,8 @@ def file_names(series: BagSeries, animation: bool) -> list[str]:
     names = ["animation"] if animation else []
     if series.t.size:
         names += [f"hand_{axis}" for axis in hand_axes(series)]
+    if series.hand_orientation_error.shape[1] and series.hand_orientation_error.shape[0] == series.t.size:
+        names.append("hand_orientation")
     names += [f"brace_{axis}" for axis in brace_axes(series)]
     if any(cs.t_ctrl.size or cs.t.size for cs in series.contacts.values()):
         names.append("normal_force")

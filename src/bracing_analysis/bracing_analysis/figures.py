@@ -12,6 +12,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 
+import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
@@ -133,6 +134,16 @@ def _plot_temperature(series: BagSeries) -> tuple[Figure, Axes]:
     return fig, ax
 
 
+def _plot_orientation(series: BagSeries) -> tuple[Figure, Axes]:
+    """The hand frame's orientation error log(R_d R^T) per world axis and its angle (hand_orientation_error)."""
+    fig, ax = figure(title(series, "hand orientation error"), "orientation error [rad]")
+    turn = series.hand_orientation_error
+    for axis, name in enumerate("xyz"):
+        ax.plot(series.t, turn[:, axis], label=f"about {name}", linewidth=0.8)
+    ax.plot(series.t, np.linalg.norm(turn, axis=1), color="black", label="angle |log(R_d R^T)|")
+    return fig, ax
+
+
 PLOTS: dict[str, Callable[[BagSeries], tuple[Figure, Axes]]] = {
     "hand_x": lambda series: _plot_hand(series, 0, "x"),
     "hand_y": lambda series: _plot_hand(series, 1, "y"),
@@ -143,6 +154,7 @@ PLOTS: dict[str, Callable[[BagSeries], tuple[Figure, Axes]]] = {
     "normal_force": _plot_force,
     "energy": _plot_energy,
     "motor_temperature": _plot_temperature,
+    "hand_orientation": _plot_orientation,
 }
 """Each plot by name, its file ``<name>.png`` (``drawing.file_names`` says which a run gets)."""
 

@@ -28,7 +28,8 @@ The targets sent to the controller while it runs (``hand_target``, ``hand_path``
 ``brace_target/<contact>``) are recorded as they come, at the sim time of the last ``/clock`` recorded
 before each (their own stamps are the sender's); a run without any has none of these topics. So is
 what the controller made of them (``<target>/accepted``, ``<target>/refused``): the report draws the
-accepted ones only and counts the refused ones.
+accepted ones only and counts the refused ones. The controller's ``hand_orientation_error`` (only with an
+orientation task) is recorded at its stamps, from its first message.
 
 The controller's parameter changes while it runs (``ros2 param set``) are recorded from rclpy's
 ``/parameter_events``: the events of the run's controller that change a value, stamped by it with the
@@ -69,7 +70,7 @@ from typing import Any, Literal
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus
-from geometry_msgs.msg import PointStamped, WrenchStamped
+from geometry_msgs.msg import PointStamped, PoseStamped, Vector3Stamped, WrenchStamped
 from nav_msgs.msg import Path as PathMsg
 from rcl_interfaces.msg import ParameterEvent
 from rclpy.node import Node
@@ -90,6 +91,7 @@ from bracing_bringup.scene import Derived, SceneBuilder
 from bracing_bringup.topics import (
     CONTROLLER_NODE,
     DESCRIPTION_TOPIC,
+    OPTIONAL_STATE_TOPICS,
     PARAMETER_EVENTS_TOPIC,
     RECORDER_NODE,
     SCENE_TOPICS,
@@ -114,8 +116,10 @@ from bracing_core.typestore import (
     PARAMETER_EVENT,
     PATH,
     POINT_STAMPED,
+    POSE_STAMPED,
     RUN_STATUS,
     STRING,
+    VECTOR3_STAMPED,
     WRENCH_STAMPED,
     bracing_typestore,
 )
@@ -171,7 +175,13 @@ PARAMETER_EVENTS_QOS = QoSProfile(
 """rclpy's own for /parameter_events: its publishers are volatile, which a transient-local
 subscription would not match. The targets' too (a script's, RViz's, MoveIt's publishers are volatile)."""
 
-_TARGET_TYPES: dict[str, type] = {POINT_STAMPED: PointStamped, PATH: PathMsg, DIAGNOSTIC_STATUS: DiagnosticStatus}
+_TARGET_TYPES: dict[str, type] = {
+    POINT_STAMPED: PointStamped,
+    PATH: PathMsg,
+    POSE_STAMPED: PoseStamped,
+    DIAGNOSTIC_STATUS: DiagnosticStatus,
+}
+_OPTIONAL_TYPES: dict[str, type] = {VECTOR3_STAMPED: Vector3Stamped}
 
 
 _RCLPY_TYPES: dict[str, type] = {
@@ -240,10 +250,11 @@ class Recorder(Node):
         self._topic_of: dict[Subscription, str] = {}  # the recorded topics subscribed to one by one
         self._roles: dict[Subscription, str] = {}  # what the scene makes of a subscription's messages
         self._subscribe_recorded(contacts, ground_truth, from_batches)
+        self._subscribe_optional(from_batches)
         self._subscribe_events()
         self._batches: Subscription | None = None
         self._next_batch: dict[str, int] = {}  # per node: the sequence number its next batch should have
-        subscriptions = [*self._topic_of, self._events, self._status, *self._targets]
+        subscriptions = [*self._topic_of, *self._optional_of, self._events, self._status, *self._targets]
         if from_batches:
             self._batches = self.create_subscription(RecordBatch, RECORD_BATCH_TOPIC, _never_called, RECORD_QOS)
             subscriptions.append(self._batches)
@@ -277,6 +288,29 @@ class Recorder(Node):
             )
             self._recorded[resolved] = (connection, role)
             self.counts[resolved] = 0
+
+    def _subscribe_optional(self, from_batches: bool) -> None:
+        """The per-state topics only some configurations publish (``topics.OPTIONAL_STATE_TOPICS``): each
+        enters the bag with its first message (subscribed to one by one unless they come in batches)."""
+        self._optional: dict[str, str] = {}  # resolved topic: its type name
+        self._optional_of: dict[Subscription, str] = {}
+        self._optional_connections: dict[str, Connection] = {}
+        for topic, type_name in OPTIONAL_STATE_TOPICS:
+            resolved = self.resolve_topic_name(topic)
+            self._optional[resolved] = type_name
+            if not from_batches:
+                sub = self.create_subscription(_OPTIONAL_TYPES[type_name], topic, _never_called, RECORD_QOS, raw=True)
+                self._optional_of[sub] = resolved
+
+    def _write_optional(self, topic: str, data: bytes) -> None:
+        """One message of an optional per-state topic (resolved name), at its header stamp."""
+        connection = self._optional_connections.get(topic)
+        if connection is None:
+            connection = self.writer.add_connection(topic, self._optional[topic], typestore=self.typestore)
+            self._optional_connections[topic] = connection
+            self.counts[topic] = 0
+        self.writer.write(connection, max(cdr_stamp_ns(data), 0), data)
+        self.counts[topic] += 1
 
     def _subscribe_events(self) -> None:
         """Parameter changes, run_status and the targets: each topic enters the bag with its first message."""
@@ -329,6 +363,9 @@ class Recorder(Node):
             elif sub in self._targets:
                 self._record_target(sub, data)
                 written += 1
+            elif sub in self._optional_of:
+                self._write_optional(self._optional_of[sub], data)
+                written += 1
             else:
                 self._write(self._topic_of[sub], data)
                 written += 1
@@ -359,14 +396,17 @@ class Recorder(Node):
         self._next_batch[batch.node] = batch.sequence + 1
         try:
             messages = unpack(batch.topics, batch.topic_of, batch.end, batch.data)
-            unknown = sorted({topic for topic in batch.topics if topic not in self._recorded})
+            unknown = sorted({t for t in batch.topics if t not in self._recorded and t not in self._optional})
             if unknown:
                 raise BatchError(f"it names topics this recorder does not record: {', '.join(unknown)}")
         except BatchError as exc:
             print(f"recorder: error: a record_batch from {batch.node} left out: {exc}", file=sys.stderr, flush=True)
             return 0
         for topic, data in messages:
-            self._write(topic, data)
+            if topic in self._optional:
+                self._write_optional(topic, data)
+            else:
+                self._write(topic, data)
         return len(messages)
 
     def _record_event(self, data: bytes) -> bool:

@@ -10,7 +10,7 @@ from collections.abc import Mapping, Sequence
 
 from bracing_core.overrides import CONTROLLER
 from bracing_core.sensing import GROUND_TRUTH
-from bracing_core.targets import ACCEPTED, REFUSED, echo_topic
+from bracing_core.targets import ACCEPTED, ORIENTATION_ERROR_TOPIC, POSE_TOPIC, REFUSED, echo_topic
 from bracing_core.typestore import (
     CLOCK,
     CONTACTS,
@@ -22,7 +22,9 @@ from bracing_core.typestore import (
     MOTOR_STATE,
     PATH,
     POINT_STAMPED,
+    POSE_STAMPED,
     TF_MESSAGE,
+    VECTOR3_STAMPED,
     WRENCH_STAMPED,
 )
 
@@ -38,6 +40,7 @@ def target_topics(contacts: Sequence[str]) -> list[tuple[str, str]]:
     return [
         ("hand_target", POINT_STAMPED),
         ("hand_path", PATH),
+        (POSE_TOPIC, POSE_STAMPED),
         *((f"brace_target/{name}", POINT_STAMPED) for name in contacts),
     ]
 
@@ -50,6 +53,11 @@ def target_verdict_topics(contacts: Sequence[str]) -> list[tuple[str, str]]:
         out += [(echo_topic(topic, ACCEPTED), type_name), (echo_topic(topic, REFUSED), DIAGNOSTIC_STATUS)]
     return out
 
+
+OPTIONAL_STATE_TOPICS = [(ORIENTATION_ERROR_TOPIC, VECTOR3_STAMPED)]
+"""(relative topic, ROS 2 type name) of what the controller publishes once per state only in some
+configurations (hand_orientation_error: with an orientation task): recorded from the first message, at its
+header stamp, one by one or in record_batch; a run without it has no such topic (no count expected)."""
 
 RECORDER_NODE = "bracing_recorder"
 

@@ -51,7 +51,9 @@ from bracing_core.typestore import (
     MOTOR_STATE,
     PATH,
     POINT_STAMPED,
+    POSE_STAMPED,
     STRING,
+    VECTOR3_STAMPED,
     WRENCH_STAMPED,
 )
 
@@ -67,9 +69,11 @@ _TYPES = {
     "motor_state": MOTOR_STATE,
     "hand_target": POINT_STAMPED,
     "hand_path": PATH,
+    "hand_pose_target": POSE_STAMPED,
+    "hand_orientation_error": VECTOR3_STAMPED,
 }
 TARGET_COLOR = [0, 0, 0]  # a target accepted while the run goes: black, as the report's marks
-_TARGETS = ("hand_target", "hand_path")
+_TARGETS = ("hand_target", "hand_path", "hand_pose_target")
 _ACCEPTED = "/" + ACCEPTED  # the controller's echo of a target it follows (bracing_core.targets)
 
 
@@ -77,6 +81,7 @@ def blueprint() -> rrb.Blueprint:
     """The 3D view on the left, the plots stacked on the right: one laptop screen."""
     plots = rrb.Vertical(
         rrb.TimeSeriesView(origin="/plots/hand_error", name="hand error [mm] vs sim time [s]"),
+        rrb.TimeSeriesView(origin="/plots/orientation_error", name="hand orientation error [mrad] vs sim time [s]"),
         rrb.TimeSeriesView(origin="/plots/normal_force", name="normal force f_n, f_nd [N] vs sim time [s]"),
         rrb.TimeSeriesView(origin="/plots/current", name="motor current [A] vs sim time [s]"),
         rrb.TimeSeriesView(origin="/plots/energy", name="energy [J] vs sim time [s]"),
@@ -118,7 +123,7 @@ class Feed:
         self._surfaces: set[str] = set()
         self.warnings: list[str] = []  # what the viewer could not draw (said once each on stderr)
 
-    period_kinds = frozenset({"joint_states", "contacts", "controller_state", "motor_state"})
+    period_kinds = frozenset({"joint_states", "contacts", "controller_state", "motor_state", "hand_orientation_error"})
 
     def wanted(self, kind: str, t: float) -> bool:
         """Whether ``_due`` would draw a message of ``kind`` at ``t`` (without marking it drawn)."""
@@ -236,6 +241,16 @@ class Feed:
 
     def hand_target(self, msg: Any) -> None:
         self._target("world/targets/hand", [msg.point])
+
+    def hand_pose_target(self, msg: Any) -> None:
+        self._target("world/targets/hand", [msg.pose.position])
+
+    def hand_orientation_error(self, msg: Any) -> None:
+        """log(R_d R^T) per world axis [mrad] (the controller publishes it only with an orientation task)."""
+        if not self._due("hand_orientation_error", _stamp_s(msg)):
+            return
+        for axis in "xyz":
+            self._log(f"plots/orientation_error/{axis}", rr.Scalars(1000.0 * float(getattr(msg.vector, axis))))
 
     def hand_path(self, msg: Any) -> None:
         self._target("world/targets/hand", [pose.pose.position for pose in msg.poses])
@@ -592,7 +607,7 @@ class Live:
 
 
 def _rclpy_types() -> dict[str, Any]:
-    from geometry_msgs.msg import PointStamped, WrenchStamped
+    from geometry_msgs.msg import PointStamped, PoseStamped, Vector3Stamped, WrenchStamped
     from nav_msgs.msg import Path as PathMessage
     from sensor_msgs.msg import JointState
     from std_msgs.msg import String
@@ -608,6 +623,8 @@ def _rclpy_types() -> dict[str, Any]:
         WRENCH_STAMPED: WrenchStamped,
         POINT_STAMPED: PointStamped,
         PATH: PathMessage,
+        POSE_STAMPED: PoseStamped,
+        VECTOR3_STAMPED: Vector3Stamped,
     }
 
 

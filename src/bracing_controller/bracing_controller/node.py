@@ -13,13 +13,14 @@ from functools import partial
 from typing import Any
 
 import numpy as np
-from geometry_msgs.msg import WrenchStamped
+from geometry_msgs.msg import Vector3Stamped, WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import ClockType, ROSClock
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
 from rclpy.subscription import Subscription
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
@@ -29,8 +30,10 @@ from bracing_controller.targets import TargetTopics
 from bracing_core import schema
 from bracing_core.answering import Answer, StateAnswerer
 from bracing_core.controller_config import ControllerConfig
+from bracing_core.kinematics import WORLD_FRAME
 from bracing_core.message_limits import SizeError
 from bracing_core.step_timing import WorkTimer
+from bracing_core.targets import ORIENTATION_ERROR_TOPIC
 from bracing_core.typestore import MOTOR_STATE, WRENCH_STAMPED
 from bracing_msgs.msg import ControllerState, MotorCommand, MotorState, RunStatus
 from bracing_ros import parameters, wire
@@ -74,6 +77,13 @@ class ControllerNode(Node):
         # The wait for the recorder wakes on each match.
         self.command_pub = create_waking_publisher(self, MotorCommand, "motor_command", STREAM_QOS)
         self.state_pub = create_waking_publisher(self, ControllerState, "controller_state", STREAM_QOS)
+        # The orientation task's error, only where there is one (a bag without the task has no new topic).
+        self.orientation_pub = (
+            create_waking_publisher(self, Vector3Stamped, ORIENTATION_ERROR_TOPIC, STREAM_QOS)
+            if config.orientation.axes
+            else None
+        )
+        answers = [self.command_pub, self.state_pub, *([self.orientation_pub] if self.orientation_pub else [])]
         # Messages travel as CDR bytes built by ``wire`` (rclpy's message classes cost more than the DDS write).
         self.command_wire = wire.MotorCommandEncoder(self.joint_names, MODE_CODES[config.shared.input_mode])
         self.state_wire = wire.ControllerStateEncoder(contact_names, len(self.joint_names))
@@ -81,10 +91,10 @@ class ControllerNode(Node):
         # Force feedback and thermal compensation read contact_wrench/<name> and motor_state (``listen``).
         self.measurement_waiter: SubscriptionWaiter | None = None
         self.wrench_subs: dict[Subscription, str] = {}
-        self.flow = AckWindow(self, [self.command_pub, self.state_pub], STREAM_QOS.depth)
+        self.flow = AckWindow(self, answers, STREAM_QOS.depth)
         self.command_out: Callable[[], None] | None = None  # called once a command is out (lockstep's timing)
         # record_batch: the answers also reach the recorder in batches (it subscribes to those instead)
-        self.batch = RecordBatchPublisher(self, [self.command_pub, self.state_pub], config.record_batch)
+        self.batch = RecordBatchPublisher(self, answers, config.record_batch)
         self.core.start()
         self.effort = EffortForward(self, config, self.joint_names, self.log) if self.effort_forward else None
         self.target_topics = TargetTopics(self, self.core.targets, contact_names, self.log)
@@ -195,6 +205,8 @@ class ControllerNode(Node):
             publish(self.command_pub, self.command_wire.encode(stamp_ns, out.command))
         if self.command_out is not None:
             self.command_out()  # the simulator's wait ends there; the controller_state follows it
+        if self.orientation_pub is not None:  # before controller_state: a state's answer is complete with it
+            publish(self.orientation_pub, orientation_error_message(stamp_ns, out.orientation_error))
         brace = (out.brace_desired, out.brace_actual)
         publish(
             self.state_pub,
@@ -210,7 +222,12 @@ class ControllerNode(Node):
         """Whether a recorder subscribes to the answers (to the batches, with record_batch)."""
         if self.batch.publisher is not None:
             return self.batch.publisher.get_subscription_count() >= 1
-        return self.command_pub.get_subscription_count() >= 2 and self.state_pub.get_subscription_count() >= 1
+        orientation = self.orientation_pub is None or self.orientation_pub.get_subscription_count() >= 1
+        return (
+            self.command_pub.get_subscription_count() >= 2
+            and self.state_pub.get_subscription_count() >= 1
+            and orientation
+        )
 
     def close(self, timeout_sec: float) -> list[tuple[str, str]]:
         """At the stop: the recorder's copy of the answers (record_batch's batches, or else both topics)
@@ -233,6 +250,16 @@ class ControllerNode(Node):
                 "(not waited for: the recorder has them in record_batch; the simulator has stopped or left)",
             ))  # fmt: skip
         return lines
+
+
+def orientation_error_message(stamp_ns: int, error: np.ndarray) -> bytes:
+    """hand_orientation_error's CDR bytes: log(R_d R^T) [rad], world axes, stamped with the state it answers."""
+    msg = Vector3Stamped()
+    sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+    msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
+    msg.header.frame_id = WORLD_FRAME
+    msg.vector.x, msg.vector.y, msg.vector.z = (float(v) for v in error)
+    return bytes(serialize_message(msg))
 
 
 def wait_for_outputs(node: ControllerNode, executor: SingleThreadedExecutor) -> None:

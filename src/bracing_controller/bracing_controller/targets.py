@@ -1,5 +1,5 @@
-"""Targets while running, the ROS side: hand_target, hand_path and brace_target/<contact> in, checked by
-``bracing_core.targets.TaskTargets`` (the policy), the verdict out.
+"""Targets while running, the ROS side: hand_target, hand_path, hand_pose_target and brace_target/<contact> in,
+checked by ``bracing_core.targets.TaskTargets`` (the policy), the verdict out.
 
 A flood costs bounded work: messages are taken raw (bytes, no decoding) and only the latest of each
 topic is kept; it is decoded and checked once, when the next state is answered (``apply``), so at most
@@ -17,7 +17,7 @@ from typing import Any
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-from geometry_msgs.msg import PointStamped
+from geometry_msgs.msg import PointStamped, PoseStamped
 from nav_msgs.msg import Path
 from rclpy.node import Node
 from rclpy.publisher import Publisher
@@ -29,6 +29,7 @@ from bracing_core.kinematics import WORLD_FRAME
 from bracing_core.node_log import NodeLog
 from bracing_core.targets import (
     ACCEPTED,
+    POSE_TOPIC,
     REFUSED,
     REFUSED_COUNT_KEY,
     REFUSED_KIND_KEY,
@@ -68,9 +69,9 @@ def _time(stamp_ns: int) -> Time:
 class TargetTopic:
     """One target topic: its task, its kind of message and where its verdicts go."""
 
-    name: str  # hand_target, hand_path, brace_target/<contact>
+    name: str  # hand_target, hand_path, hand_pose_target, brace_target/<contact>
     task: int  # 0 the hand, 1 + j brace j
-    path: bool  # nav_msgs/Path (else geometry_msgs/PointStamped)
+    msg_type: type  # geometry_msgs/PointStamped, nav_msgs/Path or geometry_msgs/PoseStamped
     accepted: Publisher
     refused: Publisher
     refusals: int = 0
@@ -84,22 +85,22 @@ class TargetTopics:
         self.node, self.targets, self.log = node, targets, log
         self.topics: dict[Subscription, TargetTopic] = {}
         self.pending: dict[str, tuple[TargetTopic, bytes]] = {}
-        self._add("hand_target", 0, False)
-        self._add("hand_path", 0, True)
+        self._add("hand_target", 0, PointStamped)
+        self._add("hand_path", 0, Path)
+        self._add(POSE_TOPIC, 0, PoseStamped)
         for j, name in enumerate(contacts):
-            self._add(f"brace_target/{name}", j + 1, False)
+            self._add(f"brace_target/{name}", j + 1, PointStamped)
 
     @property
     def subscriptions(self) -> list[Subscription]:
         return list(self.topics)
 
-    def _add(self, name: str, task: int, path: bool) -> None:
-        msg_type = Path if path else PointStamped
+    def _add(self, name: str, task: int, msg_type: type) -> None:
         node = self.node
         topic = TargetTopic(
             name,
             task,
-            path,
+            msg_type,
             node.create_publisher(msg_type, echo_topic(name, ACCEPTED), ECHO_QOS),
             node.create_publisher(DiagnosticStatus, echo_topic(name, REFUSED), ECHO_QOS),
         )
@@ -124,7 +125,7 @@ class TargetTopics:
         pending, self.pending = self.pending, {}
         for topic, data in pending.values():
             try:
-                goal, echo = self._path(topic, data, now_ns) if topic.path else self._point(topic, data)
+                goal, echo = self._goal(topic, data, now_ns)
             except TargetError as exc:
                 self._refuse(topic, exc)
                 continue
@@ -133,6 +134,23 @@ class TargetTopics:
             echo.header.stamp, echo.header.frame_id = _time(now_ns), WORLD_FRAME
             topic.accepted.publish(echo)
             self.log.limited("info", f"{topic.name} {ACCEPTED}", _accepted(topic, goal))
+
+    def _goal(self, topic: TargetTopic, data: bytes, now_ns: int) -> tuple[Goal | None, Any]:
+        """The target's goal (None: no change) and its echo, or TargetError."""
+        if topic.msg_type is Path:
+            return self._path(topic, data, now_ns)
+        if topic.msg_type is PoseStamped:
+            return self._pose(topic, data)
+        return self._point(topic, data)
+
+    def _pose(self, topic: TargetTopic, data: bytes) -> tuple[Goal | None, PoseStamped]:
+        msg = _decoded(topic.name, data, PoseStamped)
+        p, o = msg.pose.position, msg.pose.orientation
+        goal = self.targets.pose([p.x, p.y, p.z], [o.x, o.y, o.z, o.w], msg.header.frame_id)
+        if goal is not None:  # echoed as followed: the quaternion normalised
+            norm = (o.x * o.x + o.y * o.y + o.z * o.z + o.w * o.w) ** 0.5
+            o.x, o.y, o.z, o.w = o.x / norm, o.y / norm, o.z / norm, o.w / norm
+        return goal, msg
 
     def _point(self, topic: TargetTopic, data: bytes) -> tuple[Goal | None, PointStamped]:
         msg = _decoded(topic.name, data, PointStamped)
@@ -176,7 +194,8 @@ def _decoded(name: str, data: bytes, msg_type: type) -> Any:
 
 def _accepted(topic: TargetTopic, goal: Goal) -> str:
     """The log line of an accepted target."""
-    if topic.path:
+    if topic.msg_type is Path:
         return f"{topic.name}: {len(goal.times)} poses from t = {goal.times[0]:.3f} s to {goal.times[-1]:.3f} s"
     x, y, z = goal.points[0]
-    return f"{topic.name}: moving to [{x:.4g}, {y:.4g}, {z:.4g}] and holding it"
+    turning = " and its orientation" if topic.msg_type is PoseStamped else ""
+    return f"{topic.name}: moving to [{x:.4g}, {y:.4g}, {z:.4g}]{turning} and holding it"

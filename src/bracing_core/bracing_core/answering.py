@@ -29,7 +29,7 @@ from bracing_core.message_limits import DEFAULT_LIMITS, MessageLimits, SizeError
 from bracing_core.node_log import NodeLog
 from bracing_core.numbers import all_finite
 from bracing_core.params import ConfigError
-from bracing_core.targets import TargetLimits, TaskSpec, TaskTargets
+from bracing_core.targets import OrientationSpec, TargetLimits, TaskSpec, TaskTargets
 from bracing_core.types import Vector
 
 STAMP_RANGE_NS = (-(2**31) * 1_000_000_000, 2**31 * 1_000_000_000)
@@ -89,6 +89,19 @@ def joint_vectors(
     return q, dq
 
 
+def orientation_retune_refusal(config: ControllerConfig, retuned: ControllerConfig) -> str | None:
+    """Why hand.orientation.target cannot change so while running (None: it can): emptied (there is no first
+    measured orientation to go back to), or set without an orientation task."""
+    before, after = config.orientation.target, retuned.orientation.target
+    if after == before:
+        return None
+    if after is None:
+        return "hand.orientation.target: cannot be emptied while running (set the orientation to hold instead)"
+    if not retuned.orientation.axes:
+        return "hand.orientation.target: no orientation task to turn (set hand.orientation.axes before the run)"
+    return None
+
+
 def task_targets(law: DecoupledController) -> TaskTargets:
     """The targets of the law's tasks (the hand, then each braced contact), with their reach."""
     config, plant = law.config, law.plant
@@ -103,7 +116,10 @@ def task_targets(law: DecoupledController) -> TaskTargets:
         reach = frame_reach(plant.robot.model, plant.frame_id(c.frame, f"contacts.{c.name}.frame"))
         specs.append(TaskSpec(f"brace_target/{c.name}", c.brace_axes, reach))
     limits = TargetLimits(config.max_message_elements, config.max_name_length, config.target_max_horizon)
-    return TaskTargets(specs, config.target_max_velocity, config.target_max_acceleration, limits)
+    orientation = OrientationSpec(
+        config.orientation.axes, config.target_max_angular_velocity, config.target_max_angular_acceleration
+    )
+    return TaskTargets(specs, config.target_max_velocity, config.target_max_acceleration, limits, orientation)
 
 
 @dataclass(frozen=True)
@@ -167,6 +183,9 @@ class StateAnswerer:
             config = ControllerConfig.from_params(values)
         except ConfigError as exc:
             return str(exc)
+        refused = orientation_retune_refusal(self.config, config)
+        if refused is not None:
+            return refused
         self.retuned = config
         self.log.info("retuned (from the next update): " + ", ".join(f"{name} = {value}" for name, value in changes))
         changed = {name for name, _ in changes}
@@ -229,6 +248,9 @@ class StateAnswerer:
         unless the law fails on it or its output is not finite (then nothing is sent)."""
         if self.retuned is not None:
             self.law.retune(self.retuned)
+            target = self.retuned.orientation.target
+            if target != self.config.orientation.target and target is not None:  # turned to, as a pose's
+                self.targets.turn_to(target)
             self.config, self.retuned = self.retuned, None
         t = stamp_ns * 1e-9
         self.measure(receive)
@@ -252,11 +274,17 @@ class StateAnswerer:
         self.previous_ns = stamp_ns
 
     def follow_targets(self, t: float) -> None:
-        """Feed the law each retargeted task's reference at t (hand_target, hand_path, brace_target/<contact>)."""
-        if not self.targets.goals or self.previous_ns is None:  # no target, or the law has no path start yet
-            return
-        for task, (position, velocity) in self.targets.advance(t, self.law.engine.path_sample).items():
-            self.law.engine.set_reference(task, position, velocity)
+        """Feed the law each retargeted task's reference at t (hand_target, hand_path, brace_target/<contact>,
+        hand_pose_target: its orientation too)."""
+        targets = self.targets
+        if not (targets.goals or targets.orientation_goal is not None) or self.previous_ns is None:
+            return  # no target, or the law has no path start yet
+        engine = self.law.engine
+        for task, (position, velocity) in self.targets.advance(t, engine.path_sample).items():
+            engine.set_reference(task, position, velocity)
+        turn = self.targets.advance_orientation(t, engine.orientation_reference)
+        if turn is not None:
+            engine.set_orientation_reference(*turn)
 
     def watch_null_space(self, out: ControlOutput, dq: Vector, t: float) -> None:
         """Every NULL_SPACE_CHECK_EVERY states, until said once: warn of joints running in the null space."""

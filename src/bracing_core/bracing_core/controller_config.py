@@ -74,6 +74,8 @@ class ControllerConfig:
     state_timeout: float = 0.0  # [s] node's clock; effort_forward: zeros, not a command, from an older state; 0 off
     target_max_velocity: float = 0.05  # [m/s] targets.max_velocity
     target_max_acceleration: float = 0.2  # [m/s^2] targets.max_acceleration
+    target_max_angular_velocity: float = 0.5  # [rad/s] targets.max_angular_velocity
+    target_max_angular_acceleration: float = 2.0  # [rad/s^2] targets.max_angular_acceleration
     target_max_horizon: float = 3600.0  # [s] targets.max_horizon: a hand_path's last pose at most this after now
     max_message_elements: int = 10000  # the most names, values or poses a subscribed message may carry
     max_name_length: int = 256  # [characters] the longest name a subscribed message may carry
@@ -126,6 +128,8 @@ class ControllerConfig:
             state_timeout=values["state_timeout"],
             target_max_velocity=values["targets.max_velocity"],
             target_max_acceleration=values["targets.max_acceleration"],
+            target_max_angular_velocity=values["targets.max_angular_velocity"],
+            target_max_angular_acceleration=values["targets.max_angular_acceleration"],
             target_max_horizon=values["targets.max_horizon"],
             record_batch=values["record_batch"],
             max_message_elements=values["max_message_elements"],

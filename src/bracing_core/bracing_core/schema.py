@@ -890,9 +890,10 @@ CONTROLLER: tuple[Param, ...] = (
         Kind.DOUBLE_ARRAY,
         [],
         "the hand frame's orientation held, a quaternion [x, y, z, w] in world (normalised); empty = its first "
-        "measured orientation",
+        "measured orientation. Set while running: turned to as a hand_pose_target's orientation (no kick)",
         length=4,
         may_be_empty=True,
+        tunable=True,
     ),
     Param(
         "gains",
@@ -1042,6 +1043,23 @@ CONTROLLER: tuple[Param, ...] = (
         0.2,
         "the reference's acceleration toward a new target, at most (no kick: position and velocity stay continuous)",
         "m/s^2",
+        positive=True,
+    ),
+    Param(
+        "targets.max_angular_velocity",
+        Kind.DOUBLE,
+        0.5,
+        "hand_pose_target: the orientation task's reference turns toward the pose's orientation at most this fast",
+        "rad/s",
+        positive=True,
+    ),
+    Param(
+        "targets.max_angular_acceleration",
+        Kind.DOUBLE,
+        2.0,
+        "hand_pose_target: the orientation reference's angular acceleration, at most (no kick: it starts at rest "
+        "from the orientation held)",
+        "rad/s^2",
         positive=True,
     ),
     Param(

@@ -15,6 +15,13 @@ entirely in the past (its last pose before now), or one that ends more than ``ta
 after now (a wall-clock stamp sent to a sim-time controller ends ~1.8e9 s ahead). A goal equal to the
 task's current one is no change (``set`` says so: the node logs and echoes changes only).
 
+``hand_pose_target`` (``TaskTargets.pose``) moves the hand's reference as ``hand_target`` does and turns
+the orientation task's R_d toward its orientation (:class:`OrientationReference`, fed to the law by
+``engine.Law.set_orientation_reference``), starting at rest from the R_d the law held, its angular velocity
+and acceleration bounded (``targets.max_angular_velocity`` / ``.max_angular_acceleration``). Refused besides:
+a quaternion not finite, zero or far from unit norm (a near-unit one is normalised), and any pose when no
+orientation task is configured.
+
 Why here and not in the engine: a target exists only where a ROS message brings it, the generator is
 a few vector operations per update (no model), and the engine keeps one small hook instead of a
 second kind of path whose timing depends on when messages come.
@@ -27,6 +34,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
 from bracing_core.checks import Reach
 from bracing_core.types import Vector
@@ -51,6 +59,8 @@ KINDS = (
     "in the past",
     "too far ahead",
     "malformed",
+    "not a rotation",
+    "no orientation task",
 )
 """The kinds of refusal (``TargetError.kind``): the node's log is rate-limited per topic and kind, and the
 summary's warnings quote the first refusal of each."""
@@ -135,6 +145,28 @@ def check_point(what: str, point: Sequence[float], frame_id: str, axes: Sequence
     return p
 
 
+UNIT_QUATERNION_TOLERANCE = 0.01
+"""|norm - 1| a pose's quaternion may have (it is normalised); one further from unit is refused (not a rotation
+by mistake: a zero quaternion, a default-constructed message from a library whose w defaults to 0)."""
+
+
+def check_quaternion(what: str, quaternion: Sequence[float]) -> Vector:
+    """The rotation matrix of a quaternion [x, y, z, w] (normalised), or TargetError naming ``what``: a
+    non-finite component, or a norm further than UNIT_QUATERNION_TOLERANCE from 1."""
+    q = np.asarray(quaternion, dtype=float)
+    if q.shape != (4,) or not np.isfinite(q).all():
+        raise TargetError(f"{what} refused: orientation not finite ({q.tolist()})", "not finite")
+    norm = float(np.linalg.norm(q))
+    if abs(norm - 1.0) > UNIT_QUATERNION_TOLERANCE:
+        raise TargetError(
+            f"{what} refused: the orientation [x, y, z, w] = {[float(f'{v:.4g}') for v in q]} has norm {norm:.4g}, "
+            f"not 1 (within {UNIT_QUATERNION_TOLERANCE:g}): not a rotation",
+            "not a rotation",
+        )
+    x, y, z, w = q / norm
+    return np.asarray(pin.Quaternion(w, x, y, z).toRotationMatrix())
+
+
 def path_goal(times: Sequence[float], points: Sequence[Vector]) -> Goal:
     """A path's goal, refusing an empty one or stamps that go back in time."""
     t = np.asarray(times, dtype=float)
@@ -173,13 +205,62 @@ class Reference:
         if not goal_velocity.any() and distance <= step * dt and np.linalg.norm(self.velocity) <= step:
             self.position, self.velocity = goal.copy(), np.zeros(3)
             return self.position, self.velocity
-        wanted = _limit(goal_velocity, self.max_velocity)
-        if distance > 0.0:
-            toward = error / distance * math.sqrt(2.0 * self.max_acceleration * distance)
-            wanted = _limit(wanted + toward, self.max_velocity)
-        self.velocity = self.velocity + _limit(wanted - self.velocity, step)
+        self.velocity = _approach(
+            error, distance, goal_velocity, self.velocity, self.max_velocity, self.max_acceleration, dt
+        )
         self.position = self.position + self.velocity * dt
         return self.position, self.velocity
+
+
+def _approach(
+    error: Vector, distance: float, goal_velocity: Vector, velocity: Vector, v_max: float, a_max: float, dt: float
+) -> Vector:
+    """The next velocity toward a goal ``error`` away (``distance`` its norm): at most sqrt(2 a_max d) toward
+    it plus the goal's own velocity, within v_max, changed by at most a_max dt."""
+    wanted = _limit(goal_velocity, v_max)
+    if distance > 0.0:
+        toward = error / distance * math.sqrt(2.0 * a_max * distance)
+        wanted = _limit(wanted + toward, v_max)
+    return velocity + _limit(wanted - velocity, a_max * dt)
+
+
+class OrientationReference:
+    """The orientation task's desired rotation R_d (world) and angular velocity w [rad/s] (world axes), turned
+    toward a goal rotation as :class:`Reference` moves a point: |w| <= w_max, |dw/dt| <= alpha_max, the error
+    the rotation's log map log(R_goal R_d^T) (the law's), R_d <- exp(w dt) R_d each update."""
+
+    def __init__(self, rotation: Vector, t: float, max_angular_velocity: float, max_angular_acceleration: float):
+        self.rotation = np.asarray(rotation, dtype=float).copy()
+        self.angular_velocity = np.zeros(3)  # the law's R_d is held: it starts at rest
+        self.t = float(t)
+        self.max_angular_velocity = float(max_angular_velocity)
+        self.max_angular_acceleration = float(max_angular_acceleration)
+        self.goal: Vector | None = None  # (3, 3)
+
+    def advance(self, t: float) -> tuple[Vector, Vector]:
+        """R_d and w at t (a time at or after the last one)."""
+        dt = float(t) - self.t
+        if dt <= 0.0 or self.goal is None:
+            return self.rotation, self.angular_velocity
+        self.t = float(t)
+        error = np.asarray(pin.log3(self.goal @ self.rotation.T))
+        angle = float(np.linalg.norm(error))
+        step = self.max_angular_acceleration * dt
+        if angle <= step * dt and np.linalg.norm(self.angular_velocity) <= step:  # there (see Reference.advance)
+            self.rotation, self.angular_velocity = self.goal.copy(), np.zeros(3)
+            return self.rotation, self.angular_velocity
+        w = _approach(
+            error,
+            angle,
+            np.zeros(3),
+            self.angular_velocity,
+            self.max_angular_velocity,
+            self.max_angular_acceleration,
+            dt,
+        )
+        self.angular_velocity = w
+        self.rotation = np.asarray(pin.exp3(w * dt)) @ self.rotation
+        return self.rotation, self.angular_velocity
 
 
 def _limit(vector: Vector, bound: float) -> Vector:
@@ -196,6 +277,23 @@ class TaskSpec:
     reach: Reach | None
 
 
+ORIENTATION_ERROR_TOPIC = "hand_orientation_error"
+"""The controller's orientation error (geometry_msgs/Vector3Stamped, log(R_d R^T) [rad] in world axes, stamped
+with the state it answers): published only with an orientation task (hand.orientation.axes)."""
+POSE_TOPIC = "hand_pose_target"
+"""The hand's pose target (geometry_msgs/PoseStamped): its position as hand_target's, its orientation the
+orientation task's goal."""
+
+
+@dataclass(frozen=True)
+class OrientationSpec:
+    """The orientation task as its targets see it: its world axes (empty: none) and the reference's bounds."""
+
+    axes: tuple[int, ...] = ()
+    max_angular_velocity: float = 0.5  # [rad/s] targets.max_angular_velocity
+    max_angular_acceleration: float = 2.0  # [rad/s^2] targets.max_angular_acceleration
+
+
 class TaskTargets:
     """The targets of every task (0 the hand, 1 + j brace j) and the references that lead to them.
 
@@ -210,13 +308,17 @@ class TaskTargets:
         max_velocity: float,
         max_acceleration: float,
         limits: TargetLimits = TargetLimits(),
+        orientation: OrientationSpec | None = None,
     ) -> None:
         self.tasks = list(tasks)
         self.max_velocity = max_velocity
         self.max_acceleration = max_acceleration
         self.limits = limits
+        self.orientation = orientation if orientation is not None else OrientationSpec()
         self.goals: dict[int, Goal] = {}
         self.references: dict[int, Reference] = {}
+        self.orientation_goal: Vector | None = None  # (3, 3) R_goal, world (hand_pose_target)
+        self.orientation_reference: OrientationReference | None = None
 
     def point(self, task: int, point: Sequence[float], frame_id: str) -> Goal | None:
         """A point to move to and hold (``hand_target``, ``brace_target/<contact>``), checked."""
@@ -224,6 +326,48 @@ class TaskTargets:
         self.check_size(spec.what, 1, len(frame_id))
         p = check_point(spec.what, point, frame_id, spec.axes, spec.reach)
         return self._set(task, Goal(np.zeros(1), p.reshape(1, 3)))
+
+    def pose(self, point: Sequence[float], quaternion: Sequence[float], frame_id: str) -> Goal | None:
+        """A hand pose to move to and hold (``hand_pose_target``): its position as ``point``'s, its orientation
+        [x, y, z, w] (normalised) the orientation task's goal. Refused whole (TargetError) if either part is:
+        also without an orientation task. None if both are the goals already (no change)."""
+        what, spec = POSE_TOPIC, self.tasks[0]
+        self.check_size(what, 1, len(frame_id))
+        p = check_point(what, point, frame_id, spec.axes, spec.reach)
+        rotation = check_quaternion(what, quaternion)
+        if not self.orientation.axes:
+            raise TargetError(
+                f"{what} refused: no orientation task to hold its orientation (set hand.orientation.axes, with "
+                "hand.orientation.kp and kd; or send the position alone on hand_target)",
+                "no orientation task",
+            )
+        moved = self._set(0, Goal(np.zeros(1), p.reshape(1, 3)))
+        turned = self.turn_to_rotation(rotation)
+        return self.goals[0] if moved is not None or turned else None
+
+    def turn_to(self, quaternion: Sequence[float]) -> bool:
+        """The orientation task's goal from now on, a quaternion [x, y, z, w] (hand.orientation.target set while
+        running: checked by the configuration); whether it changed."""
+        return self.turn_to_rotation(check_quaternion("hand.orientation.target", quaternion))
+
+    def turn_to_rotation(self, rotation: Vector) -> bool:
+        """The orientation task's goal from now on, a rotation matrix (world); whether it changed."""
+        turned = self.orientation_goal is None or not np.array_equal(self.orientation_goal, rotation)
+        self.orientation_goal = rotation
+        return turned
+
+    def advance_orientation(self, t: float, held: Callable[[], Vector]) -> tuple[Vector, Vector] | None:
+        """The orientation task's R_d and angular velocity at t toward the pose's orientation (None before a
+        pose came); ``held()`` gives the law's R_d, where the reference starts (at rest: no kick)."""
+        if self.orientation_goal is None:
+            return None
+        reference = self.orientation_reference
+        if reference is None:
+            spec = self.orientation
+            reference = OrientationReference(held(), t, spec.max_angular_velocity, spec.max_angular_acceleration)
+            self.orientation_reference = reference
+        reference.goal = self.orientation_goal
+        return reference.advance(t)
 
     def check_size(self, what: str, poses: int, frame_id_length: int) -> None:
         """TargetError unless a message of ``poses`` poses whose longest frame name has

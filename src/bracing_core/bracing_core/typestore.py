@@ -35,6 +35,8 @@ RECORD_BATCH = "bracing_msgs/msg/RecordBatch"
 POINT_STAMPED = "geometry_msgs/msg/PointStamped"
 PATH = "nav_msgs/msg/Path"
 DIAGNOSTIC_STATUS = "diagnostic_msgs/msg/DiagnosticStatus"
+POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+VECTOR3_STAMPED = "geometry_msgs/msg/Vector3Stamped"
 
 
 def bracing_msgs_dir() -> Path:

@@ -398,6 +398,10 @@ void bind_law(nb::module_& m) {
       .def("set_reference", &Law::set_reference, "task"_a, "position"_a, "velocity"_a,
            "task k (0 the hand, 1 + j brace j) follows this desired position and velocity instead of its path")
       .def("clear_reference", &Law::clear_reference, "task"_a, "task k follows its path again")
+      .def("set_orientation_reference", &Law::set_orientation_reference, "rotation"_a, "angular_velocity"_a,
+           "the orientation task holds R_d = rotation (world), turning at angular_velocity [rad/s], from the next "
+           "update on")
+      .def("orientation_reference", &Law::orientation_reference, "the orientation task's R_d now")
       .def("path_sample", &Law::path_sample, "task"_a, "t"_a, "task k's configured path at t: (position, velocity)")
       .def("measure_force", &Law::measure_force, "brace"_a, "force"_a,
            "brace j's measured force on the robot [N], world axes (force feedback reads its normal component)")

@@ -104,6 +104,8 @@ struct Law::Impl {
   bool orientation = false;
   Matrix3 orientation_target = Matrix3::Identity();
   Vector3 orientation_integral = Vector3::Zero();
+  bool orientation_overridden = false;  // set_orientation_reference: R_d moves, at this angular velocity
+  Vector3 orientation_velocity = Vector3::Zero();
   Vector temperature;  // the windings' measured temperatures [degC]
   Vector rest;         // the posture task's rest position (the first measured one unless configured)
   bool posture = false;
@@ -234,6 +236,8 @@ void Law::reset() {
   m.integral.setZero(braces());
   m.task_integral.assign(m.frames.size(), Vector3::Zero());
   m.orientation_integral.setZero();
+  m.orientation_overridden = false;
+  m.orientation_velocity.setZero();
   m.saturated = false;
   m.temperature = Vector::Constant(m.model.nv, m.spec.drive.ambient);
 }
@@ -244,6 +248,21 @@ void Law::set_reference(int task, const Vector3& position, const Vector3& veloci
   m.overridden[task] = true;
   m.reference_position[task] = position;
   m.reference_velocity[task] = velocity;
+}
+
+void Law::set_orientation_reference(const Matrix3& rotation, const Vector3& angular_velocity) {
+  Impl& m = *impl_;
+  if (!m.orientation) throw std::logic_error("set_orientation_reference: no orientation task");
+  if (!m.started) throw std::logic_error("set_orientation_reference: the law has not seen a state yet");
+  m.orientation_overridden = true;
+  m.orientation_target = rotation;
+  m.orientation_velocity = angular_velocity;
+}
+
+Matrix3 Law::orientation_reference() const {
+  const Impl& m = *impl_;
+  if (!m.started) throw std::logic_error("orientation_reference: the law has not seen a state yet");
+  return m.orientation_target;
 }
 
 void Law::clear_reference(int task) {
@@ -468,8 +487,11 @@ void Law::Impl::orientation_torque(const Vector& dq, double dt, LawOutput& out, 
   const Eigen::MatrixXd angular = frame_jacobian.bottomRows<3>();  // w = angular dq, world axes
   const Matrix3 rotation = pin::updateFramePlacement(model, data, frames[0]).rotation();
   out.orientation_error = pin::log3(Matrix3(orientation_target * rotation.transpose()));  // world axes
+  // a moving reference's angular velocity in the damping (none otherwise: the configured law, bit for bit)
+  const Vector3 velocity_error =
+      orientation_overridden ? Vector3(orientation_velocity - angular * dq) : Vector3(-(angular * dq));
   const Vector3 moment =
-      pid(task.kp, task.kd, task.ki, out.orientation_error, -(angular * dq), dt, orientation_integral);
+      pid(task.kp, task.kd, task.ki, out.orientation_error, velocity_error, dt, orientation_integral);
   if (spec.acceleration_gains) {
     const Vector3 drift =  // dJ dq: the frame's angular acceleration at ddq = 0
         pin::getFrameClassicalAcceleration(model, data, frames[0], pin::LOCAL_WORLD_ALIGNED).angular();

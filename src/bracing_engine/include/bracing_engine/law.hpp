@@ -46,7 +46,8 @@ struct Task {
 
 // The hand frame's orientation held about world axes (not in the paper): the error is the rotation's log map
 // in world axes, e = log(R_d R^T), and the moment kp e - kd w + ki * integral of e dt (w the frame's angular
-// velocity, world axes); with acceleration gains an angular acceleration, as Task's.
+// velocity, world axes; kd (w_d - w) while a reference turns R_d: Law::set_orientation_reference); with
+// acceleration gains an angular acceleration, as Task's.
 struct OrientationTask {
   std::vector<int> axes;  // world axes it uses (empty: no orientation task)
   Vector3 kp = Vector3::Zero(), kd = Vector3::Zero(), ki = Vector3::Zero();  // per world axis
@@ -123,6 +124,11 @@ class Law {
   // instead of its path from the next update on, until clear_reference(k) or reset().
   void set_reference(int task, const Vector3& position, const Vector3& velocity);
   void clear_reference(int task);
+  // Targets while running: the orientation task holds R_d = `rotation` (world) turning at `angular_velocity`
+  // [rad/s] (world axes: the damping's desired angular velocity) from the next update on, until reset().
+  void set_orientation_reference(const Matrix3& rotation, const Vector3& angular_velocity);
+  // The orientation task's R_d now (after the first update: the configured target or the first measured one).
+  Matrix3 orientation_reference() const;
   // Task k's configured path at t (desired position, velocity), from its first measured position.
   std::pair<Vector3, Vector3> path_sample(int task, double t) const;
   bool uses_force_feedback() const;  // a brace has a feedback gain
