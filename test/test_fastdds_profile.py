@@ -82,7 +82,10 @@ def test_unreadable_and_incomplete_profiles_are_not_trusted(tmp_path: Path) -> N
 @pytest.fixture
 def environment(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> pytest.MonkeyPatch:
     for key in (PROFILE_ENV, SKIP_ENV, fastdds.NETWORK_ENV):
-        monkeypatch.delenv(key, raising=False)
+        # set first, so that monkeypatch restores each as it was, absent included (use_fastdds_profile writes
+        # os.environ itself: a profile left behind would be every later test's, --network runs' included)
+        monkeypatch.setenv(key, "")
+        monkeypatch.delenv(key)
     monkeypatch.setenv(RANGE_ENV, "LOCALHOST")  # env.sh's
     monkeypatch.chdir(tmp_path)
     return monkeypatch
