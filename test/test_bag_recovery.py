@@ -192,17 +192,24 @@ def _kill_once_a_chunk_is_written(output: Path, proc: subprocess.Popen[str], mod
     os.kill(pid, signal.SIGKILL)
 
 
-def test_pair_recovers_the_bag_of_a_killed_recorder(tmp_path: Path, full_run: Path) -> None:
-    """Before: exit 1 "the recorder exited with code -9", bag.mcap without its end, nothing could read it."""
-    output = tmp_path / "killed"
+def _pair_run_killing(output: Path, module: str) -> tuple[int, str]:
+    """A 2 s bracing-pair run whose process ``module`` is killed (SIGKILL) once a chunk is written: (exit code,
+    its output)."""
     proc = start(pair_argv(output, "--duration", "2", "--no-animation"), isolated_env())
     try:
-        _kill_once_a_chunk_is_written(output, proc, "bracing_bringup.recorder")
+        _kill_once_a_chunk_is_written(output, proc, module)
         out = proc.communicate(timeout=180)[0]
+        return proc.returncode, out
     finally:
         if proc.poll() is None:
             proc.kill()
-    assert proc.returncode == 1, out
+
+
+def test_pair_recovers_the_bag_of_a_killed_recorder(tmp_path: Path, full_run: Path) -> None:
+    """Before: exit 1 "the recorder exited with code -9", bag.mcap without its end, nothing could read it."""
+    output = tmp_path / "killed"
+    code, out = _pair_run_killing(output, "bracing_bringup.recorder")
+    assert code == 1, out
     said = re.search(
         r"the recorder died \(signal 9, SIGKILL\) at t >= ([\d.]+) s; the bag was recovered up to "
         r"t = ([\d.]+) s: (\d+) messages",
@@ -236,14 +243,8 @@ REPORT = [sys.executable, "-m", "bracing_analysis.report"]
 def test_a_killed_simulator_still_leaves_a_bag_closed_by_its_recorder(tmp_path: Path) -> None:
     """As before: exit 1 naming the simulator; the recorder, stopped, closes the bag itself (nothing to recover)."""
     output = tmp_path / "killed"
-    proc = start(pair_argv(output, "--duration", "2", "--no-animation"), isolated_env())
-    try:
-        _kill_once_a_chunk_is_written(output, proc, "bracing_sim.node")
-        out = proc.communicate(timeout=180)[0]
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 1, out
+    code, out = _pair_run_killing(output, "bracing_sim.node")
+    assert code == 1, out
     assert "the simulator exited with code -9" in out and "simulator|" in out and "recovered" not in out
     assert cut_files(output / "bag") == [] and len(_stamps(output / "bag")["/joint_states"]) > 100
 

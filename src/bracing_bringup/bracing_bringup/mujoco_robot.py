@@ -107,8 +107,7 @@ class MujocoRobotNode(Node):
         try:
             values = read_checked(data, FLOAT64_MULTI_ARRAY, Float64MultiArray, self.limits).data
         except (wire.DecodeError, SizeError) as exc:
-            kind = exc.kind if isinstance(exc, SizeError) else "malformed"
-            self.log.limited("error", kind, f"{COMMAND_TOPIC} refused: {exc}")
+            self.log.limited("error", exc.kind, f"{COMMAND_TOPIC} refused: {exc}")
             return
         self.held.offer(values)
 

@@ -181,7 +181,6 @@ _TARGET_TYPES: dict[str, type] = {
     POSE_STAMPED: PoseStamped,
     DIAGNOSTIC_STATUS: DiagnosticStatus,
 }
-_OPTIONAL_TYPES: dict[str, type] = {VECTOR3_STAMPED: Vector3Stamped}
 
 
 _RCLPY_TYPES: dict[str, type] = {
@@ -192,6 +191,7 @@ _RCLPY_TYPES: dict[str, type] = {
     CLOCK: Clock,
     MOTOR_COMMAND: MotorCommand,
     CONTROLLER_STATE: ControllerState,
+    VECTOR3_STAMPED: Vector3Stamped,  # an optional per-state topic (hand_orientation_error)
 }
 
 
@@ -299,7 +299,7 @@ class Recorder(Node):
             resolved = self.resolve_topic_name(topic)
             self._optional[resolved] = type_name
             if not from_batches:
-                sub = self.create_subscription(_OPTIONAL_TYPES[type_name], topic, _never_called, RECORD_QOS, raw=True)
+                sub = self.create_subscription(_RCLPY_TYPES[type_name], topic, _never_called, RECORD_QOS, raw=True)
                 self._optional_of[sub] = resolved
 
     def _write_optional(self, topic: str, data: bytes) -> None:

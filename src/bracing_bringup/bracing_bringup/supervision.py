@@ -24,19 +24,14 @@ from bracing_bringup.run_plan import PARAMS_FILE, RunOptions, RunPlan, check_con
 from bracing_bringup.timeline import BAG_CLOSED, FIRST_STEP, LAST_FILE, LAST_STEP, TIMELINE_FILE, Timeline
 from bracing_bringup.topics import missing_from_counts
 from bracing_bringup.viewurl import free_ports, view_url, wait_for_port
+from bracing_core.failures import DIVERGED, EXIT_DIVERGED
 from bracing_core.overrides import CONTROLLER, SIMULATOR
 from bracing_core.params import ConfigError
 
 if TYPE_CHECKING:
     from bracing_core.failures import Failure
 
-DIVERGED = "error: simulation diverged at t = "
-"""How the simulator's log gives a divergence (bracing_sim.node says it so)."""
-
 EXIT_FAILED = 1
-EXIT_DIVERGED = 3
-"""The simulator's exit code when the simulation diverged (bracing_ros.node_main), and then bracing-pair's:
-its summary.json says what ran away (``error``) and what to change (``hint``)."""
 VIEWER_START_S = 60.0  # [s] --view: how long the viewer may take to serve its page before the run goes on without
 FINISHED = "simulator finished"
 """The simulator's last status: every subscriber has acknowledged everything it sent."""

@@ -20,7 +20,6 @@ from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.serialization import serialize_message
 from rclpy.subscription import Subscription
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
@@ -83,6 +82,7 @@ class ControllerNode(Node):
             if config.orientation.axes
             else None
         )
+        self.orientation_wire = wire.Vector3StampedEncoder(WORLD_FRAME)
         answers = [self.command_pub, self.state_pub, *([self.orientation_pub] if self.orientation_pub else [])]
         # Messages travel as CDR bytes built by ``wire`` (rclpy's message classes cost more than the DDS write).
         self.command_wire = wire.MotorCommandEncoder(self.joint_names, MODE_CODES[config.shared.input_mode])
@@ -90,7 +90,7 @@ class ControllerNode(Node):
         self.state_reader = wire.JointStateDecoder(self.joint_names, self.core.limits)  # sizes checked first
         # Force feedback and thermal compensation read contact_wrench/<name> and motor_state (``listen``).
         self.measurement_waiter: SubscriptionWaiter | None = None
-        self.wrench_subs: dict[Subscription, str] = {}
+        self.wrench_subs: dict[Subscription, tuple[str, str]] = {}  # contact, its topic
         self.flow = AckWindow(self, answers, STREAM_QOS.depth)
         self.command_out: Callable[[], None] | None = None  # called once a command is out (lockstep's timing)
         # record_batch: the answers also reach the recorder in batches (it subscribes to those instead)
@@ -128,8 +128,8 @@ class ControllerNode(Node):
             # raw: a message's sizes are checked before its elements are decoded
             self.wrench_subs = {
                 self.create_subscription(
-                    WrenchStamped, topic, partial(self.on_wrench, name), SUBSCRIBE_QOS, raw=True
-                ): name
+                    WrenchStamped, topic, partial(self.on_wrench, name, topic), SUBSCRIBE_QOS, raw=True
+                ): (name, topic)
                 for name, topic in zip(measurements.forces, measurements.topics, strict=True)
             }
             subs = list(self.wrench_subs)
@@ -145,15 +145,12 @@ class ControllerNode(Node):
         assert self.measurement_waiter is not None
         for subscription, msg in self.measurement_waiter.take_all(timeout_sec):
             if subscription in self.wrench_subs:
-                self.on_wrench(self.wrench_subs[subscription], msg)
+                self.on_wrench(*self.wrench_subs[subscription], msg)
             else:
                 self.on_temperature(msg)
 
-    def on_wrench(self, contact: str, data: bytes) -> None:
-        """A contact's measured force (CDR bytes), to the core unless it cannot be read."""
-        measurements = self.core.measurements
-        assert measurements is not None  # subscribed to only if the law reads them
-        topic = measurements.topics[measurements.forces.index(contact)]
+    def on_wrench(self, contact: str, topic: str, data: bytes) -> None:
+        """A contact's measured force (CDR bytes, from ``topic``), to the core unless it cannot be read."""
         msg = self.read_measurement(data, topic, WRENCH_STAMPED, WrenchStamped)
         if msg is not None:
             f = msg.wrench.force
@@ -188,8 +185,7 @@ class ControllerNode(Node):
             msg = read_joint_state(data, self.state_reader)
         except (wire.DecodeError, SizeError) as exc:
             severity, verdict, then = refusal
-            kind = exc.kind if isinstance(exc, SizeError) else "malformed"
-            self.log.limited(severity, kind, f"joint_states {verdict}: {exc}{then}")
+            self.log.limited(severity, exc.kind, f"joint_states {verdict}: {exc}{then}")
             return
         state = self.core.read_state(msg.name, msg.position, msg.velocity, msg.stamp_ns, refusal)
         if state is not None:
@@ -206,7 +202,7 @@ class ControllerNode(Node):
         if self.command_out is not None:
             self.command_out()  # the simulator's wait ends there; the controller_state follows it
         if self.orientation_pub is not None:  # before controller_state: a state's answer is complete with it
-            publish(self.orientation_pub, orientation_error_message(stamp_ns, out.orientation_error))
+            publish(self.orientation_pub, self.orientation_wire.encode(stamp_ns, out.orientation_error))
         brace = (out.brace_desired, out.brace_actual)
         publish(
             self.state_pub,
@@ -250,16 +246,6 @@ class ControllerNode(Node):
                 "(not waited for: the recorder has them in record_batch; the simulator has stopped or left)",
             ))  # fmt: skip
         return lines
-
-
-def orientation_error_message(stamp_ns: int, error: np.ndarray) -> bytes:
-    """hand_orientation_error's CDR bytes: log(R_d R^T) [rad], world axes, stamped with the state it answers."""
-    msg = Vector3Stamped()
-    sec, nanosec = divmod(stamp_ns, 1_000_000_000)
-    msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
-    msg.header.frame_id = WORLD_FRAME
-    msg.vector.x, msg.vector.y, msg.vector.z = (float(v) for v in error)
-    return bytes(serialize_message(msg))
 
 
 def wait_for_outputs(node: ControllerNode, executor: SingleThreadedExecutor) -> None:

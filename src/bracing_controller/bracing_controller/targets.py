@@ -22,7 +22,6 @@ from nav_msgs.msg import Path
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 
 from bracing_core.kinematics import WORLD_FRAME
@@ -39,7 +38,7 @@ from bracing_core.targets import (
     echo_topic,
 )
 from bracing_ros import wire
-from bracing_ros.raw_messages import path_sizes
+from bracing_ros.raw_messages import deserialize, path_sizes
 
 TARGET_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
@@ -166,7 +165,8 @@ class TargetTopics:
             frame_id_length, poses = sizes
             self.targets.check_size(topic.name, poses, frame_id_length)
         msg = _decoded(topic.name, data, Path)
-        self.targets.check_size(topic.name, len(msg.poses), len(msg.header.frame_id))
+        if sizes is None:  # an encapsulation path_sizes does not read: checked once decoded
+            self.targets.check_size(topic.name, len(msg.poses), len(msg.header.frame_id))
         poses = msg.poses
         frames = [pose.header.frame_id or msg.header.frame_id for pose in poses]
         points = [[pose.pose.position.x, pose.pose.position.y, pose.pose.position.z] for pose in poses]
@@ -186,10 +186,11 @@ class TargetTopics:
 
 
 def _decoded(name: str, data: bytes, msg_type: type) -> Any:
+    """The target message of ``data``, or TargetError (kind malformed) for bytes rclpy cannot read."""
     try:
-        return deserialize_message(data, msg_type)
-    except Exception as exc:  # rclpy raises its RMWError (and others) for bytes it cannot read
-        raise TargetError(f"{name} refused: malformed ({str(exc).split(', at /')[0][:200]})", "malformed") from None
+        return deserialize(data, msg_type)
+    except wire.DecodeError as exc:
+        raise TargetError(f"{name} refused: malformed ({str(exc)[:200]})", "malformed") from None
 
 
 def _accepted(topic: TargetTopic, goal: Goal) -> str:

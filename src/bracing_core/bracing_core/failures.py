@@ -40,6 +40,11 @@ SINGULAR_RATIO = 0.05
 RK4_STABLE_STEP = 2.78
 """h |lambda| up to which classic RK4 is stable on a real negative eigenvalue (2.785...)."""
 OK, FAILED = "ok", "failed"
+EXIT_DIVERGED = 3
+"""The simulator's exit code when the simulation diverged, and then bracing-pair's: its summary.json says
+what ran away (``error``) and what to change (``hint``)."""
+DIVERGED = "error: simulation diverged at t = "
+"""How the simulator's stderr gives a divergence (bracing-pair's summary.json ``error`` reads it there)."""
 LET_GO = re.compile(r"contact '([^']*)' let go of its surface")
 """A let-go warning (``checks.let_go_warning``): its contact's name."""
 
@@ -181,6 +186,11 @@ def fed_back(params: Mapping[str, Any]) -> list[str]:
     return [name for name in names if any(params.get(f"contacts.{name}.{gain}") for gain in gains)]
 
 
+def fed_back_contacts(config: ControllerConfig) -> list[str]:
+    """The braced contacts whose normal force is fed back, from the controller's configuration."""
+    return [c.name for c in config.shared.braced_contacts if c.feedback_kp or c.feedback_ki]
+
+
 def succeeded(warnings: Sequence[str], fed_back: Sequence[str] = ()) -> Failure:
     """A run that ended well: status ok, no error, the hint of a known cause its warnings name (or None);
     ``fed_back``: the braced contacts under force feedback."""
@@ -248,7 +258,7 @@ def _cause(
         return "stiff_circuit", STIFF_HINT.format(
             rate=rate, substep=substep, product=product, limit=RK4_STABLE_STEP, needed=needed
         )
-    feedback = [c.name for c in config.shared.braced_contacts if c.feedback_kp or c.feedback_ki] if config else []
+    feedback = fed_back_contacts(config) if config else []
     known = _hint_from_warnings(warnings, feedback)
     return known if known is not None else ("", None)
 

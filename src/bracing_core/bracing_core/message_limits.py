@@ -80,13 +80,6 @@ class MessageLimits:
                 f"({self.max_name_length})"
             )
 
-    def check_names(self, names: Sequence[str], *sequences: tuple[str, int]) -> None:
-        """The counts first (``names``, then each (field, count) of ``sequences``), then the longest name."""
-        self.check_count("name", len(names))
-        for field, count in sequences:
-            self.check_count(field, count)
-        self.check_name("name", max(names, key=len, default=""))
-
 
 DEFAULT_LIMITS = MessageLimits()
 """The parameters' defaults."""

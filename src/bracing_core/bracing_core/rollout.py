@@ -24,7 +24,7 @@ import bracing_engine as engine
 from bracing_core.checks import configuration_warnings
 from bracing_core.config import Plant, SimulatorConfig, build_simulator
 from bracing_core.controller_config import ControllerConfig
-from bracing_core.failures import Failure, History, diagnose, succeeded
+from bracing_core.failures import Failure, History, diagnose, fed_back_contacts, succeeded
 from bracing_core.law import DecoupledController
 from bracing_core.overrides import CONTROLLER, SIMULATOR, NodeOverrides, node_params
 from bracing_core.simulator import Energy, Simulator
@@ -191,7 +191,7 @@ def run_recorded(
     events = len(sim.events)
     # the commands saturated as the simulator node saturates them (motors.voltage_limit / torque_limit)
     limit = scenario.plant.command_limit
-    out = sim.rollout_to_failure(controller.engine, steps, *limits, sensors=scenario.sensors(), command_limit=limit)
+    out = sim.rollout(controller.engine, steps, *limits, scenario.sensors(), limit, keep_failure=True)
     error = sim.rollout_error(out, *limits)
     if error is not None and not keep_failure:
         raise error
@@ -246,8 +246,7 @@ def _outcome(scenario: Scenario, out: engine.Recording, error: Exception | None,
     assert controller is not None
     said = [*configuration_warnings(controller.config, controller.plant), *warnings]
     if error is None:
-        feedback = [c.name for c in controller.config.shared.braced_contacts if c.feedback_kp or c.feedback_ki]
-        return succeeded(said, feedback)
+        return succeeded(said, fed_back_contacts(controller.config))
     history = History(out.time, out.position, out.velocity, scenario.plant.joint_names)
     step = (scenario.sim.step_size, scenario.sim.substeps)
     return diagnose(str(error), history, scenario.plant, controller.config, step, said)

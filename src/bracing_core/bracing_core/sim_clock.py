@@ -39,13 +39,12 @@ class ClockGuard:
 
     def take(self, sec: int, nanosec: int) -> int | None:
         """The time [ns] to set the node's clock to, or None: the message is refused (reported)."""
-        now = "none yet" if self.last_ns is None else f"{seconds(self.last_ns)} s"
         if sec < 0:
-            self._log.limited("warning", "clock-negative", f"/clock refused: negative time (sec {sec}); clock {now}")
+            self._log.limited("warning", "clock-negative", f"/clock refused: negative time (sec {sec}); {self._now()}")
             return None
         if not 0 <= nanosec < NS_PER_S:
             self._log.limited(
-                "warning", "clock-malformed", f"/clock refused: nanosec {nanosec} outside [0, 10^9); clock {now}"
+                "warning", "clock-malformed", f"/clock refused: nanosec {nanosec} outside [0, 10^9); {self._now()}"
             )
             return None
         t_ns = sec * NS_PER_S + nanosec
@@ -66,6 +65,10 @@ class ClockGuard:
                 "(a timer fires once for it)",
             )
         return t_ns
+
+    def _now(self) -> str:
+        """The clock as a refusal says it (built only for a refusal, not for every /clock)."""
+        return "clock none yet" if self.last_ns is None else f"clock {seconds(self.last_ns)} s"
 
 
 def seconds(t_ns: int) -> str:

@@ -250,40 +250,30 @@ class Simulator:
         divergence_residual: float = np.inf,
         sensors: engine.Sensors | None = None,
         command_limit: Vector | None = None,
+        keep_failure: bool = False,
     ) -> engine.Recording:
         """The closed loop with ``law`` (a ``bracing_engine.Law``) for ``steps`` steps, in the engine:
         per state k = 0..steps what the nodes publish in lockstep (``bracing_engine.rollout``; the
         last state answered and evaluated without a step). Raises as ``step`` does, and
         DivergenceError where the simulator node would refuse a step (speed above
-        ``divergence_speed`` [rad/s], a held contact further than ``divergence_residual`` [m] off).
+        ``divergence_speed`` [rad/s], a held contact further than ``divergence_residual`` [m] off);
+        with ``keep_failure`` it returns what it recorded up to such a failure instead (``rollout_error``
+        says why it stopped; its arrays are cut to the rows filled).
         ``sensors``: what the law reads and when its commands land (None: exact and instant). ``command_limit``:
         each joint's |command| saturation (model order, 0: none), as the simulator node applies it."""
-        out = self.rollout_to_failure(law, steps, divergence_speed, divergence_residual, sensors, command_limit)
-        error = self.rollout_error(out, divergence_speed, divergence_residual)
-        if error is not None:
-            raise error
-        return out
-
-    def rollout_to_failure(
-        self,
-        law: engine.Law,
-        steps: int,
-        divergence_speed: float = np.inf,
-        divergence_residual: float = np.inf,
-        sensors: engine.Sensors | None = None,
-        command_limit: Vector | None = None,
-    ) -> engine.Recording:
-        """``rollout`` that returns what it recorded up to a failure instead of raising
-        (``rollout_error`` says why it stopped; its arrays are cut to the rows filled)."""
         limit = np.zeros(0) if command_limit is None else np.asarray(command_limit, dtype=float)
         try:
-            return engine.rollout(
+            out = engine.rollout(
                 law, self.engine, int(steps), self.t0, divergence_speed, divergence_residual, sensors, limit
             )
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
         finally:
             self._take_events()
+        error = None if keep_failure else self.rollout_error(out, divergence_speed, divergence_residual)
+        if error is not None:
+            raise error
+        return out
 
     def rollout_error(
         self, out: engine.Recording, divergence_speed: float = np.inf, divergence_residual: float = np.inf

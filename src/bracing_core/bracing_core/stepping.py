@@ -146,6 +146,8 @@ class SimulatorStepper:
         sensing = config.sensors
         self.sensors = None if sensing.exact else sensing.engine(config.step, plant.robot.prismatic.tolist())
         self.drive = joint_command_drive(config, plant)
+        # joint_commands: the limit each joint's efforts are saturated to (0: none; the drive: its voltage limit)
+        self.effort_limit: Vector = plant.motors.torque_limit if self.drive is None else np.zeros(sim.n)
         self.wrench_count = len(config.shared.contacts)  # the configured contacts, first in the contact set
         self.command = np.zeros(sim.n)  # last applied (held) command
         self.pending: dict[int, Vector] = {}  # lockstep: valid commands by stamp [ns]
@@ -268,11 +270,6 @@ class SimulatorStepper:
             self.pending[stamp_ns] = command
         else:  # real_time and free_run hold the latest
             self.latest_command = (self.clock(), command)
-
-    @property
-    def effort_limit(self) -> Vector:
-        """joint_commands: each joint's limit efforts are saturated to (0: none; the drive's voltage limit applies)."""
-        return self.plant.motors.torque_limit if self.drive is None else np.zeros(self.sim.n)
 
     def offer_effort(self, command: Vector, saturated: bool) -> None:
         """A valid joint_commands effort command [N m or N, link side] (real time: held)."""

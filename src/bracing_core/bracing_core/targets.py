@@ -37,6 +37,7 @@ import numpy as np
 import pinocchio as pin
 
 from bracing_core.checks import Reach
+from bracing_core.message_limits import shorten
 from bracing_core.types import Vector
 
 
@@ -81,17 +82,6 @@ def echo_topic(topic: str, verdict: str) -> str:
     return f"{topic}/{verdict}"
 
 
-QUOTED_NAME_LENGTH = 40
-"""[characters] of a refused name quoted in a refusal (a hostile name can be megabytes long)."""
-
-
-def quoted(name: str) -> str:
-    """``name`` as a refusal quotes it: repr'd, cut to QUOTED_NAME_LENGTH characters with its length said."""
-    if len(name) <= QUOTED_NAME_LENGTH:
-        return repr(name)
-    return f"{name[:QUOTED_NAME_LENGTH]!r}... ({len(name)} characters)"
-
-
 @dataclass(frozen=True)
 class TargetLimits:
     """What one target message may carry and when a path may lie (``max_horizon`` [s] after now)."""
@@ -128,7 +118,7 @@ def check_point(what: str, point: Sequence[float], frame_id: str, axes: Sequence
     (``checks.frame_reach``: the reach check the controller does before a run)."""
     if frame_id != "world":
         raise TargetError(
-            f"{what} refused: frame {quoted(frame_id)}, not 'world' (no TF here: give it in world)", "frame"
+            f"{what} refused: frame {shorten(frame_id)!r}, not 'world' (no TF here: give it in world)", "frame"
         )
     p = np.asarray(point, dtype=float)
     if p.shape != (3,) or not np.isfinite(p).all():

@@ -19,7 +19,6 @@ from bracing_ros.fastdds import use_fastdds_profile
 from bracing_ros.lifetime import report_faults, stop_with_parent
 
 EXIT_CONFIG = 2
-EXIT_DIVERGED = 3
 
 
 def run(node_factory: Callable[[], Node], spin: Callable[[Node], int], args: list[str] | None = None) -> int:

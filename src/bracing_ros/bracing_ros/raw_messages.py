@@ -21,7 +21,7 @@ def read_joint_state(data: bytes, decoder: wire.JointStateDecoder) -> wire.Joint
     try:
         return decoder.decode(data)
     except wire.UnsupportedEncoding:
-        return wire.joint_state_data(_deserialize(data, JointState))
+        return wire.joint_state_data(deserialize(data, JointState))
 
 
 def read_motor_command(data: bytes, decoder: wire.MotorCommandDecoder) -> wire.MotorCommandData:
@@ -29,7 +29,7 @@ def read_motor_command(data: bytes, decoder: wire.MotorCommandDecoder) -> wire.M
     try:
         return decoder.decode(data)
     except wire.UnsupportedEncoding:
-        return wire.motor_command_data(_deserialize(data, MotorCommand))
+        return wire.motor_command_data(deserialize(data, MotorCommand))
 
 
 def read_checked(data: bytes, typename: str, msg_type: type, limits: MessageLimits) -> Any:
@@ -38,10 +38,11 @@ def read_checked(data: bytes, typename: str, msg_type: type, limits: MessageLimi
     try:
         return wire.decode_checked(data, typename, limits)
     except wire.UnsupportedEncoding:
-        return _deserialize(data, msg_type)
+        return deserialize(data, msg_type)
 
 
-def _deserialize(data: bytes, msg_type: type) -> Any:
+def deserialize(data: bytes, msg_type: type) -> Any:
+    """rclpy's message of ``data``, or ``wire.DecodeError`` saying why it cannot be read."""
     try:
         return deserialize_message(data, msg_type)
     except Exception as exc:  # rclpy raises its RMWError (and others) for bytes it cannot read

@@ -10,9 +10,7 @@ time-jump semantics (rcl's jump handlers reset the node's timers), and the node 
 from __future__ import annotations
 
 from rclpy.clock import ROSClock
-from rclpy.clock_type import ClockType
 from rclpy.node import Node
-from rclpy.time import Time
 from rclpy.time_source import TimeSource
 from rosgraph_msgs.msg import Clock
 
@@ -28,13 +26,8 @@ class GuardedTimeSource(TimeSource):
         super().__init__(node=node)
 
     def clock_callback(self, msg: Clock) -> None:
-        t_ns = self.guard.take(int(msg.clock.sec), int(msg.clock.nanosec))
-        if t_ns is None:
-            return
-        time = Time(nanoseconds=t_ns, clock_type=ClockType.ROS_TIME)
-        self._last_time_set = time  # as rclpy's: a clock attached later starts from it
-        for clock in self._associated_clocks:
-            clock.set_ros_time_override(time)
+        if self.guard.take(int(msg.clock.sec), int(msg.clock.nanosec)) is not None:  # then rclpy's cannot raise
+            super().clock_callback(msg)
 
 
 def guard_clock(node: Node, log: NodeLog) -> GuardedTimeSource:

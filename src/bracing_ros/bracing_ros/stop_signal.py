@@ -36,10 +36,6 @@ def install() -> None:
     signal.signal(signal.SIGINT, request_stop)
 
 
-def stop_requested() -> bool:
-    return _requested
-
-
 def taking(take: Callable[[], T]) -> T:
     """``take()`` (rclpy taking messages); a RuntimeError after a stop signal is raised as the
     KeyboardInterrupt it replaced."""

@@ -80,6 +80,7 @@ from bracing_core.typestore import (
     MOTOR_COMMAND,
     MOTOR_STATE,
     RECORD_BATCH,
+    VECTOR3_STAMPED,
     WRENCH_STAMPED,
     bracing_typestore,
 )
@@ -90,6 +91,8 @@ if TYPE_CHECKING:
 
 class DecodeError(ValueError):
     """Bytes that are not a valid message of the expected type."""
+
+    kind = "malformed"  # the kind of refusal a node's rate-limited log reports it under (as SizeError's)
 
 
 class UnsupportedEncoding(DecodeError):
@@ -504,6 +507,17 @@ class WrenchStampedEncoder:
             wrench=self._wrench(force=ser.Vector3(*force.tolist())),  # torque: zero (force at the contact point)
         )
         return ser.serialize(message, WRENCH_STAMPED)
+
+
+class Vector3StampedEncoder:
+    """geometry_msgs/Vector3Stamped in one frame (a byte template: only the stamp and the vector per message)."""
+
+    def __init__(self, frame_id: str) -> None:
+        spec = {"header": {"stamp": PER_MESSAGE, "frame_id": frame_id}, "vector": PER_MESSAGE}
+        self._template = derive_template(VECTOR3_STAMPED, spec)
+
+    def encode(self, stamp_ns: int, vector: Vector) -> bytes:
+        return self._template.fill(divmod(stamp_ns, 1_000_000_000), vector.tolist())
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,7 @@ from sensor_msgs.msg import JointState
 
 from bracing_core import schema
 from bracing_core.config import SimulatorConfig, build_simulator
+from bracing_core.failures import DIVERGED, EXIT_DIVERGED
 from bracing_core.meshes import missing_warning
 from bracing_core.message_limits import MessageLimits, SizeError
 from bracing_core.simulator import DivergenceError
@@ -32,7 +33,7 @@ from bracing_ros import parameters, wire
 from bracing_ros.commands import MODE_CODES, CommandError, command_vector, effort_vector
 from bracing_ros.matching import wait_until
 from bracing_ros.node_log import RosNodeLog
-from bracing_ros.node_main import EXIT_DIVERGED, run
+from bracing_ros.node_main import run
 from bracing_ros.qos import SUBSCRIBE_QOS
 from bracing_ros.raw_messages import read_joint_state, read_motor_command
 from bracing_ros.sim_clock import guard_clock
@@ -41,8 +42,6 @@ from bracing_ros.stop_signal import StoppableExecutor
 from bracing_ros.waiter import SubscriptionWaiter
 from bracing_sim.topics import JOINT_COMMANDS_QOS, SimulatorTopics
 
-DIVERGED = "error: simulation diverged at t = "
-"""How the simulator's stderr gives a divergence (bracing-pair's summary.json ``error`` reads it there)."""
 FLUSH_AT_FAILURE_S = 10.0
 """[s] wall the simulator waits, after a divergence, for the recorder to acknowledge what it sent: the last
 batch and the flow window take milliseconds on an idle machine; a loaded one may need seconds."""
@@ -96,8 +95,7 @@ class SimulatorNode(Node):
             msg = read_joint_state(data, self.joint_command_reader)
             u, saturated = effort_vector(msg.name, msg.effort, self.joint_names, self.core.effort_limit, self.limits)
         except (wire.DecodeError, SizeError, CommandError) as exc:
-            kind = exc.kind if isinstance(exc, (SizeError, CommandError)) else "malformed"
-            self.log.limited("error", kind, f"{topic} rejected: {exc}")
+            self.log.limited("error", exc.kind, f"{topic} rejected: {exc}")
             return
         except Exception as exc:  # the last line of defence: no message may stop the simulator
             self.log.limited("error", "internal", f"{topic} rejected: {type(exc).__name__}: {exc}")
@@ -118,10 +116,7 @@ class SimulatorNode(Node):
             u, saturated = command_vector(
                 msg.name, msg.value, msg.mode, self.joint_names, core.mode, core.limit, self.limits
             )
-        except wire.DecodeError as exc:
-            self.log.limited("error", "malformed", f"motor_command rejected: {exc}")
-            return
-        except (SizeError, CommandError) as exc:
+        except (wire.DecodeError, SizeError, CommandError) as exc:
             self.log.limited("error", exc.kind, f"motor_command rejected: {exc}")
             return
         self.core.offer(msg.stamp_ns, u, saturated)
