@@ -22,6 +22,7 @@ from bracing_experiments.sweep import ResultsStore
 if TYPE_CHECKING:
     pass
 from bracing_experiments.study_optimum import _search_lines
+from bracing_experiments.study_runs import window_text
 from bracing_experiments.study_specs import ENERGY, HAND_MAX, HAND_RMS, REPORT, PlacementSearch, Study
 
 # -- the report ------------------------------------------------------------------------------------
@@ -428,7 +429,7 @@ def write_report(
 
     matplotlib.use("Agg")
     store = ResultsStore(output)
-    rows = {spec.run_id: row for spec in study.specs if (row := store.row(spec.run_id)) is not None}
+    rows = study.replicas.median_rows(store)
     ok = sum(1 for row in rows.values() if _ok(row))
     duration = study.duration if study.duration is not None else study.specs[0].duration
     compute = sum(float(row.get("wall_time_s") or 0.0) for row in rows.values())
@@ -436,10 +437,14 @@ def write_report(
         f"# Bracing study: {study.config.name}",
         "",
         f"{len(study.specs)} in-process runs of {duration:g} s (the nodes' simulator and controller cores, "
-        f"lockstep); {ok} ok, {len(rows) - ok} failed. {compute:.0f} s of run time in all; this report's "
+        f"lockstep), {len(study.replicas.runs)} conditions: {ok} ok, {len(rows) - ok} failed. "
+        f"{compute:.0f} s of run time in all; this report's "
         f"invocation took {wall_time_s:.0f} s on {executor}{f' ({reused} runs reused)' if reused else ''}"
         f"{_search_count(search)}. "
         "Every run's row: `results.csv` / `results.parquet`; its summary and arrays: `runs/<run id>/`.",
+        "",
+        f"{window_text(duration)} {study.replicas.summary_text()}"
+        + (" The figures over time show the first seed's runs." if len(study.replicas.seeds) > 1 else ""),
         "",
         *_bracing_section(study, store, rows),
         *_gains_section(study, store, rows),
@@ -448,6 +453,7 @@ def write_report(
     ]
     path = output / REPORT
     path.write_text("\n".join(lines))
+    study.replicas.write_runs(store)
     return path
 
 
