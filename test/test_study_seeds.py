@@ -19,7 +19,9 @@ import pytest
 import test_sweep
 
 from bracing_analysis.summary import HAND_ERROR_T_MIN_S, WINDOWED_KEYS
+from bracing_core.params import ConfigError
 from bracing_experiments.experiment import execute_run
+from bracing_experiments.optimize import build_problem
 from bracing_experiments.robustness import BRACED, FEEDBACK_LAW, build_robustness
 from bracing_experiments.study import main as study_main
 from bracing_experiments.study_runs import RUNS_CSV, SEED_KEY, Median
@@ -96,6 +98,13 @@ def test_runs_too_short_for_the_hand_window_are_refused_before_any_run(
     with pytest.raises(SystemExit) as exit_:
         study_main([form, "--output", str(output), "--seeds", "0"])
     assert exit_.value.code == 2
+
+
+def test_an_optimisation_judged_on_a_window_that_does_not_fit_is_refused_before_any_trial() -> None:
+    force = "contacts.elbow.desired_normal_force"
+    with pytest.raises(ConfigError, match=r"--duration 1.5: hand_rms_error_m count over t >= 2 s"):
+        build_problem(PAPER_YAML, [f"{force}=0:40"], ["energy_consumed_j"], ["hand_rms_error_m<=0.03"], duration=1.5)
+    build_problem(PAPER_YAML, [f"{force}=0:40"], ["energy_consumed_j"], duration=1.5)  # no windowed metric: taken
 
 
 def test_every_windowed_metric_says_its_window_in_the_output_reference() -> None:

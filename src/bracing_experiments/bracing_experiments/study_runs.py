@@ -56,16 +56,16 @@ def seed_label(extra: Mapping[str, Any]) -> dict[str, Any]:
     return {"seed": extra[SEED_KEY]} if SEED_KEY in extra else {}
 
 
-def check_window(duration: float, option: str = "--duration") -> None:
-    """Refuse, before any run, runs too short for the windowed metrics (``WINDOWED_KEYS``: their window
-    starts at HAND_ERROR_T_MIN_S): every such metric would be null and the report's conclusions on them
-    empty. ConfigError says what to set."""
-    if duration <= HAND_ERROR_T_MIN_S:
-        keys = ", ".join(WINDOWED_KEYS)
+def check_window(duration: float, option: str = "--duration", metrics: Sequence[str] = WINDOWED_KEYS) -> None:
+    """Refuse, before any run, runs too short for the windowed ``metrics`` among WINDOWED_KEYS (their window
+    starts at HAND_ERROR_T_MIN_S): each would be null, and what is judged on them empty. ConfigError says
+    what to set."""
+    windowed = [key for key in WINDOWED_KEYS if key in metrics]
+    if windowed and duration <= HAND_ERROR_T_MIN_S:
         raise ConfigError(
-            f"{option} {duration:g}: {keys} count over t >= {HAND_ERROR_T_MIN_S:g} s (after the start's transient), "
-            f"so runs of {duration:g} s leave them no sample; set {option} above {HAND_ERROR_T_MIN_S:g} "
-            "(the scenario's own duration, or more)"
+            f"{option} {duration:g}: {', '.join(windowed)} count over t >= {HAND_ERROR_T_MIN_S:g} s (after the "
+            f"start's transient), so runs of {duration:g} s leave them no sample; set {option} above "
+            f"{HAND_ERROR_T_MIN_S:g} (the scenario's own duration, or more)"
         )
 
 
