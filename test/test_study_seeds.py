@@ -8,6 +8,7 @@ dask workers, each its own process) giving the local runs' numbers. Short runs (
 from __future__ import annotations
 
 import io
+import re
 import subprocess
 from collections import Counter
 from pathlib import Path
@@ -24,7 +25,7 @@ from bracing_experiments.experiment import execute_run
 from bracing_experiments.optimize import build_problem
 from bracing_experiments.robustness import BRACED, FEEDBACK_LAW, build_robustness
 from bracing_experiments.study import main as study_main
-from bracing_experiments.study_runs import RUNS_CSV, SEED_KEY, Median
+from bracing_experiments.study_runs import RUNS_CSV, SEED_KEY, Median, holds_text
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PAPER_YAML = REPO_ROOT / "config" / "paper_4link.yaml"
@@ -66,6 +67,16 @@ def test_another_scenario_over_three_seeds_gives_a_row_per_condition_and_seed_an
     spread = f"{Median(hands):.4g}"
     assert spread == f"{np.median(hands):.4g} ({min(hands):.4g}-{max(hands):.4g})"
     assert f"| yes | voltage | no | {spread} |" in report  # the braced run: hand RMS, its median and range
+    # Each conclusion with the number of conditions and seeds it holds in.
+    assert re.search(
+        r"- Seed by seed, bracing uses less energy than free in \d of 4 conditions, in 3 of 3 seeds", report
+    )
+
+
+def test_a_conclusion_counts_the_conditions_it_holds_in_in_every_seed_and_in_some() -> None:
+    held = {"nominal": [True, True, True], "masses x1.3": [True, False, True], "mu 0.3": [False, False, False]}
+    assert holds_text(held, 3) == "in 1 of 3 conditions, in 3 of 3 seeds; in 2 of 3 in at least 1 of 3 seeds"
+    assert holds_text({"nominal": [True]}, 1) == "in 1 of 1 conditions, in 1 of 1 seed"
 
 
 def test_the_same_seed_gives_the_same_run_bit_for_bit_and_another_seed_another_draw() -> None:

@@ -520,7 +520,8 @@ def write_report(study: Robustness, output: Path, wall_time_s: float, executor: 
         f"{f' ({reused} runs reused)' if reused else ''}. Every run's row: `results.csv` / `results.parquet`; its "
         "summary and arrays: `runs/<run id>/`.",
         "",
-        f"The paper's task braced, {PASSIVE.label} and in {FREE_SPACE.label}, {study.mode} input, one factor "
+        f"The {'paper' if study.scenario == 'paper_4link' else study.scenario} scenario's task braced, "
+        f"{PASSIVE.label} and in {FREE_SPACE.label}, {study.mode} input, one factor "
         "at a time around the nominal (the controller's model exact, exact sensing, no latency): each level with "
         f"the paper's law and with force feedback on the braced contact {contacts} (f_cmd = f_nd + kp (f_nd - "
         f"f_meas) + ki * integral, {gains}) plus thermal compensation of the voltage law; passive and free runs "

@@ -122,15 +122,13 @@ def median_row(rows: Sequence[dict[str, Any] | None]) -> dict[str, Any] | None:
 
 
 def holds_text(held: Mapping[str, Sequence[bool]], seeds: int) -> str:
-    """How many conditions a statement holds in, over ``seeds`` seeds: "in 17 of 19 conditions, in all 5
-    seeds" (with "and in 18 in at least one seed" when that differs)."""
+    """How many conditions a statement holds in, over ``seeds`` seeds: "in 17 of 19 conditions, in 5 of 5
+    seeds" (in every seed), with "; in 18 of 19 in at least 1 of 5 seeds" when that differs."""
     total = len(held)
     every = sum(1 for results in held.values() if results and all(results))
     some = sum(1 for results in held.values() if any(results))
-    if seeds == 1:
-        return f"in {every} of {total} conditions (1 seed)"
-    text = f"in {every} of {total} conditions in all {seeds} seeds"
-    return text + (f", in {some} in at least one seed" if some != every else "")
+    text = f"in {every} of {total} conditions, in {seeds} of {seeds} seed{'s' if seeds > 1 else ''}"
+    return text + (f"; in {some} of {total} in at least 1 of {seeds} seeds" if some != every else "")
 
 
 def condition_name(labels: Mapping[str, Any]) -> str:
