@@ -396,6 +396,18 @@ def _pays(study: Robustness, rows: Mapping[str, dict[str, Any]], baseline: Varia
     return text
 
 
+def _feedback_forces(study: Robustness, rows: Mapping[str, dict[str, Any]]) -> list[tuple[float, str, float, float]]:
+    """(feedback / paper, level, paper's, feedback's) braced force error of every condition where both ran and
+    the paper's law's is not ~0."""
+    forces = []
+    for factor, level in study.points():
+        before = _force(study.row(rows, factor, level, PAPER_LAW, BRACED.name))
+        after = _force(study.row(rows, factor, level, FEEDBACK_LAW, BRACED.name))
+        if before is not None and after is not None and before >= RATIO_FLOOR:
+            forces.append((after / before, _named(level), before, after))
+    return forces
+
+
 def _buys(study: Robustness, rows: Mapping[str, dict[str, Any]]) -> str:
     """What force feedback + thermal compensation changes in the braced runs: the force error, the hand RMS,
     the energy; with torque input, under the model error that hurts most."""
@@ -403,15 +415,12 @@ def _buys(study: Robustness, rows: Mapping[str, dict[str, Any]]) -> str:
     nominal_feedback = study.row(rows, None, NOMINAL_LEVEL, FEEDBACK_LAW, BRACED.name)
     late = is_ok(nominal_paper) and number((nominal_paper or {}).get(FORCE_LATE))
     when = f"after {HAND_ERROR_T_MIN_S:g} s" if late else "over the run"
-    forces: list[tuple[float, str, float, float]] = []  # (feedback / paper, level, paper, feedback)
+    forces = _feedback_forces(study, rows)
     hands: list[float] = []
     energies: list[float] = []
     for factor, level in study.points():
         paper = study.row(rows, factor, level, PAPER_LAW, BRACED.name)
         feedback = study.row(rows, factor, level, FEEDBACK_LAW, BRACED.name)
-        before, after = _force(paper), _force(feedback)
-        if before is not None and after is not None and before >= RATIO_FLOOR:
-            forces.append((after / before, _named(level), before, after))
         for key, out in ((HAND_RMS, hands), (ENERGY, energies)):
             value = _ratio(key, feedback, paper)
             if value is not None:
@@ -483,6 +492,12 @@ def over_seeds(study: Robustness, store: ResultsStore) -> str:
                 held.setdefault(where, []).append(_pays_in(energy, hand))
         if held:
             parts.append(f"against {_against(baseline)}, bracing pays {holds_text(held, len(seeds))}")
+    lowered: dict[str, list[bool]] = {}
+    for rows in per_seed:
+        for share, level, _, _ in _feedback_forces(study, rows):
+            lowered.setdefault(level, []).append(share < 1)
+    if lowered:
+        parts.append(f"force feedback lowers the braced force error {holds_text(lowered, len(seeds))}")
     return ("Seed by seed: " + "; ".join(parts) + ".") if parts else ""
 
 
