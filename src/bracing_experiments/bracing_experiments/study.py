@@ -51,7 +51,7 @@ from bracing_experiments.executors import make_executor
 from bracing_experiments.reporting import resolve_scenario
 from bracing_experiments.robustness import STUDY as ROBUSTNESS
 from bracing_experiments.robustness import main as robustness_main
-from bracing_experiments.study_runs import DEFAULT_SCENARIO, check_window, form_scenario
+from bracing_experiments.study_runs import DEFAULT_SCENARIO, form_scenario
 from bracing_experiments.sweep import ResultsStore, run_sweep
 
 if TYPE_CHECKING:
@@ -113,7 +113,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         config = resolve_scenario(form_scenario(args.config, given))
         overrides = parse_single(args.sets)
         study = build_study(config, args.duration, overrides, args.positions, args.span, seeds=args.seeds)
-        check_window(study.specs[0].duration)
         ResultsStore(args.output).check_manifest(config)
         executor = make_executor(args.workers, args.scheduler)
     except ConfigError as exc:

@@ -70,7 +70,15 @@ def check_window(duration: float, option: str = "--duration", metrics: Sequence[
 
 
 def window_text(duration: float) -> str:
-    """The windowed metrics' window, as a report states it."""
+    """The windowed metrics' window, as a report states it: what part of each run it covers, or that the
+    runs end before it starts (their hand errors are then null and nothing is judged on them)."""
+    if duration <= HAND_ERROR_T_MIN_S:
+        return (
+            f"Hand errors (RMS, max) count over t >= {HAND_ERROR_T_MIN_S:g} s (after the start's transient): "
+            f"runs of {duration:g} s end before that window opens, so they are not measured here (null in "
+            f"runs.csv) and no figure or conclusion below is about the hand; run longer than "
+            f"{HAND_ERROR_T_MIN_S:g} s (--duration) to judge it."
+        )
     covered = duration - HAND_ERROR_T_MIN_S
     return (
         f"Hand errors (RMS, max) count over t in [{HAND_ERROR_T_MIN_S:g}, {duration:g}] s: the last {covered:g} s "
