@@ -47,6 +47,9 @@ from bracing_experiments.cli import (
     study_exit,
 )
 from bracing_experiments.executors import make_executor
+from bracing_experiments.pays import STUDY as PAYS
+from bracing_experiments.pays import main as pays_main
+from bracing_experiments.recorded import record_report
 from bracing_experiments.reporting import resolve_scenario
 from bracing_experiments.robustness import STUDY as ROBUSTNESS
 from bracing_experiments.robustness import main as robustness_main
@@ -78,7 +81,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog="bracing-study", description=(__doc__ or "").split("\n\n")[0])
     parser.add_argument(
         "scenario",
-        help=f"'paper' or a scenario params file; '{ROBUSTNESS}': the robustness study ({ROBUSTNESS} --help)",
+        help=f"'paper' or a scenario params file; '{ROBUSTNESS}': the robustness study ({ROBUSTNESS} --help); "
+        f"'{PAYS}': when bracing pays ({PAYS} --help)",
     )
     add_study_options(parser)
     parser.add_argument("--positions", type=int, default=5, help="brace targets in the placement grid")
@@ -102,6 +106,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == [ROBUSTNESS]:  # its own options (bracing_experiments.robustness)
         return robustness_main(argv[1:])
+    if argv[:1] == [PAYS]:  # its own options (bracing_experiments.pays)
+        return pays_main(argv[1:])
     args = parse_args(argv)
     handle_stop_signals()
     start = time.perf_counter()
@@ -131,6 +137,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         return interrupted("bracing-study")
     report = write_report(study, args.output, time.perf_counter() - start, where, result.skipped, search, note)
+    record_report(report, "paper", config)
     found = search.found if search is not None else None
     trials = f"; optimiser: {found.trials} trials ({found.search.ran} now)" if found is not None else ""
     print(f"bracing-study: {result.ran} run now, {result.skipped} reused{trials}; report: {report}")
