@@ -327,16 +327,15 @@ def _file_place(study: Pays) -> float | None:
 
 
 def region_text(items: Sequence[Cell], seeds: int, what: str, key: str) -> str:
-    """Where the grid's cells pay on ``what`` in every seed: how many, and the f_nd and places they span."""
+    """Where the grid's cells pay on ``what`` in every seed: how many, and at which f_nd which places."""
     every = [c for c in items if c.energy and getattr(c, key) == len(c.energy) == seeds]
     if not every:
         return f"on {what} in no cell of the {len(items)} in all {seeds} seeds"
-    forces = sorted({float(c.force) for c in every})
-    places = sorted({float(c.place) for c in every if c.place is not None})
-    where = f"f_nd {', '.join(f'{f:.4g}' for f in forces)} N"
-    if places:
-        where += f", places {', '.join(f'{p:.4g}' for p in places)} m"
-    return f"on {what} in {len(every)} of {len(items)} cells in all {seeds} seeds ({where})"
+    where = []
+    for force in sorted({float(c.force) for c in every}):
+        places = sorted(float(c.place) for c in every if float(c.force) == force and c.place is not None)
+        where.append(f"{force:.4g} N" + (f" at {', '.join(f'{p:.4g}' for p in places)} m" if places else ""))
+    return f"on {what} in {len(every)} of {len(items)} cells in all {seeds} seeds ({'; '.join(where)})"
 
 
 def answer(study: Pays, grid: Sequence[Cell], best: Sequence[Cell], file: Cell | None) -> str:
