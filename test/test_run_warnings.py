@@ -180,7 +180,7 @@ def test_the_study_checks_the_task_rank_before_any_run_and_exits_1_when_a_run_fa
     assert not (tmp_path / "rank" / "runs").exists()
     # Every run diverges at once (a joint faster than 0.5 rad/s): the report is written, the exit is 1.
     failed = _cli(
-        "bracing_experiments.study", "paper", "--output", str(tmp_path / "failed"), "--duration", "0.1",
+        "bracing_experiments.study", "paper", "--output", str(tmp_path / "failed"), "--duration", "2.05",
         "--positions", "1", "--set", "divergence_speed=0.5",
     )  # fmt: skip
     assert failed.returncode == 1, failed.stdout + failed.stderr

@@ -171,21 +171,21 @@ def test_bracing_study_robustness_runs_the_study_and_refuses_bad_arguments(
             study_main(["robustness", *(["--output", str(tmp_path / "x")] if bad else []), *bad])
         assert exit_.value.code == 2, bad
 
-    # The whole study in short runs (hand RMS needs t >= 2 s: n/a; the paragraph answers on energy).
+    # The whole study in short runs (the hand window [2, 2.05] s: the shortest that fits; shorter is refused).
     output = tmp_path / "study"
-    assert (
-        study_main(["robustness", "--output", str(output), "--duration", "0.3", "--workers", "1", "--no-progress"]) == 0
-    )
+    argv = ["robustness", "--output", str(output), "--duration", "2.05", "--workers", "2", "--no-progress"]
+    assert study_main(argv) == 0
     report = (output / "report.md").read_text()
     rows = pq.read_table(output / RESULTS_PARQUET).to_pylist()
     assert len(rows) == 19 * 2 * 3 + 8 * 2 and {row["factor"] for row in rows} == {"nominal", *FACTORS}
-    assert "Against free space, bracing pays (less energy) in " in report
-    assert "braced |f_n - f_nd| RMS over the run from" in report
+    assert "Against free space, bracing pays (less energy and a more precise hand) in " in report
+    assert "braced |f_n - f_nd| RMS after 2 s from" in report
+    assert "count over t in [2, 2.05] s: the last 0.05 s of each 2.05 s run" in report
     assert len(list(output.glob("robustness_*.png"))) == len(FACTORS)
 
     # A run that fails: exit 1, the report still written, its cells say so.
     failing = tmp_path / "failing"
-    args = ["robustness", "--output", str(failing), "--duration", "0.05", "--workers", "1", "--no-progress"]
+    args = ["robustness", "--output", str(failing), "--duration", "2.05", "--workers", "1", "--no-progress"]
     assert study_main([*args, "--set", "divergence_speed=0.01"]) == 1
     report = (failing / "report.md").read_text()
     assert "0 ok" in report and "| failed |" in report and "No run came back ok: no answer." in report

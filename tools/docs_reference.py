@@ -148,10 +148,22 @@ def unit(key: str) -> str:
     return UNITS[words[0]] if words else ""
 
 
-def key_table(keys: tuple[str, ...] | list[str]) -> str:
-    rows = ["| key | unit (from its name) |", "|---|---|"]
-    rows += [f"| `{key}` | {unit(key)} |" for key in keys]
+def key_table(keys: tuple[str, ...] | list[str], windows: dict[str, str] | None = None) -> str:
+    """The keys with their units; ``windows``: a third column, the part of the run a key is taken over."""
+    if windows is None:
+        rows = ["| key | unit (from its name) |", "|---|---|"]
+        rows += [f"| `{key}` | {unit(key)} |" for key in keys]
+    else:
+        rows = ["| key | unit (from its name) | over |", "|---|---|---|"]
+        rows += [f"| `{key}` | {unit(key)} | {windows.get(key, '')} |" for key in keys]
     return "\n".join(rows) + "\n"
+
+
+def summary_windows() -> dict[str, str]:
+    """The windowed metrics' window (summary.WINDOWED_KEYS), as the summary table's third column says it."""
+    start = f"{summary.HAND_ERROR_T_MIN_S:g}"
+    window = f"t >= {start} s only (null for a run of {start} s or less; a 3 s run: its last second)"
+    return {**dict.fromkeys(summary.SUMMARY_KEYS, "the whole run"), **dict.fromkeys(summary.WINDOWED_KEYS, window)}
 
 
 def bench_keys() -> list[str]:
@@ -170,7 +182,7 @@ def outputs_page() -> str:
         "Every run's `summary.json` (`bracing_analysis.summary.compute_summary`; a sweep's table has the same\n"
         "columns). A metric that does not apply to a run is `null`. The keys, in order (`SUMMARY_KEYS`, then\n"
         "`SUMMARY_EXTRA_KEYS`):\n\n"
-        + key_table(summary.SUMMARY_KEYS + summary.SUMMARY_EXTRA_KEYS)
+        + key_table(summary.SUMMARY_KEYS + summary.SUMMARY_EXTRA_KEYS, summary_windows())
         + "\n"
         + summary.OUTCOME_KEYS_DOC
         + "\n\n"

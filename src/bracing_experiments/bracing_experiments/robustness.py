@@ -1,12 +1,12 @@
 """bracing-study robustness: the paper's claims on a plant that differs from the controller's model, with
 real sensing and late commands, with and without force feedback (issue 34).
 
-    bracing-study robustness --output DIR [--duration S] [--workers N | --scheduler ADDRESS] [--no-progress]
-                             [--set KEY=VALUE ...]
+    bracing-study robustness --output DIR [--config FILE] [--seeds N] [--duration S]
+                             [--workers N | --scheduler ADDRESS] [--no-progress] [--set KEY=VALUE ...]
 
-The paper scenario (config/paper_4link.yaml), braced, passive and in free space (bracing_core.variants:
-make run's three runs), one factor at a time around the nominal (the controller's model exact, exact
-sensing, no latency), not a full factorial:
+The paper scenario (config/paper_4link.yaml; --config: another), braced, passive and in free space
+(bracing_core.variants: make run's three runs), one factor at a time around the nominal (the controller's
+model exact, exact sensing, no latency), not a full factorial:
 
 - model error, in the simulated plant only: link masses and inertias x 0.7-1.3 (``plant_error.mass_scale``),
   the contact's mu 0.05-0.3 (``plant_error.friction_scale``; the paper's mu is 0.1), the motors' K and R
@@ -23,7 +23,8 @@ thermal compensation only. In the scenario's input mode (voltage), and braced in
 model-error factors that apply to it (masses, friction).
 
 Writes DIR/report.md (a table and a figure per factor, the nominal, and one generated paragraph: where
-bracing still pays, and what force feedback buys), DIR/robustness_<factor>.png, and the sweep's
+bracing still pays, and what force feedback buys), DIR/robustness_<factor>.png, DIR/runs.csv (one row per
+condition and seed: bracing_experiments.study_runs), and the sweep's
 DIR/results.parquet, DIR/results.csv and DIR/runs/ (the same command again reuses finished runs).
 Exit 0 when every run is ok, 1 when one failed (the report is still written, its cells say which),
 2 on a configuration error before any run (every run's configuration is checked first), 130 when
@@ -65,6 +66,7 @@ from bracing_experiments.robustness_specs import (
     VARIANTS,
     build_robustness,
 )
+from bracing_experiments.study_runs import check_window, form_scenario
 from bracing_experiments.sweep import ResultsStore, run_sweep
 
 __all__ = [  # the study's names, wherever they live (its runs: robustness_specs; its report: robustness_report)
@@ -103,8 +105,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     start = time.perf_counter()
     name = f"bracing-study {STUDY}"
     try:
-        config = resolve_scenario("paper")
-        study = build_robustness(config, args.duration, parse_single(args.sets))
+        config = resolve_scenario(form_scenario(args.config))
+        study = build_robustness(config, args.duration, parse_single(args.sets), seeds=args.seeds)
+        check_window(study.specs[0].duration)
         ResultsStore(args.output).check_manifest(config)
         executor = make_executor(args.workers, args.scheduler)
     except ConfigError as exc:

@@ -37,6 +37,7 @@ from bracing_experiments.robustness_specs import (
     Robustness,
     _gains,
 )
+from bracing_experiments.study_runs import holds_text, median_row, window_text
 from bracing_experiments.sweep import ResultsStore
 
 if TYPE_CHECKING:
@@ -60,16 +61,21 @@ def late_force_rms(store: ResultsStore, row: dict[str, Any] | None) -> float | N
     return float(np.sqrt(np.mean(error**2)))
 
 
-def _rows(study: Robustness, store: ResultsStore) -> dict[str, dict[str, Any]]:
-    """Every finished run's row, by run id, the braced runs' late force RMS added."""
+def _rows(study: Robustness, store: ResultsStore, seed: int | None = None) -> dict[str, dict[str, Any]]:
+    """Every case's row, by its first seed's run id, the braced runs' late force RMS added: the median over
+    the seeds (``study_runs.median_row``), or the ``seed``-th seed's (an index into the study's seeds)."""
     rows: dict[str, dict[str, Any]] = {}
-    for case, spec in study.runs.items():
-        row = store.row(spec.run_id)
-        if row is None:
-            continue
-        if case.variant == BRACED.name:
-            row[FORCE_LATE] = late_force_rms(store, row)
-        rows[spec.run_id] = row
+    for case, first in study.runs.items():
+        specs = study.replicas.runs[first.run_id]
+        seeds = []
+        for spec in specs if seed is None else specs[seed : seed + 1]:
+            row = store.row(spec.run_id)
+            if row is not None and case.variant == BRACED.name:
+                row[FORCE_LATE] = late_force_rms(store, row)
+            seeds.append(row)
+        median = median_row(seeds)
+        if median is not None:
+            rows[first.run_id] = median
     return rows
 
 
@@ -321,6 +327,31 @@ def _named(level: Level) -> str:
     return "the nominal" if level is NOMINAL_LEVEL else level.label
 
 
+def _pays_in(energy: float, hand: float | None) -> bool:
+    """Bracing pays: less energy than the baseline, and a hand no less precise (when both have one)."""
+    return energy < 1 and (hand is None or hand < 1)
+
+
+def _verdicts(
+    study: Robustness, rows: Mapping[str, dict[str, Any]], baseline: Variant
+) -> list[tuple[str, str, float, float | None]]:
+    """(law, condition, braced / baseline energy, hand RMS ratio) of every condition with an energy ratio."""
+    out = []
+    for law in LAWS:
+        law_text = "the paper's law" if law == PAPER_LAW else "feedback"
+        for factor, level in study.points():
+            braced = study.row(rows, factor, level, law, BRACED.name)
+            other = study.row(rows, factor, level, law, baseline.name)
+            energy, hand = _ratio(ENERGY, braced, other), _ratio(HAND_RMS, braced, other)
+            if energy is not None:
+                out.append((law, f"{_named(level)} with {law_text}", energy, hand))
+    return out
+
+
+def _against(baseline: Variant) -> str:
+    return "free space" if baseline is FREE_SPACE else "resting passively"
+
+
 def _pays(study: Robustness, rows: Mapping[str, dict[str, Any]], baseline: Variant) -> str:
     """Against ``baseline`` (free space or passive): in how many conditions bracing uses less energy and keeps
     the hand more precise, by law; the ratios' ranges; where it does not (or, when it mostly does not, where it
@@ -332,32 +363,24 @@ def _pays(study: Robustness, rows: Mapping[str, dict[str, Any]], baseline: Varia
     misses: list[str] = []
     paid: list[str] = []
     halves: list[str] = []  # conditions where it wins on one of the two
-    for law in LAWS:
-        law_text = "the paper's law" if law == PAPER_LAW else "feedback"
-        for factor, level in study.points():
-            braced = study.row(rows, factor, level, law, BRACED.name)
-            other = study.row(rows, factor, level, law, baseline.name)
-            energy, hand = _ratio(ENERGY, braced, other), _ratio(HAND_RMS, braced, other)
-            if energy is None:
-                continue
-            judged[law] += 1
-            energies.append(energy)
-            if hand is not None:
-                hands.append(hand)
-            where = f"{_named(level)} with {law_text}"
-            if energy < 1 and (hand is None or hand < 1):
-                counts[law] += 1
-                paid.append(where)
-                continue
-            worse = [f"energy x{energy:.3g}"] if energy >= 1 else []
-            worse += [f"hand RMS x{hand:.3g}"] if hand is not None and hand >= 1 else []
-            misses.append(f"{where} ({', '.join(worse)})")
-            if energy < 1 or (hand is not None and hand < 1):
-                better = f"energy x{energy:.3g}" if energy < 1 else f"hand RMS x{hand:.3g}"
-                halves.append(f"{where} ({better})")
+    for law, where, energy, hand in _verdicts(study, rows, baseline):
+        judged[law] += 1
+        energies.append(energy)
+        if hand is not None:
+            hands.append(hand)
+        if _pays_in(energy, hand):
+            counts[law] += 1
+            paid.append(where)
+            continue
+        worse = [f"energy x{energy:.3g}"] if energy >= 1 else []
+        worse += [f"hand RMS x{hand:.3g}"] if hand is not None and hand >= 1 else []
+        misses.append(f"{where} ({', '.join(worse)})")
+        if energy < 1 or (hand is not None and hand < 1):
+            better = f"energy x{energy:.3g}" if energy < 1 else f"hand RMS x{hand:.3g}"
+            halves.append(f"{where} ({better})")
     if not energies:
         return ""
-    against = "free space" if baseline is FREE_SPACE else "resting passively"
+    against = _against(baseline)
     whose = "free space's" if baseline is FREE_SPACE else "the passive runs'"
     gains = "less energy and a more precise hand" if hands else "less energy"
     laws = {PAPER_LAW: "conditions with the paper's law", FEEDBACK_LAW: "with force feedback and thermal compensation"}
@@ -445,6 +468,24 @@ def _torque_effect(study: Robustness, rows: Mapping[str, dict[str, Any]]) -> str
     )
 
 
+def over_seeds(study: Robustness, store: ResultsStore) -> str:
+    """With several seeds: in how many conditions bracing pays in every seed, against free space and against
+    resting passively (``study_runs.holds_text``); nothing with one seed."""
+    seeds = study.replicas.seeds
+    if len(seeds) < 2:
+        return ""
+    per_seed = [_rows(study, store, k) for k in range(len(seeds))]
+    parts = []
+    for baseline in (FREE_SPACE, PASSIVE):
+        held: dict[str, list[bool]] = {}
+        for rows in per_seed:
+            for _, where, energy, hand in _verdicts(study, rows, baseline):
+                held.setdefault(where, []).append(_pays_in(energy, hand))
+        if held:
+            parts.append(f"against {_against(baseline)}, bracing pays {holds_text(held, len(seeds))}")
+    return ("Seed by seed: " + "; ".join(parts) + ".") if parts else ""
+
+
 def answer(study: Robustness, rows: Mapping[str, dict[str, Any]]) -> str:
     """The report's one paragraph, from the numbers: where bracing still pays (against free space and against
     resting passively), and what force feedback buys."""
@@ -473,12 +514,14 @@ def write_report(study: Robustness, output: Path, wall_time_s: float, executor: 
         f"# Robustness study: {study.config.name}",
         "",
         f"{len(study.specs)} in-process runs of {duration:g} s (the nodes' simulator and controller cores, "
-        f"lockstep); {ok} ok, {len(rows) - ok} failed{'' if len(rows) == len(study.specs) else ', the rest not run'}. "
+        f"lockstep), {len(study.runs)} conditions: {ok} ok, {len(rows) - ok} failed"
+        f"{'' if len(rows) == len(study.runs) else ', the rest not run'}. "
         f"{compute:.0f} s of run time in all; this report's invocation took {wall_time_s:.0f} s on {executor}"
         f"{f' ({reused} runs reused)' if reused else ''}. Every run's row: `results.csv` / `results.parquet`; its "
         "summary and arrays: `runs/<run id>/`.",
         "",
-        f"The paper's task braced, {PASSIVE.label} and in {FREE_SPACE.label}, {study.mode} input, one factor "
+        f"The {'paper' if study.scenario == 'paper_4link' else study.scenario} scenario's task braced, "
+        f"{PASSIVE.label} and in {FREE_SPACE.label}, {study.mode} input, one factor "
         "at a time around the nominal (the controller's model exact, exact sensing, no latency): each level with "
         f"the paper's law and with force feedback on the braced contact {contacts} (f_cmd = f_nd + kp (f_nd - "
         f"f_meas) + ki * integral, {gains}) plus thermal compensation of the voltage law; passive and free runs "
@@ -487,8 +530,11 @@ def write_report(study: Robustness, output: Path, wall_time_s: float, executor: 
         f"after {HAND_ERROR_T_MIN_S:g} s (from the run's arrays); a ratio is n/a across input modes and to a "
         "baseline of ~0. Each factor's table starts with the nominal.",
         "",
+        f"{window_text(duration)} {study.replicas.summary_text()}",
+        "",
         "**Where does bracing still pay, and what does force feedback buy?** "
-        + (said or "No run came back ok: no answer."),
+        + (said or "No run came back ok: no answer.")
+        + (f" {seeded}" if (seeded := over_seeds(study, store)) else ""),
         "",
     ]
     for k, factor in enumerate(study.factors, 1):
@@ -497,6 +543,7 @@ def write_report(study: Robustness, output: Path, wall_time_s: float, executor: 
     lines += warnings_section(dict(rows))
     path = output / REPORT
     path.write_text("\n".join(lines))
+    study.replicas.write_runs(store)
     return path
 
 

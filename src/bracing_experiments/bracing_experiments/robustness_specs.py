@@ -15,6 +15,7 @@ from bracing_core.overrides import CONTROLLER, SIMULATOR, node_params, route
 from bracing_core.params import ConfigError
 from bracing_core.variants import BRACED, FREE_SPACE, PASSIVE, Variant
 from bracing_experiments.experiment import RunSpec
+from bracing_experiments.study_runs import Replicas, seed_label, seed_list
 from bracing_experiments.sweep import make_spec
 
 STUDY = "robustness"
@@ -49,7 +50,8 @@ f_meas) dt. The two inputs close different loops, so they get different gains:
   with x 1.3 masses; kp 1, ki 10 leaves 0.05, 0.07 and 2.4 N.
 """
 NOISE_SEED = 1
-"""sensors.noise_seed of every run with noise (each run reproducible bit for bit)."""
+"""The study's first seed: sensors.noise_seed of every run with noise (each run reproducible bit for bit; with
+--seeds N, seeds NOISE_SEED to NOISE_SEED + N - 1)."""
 VELOCITY_FILTER_HZ = 50.0
 """[Hz] encoder levels: dq differentiated from the quantised q through this first-order low-pass (as a drive
 does). Its lag, not the counts' ripple, is what the arm feels: measured at 4096 and 1024 counts (10 s runs),
@@ -153,7 +155,6 @@ def _encoder_factor() -> Factor:
 
 
 def _force_sensor_factor() -> Factor:
-    seeded = {"sensors.noise_seed": NOISE_SEED}
     return Factor(
         "force_sensor",
         "Force sensor",
@@ -165,7 +166,7 @@ def _force_sensor_factor() -> Factor:
             Level(
                 f"force noise {s:g} N, bias {FORCE_BIAS_N:g} N",
                 s,
-                {**seeded, "sensors.force_noise_n": s, "sensors.force_bias_n": FORCE_BIAS_N},
+                {"sensors.force_noise_n": s, "sensors.force_bias_n": FORCE_BIAS_N},  # seeded by Replicas
             )
             for s in FORCE_NOISES
         ),
@@ -223,12 +224,14 @@ class Robustness:
     factors: tuple[Factor, ...]
     mode: str  # the file's input mode (with --set)
     braced: list[str]  # the braced contacts' names
-    runs: dict[Case, RunSpec] = field(default_factory=dict)
+    runs: dict[Case, RunSpec] = field(default_factory=dict)  # the first seed's run of each case
     base: dict[str, Any] = field(default_factory=dict)  # the --set overrides of every run
+    replicas: Replicas = field(default_factory=lambda: Replicas([NOISE_SEED]))  # each case's run per seed
 
     @property
     def specs(self) -> list[RunSpec]:
-        return list(self.runs.values())
+        """Every run to execute (each seed's; a run that draws no noise once)."""
+        return self.replicas.specs
 
     @property
     def scenario(self) -> str:
@@ -289,9 +292,11 @@ def build_robustness(
     duration: float | None = None,
     base: dict[str, Any] | None = None,
     levels_per_factor: int | None = None,
+    seeds: int = 1,
 ) -> Robustness:
     """Every run of the study, validated (ConfigError names the parameter). ``base``: overrides of every
-    run (--set); ``levels_per_factor``: keep each factor's last n levels only (a quick study)."""
+    run (--set); ``levels_per_factor``: keep each factor's last n levels only (a quick study); ``seeds``:
+    runs per case, seeded NOISE_SEED, NOISE_SEED + 1, ... where a run draws noise."""
     base = dict(base or {})
     routed = route(base)
     params = node_params(config, routed)
@@ -308,6 +313,7 @@ def build_robustness(
         factors = tuple(replace(f, levels=f.levels[-levels_per_factor:]) for f in factors)
     mode = str(ctl["input_mode"])
     study = Robustness(config, duration, factors, mode, [c.name for c in braced], base=base)
+    study.replicas = Replicas(seed_list(NOISE_SEED, seeds))
 
     def add(factor: Factor | None, level: Level, law: str, variant: Variant, input_mode: str) -> None:
         labels = {  # in the run id's readable part (its first 80 characters) in this order
@@ -327,7 +333,10 @@ def build_robustness(
             **law_overrides(law, variant, input_mode, study.braced),
         }
         case = study.case(factor, level, law, variant.name, input_mode)
-        study.runs[case] = make_spec(config, labels, duration, overrides=overrides)
+        study.runs[case] = study.replicas.add(
+            labels,
+            lambda extra: make_spec(config, labels, duration, seed_label(extra), overrides={**overrides, **extra}),
+        )
 
     for factor, level in study.points():
         for law in LAWS:

@@ -1,6 +1,7 @@
 """bracing-study: the paper's comparisons as one report, from in-process runs in parallel.
 
-    bracing-study paper --output DIR [--duration S] [--workers N] [--scheduler ADDRESS] [--set KEY=VALUE ...]
+    bracing-study paper --output DIR [--config FILE] [--seeds N] [--duration S] [--workers N]
+                        [--scheduler ADDRESS] [--set KEY=VALUE ...]
                         [--positions N] [--span M] [--trials N]
     bracing-study config/hyper_7link.yaml --output DIR
     bracing-study robustness --output DIR [--duration S] [--workers N | --scheduler ADDRESS] [--set KEY=VALUE ...]
@@ -53,6 +54,7 @@ from bracing_experiments.recorded import record_report
 from bracing_experiments.reporting import resolve_scenario
 from bracing_experiments.robustness import STUDY as ROBUSTNESS
 from bracing_experiments.robustness import main as robustness_main
+from bracing_experiments.study_runs import DEFAULT_SCENARIO, check_window, form_scenario
 from bracing_experiments.sweep import ResultsStore, run_sweep
 
 if TYPE_CHECKING:
@@ -81,8 +83,9 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog="bracing-study", description=(__doc__ or "").split("\n\n")[0])
     parser.add_argument(
         "scenario",
-        help=f"'paper' or a scenario params file; '{ROBUSTNESS}': the robustness study ({ROBUSTNESS} --help); "
-        f"'{PAYS}': when bracing pays ({PAYS} --help)",
+        help=f"'paper': the paper study, on --config's scenario (default the paper's); a scenario params file: the "
+        f"same as paper --config FILE; '{ROBUSTNESS}': the robustness study ({ROBUSTNESS} --help); '{PAYS}': when "
+        f"bracing pays ({PAYS} --help)",
     )
     add_study_options(parser)
     parser.add_argument("--positions", type=int, default=5, help="brace targets in the placement grid")
@@ -112,8 +115,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     handle_stop_signals()
     start = time.perf_counter()
     try:
-        config = resolve_scenario(args.scenario)
-        study = build_study(config, args.duration, parse_single(args.sets), args.positions, args.span)
+        given = None if args.scenario == DEFAULT_SCENARIO else args.scenario
+        config = resolve_scenario(form_scenario(args.config, given))
+        overrides = parse_single(args.sets)
+        study = build_study(config, args.duration, overrides, args.positions, args.span, seeds=args.seeds)
+        check_window(study.specs[0].duration)
         ResultsStore(args.output).check_manifest(config)
         executor = make_executor(args.workers, args.scheduler)
     except ConfigError as exc:
@@ -125,8 +131,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             result = run_sweep(study.specs, args.output, executor, progress=not args.no_progress)
             search, note = None, "--trials 0" if args.trials == 0 else ""
             if args.trials > 0:
-                store = ResultsStore(args.output)
-                rows = {spec.run_id: row for spec in study.specs if (row := store.row(spec.run_id)) is not None}
+                rows = study.replicas.median_rows(ResultsStore(args.output))
                 try:
                     search = placement_search(study, rows, args.output)
                 except ConfigError as exc:

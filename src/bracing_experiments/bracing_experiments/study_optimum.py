@@ -20,7 +20,6 @@ from bracing_experiments.study_specs import (
     HAND_RMS,
     PAPER_SCENARIO,
     SEARCH_DIR,
-    SEARCH_SEED,
     PlacementSearch,
     Study,
     _braced_row,
@@ -97,7 +96,7 @@ def _search_paragraph(search: PlacementSearch) -> str:
     varies = " and ".join(f"`{v.name}` in [{v.low:.4g}, {v.high:.4g}]" for v in search.problem.varies)
     return (
         f"Least energy subject to hand RMS <= {search.bound:g} m over {varies} ({search.why}), searched by "
-        f"bracing-optimize (Optuna's TPE, seed {SEARCH_SEED}) with the grid's runs on the same executor: {trials} "
+        f"bracing-optimize (Optuna's TPE, seed {search.seed}) with the grid's runs on the same executor: {trials} "
         f"trials ({ran} run by this invocation), the first at the grid's best cell within the bound. Its study and "
         f"trials: `{SEARCH_DIR}/{search.output.name}/` (the same command again reuses them; its `best.yaml` runs "
         "the optimum with `bracing-pair --config`)."

@@ -22,6 +22,7 @@ from bracing_experiments.sweep import ResultsStore
 if TYPE_CHECKING:
     pass
 from bracing_experiments.study_optimum import _search_lines
+from bracing_experiments.study_runs import holds_text, window_text
 from bracing_experiments.study_specs import ENERGY, HAND_MAX, HAND_RMS, REPORT, PlacementSearch, Study
 
 # -- the report ------------------------------------------------------------------------------------
@@ -134,12 +135,42 @@ def _bracing_section(study: Study, store: ResultsStore, rows: dict[str, dict[str
         ),
         "",
         *[f"- {line}" for line in findings],
+        *_bracing_over_seeds(study, store),
         "",
         "![hand error and energy over time, braced, passive and free](bracing.png)",
         "",
     ]
     _draw_bracing(study, store, rows)
     return lines
+
+
+def _bracing_over_seeds(study: Study, store: ResultsStore) -> list[str]:
+    """With several seeds: in how many of comparison 1's cases (input, compensation) bracing uses less energy
+    and keeps the hand more precise than free and than passive, in all seeds (``study_runs.holds_text``)."""
+    seeds = study.replicas.seeds
+    if len(seeds) < 2:
+        return []
+    held: dict[str, dict[str, list[bool]]] = {}  # statement -> case -> whether it holds, seed by seed
+    for k in range(len(seeds)):
+        _, lookup = _bracing_table(study, study.replicas.seed_rows(store, k))
+        for mode in ("voltage", "torque"):
+            for compensation in (False, True):
+                braced = lookup.get((True, mode, compensation))
+                baselines = (
+                    ("free", (False, mode, compensation)),
+                    ("resting passively", ("passive", mode, compensation)),
+                )
+                for name, key in baselines:
+                    baseline = lookup.get(key)
+                    if not (_ok(braced) and _ok(baseline)):
+                        continue
+                    assert braced is not None and baseline is not None
+                    for metric, what in ((ENERGY, "uses less energy"), (HAND_RMS, "keeps the hand more precise")):
+                        value = ratio(metric, braced, baseline)[0]
+                        if value is not None:
+                            cases = held.setdefault(f"bracing {what} than {name}", {})
+                            cases.setdefault(f"{mode}, {compensation}", []).append(value < 1)
+    return [f"- Seed by seed, {statement} {holds_text(cases, len(seeds))}." for statement, cases in held.items()]
 
 
 def _draw_bracing(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any]]) -> None:
@@ -428,7 +459,7 @@ def write_report(
 
     matplotlib.use("Agg")
     store = ResultsStore(output)
-    rows = {spec.run_id: row for spec in study.specs if (row := store.row(spec.run_id)) is not None}
+    rows = study.replicas.median_rows(store)
     ok = sum(1 for row in rows.values() if _ok(row))
     duration = study.duration if study.duration is not None else study.specs[0].duration
     compute = sum(float(row.get("wall_time_s") or 0.0) for row in rows.values())
@@ -436,10 +467,14 @@ def write_report(
         f"# Bracing study: {study.config.name}",
         "",
         f"{len(study.specs)} in-process runs of {duration:g} s (the nodes' simulator and controller cores, "
-        f"lockstep); {ok} ok, {len(rows) - ok} failed. {compute:.0f} s of run time in all; this report's "
+        f"lockstep), {len(study.replicas.runs)} conditions: {ok} ok, {len(rows) - ok} failed. "
+        f"{compute:.0f} s of run time in all; this report's "
         f"invocation took {wall_time_s:.0f} s on {executor}{f' ({reused} runs reused)' if reused else ''}"
         f"{_search_count(search)}. "
         "Every run's row: `results.csv` / `results.parquet`; its summary and arrays: `runs/<run id>/`.",
+        "",
+        f"{window_text(duration)} {study.replicas.summary_text()}"
+        + (" The figures over time show the first seed's runs." if len(study.replicas.seeds) > 1 else ""),
         "",
         *_bracing_section(study, store, rows),
         *_gains_section(study, store, rows),
@@ -448,6 +483,7 @@ def write_report(
     ]
     path = output / REPORT
     path.write_text("\n".join(lines))
+    study.replicas.write_runs(store)
     return path
 
 

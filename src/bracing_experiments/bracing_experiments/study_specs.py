@@ -14,7 +14,7 @@ import numpy as np
 from bracing_core import schema
 from bracing_core.config import ContactConfig, SharedConfig
 from bracing_core.numbers import number
-from bracing_core.overrides import CONTROLLER, NodeOverrides, node_params, route
+from bracing_core.overrides import CONTROLLER, SIMULATOR, NodeOverrides, node_params, route
 from bracing_core.params import ConfigError
 from bracing_core.rollout import build_scenario
 from bracing_core.variants import PASSIVE
@@ -22,6 +22,7 @@ from bracing_experiments.executors import Executor
 from bracing_experiments.experiment import RunSpec
 from bracing_experiments.optimize import Optimum, Problem, build_problem, optimize
 from bracing_experiments.reporting import is_ok as _ok
+from bracing_experiments.study_runs import SEED_KEY, Replicas, seed_label, seed_list
 from bracing_experiments.sweep import make_spec
 
 if TYPE_CHECKING:
@@ -45,6 +46,7 @@ SEARCH_DIR = "optimize"
 SEARCH_TRIALS = 40
 """--trials' default: the paper study's search beats the grid's best in it (README: what it finds)."""
 SEARCH_SEED = 0
+"""The search's sampler seed when the study has none of its own (``PlacementSearch.seed``: its first seed)."""
 
 
 @dataclass
@@ -64,10 +66,12 @@ class Study:
     origin: float = 0.0  # the contact's target along the axis, as the file has it [m]
     desired: float = 0.0  # its desired normal force, as the file has it [N]
     span: float = 0.0  # the grid's targets: origin +- span [m]
+    replicas: Replicas = field(default_factory=lambda: Replicas([0]))  # each condition's run per seed
 
     @property
     def specs(self) -> list[RunSpec]:
-        return [*self.bracing, *self.passive, *self.gains, *self.placement]
+        """Every run to execute (each seed's; a run that draws no noise once)."""
+        return self.replicas.specs
 
     @property
     def axis_index(self) -> int:
@@ -178,18 +182,29 @@ def build_study(
     span: float = 0.15,
     force_scales: Sequence[float] = FORCE_SCALES,
     gain_scales: Sequence[float] = GAIN_SCALES,
+    seeds: int = 1,
 ) -> Study:
-    """Every run of the three comparisons, validated. ``base``: overrides applied to all runs."""
+    """Every run of the three comparisons, validated. ``base``: overrides applied to all runs; ``seeds``: runs
+    per condition, seeded from the scenario's sensors.noise_seed on where a run draws noise (study_runs)."""
     base = dict(base or {})
     routed = route(base)
-    ctl = node_params(config, routed)[CONTROLLER]
+    params = node_params(config, routed)
+    ctl = params[CONTROLLER]
+    first_seed = int(schema.read("simulator", params[SIMULATOR])[SEED_KEY])
+    replicas = Replicas(seed_list(first_seed, seeds))
     shared = SharedConfig.from_values(schema.read("controller", ctl), [config.resolve().parent])
     braced = [c for c in shared.contacts if c.brace_axes and c.desired_normal_force]
     if not braced:
         raise ConfigError("contacts.names: the study needs a bracing contact (one with brace_axes and a desired force)")
 
     def spec(comparison: str, labels: dict[str, Any], overrides: dict[str, Any]) -> RunSpec:
-        return make_spec(config, {"comparison": comparison, **labels}, duration, overrides={**base, **overrides})
+        varied = {"comparison": comparison, **labels}
+        return replicas.add(
+            varied,
+            lambda extra: make_spec(
+                config, varied, duration, seed_label(extra), overrides={**base, **overrides, **extra}
+            ),
+        )
 
     bracing = _bracing_specs(spec)
     passive = _passive_specs(spec)
@@ -220,6 +235,7 @@ def build_study(
         origin=float(origin[axis]),
         desired=float(desired),
         span=float(span) if positions > 1 else 0.0,
+        replicas=replicas,
     )
 
 
@@ -235,6 +251,7 @@ class PlacementSearch:
     bound: float  # [m] hand RMS bound
     why: str  # where the ranges and the bound come from
     start: dict[str, float] | None = None  # the grid's cell it tries first
+    seed: int = SEARCH_SEED  # its sampler's: the study's first seed
     found: Optimum | None = None
 
     @property
@@ -361,21 +378,22 @@ def placement_search(study: Study, rows: dict[str, dict[str, Any]], output: Path
         why,
     )
     search.start = _search_start(search, cells)
+    search.seed = study.replicas.seeds[0]
     return search
 
 
 def run_placement_search(
-    search: PlacementSearch, executor: Executor, trials: int, progress: bool = True, seed: int = SEARCH_SEED
+    search: PlacementSearch, executor: Executor, trials: int, progress: bool = True, seed: int | None = None
 ) -> PlacementSearch:
     """Resume or start the search's study (bracing-optimize's, in ``search.output``) up to ``trials``
-    on ``executor``; a finished study runs nothing again."""
+    on ``executor``, its sampler seeded ``seed`` (default: ``search.seed``); a finished study runs nothing again."""
     search.found = optimize(
         search.problem,
         search.output,
         executor,
         trials,
         progress=progress,
-        seed=seed,
+        seed=search.seed if seed is None else seed,
         references=False,  # the study has the file's setting, passive and free runs itself
         first=[search.start] if search.start else [],
     )
