@@ -18,7 +18,6 @@ from bracing_experiments.pays import (
     REALISTIC,
     build_pays,
     conditions,
-    spread,
     spread_text,
 )
 from bracing_experiments.recorded import TABLES_FILE, render_table
@@ -30,12 +29,10 @@ UR5_YAML = REPO_ROOT / "config" / "ur5_table.yaml"
 DURATION = "2.5"
 
 
-def test_spread_is_the_range_then_the_10_90_percentiles() -> None:
-    assert spread([3.0, 1.0, 2.0]) == (2.0, 1.0, 3.0)
+def test_a_ratio_is_its_median_over_seeds_with_its_spread() -> None:
+    assert spread_text([0.5]) == "0.5" and spread_text([0.5, 0.7, 0.6]) == "0.6 (0.5-0.7)" and spread_text([]) == "n/a"
     ten = [float(k) for k in range(1, 11)]  # 10 seeds: 10 % at 1.9, 90 % at 9.1 (linear interpolation)
-    middle, low, high = spread(ten)
-    assert middle == 5.5 and low == pytest.approx(1.9, abs=1e-12) and high == pytest.approx(9.1, abs=1e-12)
-    assert spread_text([0.5]) == "0.5" and spread_text([0.5, 0.7, 0.6]) == "0.6 (0.5-0.7)"
+    assert spread_text(ten, 2) == "5.5 (1.9-9.1)"
 
 
 def test_each_seed_draws_its_own_conditions_and_the_same_seed_the_same() -> None:
@@ -85,7 +82,7 @@ def test_the_study_says_where_bracing_pays_with_its_spread(tmp_path: Path) -> No
         energy = [cell[seed][ENERGY] / passive[seed][ENERGY] for seed in (1, 2, 3)]
         hand = [cell[seed][HAND_RMS] / passive[seed][HAND_RMS] for seed in (1, 2, 3)]
         pays = sum(1 for e, h in zip(energy, hand, strict=True) if e < 1 and h < 1)
-        line = f"| grid | {force:.4g} | {place:.4g} | {spread_text(energy)} | {spread_text(hand)} |"
+        line = f"| grid | {force:.4g} | {place:.4g} | 3/3 | {spread_text(energy)} | {spread_text(hand)} |"
         assert line in report, line
         counts = f"{sum(1 for e in energy if e < 1)}/3 | {sum(1 for h in hand if h < 1)}/3 | {pays}/3"
         both = f"{spread_text(hand)} | {counts} |"
@@ -123,4 +120,7 @@ def test_bad_arguments_are_refused_before_any_run(tmp_path: Path, capsys: pytest
     with pytest.raises(SystemExit) as exit_:
         _run(tmp_path / "b", "--seeds", "0")
     assert exit_.value.code == 2
-    assert not (tmp_path / "a" / "runs.csv").exists()
+    args = ["pays", "--output", str(tmp_path / "c"), "--duration", "2", "--workers", "1"]
+    assert study_main(args) == 2  # hand errors count from t = 2 s: a 2 s run has none to compare
+    assert "--duration 2" in capsys.readouterr().err
+    assert not (tmp_path / "a" / "runs.csv").exists() and not (tmp_path / "c" / "runs.csv").exists()

@@ -23,7 +23,6 @@ Exit 0 when every run is ok, 1 when one failed, 2 on a configuration error befor
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -45,6 +44,7 @@ from bracing_experiments.optimize import Optimum, Problem, build_problem, optimi
 from bracing_experiments.recorded import record_report
 from bracing_experiments.reporting import is_ok, resolve_scenario
 from bracing_experiments.robustness_specs import FORCE_BIAS_N, VELOCITY_FILTER_HZ
+from bracing_experiments.study_runs import PERCENTILE_SEEDS, Median, check_window, form_scenario, seed_list
 from bracing_experiments.study_specs import _brace_origin as brace_origin
 from bracing_experiments.sweep import ResultsStore, make_spec, run_sweep, write_tables
 
@@ -66,7 +66,6 @@ REALISTIC: dict[str, Any] = {
 """The robustness study's realistic sensing, all at once: 4096-count encoders (dq through its low-pass), a force
 sensor with 0.5 N of noise and its bias, one step of command latency."""
 SEARCH_DIR, SEARCH_SEED = "optimize", 0
-WIDE_PERCENTILES = 10  # seeds from which the spread is 10-90 % instead of the range
 
 
 def conditions(seed: int) -> dict[str, Any]:
@@ -146,7 +145,7 @@ def build_pays(
         places = [round(origin[axis] + d, 6) for d in np.linspace(-span, span, positions)]
     elif axis is not None:
         places = [origin[axis]]
-    study = Pays(config, duration, list(range(1, seeds + 1)), name, grid_forces, places, axis, origin, desired, base)
+    study = Pays(config, duration, seed_list(1, seeds), name, grid_forces, places, axis, origin, desired, base)
     for seed in study.seeds:
         study.specs.append(study.spec("passive", seed, None, None, PASSIVE.overrides()))
         study.specs.append(study.spec("free", seed, None, None, FREE_SPACE.overrides()))
@@ -155,6 +154,7 @@ def build_pays(
         for force in grid_forces:
             for place in places:
                 study.specs.append(study.spec("grid", seed, force, place, study.brace(force, place)))
+    check_window(study.specs[0].duration)  # every comparison is on the hand error from t = 2 s
     return study
 
 
@@ -185,22 +185,9 @@ def optimum_specs(study: Pays, problem: Problem, found: Optimum) -> list[RunSpec
 
 
 # -- the numbers -----------------------------------------------------------------------------------
-def spread(values: Sequence[float]) -> tuple[float, float, float]:
-    """(median, low, high): the range, or the 10-90 % percentiles with WIDE_PERCENTILES values or more."""
-    if len(values) >= WIDE_PERCENTILES:
-        low, high = np.percentile(values, [10, 90])
-        return statistics.median(values), float(low), float(high)
-    return statistics.median(values), min(values), max(values)
-
-
 def spread_text(values: Sequence[float], digits: int = 3) -> str:
-    """``0.62 (0.58-0.66)``: the median and its spread; one value alone; n/a for none."""
-    if not values:
-        return "n/a"
-    middle, low, high = spread(values)
-    if len(values) == 1 or low == high:
-        return f"{middle:.{digits}g}"
-    return f"{middle:.{digits}g} ({low:.{digits}g}-{high:.{digits}g})"
+    """``0.62 (0.58-0.66)``: the median and its spread over the seeds (study_runs.Median); n/a for none."""
+    return f"{Median(values):.{digits}g}" if values else "n/a"
 
 
 Rows = dict[tuple[str, int, Any, Any], dict[str, Any]]
@@ -282,6 +269,7 @@ def cell_table(items: Sequence[Cell], seeds: int) -> str:
         "brace",
         "f_nd [N]",
         "place [m]",
+        "seeds ok",
         "energy braced / passive",
         "hand RMS braced / passive",
         f"pays on energy (of {seeds} seeds)",
@@ -295,11 +283,12 @@ def cell_table(items: Sequence[Cell], seeds: int) -> str:
             c.condition,
             f"{float(c.force):.4g}",
             _place(c.place),
+            _seeds_text(len(c.energy), seeds),
             spread_text(c.energy),
             spread_text(c.hand),
-            _seeds_text(c.pays_energy, len(c.energy)),
-            _seeds_text(c.pays_hand, len(c.hand)),
-            _seeds_text(c.pays_both, len(c.energy)),
+            _seeds_text(c.pays_energy, seeds),
+            _seeds_text(c.pays_hand, seeds),
+            _seeds_text(c.pays_both, seeds),
             spread_text(c.energy_free),
             spread_text(c.hand_free),
         ]
@@ -388,7 +377,7 @@ def write_report(study: Pays, specs: Sequence[RunSpec], output: Path, found: Opt
         f"({', '.join(map(str, study.seeds))}). Every run under realistic conditions: {realistic}; "
         f"`sensors.noise_seed` the seed and `plant_error.mass_scale` drawn in 1 +- {MASS_ERROR:g} from it "
         "(`runs.csv`: every run's row). Hand errors over t >= 2 s. A median is followed by its spread over the "
-        f"seeds (the range; 10-90 % from {WIDE_PERCENTILES} seeds). *Passive*: no brace task, the surfaces kept as "
+        f"seeds (the range; 10-90 % from {PERCENTILE_SEEDS} seeds). *Passive*: no brace task, the surfaces kept as "
         "obstacles the arm may rest on; *free*: no contact; *file*: the brace as the file sets it.",
         "",
         answer(study, grid, best, file),
@@ -399,7 +388,8 @@ def write_report(study: Pays, specs: Sequence[RunSpec], output: Path, found: Opt
         "",
         "## Braced against passive and free, per force and place",
         "",
-        "A ratio below 1 means bracing uses less energy (a smaller hand error) than the other run of the same seed.",
+        "A ratio below 1 means bracing uses less energy (a smaller hand error) than the other run of the same seed; "
+        "a seed whose braced or passive run failed (its error: `runs.csv`) has no ratio and does not pay.",
         "",
         cell_table([file, *grid, *best], n),
         "",
@@ -440,8 +430,6 @@ def run_search(
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog=f"bracing-study {STUDY}", description=(__doc__ or "").split("\n\n")[0])
     add_study_options(parser, exclusive_executors=True)
-    parser.add_argument("--config", default="paper", help="'paper' or a scenario params file (default: paper)")
-    parser.add_argument("--seeds", type=int, default=1, help="seeds 1..N: each its noise and plant draw (default 1)")
     parser.add_argument(
         "--forces", default="", help="f_nd of the grid [N], comma-separated (default x 0.5, 1, 2, 3 the file's)"
     )
@@ -450,8 +438,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--trials", type=int, default=30, help="the optimiser's trials (default 30; 0: no search)")
     args = parser.parse_args(argv)
     check_options(parser, args)
-    if args.seeds < 1 or args.trials < 0 or args.positions < 1 or args.span < 0:
-        parser.error("--seeds and --positions must be >= 1, --trials and --span >= 0")
+    if args.trials < 0 or args.positions < 1 or args.span < 0:
+        parser.error("--positions must be >= 1, --trials and --span >= 0")
     try:
         args.force_list = [float(f) for f in args.forces.split(",")] if args.forces else []
     except ValueError:
@@ -463,7 +451,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
     name = f"bracing-study {STUDY}"
     try:
-        config = resolve_scenario(args.config)
+        config = resolve_scenario(form_scenario(args.config))
         study = build_pays(
             config, args.seeds, args.duration, parse_single(args.sets), args.force_list, args.positions, args.span
         )
