@@ -25,6 +25,8 @@ from bracing_core.numbers import markdown_table
 RECORDED_KEY = "recorded"
 TABLES_FILE = "tables.json"
 """A study's recorded file beside its report.md (copy it to docs/results/data/ to publish it)."""
+CODE_PATHS = ("src", "config", "bench", "tools")
+"""What makes the numbers: a change under these (tracked files) marks a recording ``dirty``; docs do not."""
 VERSIONED = ("numpy", "pin", "mujoco", "ros-jazzy-rclpy", "rosbags", "optuna")
 """The distributions whose versions a recorded file names (the numbers depend on them)."""
 
@@ -57,10 +59,12 @@ def _git(repo: Path, *args: str) -> str | None:
 
 def provenance(repo: Path | None = None) -> dict[str, Any]:
     """When (UTC), from which commit of ``repo`` (default the working directory; null outside a git
-    checkout; ``dirty``: tracked files changed since it) and on which machine."""
+    checkout; ``dirty``: tracked files under CODE_PATHS changed since it) and on which machine."""
     where = Path.cwd() if repo is None else repo
     commit = _git(where, "rev-parse", "--short=7", "HEAD")
-    changes = _git(where, "status", "--porcelain", "--untracked-files=no") if commit else None
+    top = _git(where, "rev-parse", "--show-toplevel") if commit else None
+    paths = [str(Path(top) / path) for path in CODE_PATHS] if top else []
+    changes = _git(where, "status", "--porcelain", "--untracked-files=no", "--", *paths) if top else None
     now = time.gmtime()
     return {
         "date": time.strftime("%Y-%m-%d", now),
