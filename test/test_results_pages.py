@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import re
 import shutil
+import subprocess
 import sys
 from pathlib import Path
 
@@ -85,3 +86,28 @@ def test_tables_are_keyed_by_the_heading_above_them() -> None:
         "1-first-2": {"header": ["z"], "rows": [["2"]]},
         "b-c": {"header": ["w"], "rows": []},
     }
+
+
+def test_a_recording_names_its_commit_and_whether_the_code_differed(tmp_path: Path) -> None:
+    """``dirty`` when tracked code (src, config, bench, tools) differs from the commit; a docs edit is not."""
+
+    def git(*args: str) -> str:
+        done = subprocess.run(["git", "-C", str(tmp_path), *args], capture_output=True, text=True, check=True)
+        return done.stdout.strip()
+
+    git("init", "-q")
+    for path in ("src/law.py", "docs/page.md"):
+        (tmp_path / path).parent.mkdir(parents=True)
+        (tmp_path / path).write_text("x\n")
+    git("add", ".")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-q", "-m", "one")
+    head = git("rev-parse", "--short=7", "HEAD")
+    assert (provenance(tmp_path)["commit"], provenance(tmp_path)["dirty"]) == (head, False)
+    (tmp_path / "docs" / "page.md").write_text("y\n")
+    assert provenance(tmp_path)["dirty"] is False
+    (tmp_path / "src" / "law.py").write_text("y\n")
+    assert provenance(tmp_path)["dirty"] is True
+    assert provenance(tmp_path / "src")["commit"] == head  # from anywhere in the checkout
+    outside = tmp_path.parent / "not_a_checkout"
+    outside.mkdir(exist_ok=True)
+    assert (provenance(outside)["commit"], provenance(outside)["dirty"]) == (None, None)
