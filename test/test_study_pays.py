@@ -123,4 +123,6 @@ def test_bad_arguments_are_refused_before_any_run(tmp_path: Path, capsys: pytest
     args = ["pays", "--output", str(tmp_path / "c"), "--duration", "2", "--workers", "1"]
     assert study_main(args) == 2  # hand errors count from t = 2 s: a 2 s run has none to compare
     assert "--duration 2" in capsys.readouterr().err
+    assert _run(tmp_path / "d", "--set", "sensors.noise_seed=3") == 2
+    assert "--seeds" in capsys.readouterr().err
     assert not (tmp_path / "a" / "runs.csv").exists() and not (tmp_path / "c" / "runs.csv").exists()

@@ -94,7 +94,7 @@ class Pays:
         self, condition: str, seed: int, force: float | None, place: float | None, extra: dict[str, Any]
     ) -> RunSpec:
         varied = {"condition": condition, "seed": seed, "f_nd": force, "place": place}
-        overrides = {**self.base, **conditions(seed), **extra}
+        overrides = {**conditions(seed), **self.base, **extra}  # --set over the realistic conditions
         return make_spec(self.config, varied, self.duration, overrides=overrides)
 
     def brace(self, force: float, place: float | None) -> dict[str, Any]:
@@ -136,6 +136,8 @@ def build_pays(
     if seeds < 1:
         raise ConfigError("--seeds: at least 1")
     base = dict(base or {})
+    if "sensors.noise_seed" in base:
+        raise ConfigError("--set sensors.noise_seed: the study seeds every run itself (--seeds N: seeds 1..N)")
     name, desired, axis, origin = _contact(config, base)
     grid_forces = list(forces) if forces else [desired * s for s in FORCE_SCALES]
     if any(f <= 0 for f in grid_forces):
@@ -168,7 +170,7 @@ def search_problem(study: Pays, bound: float) -> Problem:
         low, high = min(p for p in study.places if p is not None), max(p for p in study.places if p is not None)
         wide = (high - low) / 2 * (5 / 3 - 1)
         vary.append(f"contacts.{study.contact}.target[{study.axis}]={low - wide:.6g}:{high + wide:.6g}")
-    base = {**study.base, **conditions(study.seeds[0])}
+    base = {**conditions(study.seeds[0]), **study.base}
     return build_problem(study.config, vary, [ENERGY], [f"{HAND_RMS}<={bound:.6g}"], study.duration, base=base)
 
 
