@@ -61,21 +61,36 @@ def late_force_rms(store: ResultsStore, row: dict[str, Any] | None) -> float | N
     return float(np.sqrt(np.mean(error**2)))
 
 
-def _rows(study: Robustness, store: ResultsStore, seed: int | None = None) -> dict[str, dict[str, Any]]:
-    """Every case's row, by its first seed's run id, the braced runs' late force RMS added: the median over
-    the seeds (``study_runs.median_row``), or the ``seed``-th seed's (an index into the study's seeds)."""
-    rows: dict[str, dict[str, Any]] = {}
+_SeedRows = dict[str, list[dict[str, Any] | None]]
+"""Each case's rows seed by seed, by its first seed's run id (``_seed_rows``)."""
+
+
+def _seed_rows(study: Robustness, store: ResultsStore) -> _SeedRows:
+    """Each case's rows, seed by seed, the braced runs' late force RMS added (a run every seed shares: read
+    once)."""
+    read: dict[str, dict[str, Any] | None] = {}
+    out: _SeedRows = {}
     for case, first in study.runs.items():
-        specs = study.replicas.runs[first.run_id]
-        seeds = []
-        for spec in specs if seed is None else specs[seed : seed + 1]:
-            row = store.row(spec.run_id)
-            if row is not None and case.variant == BRACED.name:
-                row[FORCE_LATE] = late_force_rms(store, row)
-            seeds.append(row)
-        median = median_row(seeds)
+        rows = []
+        for spec in study.replicas.runs[first.run_id]:
+            if spec.run_id not in read:
+                row = store.row(spec.run_id)
+                if row is not None and case.variant == BRACED.name:
+                    row[FORCE_LATE] = late_force_rms(store, row)
+                read[spec.run_id] = row
+            rows.append(read[spec.run_id])
+        out[first.run_id] = rows
+    return out
+
+
+def _rows(by_seed: _SeedRows, seed: int | None = None) -> dict[str, dict[str, Any]]:
+    """Every case's row, by its first seed's run id: the median over the seeds (``study_runs.median_row``),
+    or the ``seed``-th seed's (an index into the study's seeds)."""
+    rows: dict[str, dict[str, Any]] = {}
+    for first, seeds in by_seed.items():
+        median = median_row(seeds if seed is None else seeds[seed : seed + 1])
         if median is not None:
-            rows[first.run_id] = median
+            rows[first] = median
     return rows
 
 
@@ -396,6 +411,18 @@ def _pays(study: Robustness, rows: Mapping[str, dict[str, Any]], baseline: Varia
     return text
 
 
+def _feedback_forces(study: Robustness, rows: Mapping[str, dict[str, Any]]) -> list[tuple[float, str, float, float]]:
+    """(feedback / paper, level, paper's, feedback's) braced force error of every condition where both ran and
+    the paper's law's is not ~0."""
+    forces = []
+    for factor, level in study.points():
+        before = _force(study.row(rows, factor, level, PAPER_LAW, BRACED.name))
+        after = _force(study.row(rows, factor, level, FEEDBACK_LAW, BRACED.name))
+        if before is not None and after is not None and before >= RATIO_FLOOR:
+            forces.append((after / before, _named(level), before, after))
+    return forces
+
+
 def _buys(study: Robustness, rows: Mapping[str, dict[str, Any]]) -> str:
     """What force feedback + thermal compensation changes in the braced runs: the force error, the hand RMS,
     the energy; with torque input, under the model error that hurts most."""
@@ -403,15 +430,12 @@ def _buys(study: Robustness, rows: Mapping[str, dict[str, Any]]) -> str:
     nominal_feedback = study.row(rows, None, NOMINAL_LEVEL, FEEDBACK_LAW, BRACED.name)
     late = is_ok(nominal_paper) and number((nominal_paper or {}).get(FORCE_LATE))
     when = f"after {HAND_ERROR_T_MIN_S:g} s" if late else "over the run"
-    forces: list[tuple[float, str, float, float]] = []  # (feedback / paper, level, paper, feedback)
+    forces = _feedback_forces(study, rows)
     hands: list[float] = []
     energies: list[float] = []
     for factor, level in study.points():
         paper = study.row(rows, factor, level, PAPER_LAW, BRACED.name)
         feedback = study.row(rows, factor, level, FEEDBACK_LAW, BRACED.name)
-        before, after = _force(paper), _force(feedback)
-        if before is not None and after is not None and before >= RATIO_FLOOR:
-            forces.append((after / before, _named(level), before, after))
         for key, out in ((HAND_RMS, hands), (ENERGY, energies)):
             value = _ratio(key, feedback, paper)
             if value is not None:
@@ -468,13 +492,13 @@ def _torque_effect(study: Robustness, rows: Mapping[str, dict[str, Any]]) -> str
     )
 
 
-def over_seeds(study: Robustness, store: ResultsStore) -> str:
+def over_seeds(study: Robustness, by_seed: _SeedRows) -> str:
     """With several seeds: in how many conditions bracing pays in every seed, against free space and against
     resting passively (``study_runs.holds_text``); nothing with one seed."""
     seeds = study.replicas.seeds
     if len(seeds) < 2:
         return ""
-    per_seed = [_rows(study, store, k) for k in range(len(seeds))]
+    per_seed = [_rows(by_seed, k) for k in range(len(seeds))]
     parts = []
     for baseline in (FREE_SPACE, PASSIVE):
         held: dict[str, list[bool]] = {}
@@ -483,6 +507,12 @@ def over_seeds(study: Robustness, store: ResultsStore) -> str:
                 held.setdefault(where, []).append(_pays_in(energy, hand))
         if held:
             parts.append(f"against {_against(baseline)}, bracing pays {holds_text(held, len(seeds))}")
+    lowered: dict[str, list[bool]] = {}
+    for rows in per_seed:
+        for share, level, _, _ in _feedback_forces(study, rows):
+            lowered.setdefault(level, []).append(share < 1)
+    if lowered:
+        parts.append(f"force feedback lowers the braced force error {holds_text(lowered, len(seeds))}")
     return ("Seed by seed: " + "; ".join(parts) + ".") if parts else ""
 
 
@@ -502,7 +532,8 @@ def write_report(study: Robustness, output: Path, wall_time_s: float, executor: 
 
     matplotlib.use("Agg")
     store = ResultsStore(output)
-    rows = _rows(study, store)
+    by_seed = _seed_rows(study, store)
+    rows = _rows(by_seed)
     ok = sum(1 for row in rows.values() if is_ok(row))
     duration = study.duration if study.duration is not None else study.specs[0].duration
     compute = sum(float(row.get("wall_time_s") or 0.0) for row in rows.values())
@@ -534,7 +565,7 @@ def write_report(study: Robustness, output: Path, wall_time_s: float, executor: 
         "",
         "**Where does bracing still pay, and what does force feedback buy?** "
         + (said or "No run came back ok: no answer.")
-        + (f" {seeded}" if (seeded := over_seeds(study, store)) else ""),
+        + (f" {seeded}" if (seeded := over_seeds(study, by_seed)) else ""),
         "",
     ]
     for k, factor in enumerate(study.factors, 1):
