@@ -49,6 +49,7 @@ from bracing_experiments.cli import (
     study_exit,
 )
 from bracing_experiments.executors import make_executor
+from bracing_experiments.recorded import record_report
 from bracing_experiments.reporting import resolve_scenario
 from bracing_experiments.robustness_report import answer, late_force_rms, write_report
 from bracing_experiments.robustness_specs import (
@@ -118,6 +119,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         return interrupted(name)
     report = write_report(study, args.output, time.perf_counter() - start, where, result.skipped)
+    record_report(report, STUDY, config)
     print(f"{name}: {result.ran} run now, {result.skipped} reused; report: {report}")
     return study_exit(name, result.rows, result.lost, args.output)
 

@@ -48,6 +48,9 @@ from bracing_experiments.cli import (
     study_exit,
 )
 from bracing_experiments.executors import make_executor
+from bracing_experiments.pays import STUDY as PAYS
+from bracing_experiments.pays import main as pays_main
+from bracing_experiments.recorded import record_report
 from bracing_experiments.reporting import resolve_scenario
 from bracing_experiments.robustness import STUDY as ROBUSTNESS
 from bracing_experiments.robustness import main as robustness_main
@@ -81,7 +84,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument(
         "scenario",
         help=f"'paper': the paper study, on --config's scenario (default the paper's); a scenario params file: the "
-        f"same as paper --config FILE; '{ROBUSTNESS}': the robustness study ({ROBUSTNESS} --help)",
+        f"same as paper --config FILE; '{ROBUSTNESS}': the robustness study ({ROBUSTNESS} --help); '{PAYS}': when "
+        f"bracing pays ({PAYS} --help)",
     )
     add_study_options(parser)
     parser.add_argument("--positions", type=int, default=5, help="brace targets in the placement grid")
@@ -105,6 +109,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == [ROBUSTNESS]:  # its own options (bracing_experiments.robustness)
         return robustness_main(argv[1:])
+    if argv[:1] == [PAYS]:  # its own options (bracing_experiments.pays)
+        return pays_main(argv[1:])
     args = parse_args(argv)
     handle_stop_signals()
     start = time.perf_counter()
@@ -135,6 +141,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         return interrupted("bracing-study")
     report = write_report(study, args.output, time.perf_counter() - start, where, result.skipped, search, note)
+    record_report(report, "paper", config)
     found = search.found if search is not None else None
     trials = f"; optimiser: {found.trials} trials ({found.search.ran} now)" if found is not None else ""
     print(f"bracing-study: {result.ran} run now, {result.skipped} reused{trials}; report: {report}")
