@@ -34,7 +34,10 @@ from bracing_experiments.experiment import execute_run, series_from_recording
 from bracing_experiments.optimize import BEST_YAML, build_problem, optimize
 from bracing_experiments.sweep import make_spec
 
-SCENARIOS = sorted(CONFIG_DIR.glob("*.yaml"))
+CASES = [pytest.param(path, {}, id=path.stem) for path in sorted(CONFIG_DIR.glob("*.yaml"))] + [
+    pytest.param(CONFIG_DIR / "ur5_table.yaml", {"input_mode": "voltage"}, id="ur5_table-voltage"),
+]
+"""Every shipped scenario as its file has it, and the real arm in voltage input (its file's other mode)."""
 SECONDS = 0.4
 """[s] Long enough that every shipped scenario's commands parted before the fix (the last, the paper arm's,
 at row 289), short enough for six pair runs."""
@@ -87,21 +90,26 @@ def metric_differences(pair: dict[str, Any], in_process: dict[str, Any]) -> dict
     return found
 
 
-def pair_run(config: Path, output: Path, seconds: float | None = None) -> tuple[BagSeries, dict[str, Any]]:
-    """bracing-pair's run of ``config`` (for ``seconds``, or the file's duration): its bag as bracing_analysis
-    reads it, and its summary.json."""
+def pair_run(
+    config: Path, output: Path, seconds: float | None = None, sets: dict[str, Any] | None = None
+) -> tuple[BagSeries, dict[str, Any]]:
+    """bracing-pair's run of ``config`` (for ``seconds``, or the file's duration; ``sets``: its --set
+    overrides): its bag as bracing_analysis reads it, and its summary.json."""
     duration = [] if seconds is None else ["--duration", str(seconds)]
-    done = run(pair_argv(output, *duration, "--no-animation", config=config), timeout=300)
+    overrides = [arg for key, value in (sets or {}).items() for arg in ("--set", f"{key}={value}")]
+    done = run(pair_argv(output, *duration, *overrides, "--no-animation", config=config), timeout=300)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
     return read_series(output / "bag"), json.loads((output / "summary.json").read_text())
 
 
-@pytest.mark.parametrize("config", SCENARIOS, ids=lambda path: path.stem)
-def test_the_pairs_bag_and_summary_are_the_in_process_run_bit_for_bit(config: Path, tmp_path: Path) -> None:
-    bag, summary = pair_run(config, tmp_path / config.stem, SECONDS)
-    recording = run_recorded(build_scenario(config), SECONDS)
+@pytest.mark.parametrize(("config", "sets"), CASES)
+def test_the_pairs_bag_and_summary_are_the_in_process_run_bit_for_bit(
+    config: Path, sets: dict[str, Any], tmp_path: Path
+) -> None:
+    bag, summary = pair_run(config, tmp_path / config.stem, SECONDS, sets)
+    recording = run_recorded(build_scenario(config, shared=sets), SECONDS)
     assert series_differences(bag, recording) == {}
-    outcome = execute_run(make_spec(config, {}, SECONDS))  # a sweep's, a study's, the optimiser's run of it
+    outcome = execute_run(make_spec(config, {}, SECONDS, overrides=sets))  # a sweep's, a study's, the optimiser's
     assert outcome.summary is not None, outcome.row
     in_process = outcome.summary
     assert summary["status"] == "ok" and summary["energy_consumed_j"] > 0.0
