@@ -25,6 +25,7 @@ import pytest
 from conftest import CONFIG_DIR
 from ros_helpers import pair_argv, run
 
+import bracing_engine as engine
 from bracing_analysis.bag import read_series
 from bracing_analysis.series import BagSeries
 from bracing_analysis.summary import flat_summary
@@ -153,3 +154,17 @@ def test_the_optimisers_best_on_a_redundant_arm_is_what_bracing_pair_runs(tmp_pa
     assert summary["hand_rms_error_m"] is not None and summary["hand_rms_error_m"] == row["hand_rms_error_m"]
     numbers = {key: value for key, value in flat_summary(summary).items() if not isinstance(value, str | list | dict)}
     assert metric_differences(numbers, row) == {}
+
+
+def test_every_reader_of_a_stamp_gets_the_same_seconds() -> None:
+    """The law's time in the node (its state's stamp), the rollout's time column and the bag's time base
+    (bracing_analysis) are one conversion of the integer stamp; k * step, the rollout's former time, is not."""
+    scenario = build_scenario(CONFIG_DIR / "paper_4link.yaml")
+    step_ns = scenario.sim.step_ns
+    assert step_ns == 1_000_000
+    recording = run_recorded(scenario, 0.2)
+    stamps = np.arange(recording.time.size, dtype=np.int64) * step_ns
+    assert [engine.stamp_seconds(int(ns)) for ns in stamps] == recording.time.tolist()
+    many = np.arange(100_000, dtype=np.int64) * step_ns  # 100 s of 1 ms states
+    assert [engine.stamp_seconds(int(ns)) for ns in many] == (many * 1e-9).tolist()  # bag.py's time base
+    assert (np.arange(100_000) * 1e-3 != many * 1e-9).sum() == 26_551  # the former k * h: 27 % off by an ulp
