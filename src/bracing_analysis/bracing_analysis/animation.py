@@ -1,8 +1,10 @@
 """An animation of a recorded run: the arm in its plane of motion, as GIF (and MP4 with ffmpeg).
 
 Each frame shows the links (pinocchio kinematics of the bag's ``robot_description`` at the
-recorded joint positions), the contact surfaces, the contact points with their force
-arrows (``contact_wrench``, ``ARROW_M_PER_N`` metres per newton), the hand's target path
+recorded joint positions), the contact surfaces (each once), the contact points with their force
+arrows (``contact_wrench``, ``ARROW_M_PER_N`` metres per newton; a kept-out frame or link,
+``<frame>@<contact>``, only while it touches), a link inside a surface (``link_penetration``: its
+deepest point, its name and depth; ``inside_marks``), the hand's target path
 and the hand's trail so far, with the time and the normal forces written on it. A plane is drawn
 as its line in the drawing plane, the solid side shaded; a sphere or a cylinder whose geometry the
 bag holds (``surfaces``) as its outline seen along the third axis: a sphere a disc, a cylinder a
@@ -27,8 +29,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from bracing_analysis.inside_marks import inside_frames
 from bracing_analysis.series import BagSeries
 from bracing_analysis.surfaces import Shape, shape_of
+from bracing_core.contact_roles import KEPT_OUT, role, surface_owner
 from bracing_core.kinematics import LinkPoses
 from bracing_core.meshes import read_mesh, resolve, visual_meshes
 
@@ -156,6 +160,8 @@ class ContactFrames:
     normal: FloatArray  # (frames, 3)
     force: FloatArray  # (frames, 3) [N]
     normal_force: FloatArray  # (frames,) [N]
+    residual: FloatArray  # (frames,) [m] off the surface along the normal
+    kept_out: bool = False  # a frame or link kept out of a surface: drawn only while it touches
 
 
 class GlyphText:
@@ -358,7 +364,10 @@ class ArmAnimation:
         self.links = np.array(links)  # (frames, bodies, 3)
         self.meshes = meshes  # per frame, per outline: its points in the world [m]
         self.segments = self.poses.segments()
-        self.contacts = [self._contact_frames(cs) for cs in series.contacts.values() if cs.t.size]
+        recorded = [cs for cs in series.contacts.values() if cs.t.size]
+        # The scenario's contacts first: each surface is drawn from its owner's samples (_draw_surfaces).
+        self.contacts = [self._contact_frames(cs) for cs in sorted(recorded, key=lambda cs: role(cs.name) == KEPT_OUT)]
+        self.inside = inside_frames(series, lambda stamps: nearest(stamps, self.times))
         self.axes = plane_axes(self.links)
         # Per frame: the number of hand samples up to its time (the trail so far, the target now).
         self.hand_count = np.searchsorted(series.t, self.times + 1e-9, side="right")
@@ -372,7 +381,11 @@ class ArmAnimation:
         force = np.full((self.times.size, 3), np.nan)
         if cs.t_force.size:
             force = cs.force[nearest(cs.t_force, self.times)]
-        return ContactFrames(cs.name, cs.position[idx], cs.normal[idx], force, cs.normal_force[idx])
+        position, kept_out = cs.position[idx], role(cs.name) == KEPT_OUT
+        if kept_out and cs.active.shape == cs.t.shape:  # a kept-out frame or link: only where it touches
+            position = np.where(cs.active[idx, None], position, np.nan)
+        residual = cs.residual[idx] if cs.residual.shape == cs.t.shape else np.zeros(idx.size)
+        return ContactFrames(cs.name, position, cs.normal[idx], force, cs.normal_force[idx], residual, kept_out)
 
     # -- geometry in the drawing plane ---------------------------------------------------
     def _2d(self, points: FloatArray) -> FloatArray:
@@ -452,26 +465,31 @@ class ArmAnimation:
         return ax, max(x1 - x0, y1 - y0)
 
     def _draw_surfaces(self, ax: Axes, size: float) -> None:
-        """Each contact's surface: a curved solid's outline, or a plane as a band under its line."""
+        """Each surface once (a kept-out contact is on its owner's, two contacts may share one): a curved
+        solid's outline, or a plane as a band under its line."""
         from matplotlib.patches import Polygon  # imported where used: matplotlib ~460 ms (python -X importtime)
 
-        solids: set[Shape] = set()
+        owners: set[str] = set()
+        shapes: set[Shape] = set()
         for c in self.contacts:
-            shape = shape_of(self.series.surfaces, c.name)
-            if shape is not None and shape.curved and shape.radius > 0.0:
-                if shape not in solids:  # a collision frame's contact is on its owner's surface
-                    solids.add(shape)
-                    self._draw_solid(ax, shape, 10.0 * size)
+            shape, owner = shape_of(self.series.surfaces, c.name), surface_owner(c.name)
+            curved = shape is not None and shape.curved and shape.radius > 0.0
+            ok = np.isfinite(c.normal).all(axis=1) & np.isfinite(c.position).all(axis=1)
+            if owner in owners or (shape is not None and shape in shapes) or not (curved or ok.any()):
                 continue
-            ok = np.isfinite(c.normal).all(axis=1)
-            if not ok.any():
+            owners.add(owner)
+            if shape is not None:
+                shapes.add(shape)
+            if shape is not None and curved:
+                self._draw_solid(ax, shape, 10.0 * size)
                 continue
             n2 = self._2d(c.normal[ok][0])
             if np.linalg.norm(n2) < 1e-9:
                 continue  # the surface is parallel to the drawing plane
             n2 = n2 / np.linalg.norm(n2)
             along = np.array([-n2[1], n2[0]])
-            centre = self._2d(c.position[ok][0])
+            first = int(np.flatnonzero(ok)[0])
+            centre = self._2d(c.position[first] - c.residual[first] * c.normal[first])  # on the surface
             span = 10.0 * size
             depth = 0.04 * size
             corners = [
@@ -514,6 +532,12 @@ class ArmAnimation:
             moving += [point, arrow]
         if self.contacts:
             ax.plot([], [], "-", color=FORCE_COLOR, lw=2.5, label=f"contact force ({ARROW_M_PER_N * 100:g} cm/N)")
+        art["inside"] = []
+        for k, _ in enumerate(self.inside):  # a link inside a surface: its deepest point
+            label = "link inside a surface" if k == 0 else None
+            (mark,) = ax.plot([], [], "X", color=POINT_COLOR, mec="black", ms=11, label=label, animated=True)
+            art["inside"].append(mark)
+            moving.append(mark)
         art["text"] = GlyphText(ax, 0.02, 0.97)
         moving.append(art["text"].patch)
         return art, moving
@@ -578,8 +602,16 @@ class ArmAnimation:
             point.set_data([p[0]], [p[1]])
             f = c.force[k]
             tip = p + ARROW_M_PER_N * self._2d(f) if np.isfinite(f).all() else p
-            arrow.set_positions(tuple(p), tuple(tip))
-            lines.append(f"f_n {c.name} = {c.normal_force[k]:7.2f} N")
+            arrow.set_visible(bool(np.isfinite(p).all()))  # a kept-out frame or link away from its surface: none
+            if arrow.get_visible():
+                arrow.set_positions(tuple(p), tuple(tip))
+            if not c.kept_out or np.isfinite(p).all():
+                lines.append(f"f_n {c.name} = {c.normal_force[k]:7.2f} N")
+        for mark, surface in zip(art["inside"], self.inside, strict=True):
+            p = self._2d(surface.position[k])
+            mark.set_data([p[0]], [p[1]])
+            if surface.inside(k):
+                lines.append(surface.label[k])
         art["text"].set_text("\n".join(lines))
         canvas: Any = fig.canvas
         canvas.restore_region(self._background)
