@@ -188,3 +188,26 @@ def test_a_geometry_contact_carries_the_whole_force_on_its_link_shapes(tmp_path:
     print(f"\nf = {force} N, moment {moment:.2e} N m")
     assert force[2] > 0.0
     assert abs(moment) < 0.01 * abs(np.cross(0.5 * LENGTH * along, weight)[0])
+
+
+def test_a_collision_mesh_mujoco_cannot_read_is_refused_naming_it(tmp_path: Path) -> None:
+    """A Collada collision mesh (pinocchio's coal reads it; MuJoCo has no decoder for it): with the shapes
+    kept, MujocoRobot.build refuses the scenario before any step, naming the file and what to set."""
+    from test_meshes import DAE
+
+    from bracing_bringup.mujoco_plant import MujocoModelError
+    from bracing_core.params import ConfigError
+
+    path = _pendulum(tmp_path, True, ["link1"])
+    (tmp_path / "link.dae").write_text(DAE)
+    urdf = tmp_path / "pendulum.urdf"
+    text = urdf.read_text()
+    cylinder = f'<cylinder radius="{RADIUS!r}" length="{LENGTH!r}"/>'
+    collision = text.index("<collision>")
+    urdf.write_text(text[:collision] + text[collision:].replace(cylinder, '<mesh filename="link.dae"/>', 1))
+    config = build_scenario(path, with_controller=False).sim_config
+    with pytest.raises(MujocoModelError, match=r"link\.dae.*robot\.collision_geometry: false") as refused:
+        MujocoRobot.build(config)
+    assert isinstance(refused.value, ConfigError)  # the nodes' main says it and exits, no traceback
+    off = build_scenario(path, shared={"robot.collision_geometry": False}, with_controller=False).sim_config
+    assert MujocoRobot.build(off).model.ngeom == 2  # knob off: the mesh dropped (the floor and the tip's sphere)

@@ -9,10 +9,11 @@ point reaches it. A plane becomes a MuJoCo plane, a sphere (outside) a sphere, a
 long cylinder; a surface MuJoCo cannot hold from the outside (``inside``) is refused.
 
 The URDF's collision geometry is dropped unless ``robot.collision_geometry`` is on. Then it is kept,
-and the same shapes collide as in our engine (``colliding_links``): the links of
+and the same shapes collide as in our engine (``colliding_bodies``): the links of
 ``robot.collision_links`` and the frame's link of each ``point: geometry`` contact (every link moving
 with the frame's joint) against every contact's surface, placed where it is (not moved out); the other
-links' shapes are there but collide with nothing (our engine only measures them). Robot shapes never
+links' shapes collide with nothing (our engine only measures them), so MuJoCo's compiler leaves them out
+(``discardvisual``). Robot shapes never
 collide with each other (our engine has no self-collision). The contact bits keep the two kinds apart:
 frame spheres meet the moved-out surfaces (``SPHERE_BIT``), link shapes the surfaces in place
 (``SHAPE_BIT``). A link shape's friction is 0, so that MuJoCo's (the larger of the two geoms') is the
@@ -34,6 +35,7 @@ import numpy as np
 
 from bracing_core.config import SimulatorConfig, build_simulator, surface_key
 from bracing_core.contacts import Cylinder, Plane, Sphere
+from bracing_core.params import ConfigError
 from bracing_core.types import Vector
 
 CONTACT_RADIUS = 0.005  # [m] the sphere at each contact frame (the bench's elbow sphere)
@@ -42,8 +44,9 @@ SHAPE_BIT = 2  # contype of the colliding link shapes, conaffinity of the surfac
 CYLINDER_HALF_LENGTH = 50.0  # [m] an "infinite" cylinder surface, as MuJoCo geoms are bounded
 
 
-class MujocoModelError(ValueError):
-    """The scenario cannot be put in MuJoCo (a surface it cannot hold, a frame it does not have)."""
+class MujocoModelError(ConfigError):
+    """The scenario cannot be put in MuJoCo (a surface it cannot hold, a frame it does not have, a collision
+    mesh it cannot read): a configuration error, said before the run starts."""
 
 
 def bare_urdf(description: str, keep_collision: bool = False) -> str:
@@ -103,6 +106,20 @@ def _add_contact_sphere(spec: mujoco.MjSpec, name: str, frame: str, friction: fl
     geom.mass = 0.0
 
 
+def _compile(spec: mujoco.MjSpec, collision_geometry: bool) -> mujoco.MjModel:
+    """The compiled model; with the URDF's collision shapes, a shape MuJoCo cannot load (a mesh format it has
+    no decoder for: it reads STL, OBJ and MSH) is a MujocoModelError naming it."""
+    try:
+        return spec.compile()
+    except ValueError as exc:
+        if not collision_geometry:
+            raise
+        raise MujocoModelError(
+            f"robot.collision_geometry: MuJoCo cannot load the URDF's collision shapes ({str(exc).splitlines()[0]}): "
+            "give those links an STL or OBJ collision mesh, or set robot.collision_geometry: false for --engine mujoco"
+        ) from None
+
+
 def geometry_contacts(config: SimulatorConfig) -> list[str]:
     """The contacts placed on their frame's link's shapes (``contacts.<name>.point: geometry``)."""
     return [c.name for c in config.shared.contacts if getattr(c, "point", "frame") == "geometry"]
@@ -139,8 +156,8 @@ def colliding_bodies(spec: mujoco.MjSpec, config: SimulatorConfig, geometry: Seq
 
 def _keep_collision_geometry(spec: mujoco.MjSpec, colliding: dict[str, list[str]]) -> None:
     """The URDF's shapes (every geom so far): on SHAPE_BIT those of the ``colliding`` bodies, on no bit the
-    rest (measured by the engine, never collided); friction 0 (the surface's counts), condim 3. They add
-    no mass: each link's <inertial> sets it (MuJoCo's inertiafromgeom auto)."""
+    rest (measured by the engine, never collided: ``discardvisual`` drops them); friction 0 (the surface's
+    counts), condim 3. They add no mass: each link's <inertial> sets it (MuJoCo's inertiafromgeom auto)."""
     bodies = {body for group in colliding.values() for body in group}
     for geom in spec.geoms:
         geom.contype = SHAPE_BIT if geom.parent.name in bodies else 0
@@ -204,7 +221,7 @@ class MujocoRobot:
             if c.name not in on_shapes:
                 _add_surface(spec, c.name, c.surface, c.friction)
                 _add_contact_sphere(spec, c.name, c.frame, c.friction)
-        model = spec.compile()
+        model = _compile(spec, shared.collision_geometry)
         names = list(shared.joint_names)
         ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in names]
         damping = dict(zip(plant.joint_names, plant.robot.damping, strict=True))
