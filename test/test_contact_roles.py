@@ -158,3 +158,28 @@ def test_the_animation_draws_the_floor_once_and_marks_the_link_inside_it(bag: Pa
     kept = [c for c in animation.contacts if c.kept_out]
     assert [c.name for c in kept] == KEPT  # after the scenario's contact, drawn only while they touch
     assert np.isnan(kept[0].position).all() and np.isfinite(kept[1].position[2]).all()
+
+
+def test_the_recorded_markers_draw_the_floor_once(tmp_path: Path) -> None:
+    """contact_markers (RViz, Foxglove): the elbow's surface patch, point and force; a kept-out frame's point
+    only (its surface is the elbow's, drawn with it)."""
+    from bracing_bringup.scene import SURFACE_ID, SceneBuilder
+    from bracing_core.typestore import bracing_typestore
+
+    store = bracing_typestore()
+    scene = SceneBuilder(store, ["elbow"], {})
+    items: dict[str, bytes] = {}  # the first state's messages, as the recorder gets them
+    for topic, raw in _messages(write_bag(tmp_path / "bag")):
+        items.setdefault(topic, raw)
+    out = scene.contacts(0, items["/contacts"]) + scene.wrench("elbow", 0, items["/contact_wrench/elbow"])
+    (markers,) = [store.deserialize_cdr(d.data, "visualization_msgs/msg/MarkerArray") for d in out]
+    surfaces = [m.ns for m in markers.markers if m.id == SURFACE_ID]
+    assert surfaces == ["elbow"]
+    assert {m.ns for m in markers.markers} == {"elbow", *KEPT}  # each kept-out frame's point is still drawn
+
+
+def _messages(bag: Path) -> list[tuple[str, bytes]]:
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([bag]) as reader:
+        return [(c.topic, raw) for c, _, raw in reader.messages()]
