@@ -188,6 +188,8 @@ def test_a_geometry_contact_carries_the_whole_force_on_its_link_shapes(tmp_path:
     print(f"\nf = {force} N, moment {moment:.2e} N m")
     assert force[2] > 0.0
     assert abs(moment) < 0.01 * abs(np.cross(0.5 * LENGTH * along, weight)[0])
+    # Its point: on the rim, where the shape meets the floor (not the tip frame, 25 mm above it).
+    assert robot.contact_points()[0] == pytest.approx(rim, abs=1e-3)
 
 
 def test_a_collision_mesh_mujoco_cannot_read_is_refused_naming_it(tmp_path: Path) -> None:
