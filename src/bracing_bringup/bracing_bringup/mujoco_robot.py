@@ -99,7 +99,8 @@ class MujocoRobotNode(Node):
         self.progress_due = Periodic(PROGRESS_PERIOD_S, time.monotonic).due
         self.log.info(
             f"MuJoCo {self.robot.version}: {len(self.joint_names)} joints {self.joint_names}, contacts "
-            f"{self.robot.contacts or 'none'}, step {self.config.step} s, "
+            f"{self.robot.contacts or 'none'}, URDF collision shapes "
+            f"{'kept' if self.config.shared.collision_geometry else 'dropped'}, step {self.config.step} s, "
             f"duration {self.config.duration or 'unbounded'} s"
         )
         self.status.say(RunStatus.CONFIGURED, 0.0)
