@@ -25,7 +25,8 @@ from bracing_analysis.bag import (
     wanted_connections,
 )
 from bracing_analysis.bag_events import RunEvents, read_events, stamp_ns, xyz
-from bracing_analysis.series import BagSeries, ContactSeries
+from bracing_analysis.series import BagSeries, ContactSeries, LinkPenetrationSeries
+from bracing_core.contact_roles import LINK_PENETRATION_TOPIC
 from bracing_core.typestore import CONTACTS, CONTROLLER_STATE, JOINT_STATE, MOTOR_COMMAND, STRING, WRENCH_STAMPED
 
 _Xyz = tuple[float, ...]
@@ -51,6 +52,7 @@ class _Streams:
     description: str | None = None
     ctrl: list[tuple[int, Any]] = field(default_factory=list)
     contacts: list[tuple[int, Any]] = field(default_factory=list)
+    penetration: list[tuple[int, Any]] = field(default_factory=list)  # link_penetration
     motor: list[tuple[int, Any]] = field(default_factory=list)
     commands: list[tuple[int, Any]] = field(default_factory=list)
 
@@ -74,6 +76,8 @@ def _read(path: Path) -> tuple[_Streams, RunEvents]:
                     streams.wrenches.setdefault(name, []).append((stamp, xyz(msg.wrench.force)))
                 elif conn.msgtype == CONTROLLER_STATE:
                     streams.ctrl.append((stamp, msg))
+                elif conn.msgtype == CONTACTS and conn.topic.endswith("/" + LINK_PENETRATION_TOPIC):
+                    streams.penetration.append((stamp, msg))
                 elif conn.msgtype == CONTACTS:
                     streams.contacts.append((stamp, msg))
                 elif conn.msgtype == MOTOR_COMMAND:
@@ -83,7 +87,14 @@ def _read(path: Path) -> tuple[_Streams, RunEvents]:
     except Exception as exc:  # rosbags raises many kinds on a damaged bag
         msg = f"cannot read bag {path}: {exc}"
         raise BagReadError(msg) from exc
-    for messages in (streams.joint, streams.ctrl, streams.contacts, streams.motor, streams.commands):
+    for messages in (
+        streams.joint,
+        streams.ctrl,
+        streams.contacts,
+        streams.penetration,
+        streams.motor,
+        streams.commands,
+    ):
         messages.sort(key=lambda x: x[0])
     return streams, events
 
@@ -124,7 +135,26 @@ def _series(streams: _Streams) -> BagSeries:
         values = [dict(zip(m.name, m.value, strict=False)) for _, m in streams.commands]
         series.command = np.array([[v.get(n, math.nan) for n in names] for v in values], dtype=float)
     _contacts(series, streams, sec)
+    _link_penetration(series, streams, sec)
     return series
+
+
+def _link_penetration(series: BagSeries, streams: _Streams, sec: Any) -> None:
+    """Per surface (the part of each name after @), its rows of link_penetration in stamp order."""
+    rows: dict[str, list[Any]] = {}
+    for stamp, msg in streams.penetration:
+        for c in msg.contacts:
+            rows.setdefault(str(c.name).rsplit("@", 1)[-1], []).append((stamp, c))
+    for surface, found in rows.items():
+        series.link_penetration[surface] = LinkPenetrationSeries(
+            name=str(found[0][1].name),
+            t=np.array([sec(stamp) for stamp, _ in found], dtype=float),
+            link=[str(c.frame) for _, c in found],
+            inside=np.array([bool(c.active) for _, c in found], dtype=bool),
+            position=np.array([xyz(c.position) for _, c in found], dtype=float).reshape(-1, 3),
+            normal=np.array([xyz(c.normal) for _, c in found], dtype=float).reshape(-1, 3),
+            distance=np.array([float(c.residual) for _, c in found], dtype=float),
+        )
 
 
 def _contacts(series: BagSeries, streams: _Streams, sec: Any) -> None:

@@ -75,7 +75,7 @@ def write_arm(root: Path) -> Path:
     (meshes / "link.stl").write_text(_cube_stl())
     (meshes / "link.dae").write_text(DAE)
     scale = " ".join(f"{v:g}" for v in STL_SCALE)
-    text = PAPER_URDF.read_text()
+    text = re.sub(r"\s*<collision>.*?</collision>", "", PAPER_URDF.read_text(), flags=re.DOTALL)  # visuals only
     meshes_of = [(STL_URI, f' scale="{scale}"'), (DAE_URI, ""), (GONE_URI, ""), (OTHER_GONE_URI, "")]
     parts = _GEOMETRY.split(text)
     assert len(parts) == len(meshes_of) + 1  # link1 to link4's cylinders

@@ -119,7 +119,9 @@ def test_the_pair_runs_it_as_the_in_process_loop(name: str, tmp_path: Path) -> N
     np.testing.assert_array_equal(positions, reference.position)  # bit for bit (test_pair_equals_rollout: all of it)
     summary = json.loads((output / "summary.json").read_text())
     assert summary["bracing"] is True and summary["max_penetration_m"] < 1e-9
-    assert set(summary["contacts"]) == set(reference.contact_names)
+    kept_out = summary["kept_out"] or {}  # the collision frames' <frame>@<contact>, apart from the contacts
+    assert set(summary["contacts"]) | set(kept_out) == set(reference.contact_names)
+    assert all("@" in name for name in kept_out) and not any("@" in name for name in summary["contacts"])
 
 
 def test_the_dynamically_consistent_inverse_leaves_a_resting_arm_still() -> None:

@@ -25,7 +25,8 @@ from bracing_analysis.summary import CONTACT_KEYS, SUMMARY_EXTRA_KEYS, SUMMARY_K
 from bracing_bringup.paper_run import table
 
 DT = 0.01
-OBSTACLE = "link3_tip@floor"  # a collision frame on the floor: reported by the simulator, not braced
+OBSTACLE = "box"  # a scenario contact without a desired force: reported by the simulator, not braced
+KEPT_OUT = "link3_tip@floor"  # a collision frame kept above the floor's surface (contact_roles: kept_out)
 
 
 def _time(n: int = 201) -> np.ndarray:
@@ -47,9 +48,9 @@ def _braced(t: np.ndarray, name: str = "elbow") -> ContactSeries:
     return cs
 
 
-def _obstacle(t: np.ndarray, touching: np.ndarray, residual: np.ndarray) -> ContactSeries:
+def _obstacle(t: np.ndarray, touching: np.ndarray, residual: np.ndarray, name: str = OBSTACLE) -> ContactSeries:
     """A contact the controller does not name: simulator data only."""
-    cs = ContactSeries(name=OBSTACLE, t=t.copy(), active=touching.copy(), residual=residual.copy())
+    cs = ContactSeries(name=name, t=t.copy(), active=touching.copy(), residual=residual.copy())
     cs.normal_force = np.where(touching, 4.0, 0.0)
     cs.slip_velocity = np.zeros((t.size, 3))
     return cs
@@ -121,6 +122,30 @@ def test_unbraced_contact_has_no_errors_and_stays_out_of_the_brace_totals() -> N
     assert out["max_penetration_m"] == pytest.approx(5e-4)
     assert out["input_mode"] == "torque" and out["bracing"] is True
     json.dumps(out, allow_nan=False)
+
+
+def test_kept_out_frames_are_reported_apart_from_the_contacts() -> None:
+    """A collision frame's pseudo-contact (``<frame>@<contact>``) is under kept_out with the same metrics, not
+    under contacts; the penetration and residual totals count it; a run without any has kept_out null."""
+    t = _time()
+    touching = (t > 0.5) & (t < 1.0)
+    residual = np.where(touching, -2e-4, 0.3)
+    residual[150] = -7e-4  # the deepest of the run: a kept-out frame's
+    kept_out = _obstacle(t, touching, residual, KEPT_OUT)
+    alone = compute_summary(_series(t, _braced(t), _obstacle(t, touching, np.where(touching, -1e-4, 0.3))))
+    out = compute_summary(_series(t, _braced(t), _obstacle(t, touching, np.where(touching, -1e-4, 0.3)), kept_out))
+
+    assert list(out) == [*SUMMARY_KEYS, *SUMMARY_EXTRA_KEYS]
+    assert list(out["contacts"]) == ["elbow", OBSTACLE] and list(out["kept_out"]) == [KEPT_OUT]
+    assert out["contacts"] == alone["contacts"]  # the scenario's contacts' numbers as without the frame
+    frame = out["kept_out"][KEPT_OUT]
+    assert list(frame) == list(CONTACT_KEYS) and frame["braced"] is False
+    assert frame["normal_force_mean_n"] == 4.0 and frame["active_fraction"] == pytest.approx(touching.mean())
+    assert frame["penetration_m"] == pytest.approx(7e-4)
+    assert out["max_penetration_m"] == pytest.approx(7e-4)  # over both roles
+    assert out["constraint_residual_max_m"] == pytest.approx(2e-4)  # the frame's, while it touched
+    assert alone["kept_out"] is None  # nothing kept out: does not apply
+    assert "kept_out.link3_tip@floor.penetration_m" in format_summary(out)
 
 
 def test_run_without_braced_contacts_has_null_totals() -> None:

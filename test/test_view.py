@@ -67,7 +67,8 @@ def _contacts_message(store, contacts):  # type: ignore[no-untyped-def]
 
 def test_surfaces_are_drawn_as_their_scenario_says(tmp_path: Path) -> None:
     """A sphere whole at its centre, a cylinder along its axis nearest the contact, a plane as its
-    tangent patch turned onto the normal; a collision frame's contact (frame@owner) on its owner's."""
+    tangent patch turned onto the normal; a collision frame's contact (frame@owner) on its owner's, drawn
+    once under the owner's name."""
     from rerun.chunk import RrdReader
 
     from bracing_analysis.surfaces import Shape
@@ -97,7 +98,8 @@ def test_surfaces_are_drawn_as_their_scenario_says(tmp_path: Path) -> None:
         for chunk in RrdReader(rrd).store().stream()
         if chunk.entity_path.startswith("/world/surfaces/")
     }
-    assert set(rows) == {f"/world/surfaces/{name}" for name, _, _ in contacts}
+    # Each surface once, named by its owner: the collision frame's is the wall's.
+    assert set(rows) == {f"/world/surfaces/{name.rsplit('@', 1)[-1]}" for name, _, _ in contacts}
     ball = rows["/world/surfaces/ball"]
     assert ball["Ellipsoids3D:centers"][0] == pytest.approx([0.1, 0.0, 0.5])
     assert ball["Ellipsoids3D:half_sizes"][0] == pytest.approx([0.4] * 3)
@@ -106,7 +108,7 @@ def test_surfaces_are_drawn_as_their_scenario_says(tmp_path: Path) -> None:
     assert post["Cylinders3D:radii"] == pytest.approx([0.2])
     assert _z_axis(post["Cylinders3D:quaternions"][0]) == pytest.approx([0.0, 0.0, 1.0], abs=1e-6)
     for name, point, normal in contacts[2:]:
-        patch = rows[f"/world/surfaces/{name}"]
+        patch = rows[f"/world/surfaces/{name.rsplit('@', 1)[-1]}"]
         assert patch["Boxes3D:centers"][0] == pytest.approx(np.subtract(point, 0.001 * np.array(normal)), abs=1e-6)
         assert _z_axis(patch["Boxes3D:quaternions"][0]) == pytest.approx(normal, abs=1e-6)  # thin along the normal
         assert min(patch["Boxes3D:half_sizes"][0]) == pytest.approx(0.001) == patch["Boxes3D:half_sizes"][0][2]

@@ -186,7 +186,10 @@ def outputs_page() -> str:
         + "\n"
         + summary.OUTCOME_KEYS_DOC
         + "\n\n"
-        "Each contact's entry of `contacts` (`CONTACT_KEYS`):\n\n" + key_table(summary.CONTACT_KEYS) + "\n"
+        + summary.KEPT_OUT_DOC
+        + " Each entry of `contacts` and `kept_out` (`CONTACT_KEYS`):\n\n"
+        + key_table(summary.CONTACT_KEYS)
+        + "\n"
         "`targets_refused`: {target topic: how many targets of it the controller refused} (`{}` when none; a\n"
         "flood's targets superseded before the controller took them are neither followed nor counted); the\n"
         "first refusal of each topic and kind is in `warnings`, with its count.\n\n"

@@ -3,7 +3,7 @@
 ``read_series(bag)`` reads a rosbag2 bag (any storage) with rosbags' AnyReader, using only the message
 definitions embedded in the bag, and returns a ``series.BagSeries`` (and the URDF of
 ``robot_description``, if the bag has it, for drawing the arm). The streams (joint_states, contacts,
-controller_state, motor_state, the contact wrenches) are decoded column-wise (``columns``): a 10 s bag
+link_penetration, controller_state, motor_state, the contact wrenches) are decoded column-wise (``columns``): a 10 s bag
 (50k messages) reads in 0.25 s instead of the 1.5 s of rosbags' per-message deserializer, best of 3
 (rosbags' reading is 0.2 s of it). The few other messages are decoded one by one (``bag_events``).
 test/reference_series.py keeps the per-message reading as the reference the tests compare against.
@@ -23,7 +23,7 @@ from rosbags.highlevel import AnyReader
 
 from bracing_analysis.bag_events import custom_data, read_events, stamp_ns
 from bracing_analysis.columns import Layout, column, decode
-from bracing_analysis.series import BagSeries, ContactSeries, FloatArray
+from bracing_analysis.series import BagSeries, ContactSeries, FloatArray, LinkPenetrationSeries
 from bracing_analysis.truth import (
     HAND,
     TASK_FRAMES_KEY,
@@ -32,6 +32,7 @@ from bracing_analysis.truth import (
     true_positions,
 )
 from bracing_analysis.wrench_contacts import contacts_from_wrenches
+from bracing_core.contact_roles import LINK_PENETRATION_TOPIC, surface_owner
 from bracing_core.targets import ORIENTATION_ERROR_TOPIC
 from bracing_core.typestore import (
     CONTACTS,
@@ -145,7 +146,10 @@ def wanted_connections(reader: AnyReader, counts: dict[str, int]) -> list[Any]:
 
 
 def _kind(conn: Any) -> tuple[str, str]:
-    """What the messages are grouped by: the type, and the contact of a wrench topic."""
+    """What the messages are grouped by: the type, and the contact of a wrench topic (``link_penetration``
+    for that Contacts topic, apart from ``contacts``)."""
+    if conn.msgtype == CONTACTS and conn.topic.endswith("/" + LINK_PENETRATION_TOPIC):
+        return (CONTACTS, LINK_PENETRATION_TOPIC)
     return (conn.msgtype, conn.topic.rsplit(WRENCH_TOPIC, 1)[1] if conn.msgtype == WRENCH_STAMPED else "")
 
 
@@ -197,13 +201,18 @@ class _Rows:
     def xyz(self, path: str) -> FloatArray:
         return np.stack([self.take(f"{path}.{axis}") for axis in "xyz"], axis=1).astype(float)
 
+    def texts(self, path: str) -> list[str]:
+        """The string at ``path`` (``{j}``: the contact's position) of each row."""
+        parts = [np.full(len(lay.index), lay.strings[path.format(j=j)], dtype=object) for lay, j in self.entries]
+        return [str(text) for text in np.concatenate(parts)[self.perm]]
 
-def _per_contact(messages: _Messages, sequence: str, name: str) -> dict[str, _Rows]:
-    """Contact name -> its rows; ``name`` is the path of a contact's name (``{j}``: its position)."""
+
+def _per_contact(messages: _Messages, sequence: str, name: str, key: Callable[[str], str] = str) -> dict[str, _Rows]:
+    """``key`` of the contact name -> its rows; ``name`` is the path of a contact's name (``{j}``: its position)."""
     entries: dict[str, list[tuple[Layout, int]]] = {}
     for layout in messages.layouts:
         for j in range(layout.lengths[sequence]):
-            entries.setdefault(layout.strings[name.format(j=j)], []).append((layout, j))
+            entries.setdefault(key(layout.strings[name.format(j=j)]), []).append((layout, j))
     rows = {}
     for contact, found in entries.items():
         index = np.concatenate([layout.index for layout, _ in found])
@@ -337,7 +346,24 @@ def _series(messages: dict[_Kind, _Messages], texts: list[Layout], counts: dict[
     for name in list(sim_rows) + [n for n in ctrl_rows if n not in sim_rows]:
         wrench = messages.get((WRENCH_STAMPED, name))
         series.contacts[name] = _contact(name, sim_rows.get(name), wrench, ctrl_rows.get(name), sec)
+    measured = messages.get((CONTACTS, LINK_PENETRATION_TOPIC))
+    if measured is not None and measured.count:
+        by_surface = _per_contact(measured, "contacts", "contacts[{j}].name", key=surface_owner)
+        series.link_penetration = {owner: _link_penetration(rows, sec) for owner, rows in by_surface.items()}
     return series
+
+
+def _link_penetration(rows: _Rows, sec: _Seconds) -> LinkPenetrationSeries:
+    """One surface's rows of ``link_penetration``: the link deepest in or nearest to it at each state."""
+    return LinkPenetrationSeries(
+        name=rows.texts("contacts[{j}].name")[0],
+        t=sec(rows.stamp),
+        link=rows.texts("contacts[{j}].frame"),
+        inside=rows.take("contacts[{j}].active").astype(bool),
+        position=rows.xyz("contacts[{j}].position"),
+        normal=rows.xyz("contacts[{j}].normal"),
+        distance=rows.take("contacts[{j}].residual").astype(float),
+    )
 
 
 def _per_state_row(messages: _Messages, ctrl: _Messages, path: str) -> FloatArray:

@@ -26,6 +26,7 @@ from bracing_analysis.bag import read_series, resolve_bag
 from bracing_analysis.ratios import RATIO_FLOOR, ratio_text
 from bracing_analysis.series import BagSeries, scenario_name
 from bracing_analysis.summary import SUMMARY_KEYS, compute_summary
+from bracing_core.contact_roles import BRACED, by_role
 from bracing_core.numbers import cell, markdown_table, number
 
 if TYPE_CHECKING:
@@ -145,7 +146,7 @@ def comparison_figures(runs: Sequence[tuple[str, BagSeries]]) -> dict[str, Figur
     if any(cs.t.size for _, s in runs for cs in s.contacts.values()):
         fig, ax = figure(f"{scenarios}: normal (reaction) forces at the contacts", "f_n [N]")
         for label, s in runs:
-            touching = [cs for cs in s.contacts.values() if cs.t.size]
+            touching = [cs for cs in by_role(s.contacts, BRACED).values() if cs.t.size]  # kept-out ones: the report's
             for cs in touching:
                 (line,) = ax.plot(cs.t, cs.normal_force, label=f"{label}: {cs.name} f_n")
                 if cs.t_ctrl.size:

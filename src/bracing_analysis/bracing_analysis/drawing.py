@@ -25,8 +25,9 @@ from typing import Any
 import numpy as np
 
 from bracing_analysis.axes import brace_axes, hand_axes
-from bracing_analysis.series import BagSeries
+from bracing_analysis.series import BagSeries, touched_kept_out
 from bracing_analysis.summary import compute_summary
+from bracing_core.contact_roles import BRACED, by_role
 from bracing_core.workers import ignore_sigint
 
 SUMMARY_FILE = "summary.json"
@@ -114,8 +115,10 @@ def file_names(series: BagSeries, animation: bool) -> list[str]:
     if series.hand_orientation_error.shape[1] and series.hand_orientation_error.shape[0] == series.t.size:
         names.append("hand_orientation")
     names += [f"brace_{axis}" for axis in brace_axes(series)]
-    if any(cs.t_ctrl.size or cs.t.size for cs in series.contacts.values()):
+    if any(cs.t_ctrl.size or cs.t.size for cs in by_role(series.contacts, BRACED).values()):
         names.append("normal_force")
+    if touched_kept_out(series):
+        names.append("kept_out_force")
     if series.motor_t.size:
         names.append("energy")
     if series.motor_temperature.shape[1] and np.isfinite(series.motor_temperature).any():  # the thermal model's

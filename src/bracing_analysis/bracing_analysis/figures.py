@@ -18,7 +18,8 @@ from matplotlib.figure import Figure
 
 from bracing_analysis.animation import AnimationError, write_animation
 from bracing_analysis.axes import contact_brace_axes
-from bracing_analysis.series import BagSeries, scenario_name
+from bracing_analysis.series import BagSeries, scenario_name, touched_kept_out
+from bracing_core.contact_roles import BRACED, by_role
 from bracing_core.kinematics import DescriptionError
 
 NO_ANIMATION = "no animation"
@@ -106,12 +107,22 @@ def _plot_brace(series: BagSeries, axis: int, name: str) -> tuple[Figure, Axes]:
 
 
 def _plot_force(series: BagSeries) -> tuple[Figure, Axes]:
+    """The scenario's contacts (role braced: braced points and obstacles); the kept-out frames and links
+    have their own figure (``_plot_kept_out_force``)."""
     fig, ax = figure(title(series, "contact (normal) forces", "Figs. 12, 16"), "normal force f_n [N]")
-    for cs in series.contacts.values():
+    for cs in by_role(series.contacts, BRACED).values():
         if cs.t_ctrl.size:
             ax.plot(cs.t_ctrl, cs.normal_force_desired, "--", label=f"{cs.name} desired f_nd")
         if cs.t.size:
             ax.plot(cs.t, cs.normal_force, label=f"{cs.name} f_n")
+    return fig, ax
+
+
+def _plot_kept_out_force(series: BagSeries) -> tuple[Figure, Axes]:
+    """The force on each frame or link kept out of a surface (``<frame or link>@<contact>``) that touched."""
+    fig, ax = figure(title(series, "kept-out frames and links touching a surface"), "normal force f_n [N]")
+    for cs in touched_kept_out(series):
+        ax.plot(cs.t, cs.normal_force, label=f"{cs.name} f_n")
     return fig, ax
 
 
@@ -152,6 +163,7 @@ PLOTS: dict[str, Callable[[BagSeries], tuple[Figure, Axes]]] = {
     "brace_y": lambda series: _plot_brace(series, 1, "y"),
     "brace_z": lambda series: _plot_brace(series, 2, "z"),
     "normal_force": _plot_force,
+    "kept_out_force": _plot_kept_out_force,
     "energy": _plot_energy,
     "motor_temperature": _plot_temperature,
     "hand_orientation": _plot_orientation,

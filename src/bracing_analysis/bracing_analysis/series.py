@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bracing_analysis.surfaces import Shape
+from bracing_core.contact_roles import KEPT_OUT, by_role
 
 FloatArray = NDArray[np.float64]
 
@@ -49,6 +50,20 @@ class ContactSeries:
     # contacts and controller_state samples with the same header stamp:
     t_matched: FloatArray = field(default_factory=_empty)  # [s]
     normal_force_error: FloatArray = field(default_factory=_empty)  # f_n - f_nd [N]
+
+
+@dataclass
+class LinkPenetrationSeries:
+    """One surface's entry of ``link_penetration`` (robot.collision_geometry): at each state, the link
+    deepest in or nearest to it (its name ``<link>@<contact>`` is the first such link's)."""
+
+    name: str  # <link>@<contact>, as first recorded
+    t: FloatArray = field(default_factory=_empty)  # [s]
+    link: list[str] = field(default_factory=list)  # the link at each sample (ContactState.frame)
+    inside: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))  # depth > tolerance
+    position: FloatArray = field(default_factory=lambda: _empty(3))  # the link's point deepest in [m], world
+    normal: FloatArray = field(default_factory=lambda: _empty(3))  # the surface's normal there
+    distance: FloatArray = field(default_factory=_empty)  # signed distance [m], negative inside
 
 
 @dataclass(frozen=True)
@@ -101,6 +116,8 @@ class BagSeries:
     # with sensors (truth.py): hand_actual is the true position, this what the controller believed
     hand_measured: FloatArray = field(default_factory=lambda: _empty(3))  # [m]
     contacts: dict[str, ContactSeries] = field(default_factory=dict)
+    # link_penetration (robot.collision_geometry), by surface (the contact it is named after): empty without it
+    link_penetration: dict[str, LinkPenetrationSeries] = field(default_factory=dict)
     motor_t: FloatArray = field(default_factory=_empty)  # motor_state stamps [s]
     energy_consumed: FloatArray = field(default_factory=_empty)  # [J]
     energy_net: FloatArray = field(default_factory=_empty)  # [J]
@@ -127,6 +144,12 @@ class BagSeries:
     # the hand frame's orientation error per controller_state row [rad], world axes; (t, 0) or empty without the task
     hand_orientation_error: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
     command_limit: dict[str, float] = field(default_factory=dict)
+
+
+def touched_kept_out(series: BagSeries) -> list[ContactSeries]:
+    """The kept-out frames and links (``contact_roles``: ``<frame or link>@<contact>``) active at some sample:
+    those that touched their surface and became contacts, with a force."""
+    return [cs for cs in by_role(series.contacts, KEPT_OUT).values() if cs.active.size and bool(np.any(cs.active))]
 
 
 def scenario_name(series: BagSeries) -> str:

@@ -2,8 +2,9 @@
 
 ``compute_summary(series, wall_time_s)`` returns the ``summary.json`` dict of a ``series.BagSeries``
 (keys: README, Topics and messages): SUMMARY_KEYS, then SUMMARY_EXTRA_KEYS (per-contact metrics
-``contact_metrics``, the input mode, whether the controller braced, the run's ``warnings``, the targets
-the controller refused per topic, ``targets_refused``). A metric
+``contact_metrics`` of the scenario's contacts, ``contacts``, and of the frames and links kept out of
+the surfaces, ``kept_out`` (``bracing_core.contact_roles``), the input mode, whether the controller
+braced, the run's ``warnings``, the targets the controller refused per topic, ``targets_refused``). A metric
 that does not apply to the run is None (null): the brace and force errors of a run with no braced
 contact, the copper loss of a torque-input run (no motor circuit), the constraint residual of a run
 where no contact ever held.
@@ -19,6 +20,7 @@ from numpy.typing import NDArray
 
 from bracing_analysis.series import BagSeries, ContactSeries, FloatArray
 from bracing_core import checks
+from bracing_core.contact_roles import BRACED, KEPT_OUT, by_role
 from bracing_core.failures import succeeded
 
 HAND_ERROR_T_MIN_S = 2.0
@@ -53,6 +55,7 @@ SUMMARY_EXTRA_KEYS = (
     "status",
     "error",
     "hint",
+    "kept_out",
 )
 """summary.json's keys after SUMMARY_KEYS (added later: tools that read SUMMARY_KEYS by position keep working)."""
 
@@ -69,6 +72,15 @@ OUTCOME_KEYS_DOC = (
     "(`bracing_core.rollout.run_recorded(..., keep_failure=True)`)."
 )
 """What summary.json's status, error and hint mean (the output reference's text)."""
+
+KEPT_OUT_DOC = (
+    "`contacts` holds the scenario's own contacts (`contacts.<name>`: braced or obstacle), `kept_out` the frames "
+    "of `robot.collision_frames` and the links of `robot.collision_links` kept on the free side of each surface, "
+    "one entry per frame or link and surface, named `<frame or link>@<contact>` (the contact whose surface it "
+    "is), with the same keys (`braced` false); `kept_out` is null when the scenario keeps nothing out. "
+    "`max_penetration_m` and `constraint_residual_max_m` count both (`bracing_core.contact_roles`)."
+)
+"""What summary.json's contacts and kept_out hold (the output reference's text)."""
 
 CONTACT_KEYS = (
     "braced",
@@ -158,7 +170,9 @@ def compute_summary(
     motor_state) or that does not apply is None. The brace and force errors count the braced
     contacts only (None for a run without any), the constraint residual every contact while
     active (None if none ever is); a torque-input run has no copper loss (None).
-    ``contacts`` has every contact of the ``contacts`` topic (``contact_metrics``). ``warnings``:
+    ``contacts`` has every contact of the ``contacts`` topic the scenario names (``contact_metrics``),
+    ``kept_out`` every ``<frame or link>@<contact>`` one (None without any); ``max_penetration_m`` and
+    ``constraint_residual_max_m`` count both. ``warnings``:
     the given ones (what the data cannot show: a target out of reach), then ``data_warnings``, then
     what the nodes warned about during the run (``series.warnings``: the bag's run_status), each once.
     ``status``, ``error`` and ``hint``: ``outcome``'s (a failed run's, ``failures.diagnose``); without
@@ -205,8 +219,11 @@ def compute_summary(
         if out["sim_time_s"] is not None and wall_time_s > 0:
             out["real_time_factor"] = out["sim_time_s"] / float(wall_time_s)
 
-    out["contacts"] = {c.name: contact_metrics(c) for c in contacts if c.t.size}
-    penetrations = [m["penetration_m"] for m in out["contacts"].values() if m["penetration_m"] is not None]
+    measured = {c.name: contact_metrics(c) for c in contacts if c.t.size}
+    out["contacts"] = by_role(measured, BRACED)
+    out["kept_out"] = by_role(measured, KEPT_OUT) or None  # no collision frame or link: does not apply
+    # Over braced and kept-out contacts alike: how far any frame went into any surface.
+    penetrations = [m["penetration_m"] for m in measured.values() if m["penetration_m"] is not None]
     out["max_penetration_m"] = max(penetrations) if penetrations else None
     out["input_mode"] = series.input_mode
     out["bracing"] = bool(braced) if series.t.size else None

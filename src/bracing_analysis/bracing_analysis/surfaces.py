@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from bracing_core import schema
+from bracing_core.contact_roles import surface_owner
 from bracing_core.overrides import SIMULATOR
 from bracing_core.rcl_yaml import load_params_file
 
@@ -86,7 +87,7 @@ def read_scenario(files: Sequence[str | Path]) -> dict[str, Shape]:
 
 def shape_of(surfaces: Mapping[str, Shape], contact: str) -> Shape | None:
     """The surface of ``contact``; a collision frame's contact (``frame@owner``) is on its owner's."""
-    return surfaces.get(contact) or surfaces.get(contact.rsplit("@", 1)[-1])
+    return surfaces.get(contact) or surfaces.get(surface_owner(contact))
 
 
 def to_json(surfaces: Mapping[str, Shape]) -> str:

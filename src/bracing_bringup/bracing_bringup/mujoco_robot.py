@@ -6,7 +6,8 @@ a ``joint_state_broadcaster`` and a ``force_torque_sensor_broadcaster`` per cont
 in that order; a message larger than max_message_elements or max_name_length, a wrong length or a
 non-finite value is refused with a rate-limited error and the held command kept) and publishes
 ``joint_states``, ``/clock`` and ``contact_wrench/<contact>`` (geometry_msgs/WrenchStamped, frame
-``world``: MuJoCo's contact force on the robot at the contact sphere), and ``robot_description``
+``world``: MuJoCo's contact force on the robot at the contact sphere, or on its link's shapes with
+robot.collision_geometry and ``point: geometry``), and ``robot_description``
 (latched) for the recorder's /tf. Node name and parameters are the
 simulator's (``bracing_simulator``: robot, contacts, gravity, step, duration), so bracing-pair follows
 it on run_status as it follows our simulator (``bracing-pair --engine mujoco``).
@@ -98,7 +99,8 @@ class MujocoRobotNode(Node):
         self.progress_due = Periodic(PROGRESS_PERIOD_S, time.monotonic).due
         self.log.info(
             f"MuJoCo {self.robot.version}: {len(self.joint_names)} joints {self.joint_names}, contacts "
-            f"{self.robot.contacts or 'none'}, step {self.config.step} s, "
+            f"{self.robot.contacts or 'none'}, URDF collision shapes "
+            f"{'kept' if self.config.shared.collision_geometry else 'dropped'}, step {self.config.step} s, "
             f"duration {self.config.duration or 'unbounded'} s"
         )
         self.status.say(RunStatus.CONFIGURED, 0.0)

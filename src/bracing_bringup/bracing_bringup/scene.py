@@ -36,6 +36,7 @@ from rosbags.typesys.store import Typestore
 
 from bracing_analysis.surfaces import Shape, shape_of
 from bracing_core import cdr
+from bracing_core.contact_roles import KEPT_OUT, role
 from bracing_core.kinematics import WORLD_FRAME, LinkPoses, z_to
 from bracing_core.typestore import CONTACTS, MARKER_ARRAY, STRING, TF_MESSAGE, WRENCH_STAMPED
 from bracing_ros import wire
@@ -354,40 +355,44 @@ class _MarkerTemplates:
             arrow = self._marker(name, FORCE_ID, marker_types.ARROW, (0.012, 0.03, 0.03))
             point_type = self.t["geometry_msgs/msg/Point"]
             arrow.points = [point_type(x=0.0, y=0.0, z=0.0), point_type(x=0.0, y=0.0, z=0.0)]
-            markers = self._per_contact[name] = [surface, point, arrow]
+            # A kept-out frame's or link's surface is its owner's, drawn with the owner: no patch of its own.
+            kept_out = role(name) == KEPT_OUT
+            markers = self._per_contact[name] = [point, arrow] if kept_out else [surface, point, arrow]
         return markers
 
     def draw(self, c: _Contact, force: Sequence[float] | None) -> list[_Drawn]:
-        """The numbers of a contact's markers: surface, point, and the force arrow if ``force`` is known.
+        """The numbers of a contact's markers: surface (not for a kept-out frame or link: its owner's is
+        drawn), point, and the force arrow if ``force`` is known.
 
         Three-vectors in plain floats: numpy's ufuncs round each operation the same way, at
         several times the cost on three elements (its dot product may round its sum otherwise).
         """
         px, py, pz = position = list(c.position)
-        nx, ny, nz = c.normal
-        residual = float(c.residual)
-        sx, sy, sz = on_surface = (px - residual * nx, py - residual * ny, pz - residual * nz)  # onto its surface
-        shape = self._curved(c.name)
-        if shape is not None:  # the whole surface, where it is: its pose never changes
-            surface = self._solid_pose(c.name, shape, on_surface)
-        else:
-            # The patch is the tangent plane, centred where the contact first was: a fixed floor for a plane.
-            ax, ay, az = self._anchor.setdefault(c.name, on_surface)
-            height = (ax - sx) * nx + (ay - sy) * ny + (az - sz) * nz
-            centre = [ax - height * nx, ay - height * ny, az - height * nz]
-            last = self._turn.get(c.name)
-            if last is None or last[0] != c.normal:  # z_to of a new normal (a plane's stays)
-                last = self._turn[c.name] = (c.normal, z_to(np.array(c.normal)).tolist())
-            surface = centre + last[1]
-        markers: list[_Drawn] = [
-            (surface, self.COLORS[SURFACE_ID], []),
-            (position + _IDENTITY_ROTATION, self.COLORS[POINT_ID] if c.active else self.INACTIVE, []),
-        ]
+        markers: list[_Drawn] = [] if role(c.name) == KEPT_OUT else [(self._surface(c), self.COLORS[SURFACE_ID], [])]
+        markers.append((position + _IDENTITY_ROTATION, self.COLORS[POINT_ID] if c.active else self.INACTIVE, []))
         if force is not None:
             fx, fy, fz = force
             k = FORCE_ARROW_M_PER_N
             markers.append((_IDENTITY_POSE, self.COLORS[FORCE_ID], [px, py, pz, px + k * fx, py + k * fy, pz + k * fz]))
         return markers
+
+    def _surface(self, c: _Contact) -> list[float]:
+        """The pose of a contact's surface marker."""
+        px, py, pz = c.position
+        nx, ny, nz = c.normal
+        residual = float(c.residual)
+        sx, sy, sz = on_surface = (px - residual * nx, py - residual * ny, pz - residual * nz)  # onto its surface
+        shape = self._curved(c.name)
+        if shape is not None:  # the whole surface, where it is: its pose never changes
+            return self._solid_pose(c.name, shape, on_surface)
+        # The patch is the tangent plane, centred where the contact first was: a fixed floor for a plane.
+        ax, ay, az = self._anchor.setdefault(c.name, on_surface)
+        height = (ax - sx) * nx + (ay - sy) * ny + (az - sz) * nz
+        centre = [ax - height * nx, ay - height * ny, az - height * nz]
+        last = self._turn.get(c.name)
+        if last is None or last[0] != c.normal:  # z_to of a new normal (a plane's stays)
+            last = self._turn[c.name] = (c.normal, z_to(np.array(c.normal)).tolist())
+        return centre + last[1]
 
     def _curved(self, name: str) -> Shape | None:
         """The sphere or cylinder ``name`` is on, if its geometry is known (None: a plane, or unknown)."""

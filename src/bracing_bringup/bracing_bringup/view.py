@@ -35,10 +35,11 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from bracing_analysis.surfaces import Shape, read_scenario, shape_of
-from bracing_bringup.scene import SURFACE_PATCH_M
+from bracing_analysis.surfaces import Shape, read_scenario
+from bracing_bringup.view_scene import SurfaceSet, penetration_items
 from bracing_bringup.viewurl import GRPC_PORT, WEB_PORT, view_url, wait_for_port
-from bracing_core.kinematics import LinkPoses, z_to
+from bracing_core.contact_roles import KEPT_OUT, LINK_PENETRATION_TOPIC, role
+from bracing_core.kinematics import LinkPoses
 from bracing_core.meshes import missing_warning, read_mesh
 from bracing_core.meshes import resolve as resolve_mesh
 from bracing_core.overrides import SIMULATOR
@@ -71,6 +72,7 @@ _TYPES = {
     "hand_path": PATH,
     "hand_pose_target": POSE_STAMPED,
     "hand_orientation_error": VECTOR3_STAMPED,
+    LINK_PENETRATION_TOPIC: CONTACTS,
 }
 TARGET_COLOR = [0, 0, 0]  # a target accepted while the run goes: black, as the report's marks
 _TARGETS = ("hand_target", "hand_path", "hand_pose_target")
@@ -120,10 +122,13 @@ class Feed:
         self._last: dict[str, float] = {}
         self.first: dict[str, float] = {}  # per kind, the sim time [s] of the first state drawn
         self._forces: dict[str, np.ndarray] = {}
-        self._surfaces: set[str] = set()
+        self._surfaces = SurfaceSet(self.shapes)
         self.warnings: list[str] = []  # what the viewer could not draw (said once each on stderr)
 
-    period_kinds = frozenset({"joint_states", "contacts", "controller_state", "motor_state", "hand_orientation_error"})
+    period_kinds = frozenset(
+        {"joint_states", "contacts", "controller_state", "motor_state", "hand_orientation_error"}
+        | {LINK_PENETRATION_TOPIC}
+    )
 
     def wanted(self, kind: str, t: float) -> bool:
         """Whether ``_due`` would draw a message of ``kind`` at ``t`` (without marking it drawn)."""
@@ -193,16 +198,18 @@ class Feed:
         self._forces[contact] = np.array([f.x, f.y, f.z], dtype=float)
 
     def contacts(self, msg: Any) -> None:
+        """Each contact's point and forces: the scenario's under world/contacts, the kept-out frames' and
+        links' (``<frame>@<contact>``) under world/kept_out, without a plot; each surface once."""
         if not self._due("contacts", _stamp_s(msg)):
             return
         for c in msg.contacts:
             point = np.array([c.position.x, c.position.y, c.position.z])
             normal = np.array([c.normal.x, c.normal.y, c.normal.z])
-            if c.name not in self._surfaces:  # drawn once, where the contact first is
-                self._surfaces.add(c.name)
-                on_surface = point - float(c.residual) * normal
-                self._log(f"world/surfaces/{c.name}", _surface(shape_of(self.shapes, c.name), on_surface, normal), True)
-            base = f"world/contacts/{c.name}"
+            surface = self._surfaces.first(str(c.name), point, float(c.residual), normal)
+            if surface is not None:  # drawn once, where its first contact first is
+                self._log(*surface, True)
+            kept_out = role(str(c.name)) == KEPT_OUT
+            base = f"world/{'kept_out' if kept_out else 'contacts'}/{c.name}"
             color = [220, 30, 30] if c.active else [128, 128, 128]
             self._log(f"{base}/point", rr.Points3D([point], radii=0.02, colors=[color]))
             fn = float(c.normal_force) * normal
@@ -215,7 +222,16 @@ class Feed:
                 f"{base}/friction_force",
                 rr.Arrows3D(origins=[point], vectors=[FORCE_M_PER_N * friction], colors=[0, 170, 80]),
             )
-            self._log(f"plots/normal_force/{c.name}/f_n", rr.Scalars(float(c.normal_force)))
+            if not kept_out:
+                self._log(f"plots/normal_force/{c.name}/f_n", rr.Scalars(float(c.normal_force)))
+
+    def link_penetration(self, msg: Any) -> None:
+        """robot.collision_geometry: per surface, the link deepest in it marked while it is inside."""
+        if not self._due("link_penetration", _stamp_s(msg)):
+            return
+        for state in msg.contacts:
+            for path, item in penetration_items(state):
+                self._log(path, item)
 
     def controller_state(self, msg: Any) -> None:
         if not self._due("controller_state", _stamp_s(msg)):
@@ -277,34 +293,6 @@ class Feed:
         """The hand's whole desired and actual paths (a bag's: known at once)."""
         self._log("world/hand/desired_path", rr.LineStrips3D([desired], radii=0.003, colors=[0, 120, 255]), True)
         self._log("world/hand/actual_path", rr.LineStrips3D([actual], radii=0.003, colors=[200, 0, 200]), True)
-
-
-SURFACE_COLOR = [120, 120, 120, 90]  # grey, see-through: the arm stays visible behind a surface
-
-
-def _surface(shape: Shape | None, on_surface: np.ndarray, normal: np.ndarray) -> Any:
-    """A contact's surface as the recorder's markers draw it (``scene``): a sphere or a cylinder of
-    known geometry whole (a cylinder SURFACE_PATCH_M long, centred nearest ``on_surface``), anything
-    else as the square patch of its tangent plane at ``on_surface``, SURFACE_PATCH_M a side."""
-    if shape is not None and shape.curved and shape.radius > 0.0:
-        if shape.kind == "sphere":
-            radii = [[shape.radius] * 3]
-            return rr.Ellipsoids3D(centers=[shape.center], half_sizes=radii, colors=[SURFACE_COLOR], fill_mode="solid")
-        point, axis = np.array(shape.point), np.array(shape.axis)
-        centre = point + float(np.dot(on_surface - point, axis)) * axis
-        return rr.Cylinders3D(
-            lengths=[SURFACE_PATCH_M],
-            radii=[shape.radius],
-            centers=[centre],
-            quaternions=[rr.Quaternion(xyzw=z_to(axis))],
-            colors=[SURFACE_COLOR],
-            fill_mode="solid",
-        )
-    half = [0.5 * SURFACE_PATCH_M, 0.5 * SURFACE_PATCH_M, 0.001]
-    turn = rr.Quaternion(xyzw=z_to(normal))  # the patch's thin z onto the normal
-    return rr.Boxes3D(
-        centers=[on_surface - 0.001 * normal], half_sizes=[half], quaternions=[turn], colors=[SURFACE_COLOR]
-    )
 
 
 VISUAL_COLOR = [150, 170, 210]

@@ -6,7 +6,8 @@ the parent's local +z axis (by default at the parent link's tip), URDF position 
 velocity limits and a viscous damping (``<dynamics damping>``: N m s/rad, or N s/m for a
 prismatic joint). Every link has a mass, a length along its local +z axis and a radius
 (solid cylinder, centre of mass mid-link) or a box size / explicit principal inertia (a
-cart). Joint origins carry no rotation, so at q = 0 every link frame is parallel to the
+cart); its ``<visual>`` and ``<collision>`` are the same shape (the cylinder, the box, or a ball for a
+link of no length). Joint origins carry no rotation, so at q = 0 every link frame is parallel to the
 world frame. Fixed frames can be put at the tip of any link (the paper's ``elbow`` at the
 tip of link 2, ``hand`` at the tip of link 4).
 
@@ -91,7 +92,7 @@ def _link_inertia(link: LinkSpec) -> tuple[float, float, float]:
 
 
 def _link_geometry(link: LinkSpec) -> str:
-    """The visual's shape: the box, else a cylinder of the link's length, else a ball."""
+    """The visual's and collision's shape: the box, else a cylinder of the link's length, else a ball."""
     if link.box is not None:
         return '<box size="{!r} {!r} {!r}"/>'.format(*link.box)
     if link.length > 0.0:
@@ -132,6 +133,12 @@ def _moving_link_lines(joint: JointSpec, link: LinkSpec, parent: str, offset: fl
         f'      <origin xyz="0 0 {centre!r}" rpy="0 0 0"/>',
         f"      <geometry>{geometry}</geometry>",
         "    </visual>",
+        # The collision shape is the drawn one: what bracing-view shows is what robot.collision_geometry
+        # measures and MuJoCo collides (no inertia of its own: <inertial> alone sets the dynamics).
+        "    <collision>",
+        f'      <origin xyz="0 0 {centre!r}" rpy="0 0 0"/>',
+        f"      <geometry>{geometry}</geometry>",
+        "    </collision>",
         "  </link>",
     ]
 

@@ -18,6 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from bracing_core import schema
+from bracing_core.contact_roles import kept_out_name
 from bracing_core.contacts import Contact, ContactSet, Cylinder, Plane, Sphere, Surface
 from bracing_core.dynamics import ConstrainedDynamics, InputMode, thermal_applies
 from bracing_core.meshes import resolved_description
@@ -185,6 +186,9 @@ class SharedConfig:
     free_space: bool = False  # the surfaces only watched
     package_paths: tuple[str, ...] = ()  # robot.package_paths: where package://NAME/... meshes are looked up
     torque_limit_from_urdf: bool = False  # motors.torque_limit_from_urdf: each joint's URDF <limit effort>
+    collision_geometry: bool = False  # robot.collision_geometry: the links' URDF <collision> shapes are measured
+    penetration_tolerance: float = 0.005  # robot.penetration_tolerance [m]: deeper links are warned of
+    collision_links: tuple[str, ...] = ()  # robot.collision_links: links kept on the free side of every surface
 
     @property
     def braced_contacts(self) -> tuple[ContactConfig, ...]:
@@ -229,6 +233,9 @@ class SharedConfig:
             values["free_space"],
             package_paths=tuple(values["robot.package_paths"]),
             torque_limit_from_urdf=values["motors.torque_limit_from_urdf"],
+            collision_geometry=values["robot.collision_geometry"],
+            penetration_tolerance=values["robot.penetration_tolerance"],
+            collision_links=tuple(values["robot.collision_links"]),
         )
 
 
@@ -319,7 +326,8 @@ class Plant:
                 raise ConfigError(f"motors.transmission_radius: joint {name!r} is revolute: its radius must be 0")
 
     def _collision_contacts(self, enforced: bool) -> list[Contact]:
-        """Each collision frame against each distinct surface: unilateral, named <frame>@<contact>."""
+        """Each collision frame against each distinct surface: unilateral, named <frame>@<contact> (role
+        kept_out, ``contact_roles``)."""
         surfaces: dict[tuple[Any, ...], ContactConfig] = {}
         taken = set()
         for contact in self.config.contacts:
@@ -330,7 +338,7 @@ class Plant:
         for frame in self.config.collision_frames:
             for key, owner in surfaces.items():
                 if (frame, key) not in taken:
-                    name = f"{frame}@{owner.name}"
+                    name = kept_out_name(frame, owner.name)
                     out.append(
                         Contact(name, frame, owner.surface, owner.friction, True, enforced, owner.friction_model)
                     )

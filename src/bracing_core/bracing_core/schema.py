@@ -224,6 +224,30 @@ SHARED: tuple[Param, ...] = (
         "frames kept on the free side of every contact's surface (unilateral, inelastic touchdown)",
     ),
     Param(
+        "robot.collision_geometry",
+        Kind.BOOL,
+        False,
+        "true: every link's URDF <collision> shapes (box, cylinder, sphere, mesh) are measured against every "
+        "contact's surface at each step (summary link_penetration_max_m, a warning per link deeper than "
+        "robot.penetration_tolerance, the link_penetration topic); bracing-pair --engine mujoco keeps them (those of "
+        "robot.collision_links and of point: geometry contacts collide); false: only frames are contacts",
+    ),
+    Param(
+        "robot.penetration_tolerance",
+        Kind.DOUBLE,
+        0.005,
+        "a link whose collision shapes are deeper than this in a surface is warned of (robot.collision_geometry)",
+        "m",
+        minimum=0.0,
+    ),
+    Param(
+        "robot.collision_links",
+        Kind.STRING_ARRAY,
+        [],
+        "links whose collision shapes are kept on the free side of every contact's surface (unilateral, "
+        "inelastic touchdown), as robot.collision_frames keeps frames",
+    ),
+    Param(
         "robot.package_paths",
         Kind.STRING_ARRAY,
         [],
