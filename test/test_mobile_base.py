@@ -17,6 +17,8 @@ import pinocchio as pin
 import pytest
 from conftest import build_scenario, node_params
 
+from bracing_analysis.series import BagSeries
+from bracing_analysis.summary import compute_summary
 from bracing_core.base import BaseError, Wheels, chart_urdf
 from bracing_core.contacts import ContactSet
 from bracing_core.dynamics import ConstrainedDynamics, InputMode
@@ -413,3 +415,16 @@ def test_the_paper_arm_on_a_planar_base_braces_at_the_desired_force_while_its_ba
     run = run_closed_loop(scenario, 1.0)
     assert np.max(np.abs(run.normal_force[:, 0] - 10.0)) <= 1e-9
     assert np.ptp(run.position[:, 0]) + np.ptp(run.position[:, 1]) > 1e-4  # the base takes part
+
+
+def test_the_summary_has_the_bases_travel_and_rolling_residual() -> None:
+    """Fails on main (no such keys). base_travel_m: the (base_x, base_y) path's length, 3-4-5 legs by hand;
+    null without a moving base; base_rolling_residual_max_m_s: the largest recorded |A v|, null unrecorded."""
+    path = np.array([[0.0, 0.0, 0.5], [3.0, 4.0, 0.1], [3.0, 0.0, 0.2], [3.0, 0.0, 0.3]])
+    series = BagSeries(joint_t=np.arange(4.0), joint_names=["base_x", "base_y", "joint1"], joint_position=path)
+    series.base_rolling_residual = np.array([1e-12, 3e-11, 2e-12])
+    summary = compute_summary(series)
+    assert summary["base_travel_m"] == pytest.approx(9.0, abs=1e-15)
+    assert summary["base_rolling_residual_max_m_s"] == 3e-11
+    fixed = compute_summary(BagSeries(joint_t=np.arange(4.0), joint_names=["joint1"], joint_position=path[:, 2:]))
+    assert fixed["base_travel_m"] is None and fixed["base_rolling_residual_max_m_s"] is None
