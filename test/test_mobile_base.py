@@ -361,6 +361,12 @@ def test_bad_wheels_are_named_before_the_run_starts(tmp_path: Path) -> None:
         _cart_scenario(tmp_path, cart, ["wheel_left_joint"], **DIFF_DRIVE)
     with pytest.raises(ConfigError, match=r"locks one wheel of the differential drive: lock both .* or neither"):
         _cart_scenario(tmp_path, cart, wheels, **(DIFF_DRIVE | {"locked_joints": ["wheel_left_joint"]}))
+    with pytest.raises(ConfigError, match=r"robot\.wheel_separation: 0\.45 m, but the URDF's wheels are 0\.5 m apart"):
+        _cart_scenario(tmp_path, cart, wheels, **(DIFF_DRIVE | {"wheel_separation": 0.45}))
+    with pytest.raises(ConfigError, match=r"not on their common axis"):
+        _cart_scenario(tmp_path, cart.replace('xyz="0 0.25 0"', 'xyz="0.1 0.25 0"'), wheels, **DIFF_DRIVE)
+    with pytest.raises(ConfigError, match=r"turning wheels: .*lock both wheels .* or set robot\.base: planar"):
+        _cart_scenario(tmp_path, cart, wheels, **DIFF_DRIVE)
     floating = cart.replace(
         '<link name="base_footprint"/>',
         '<link name="floor"/><joint name="slide" type="planar"><parent link="floor"/><child link="base_footprint"/>'

@@ -26,6 +26,11 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
 
 BASES = ("fixed", "planar", "diff_drive")
 BASE_JOINTS = ("base_x", "base_y", "base_yaw")
@@ -181,11 +186,35 @@ class Wheels:
         return self.left + self.right
 
 
-def wheel_problem(
-    wheels: Wheels, kinds: Mapping[str, str], listed: Sequence[str], locked: Sequence[str], source: str
-) -> str | None:
-    """Why ``wheels`` cannot drive the base, or None. ``kinds``: each joint of the URDF and its type
-    (``urdf_joint_types``); ``listed``: robot.joint_names; ``locked``: robot.locked_joints."""
+# The engine rolls the base on turning wheels (RobotModel.wheels: its rolling rows); the nodes' plant has a motor
+# on every joint and the law none on that constrained system yet.
+TURNING_WHEELS = (
+    "robot.base: diff_drive with turning wheels: the engine rolls the base on them, but the nodes' law does not yet "
+    "run on that constrained system; lock both wheels (robot.locked_joints: a braked base) or set robot.base: "
+    "planar (a holonomic base, its three velocities driven)"
+)
+
+
+def wheels_of(values: Mapping[str, Any]) -> Wheels | None:
+    """robot.base: diff_drive's wheels from the schema's values (each given, radius and separation > 0)."""
+    if values["robot.base"] != "diff_drive":
+        return None
+    return Wheels(
+        tuple(values["robot.left_wheel_names"]),
+        tuple(values["robot.right_wheel_names"]),
+        values["robot.wheel_radius"],
+        values["robot.wheel_separation"],
+    )
+
+
+def wheel_problem(wheels: Wheels, urdf: Path, listed: Sequence[str], locked: Sequence[str]) -> str | None:
+    """Why ``wheels`` cannot drive the base of the URDF at ``urdf``, or None. ``listed``: robot.joint_names;
+    ``locked``: robot.locked_joints."""
+    try:
+        kinds = urdf_joint_types(urdf.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ET.ParseError):
+        return None  # the model's loading names what is wrong with the file
+    source = str(urdf)
     for side in ("left", "right"):
         names = getattr(wheels, side)
         if len(names) != 1:
@@ -214,3 +243,28 @@ def wheel_problem(
 def urdf_joint_types(urdf_xml: str) -> dict[str, str]:
     """Each joint of the URDF text and its type as written (continuous, revolute, prismatic, fixed, ...)."""
     return {str(j.get("name")): str(j.get("type")) for j in ET.fromstring(urdf_xml).findall("joint")}
+
+
+def axle_problem(model: pin.Model, wheels: Wheels, tolerance: float = 1e-6) -> str | None:
+    """Why the URDF's wheels (at the neutral posture) are not the two wheels of one axle ``wheels`` describes:
+    spin axes parallel and horizontal, the centres on a common axis, wheel_separation [m] apart, or None."""
+    data = model.createData()
+    q = pin.neutral(model)
+    pin.computeJointJacobians(model, data, q)
+    centres, axes = [], []
+    for name in wheels.names:
+        joint = model.getJointId(name)
+        jacobian = pin.getJointJacobian(model, data, joint, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        centres.append(np.array(data.oMi[joint].translation))
+        axes.append(np.array(jacobian[3:, model.idx_vs[joint]]))
+    offset, names = centres[1] - centres[0], "robot.left_wheel_names / right_wheel_names"
+    if abs(axes[0][2]) > tolerance or np.linalg.norm(np.cross(axes[0], axes[1])) > tolerance:
+        return f"{names}: the wheels' spin axes {axes[0]} and {axes[1]} are not one horizontal axle"
+    if np.linalg.norm(np.cross(offset, axes[0])) > tolerance or abs(offset[2]) > tolerance:
+        return f"{names}: the wheels' centres {centres[0]} and {centres[1]} are not on their common axis"
+    apart = float(np.linalg.norm(offset))
+    if abs(apart - wheels.separation) > tolerance:
+        return (
+            f"robot.wheel_separation: {wheels.separation!r} m, but the URDF's wheels are {apart:.6g} m apart: set that"
+        )
+    return None

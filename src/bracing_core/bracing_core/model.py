@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from bracing_core.base import BASE_JOINTS, BaseError, Wheels, chart_urdf
+from bracing_core.base import BASE_JOINTS, BaseError, Wheels, axle_problem, chart_urdf
 from bracing_core.types import Vector
 
 _WORLD = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -129,6 +129,9 @@ class RobotModel:
                 model = pin.buildModelFromXML(charted)
         except (OSError, UnicodeDecodeError, BaseError) as exc:
             raise ModelError(str(exc)) from None
+        problem = axle_problem(model, wheels) if wheels is not None else None
+        if problem:
+            raise ModelError(problem)
         if wheels is not None and set(wheels.names) <= set(locked_joints):
             locked_positions = list(locked_positions) or [0.0] * len(locked_joints)
             added = [name for name in BASE_JOINTS if name not in locked_joints]
