@@ -32,6 +32,8 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from bracing_core.motors import FIELDS, MotorParams
+
 BASES = ("fixed", "planar", "diff_drive")
 BASE_JOINTS = ("base_x", "base_y", "base_yaw")
 ODOM_LINK = "odom"  # the added root (the plane the base moves in), named as ROS names that frame
@@ -186,13 +188,29 @@ class Wheels:
         return self.left + self.right
 
 
-# The engine rolls the base on turning wheels (RobotModel.wheels: its rolling rows); the nodes' plant has a motor
-# on every joint and the law none on that constrained system yet.
+# A differential drive's base joints have no motor; in voltage mode each joint has a motor circuit (a shorted
+# one would brake the base), so turning wheels take torque input for now.
 TURNING_WHEELS = (
-    "robot.base: diff_drive with turning wheels: the engine rolls the base on them, but the nodes' law does not yet "
-    "run on that constrained system; lock both wheels (robot.locked_joints: a braked base) or set robot.base: "
-    "planar (a holonomic base, its three velocities driven)"
+    "robot.base: diff_drive with turning wheels takes input_mode: torque (the base joints have no motor circuit); "
+    "or lock both wheels (robot.locked_joints: a braked base), or set robot.base: planar"
 )
+
+
+def passive_padded(motors: MotorParams) -> MotorParams:
+    """``motors`` and one more row for the joints without a motor (a differential drive's base): torque input
+    gives them no torque (the law's is zero there); its values only keep the parameters' checks."""
+    values = {name: np.append(getattr(motors, name), 0.0 if name in _ZERO_FOR_PASSIVE else 1.0) for name in FIELDS}
+    return MotorParams(
+        **values,
+        voltage_limit=motors.voltage_limit,
+        torque_limit=np.append(motors.torque_limit, 0.0),
+        thermal=motors.thermal,
+        ambient_temperature=motors.ambient_temperature,
+        temperature_coefficient=motors.temperature_coefficient,
+    )
+
+
+_ZERO_FOR_PASSIVE = ("rotor_inertia", "gear_damping", "transmission_radius")
 
 
 def wheels_of(values: Mapping[str, Any]) -> Wheels | None:
