@@ -214,9 +214,15 @@ _ZERO_FOR_PASSIVE = ("rotor_inertia", "gear_damping", "transmission_radius")
 
 
 def wheels_of(values: Mapping[str, Any]) -> Wheels | None:
-    """robot.base: diff_drive's wheels from the schema's values (each given, radius and separation > 0)."""
+    """robot.base: diff_drive's wheels from the schema's values; BaseError names a missing or bad one."""
     if values["robot.base"] != "diff_drive":
         return None
+    for key in ("robot.left_wheel_names", "robot.right_wheel_names"):
+        if not values[key]:
+            raise BaseError(f"{key}: robot.base: diff_drive needs the wheel's joint (one per side), got none")
+    for key in ("robot.wheel_radius", "robot.wheel_separation"):
+        if not values[key] > 0.0:
+            raise BaseError(f"{key}: robot.base: diff_drive needs it > 0 [m], got {values[key]!r}")
     return Wheels(
         tuple(values["robot.left_wheel_names"]),
         tuple(values["robot.right_wheel_names"]),

@@ -18,7 +18,15 @@ import numpy as np
 import pinocchio as pin
 
 from bracing_core import schema
-from bracing_core.base import BASE_JOINTS, TURNING_WHEELS, Wheels, passive_padded, wheel_problem, wheels_of
+from bracing_core.base import (
+    BASE_JOINTS,
+    TURNING_WHEELS,
+    BaseError,
+    Wheels,
+    passive_padded,
+    wheel_problem,
+    wheels_of,
+)
 from bracing_core.contacts import Contact, ContactSet, Cylinder, Plane, Sphere, Surface
 from bracing_core.dynamics import ConstrainedDynamics, InputMode, thermal_applies
 from bracing_core.meshes import resolved_description
@@ -233,8 +241,15 @@ class SharedConfig:
             package_paths=tuple(values["robot.package_paths"]),
             torque_limit_from_urdf=values["motors.torque_limit_from_urdf"],
             base=values["robot.base"],
-            wheels=wheels_of(values.values),
+            wheels=_wheels(values),
         )
+
+
+def _wheels(values: Values) -> Wheels | None:
+    try:
+        return wheels_of(values.values)
+    except BaseError as exc:
+        raise ConfigError(str(exc)) from None
 
 
 def joint_names_mismatch(actuated: Sequence[str], model: Sequence[str], listed: Sequence[str]) -> str | None:
