@@ -25,8 +25,9 @@ from bracing_core.dynamics import ConstrainedDynamics, InputMode
 from bracing_core.model import ModelError, RobotModel, simulated_urdf
 from bracing_core.motors import MotorParams
 from bracing_core.params import ConfigError, resolve_file
-from bracing_core.rollout import run_closed_loop
+from bracing_core.rollout import run_closed_loop, run_recorded
 from bracing_core.simulator import Simulator
+from bracing_experiments.experiment import summarize
 
 TIAGO = "package://example-robot-data/robots/tiago_description/robots/tiago.urdf"
 WHEELS = ["wheel_left_joint", "wheel_right_joint"]
@@ -484,3 +485,5 @@ def test_the_torque_law_on_the_rolling_arm_holds_the_brace_and_the_hand_while_th
     np.testing.assert_allclose(forward, RADIUS * wheels.mean(axis=1), rtol=0, atol=1e-9)
     np.testing.assert_allclose(velocity[:, 2], RADIUS * (wheels[:, 1] - wheels[:, 0]) / SEPARATION, rtol=0, atol=1e-9)
     assert run.hand_error[-1] < run.hand_error[0]  # the hand closes on its path
+    summary = summarize(run_recorded(build_scenario(shared, sim=sim, ctl=ctl), 1.0), wall_time_s=1.0)
+    assert 0.05 < summary["base_travel_m"] < 0.2 and summary["base_rolling_residual_max_m_s"] <= 1e-9
