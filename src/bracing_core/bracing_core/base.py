@@ -231,6 +231,25 @@ def wheels_of(values: Mapping[str, Any]) -> Wheels | None:
     )
 
 
+def braked(
+    wheels: Wheels, locked: Sequence[str], positions: Sequence[float]
+) -> tuple[Wheels | None, list[str], list[float]]:
+    """The wheels that roll (None: both locked, a braked base) and the locked joints with their positions: on
+    wheels that can neither turn nor slip the base cannot move, so base_x, base_y, base_yaw lock with them (at
+    robot.locked_positions if listed, else 0). BaseError for one wheel locked alone."""
+    held = [name for name in wheels.names if name in locked]
+    if not held:
+        return wheels, list(locked), list(positions)
+    if len(held) == 1:
+        raise BaseError(
+            f"robot.locked_joints: {held} locks one wheel of the differential drive: lock both (a braked base) "
+            "or neither"
+        )
+    values = list(positions) or [0.0] * len(locked)
+    added = [name for name in BASE_JOINTS if name not in locked]
+    return None, [*locked, *added], [*values, *[0.0] * len(added)]
+
+
 def wheel_problem(wheels: Wheels, urdf: Path, listed: Sequence[str], locked: Sequence[str]) -> str | None:
     """Why ``wheels`` cannot drive the base of the URDF at ``urdf``, or None. ``listed``: robot.joint_names;
     ``locked``: robot.locked_joints."""
