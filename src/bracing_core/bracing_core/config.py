@@ -18,6 +18,15 @@ import numpy as np
 import pinocchio as pin
 
 from bracing_core import schema
+from bracing_core.base import (
+    BASE_JOINTS,
+    TURNING_WHEELS,
+    BaseError,
+    Wheels,
+    passive_padded,
+    wheel_problem,
+    wheels_of,
+)
 from bracing_core.contact_roles import kept_out_name
 from bracing_core.contacts import Contact, ContactSet, Cylinder, Plane, Sphere, Surface
 from bracing_core.dynamics import ConstrainedDynamics, InputMode, thermal_applies
@@ -189,6 +198,8 @@ class SharedConfig:
     collision_geometry: bool = False  # robot.collision_geometry: the links' URDF <collision> shapes are measured
     penetration_tolerance: float = 0.005  # robot.penetration_tolerance [m]: deeper links are warned of
     collision_links: tuple[str, ...] = ()  # robot.collision_links: links kept on the free side of every surface
+    base: str = "fixed"  # robot.base: fixed | planar | diff_drive
+    wheels: Wheels | None = None  # robot.base: diff_drive's wheels
 
     @property
     def braced_contacts(self) -> tuple[ContactConfig, ...]:
@@ -236,7 +247,16 @@ class SharedConfig:
             collision_geometry=values["robot.collision_geometry"],
             penetration_tolerance=values["robot.penetration_tolerance"],
             collision_links=tuple(values["robot.collision_links"]),
+            base=values["robot.base"],
+            wheels=_wheels(values),
         )
+
+
+def _wheels(values: Values) -> Wheels | None:
+    try:
+        return wheels_of(values.values)
+    except BaseError as exc:
+        raise ConfigError(str(exc)) from None
 
 
 def joint_names_mismatch(actuated: Sequence[str], model: Sequence[str], listed: Sequence[str]) -> str | None:
@@ -281,25 +301,45 @@ class Plant:
 
     def __init__(self, config: SharedConfig, slip_epsilon: float, mass_scale: float = 1.0) -> None:
         try:
+            if config.wheels is not None:  # before the model: the wheels' names as the URDF has them
+                problem = wheel_problem(config.wheels, config.urdf, config.joint_names, config.locked_joints)
+                if problem:
+                    raise ConfigError(problem)
             self.robot = RobotModel.from_urdf(
-                config.urdf, config.gravity, config.locked_joints, config.locked_positions, mass_scale
+                config.urdf,
+                config.gravity,
+                config.locked_joints,
+                config.locked_positions,
+                mass_scale,
+                config.base,
+                config.wheels,
             )
+            # A differential drive's base joints have no motor: the wheels roll them (RobotModel.wheels).
+            self.passive = BASE_JOINTS if self.robot.wheels is not None else ()
+            if self.passive and config.input_mode is InputMode.VOLTAGE:
+                raise ConfigError(TURNING_WHEELS)
             # Index array taking configuration-ordered data to model order (locked joints dropped).
             actuated = [name for name in config.joint_names if name not in config.locked_joints]
-            mismatch = joint_names_mismatch(actuated, self.robot.joint_names, config.joint_names)
+            moving = [name for name in self.robot.joint_names if name not in self.passive]
+            mismatch = joint_names_mismatch(actuated, moving, config.joint_names)
             if mismatch:
                 raise ConfigError(mismatch)
-            order = self.robot.joint_permutation(actuated)
+            if not self.passive:
+                order = self.robot.joint_permutation(actuated)
         except ModelError as exc:
             raise ConfigError(str(exc)) from None
-        self.order = np.array([config.joint_names.index(actuated[k]) for k in order], dtype=int)
+        if self.passive:  # the passive joints read the padding slot after the configured values
+            slot = {name: k for k, name in enumerate(config.joint_names)}
+            self.order = np.array([slot.get(name, len(slot)) for name in self.robot.joint_names], dtype=int)
+        else:
+            self.order = np.array([config.joint_names.index(actuated[k]) for k in order], dtype=int)
         for contact in config.contacts:
             self.frame_id(contact.frame, f"contacts.{contact.name}.frame")
         for frame in config.collision_frames:
             self.frame_id(frame, "robot.collision_frames")
         self.config = config
         self.joint_names = self.robot.joint_names  # model order: the order of every message
-        self.motors = config.motors.selected(self.order)
+        self.motors = (passive_padded(config.motors) if self.passive else config.motors).selected(self.order)
         if config.torque_limit_from_urdf:
             self.motors = dataclasses.replace(self.motors, torque_limit=urdf_effort_limits(self.robot))
         self._check_transmissions()
@@ -317,6 +357,8 @@ class Plant:
         for name, prismatic, radius in zip(
             self.joint_names, self.robot.prismatic, self.motors.transmission_radius, strict=True
         ):
+            if name in self.passive:
+                continue
             if prismatic and not radius > 0.0:
                 raise ConfigError(
                     f"motors.transmission_radius: joint {name!r} is prismatic, so its motor drives it through a wheel "
@@ -374,6 +416,8 @@ class Plant:
 
     def to_model_order(self, values: Sequence[float]) -> np.ndarray:
         """Per-joint values in robot.joint_names order -> model order (locked joints dropped)."""
+        if self.passive:  # a passive joint's value: 0 (the base's start at the odom origin, no gain, no motor)
+            return np.append(np.asarray(values, dtype=float), 0.0)[self.order]
         return np.asarray(values, dtype=float)[self.order]
 
     def dynamics(self, baumgarte: float = 0.0) -> ConstrainedDynamics:

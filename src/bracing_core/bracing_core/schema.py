@@ -257,6 +257,44 @@ SHARED: tuple[Param, ...] = (
         "published on robot_description as file:// paths; those not found are named in one warning",
     ),
     Param(
+        "robot.base",
+        Kind.STRING,
+        "fixed",
+        "fixed: the URDF's root is the world; planar: a planar root joint whose three velocities are the joints "
+        "base_x, base_y [m] (the root's world-frame position) and base_yaw [rad] (listed, driven and locked like "
+        "any joint; a URDF planar joint at the root is read the same way); diff_drive: the planar root without "
+        "actuators of its own, moved by the wheels rolling without slipping (robot.left_wheel_names, ...)",
+        choices=("fixed", "planar", "diff_drive"),
+    ),
+    Param(
+        "robot.left_wheel_names",
+        Kind.STRING_ARRAY,
+        [],
+        "robot.base: diff_drive: the left wheel's joint (continuous or revolute; one per side; diff_drive_controller's "
+        "name)",
+    ),
+    Param(
+        "robot.right_wheel_names",
+        Kind.STRING_ARRAY,
+        [],
+        "robot.base: diff_drive: the right wheel's joint, as robot.left_wheel_names",
+    ),
+    Param(
+        "robot.wheel_radius",
+        Kind.DOUBLE,
+        0.0,
+        "robot.base: diff_drive: the wheels' radius, > 0 (diff_drive_controller's name); unused otherwise",
+        "m",
+    ),
+    Param(
+        "robot.wheel_separation",
+        Kind.DOUBLE,
+        0.0,
+        "robot.base: diff_drive: the distance between the wheels' centres, > 0, as the URDF has them "
+        "(diff_drive_controller's name); unused otherwise",
+        "m",
+    ),
+    Param(
         "input_mode",
         Kind.STRING,
         "voltage",

@@ -37,7 +37,17 @@ struct Dynamics::Impl {
   mutable Eigen::PartialPivLU<Eigen::MatrixXd> lu;
   mutable RowMatrix accelerations, tangents, slide_e;  // p x 3, p x 6 (the sticking rows' t), p x 3
   mutable std::vector<int> tangent_count;               // per contact: its sticking rows
+  // A differential drive: the wheels' joints (left, right; 0: none), their radius, and the rolling rows A
+  // (3 x n) with their drift dA v at the state of the last rolling_terms.
+  Wheels wheels;
+  mutable RowMatrix rolling;
+  mutable Vector rolling_drift;
+  mutable pin::Data::Matrix6x wheel_jacobian;
 
+  // The rolling rows and their drift at (q, dq) after rigid_body_terms, A v into `out`.
+  void rolling_terms(const Eigen::Ref<const Vector>& dq, Answer& out) const;
+  // Rows from i on: the rolling rows (bilateral, frictionless), A dv = -dA v - 2 a A v; returns the next row.
+  int rolling_rows(int i, const Eigen::Ref<const Vector>& dq, double baumgarte) const;
   void contact_terms(int j, const Eigen::Ref<const Vector>& dq, Answer& out) const;
   void resize(Answer& out) const;
   // r = drive - Dc dq - (h + g) (after rigid_body_terms).
@@ -86,6 +96,21 @@ void Dynamics::Impl::contact_terms(int j, const Eigen::Ref<const Vector>& dq, An
   out.residual[j] = point.residual;
 }
 
+void Dynamics::Impl::rolling_terms(const Eigen::Ref<const Vector>& dq, Answer& out) const {
+  bracing_engine::rolling_rows(model, data, wheels, dq, rolling, rolling_drift, wheel_jacobian);
+  out.rolling_velocity.noalias() = rolling * dq;
+}
+
+int Dynamics::Impl::rolling_rows(int i, const Eigen::Ref<const Vector>& dq, double baumgarte) const {
+  for (int k = 0; k < 3; ++k, ++i) {
+    constraint.row(i) = rolling.row(k);
+    w.row(i) = rolling.row(k);
+    normal_velocity[i] = rolling.row(k).dot(dq);
+    bias[i] = -rolling_drift[k] - 2.0 * baumgarte * normal_velocity[i];
+  }
+  return i;
+}
+
 void Dynamics::Impl::resize(Answer& out) const {
   const int n = model.nv, p = static_cast<int>(contacts.size());
   if (out.ddq.size() == n && out.force.size() == p) return;
@@ -104,6 +129,8 @@ void Dynamics::Impl::resize(Answer& out) const {
   out.residual.setZero(p);
   out.tangential_force.setZero(p, 3);
   out.friction.setZero(p);
+  out.rolling_velocity.setZero(wheels ? 3 : 0);
+  out.rolling_force.setZero(wheels ? 3 : 0);
 }
 
 void Dynamics::Impl::drive_balance(const Eigen::Ref<const Vector>& dq, const Eigen::Ref<const Vector>& current,
@@ -128,6 +155,10 @@ int Dynamics::Impl::count_rows(const ContactModes& modes, bool full, const Eigen
       for (int k = 0; k < count; ++k) tangents.row(j).segment<3>(3 * k) = t[k].transpose();
       rows += count;
     }
+  }
+  if (wheels) {
+    rolling_terms(dq, out);
+    rows += 3;
   }
   return rows;
 }
@@ -188,6 +219,7 @@ void Dynamics::Impl::assemble_rows(int rows, const ContactModes& modes, const Ei
     if (modes.held[j]) normal_row(i++, j, modes, dq, baumgarte, out);
   for (int j = 0; j < p; ++j)
     if (modes.held[j] && modes.sticking[j]) i = tangent_rows(i, j, dq, baumgarte, out);
+  if (wheels) rolling_rows(i, dq, baumgarte);
   mass_inverse_rows(model, data, constraint, y_column, y);
 }
 
@@ -243,6 +275,11 @@ void Dynamics::Impl::scatter_forces(const ContactModes& modes, Answer& out) cons
     out.tangential_force.row(j) = tangential.transpose();
     out.friction[j] = tangential.norm();
   }
+  if (!wheels) return;
+  for (int k = 0; k < 3; ++k, ++i) {  // the rolling rows, last
+    out.rolling_force[k] = force[i];
+    out.constraint_power += force[i] * normal_velocity[i];
+  }
 }
 
 void Dynamics::Impl::circuit(const Eigen::Ref<const Vector>& dq, const Eigen::Ref<const Vector>& current,
@@ -288,7 +325,15 @@ Dynamics::Dynamics(const Robot& robot, const Drive& drive, std::vector<Contact> 
   m.tangent_count.assign(m.contacts.size(), 0);
   m.r.setZero(n);
   m.y_column.setZero(n);
+  m.wheels = wheels_of(m.model, robot);
+  if (m.wheels) {
+    m.rolling.setZero(3, n);
+    m.rolling_drift.setZero(3);
+    m.wheel_jacobian.setZero(6, n);
+  }
 }
+
+int Dynamics::rolling_rows() const { return impl_->wheels ? 3 : 0; }
 
 Dynamics::~Dynamics() = default;
 
@@ -307,6 +352,7 @@ void Dynamics::terms(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const V
   m.resize(out);
   rigid_body_terms(m.model, m.data, q, dq);
   for (int j = 0; j < contact_count(); ++j) m.contact_terms(j, dq, out);
+  if (m.wheels) m.rolling_terms(dq, out);
 }
 
 int Dynamics::tangent_directions(const Vector3& n, const Eigen::Ref<const RowMatrix>& jacobian, Vector3 out[2]) {
@@ -397,6 +443,8 @@ double Dynamics::hold_velocity(const Vector& q, Vector& dq, const ContactModes& 
     const int count = tangent_directions(answer.normals.row(j).transpose(), answer.jacobians.middleRows<3>(3 * j), t);
     for (int k = 0; k < count; ++k) rows.push_back((t[k].transpose() * answer.jacobians.middleRows<3>(3 * j)).transpose());
   }
+  if (m.wheels)  // the wheels keep rolling through the impulse
+    for (int i = 0; i < 3; ++i) rows.push_back(m.rolling.row(i).transpose());
   const int k = static_cast<int>(rows.size());
   if (!k) return 0.0;
   Eigen::MatrixXd r(k, n), y(n, k);
@@ -443,8 +491,10 @@ double Dynamics::impact(Vector& q, Vector& dq, const std::vector<int>& rows) con
   Answer answer;
   terms(q, dq, answer);
   pin::cholesky::decompose(m.model, m.data);
-  Eigen::MatrixXd jc(k, n), y(n, k);
+  const int rolling = rolling_rows();  // the wheels keep rolling through the impulse
+  Eigen::MatrixXd jc(k + rolling, n), y(n, k + rolling);
   for (int i = 0; i < k; ++i) jc.row(i) = answer.normal_jacobian.row(rows[i]);
+  if (rolling) jc.bottomRows(rolling) = m.rolling;
   mass_inverse_rows(m.model, m.data, jc, m.y_column, y.transpose());
   const Vector normal_velocity = jc * dq;
   const Vector impulse = -(jc * y).partialPivLu().solve(normal_velocity);
