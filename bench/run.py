@@ -6,7 +6,8 @@ in one run on this machine, with medians of repeats. Prints a table, writes benc
   a Python loop) against MuJoCo stepping an equivalent MJCF (bench/mujoco_paper.py); the closed
   loop (law + engine, ``Simulator.rollout``: no return to Python between steps) on the paper model
   and on hyper_7link; the engine step alone on hyper_7link (a fixed command); ``Simulator.step``,
-  the Python face the simulator node calls (the report as Python objects);
+  the Python face the simulator node calls (the report as Python objects); the share of a step the links'
+  distance queries take on ur5_table (robot.collision_geometry, the wrist at its link's surface);
 - the ROS pair vs the DDS bound: bracing-pair in lockstep for 10 s of sim time, against the
   round trips/s of two rclpy processes ping-ponging messages of the same size over the
   nodes' own transport, times the step, measured before and after the pair (bench/dds_bound.py);
@@ -50,6 +51,7 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 PAPER = ROOT / "config" / "paper_4link.yaml"
 HYPER = ROOT / "config" / "hyper_7link.yaml"
+UR5 = ROOT / "config" / "ur5_table.yaml"
 TINY_RUN_S = 0.01  # the sim time of the turnaround's `bracing-pair --duration 0.01`
 sys.path.insert(0, str(HERE))
 
@@ -110,6 +112,48 @@ def engine_step_us(config: Path, steps: int = 3000, segment: int = 500, python_f
         elapsed += time.perf_counter() - begin
         done += count
     return 1e6 * elapsed / steps
+
+
+def collision_share_of_step(steps: int = 2000, repeats: int = 5) -> dict[str, Any]:
+    """The share of a simulator step the links' distance queries take on the shipped real arm (ur5_table.yaml,
+    torque input, a fixed command): per state, every link's collision shapes against the table
+    (robot.collision_geometry) and the wrist braced at its link's surface (point: geometry, its point re-found at
+    every evaluation), against the same steps braced at the frame with nothing measured, alternately in one run:
+    share = 1 - (frame step) / (geometry step + measurement)."""
+    from bracing_core.link_penetration import LinkPenetration
+    from bracing_core.rollout import build_scenario
+
+    geometry = {"robot.collision_geometry": True, "contacts.wrist.point": "geometry", "contacts.wrist.offset": 0.19}
+    plain_us: list[float] = []
+    measured_us: list[float] = []
+
+    def per_step_us(shared: dict[str, Any]) -> float:
+        scenario = build_scenario(UR5, shared={"input_mode": "torque", **shared}, with_controller=False)
+        sim = scenario.sim
+        watch = LinkPenetration(scenario.plant, sim.dynamics.engine) if shared else None
+        command = np.zeros(sim.n)
+        step, start = sim.engine.step, sim.checkpoint()
+        for _ in range(20):  # warm-up
+            step(command)
+        sim.restore(start)
+        begin = time.perf_counter()
+        for _ in range(steps):
+            step(command)
+            if watch is not None:
+                watch.measure(sim.engine.state[: sim.n], 0.0)
+        return 1e6 * (time.perf_counter() - begin) / steps
+
+    for _ in range(repeats):  # alternating: a drift of the machine's speed hits both alike
+        plain_us.append(per_step_us({}))
+        measured_us.append(per_step_us(geometry))
+    plain, measured = statistics.median(plain_us), statistics.median(measured_us)
+    return {
+        "share": 1.0 - plain / measured,
+        "frame_step_us": plain,
+        "geometry_step_us": measured,
+        "frame_step_us_samples": plain_us,
+        "geometry_step_us_samples": measured_us,
+    }
 
 
 def rollout_steps_per_s(config: Path, duration: float = 10.0) -> float:
@@ -520,6 +564,8 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
     rollout = statistics.median(rollout_samples)
     rollout_hyper = statistics.median(rollout_hyper_samples)
     hyper_step = statistics.median(hyper_step_samples)
+    print("the links' distance queries' share of a step (ur5_table, robot.collision_geometry) ...", flush=True)
+    collision = collision_share_of_step(*((200, 1) if quick else (2000, 5)))
     print("controller ...", flush=True)
     latency = controller_latency_us(300 if quick else 3000)
     # The bound is measured right before and right after the pair and averaged: this machine's
@@ -580,6 +626,8 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
         "engine_hyper_7link_step_us_samples": hyper_step_samples,
         "simulator_step_us": statistics.median(python_step_samples),  # the Python face, paper model
         "simulator_step_us_samples": python_step_samples,
+        "collision_share_of_step": collision["share"],
+        "collision_step_us": collision,
         "pair_real_time_factor": pair["stepping"],
         "pair_real_time_factor_whole_run": pair["whole_run"],
         "pair_real_time_factor_no_recorder": without_recorder,
@@ -626,6 +674,10 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
         (f"closed-loop rollout steps/s, hyper_7link ({rollout_s:g} s runs)", f"{rollout_hyper:,.0f}"),
         ("engine step alone, hyper_7link (1 V held) [us]", f"{hyper_step:.1f}"),
         ("Simulator.step (the Python face, its report as objects), paper [us]", f"{result['simulator_step_us']:.1f}"),
+        (
+            "links' distance queries' share of a step, ur5_table (target <= 0.20)",
+            f"{collision['share']:.1%} ({collision['frame_step_us']:.1f} -> {collision['geometry_step_us']:.1f} us)",
+        ),
         ("pair real-time factor (lockstep stepping)", f"{pair['stepping']:.2f}"),
         ("pair real-time factor (whole run, with start-up)", f"{pair['whole_run']:.2f}"),
         ("the two nodes without the recorder: real-time factor", f"{without_recorder:.2f}"),

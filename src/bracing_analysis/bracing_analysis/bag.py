@@ -32,6 +32,7 @@ from bracing_analysis.truth import (
     true_positions,
 )
 from bracing_analysis.wrench_contacts import contacts_from_wrenches
+from bracing_core.link_penetration import TOPIC as LINK_PENETRATION_TOPIC
 from bracing_core.targets import ORIENTATION_ERROR_TOPIC
 from bracing_core.typestore import (
     CONTACTS,
@@ -145,7 +146,9 @@ def wanted_connections(reader: AnyReader, counts: dict[str, int]) -> list[Any]:
 
 
 def _kind(conn: Any) -> tuple[str, str]:
-    """What the messages are grouped by: the type, and the contact of a wrench topic."""
+    """What the messages are grouped by: the type, and the contact of a wrench topic (link_penetration apart)."""
+    if conn.msgtype == CONTACTS and conn.topic.endswith("/" + LINK_PENETRATION_TOPIC):
+        return (CONTACTS, LINK_PENETRATION_TOPIC)  # the links against the surfaces: not the contacts
     return (conn.msgtype, conn.topic.rsplit(WRENCH_TOPIC, 1)[1] if conn.msgtype == WRENCH_STAMPED else "")
 
 
@@ -332,12 +335,26 @@ def _series(messages: dict[_Kind, _Messages], texts: list[Layout], counts: dict[
     turn = messages.get((VECTOR3_STAMPED, ""))
     if turn is not None and turn.count:
         series.hand_orientation_error = _per_state_row(turn, ctrl, "vector")
+    links = messages.get((CONTACTS, LINK_PENETRATION_TOPIC))
+    if links is not None:
+        series.link_penetration_max = _link_depths(links)
     sim_rows = _per_contact(sim, "contacts", "contacts[{j}].name")
     ctrl_rows = _per_contact(ctrl, "contact_name", "contact_name[{j}]")
     for name in list(sim_rows) + [n for n in ctrl_rows if n not in sim_rows]:
         wrench = messages.get((WRENCH_STAMPED, name))
         series.contacts[name] = _contact(name, sim_rows.get(name), wrench, ctrl_rows.get(name), sec)
     return series
+
+
+def _link_depths(links: _Messages) -> dict[str, float]:
+    """Per link named on link_penetration (``<link>@<contact>``): the deepest it was inside a surface [m] (0: never
+    inside) when it was the link deepest into (or nearest) that surface."""
+    out: dict[str, float] = {}
+    for name, rows in _per_contact(links, "contacts", "contacts[{j}].name").items():
+        link = name.rsplit("@", 1)[0]
+        depth = max(0.0, -float(np.nanmin(rows.take("contacts[{j}].residual").astype(float), initial=np.inf)))
+        out[link] = max(out.get(link, 0.0), depth)
+    return out
 
 
 def _per_state_row(messages: _Messages, ctrl: _Messages, path: str) -> FloatArray:

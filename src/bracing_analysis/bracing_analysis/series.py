@@ -127,6 +127,9 @@ class BagSeries:
     # the hand frame's orientation error per controller_state row [rad], world axes; (t, 0) or empty without the task
     hand_orientation_error: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
     command_limit: dict[str, float] = field(default_factory=dict)
+    # robot.collision_geometry: per link the deepest it was inside a contact's surface [m], from link_penetration
+    # (the link deepest into each surface at each state); None: not measured (no such topic)
+    link_penetration_max: dict[str, float] | None = None
 
 
 def scenario_name(series: BagSeries) -> str:

@@ -50,6 +50,7 @@ SUMMARY_EXTRA_KEYS = (
     "status",
     "error",
     "hint",
+    "link_penetration_max_m",
 )
 """summary.json's keys after SUMMARY_KEYS (added later: tools that read SUMMARY_KEYS by position keep working)."""
 
@@ -205,6 +206,8 @@ def compute_summary(
     out["contacts"] = {c.name: contact_metrics(c) for c in contacts if c.t.size}
     penetrations = [m["penetration_m"] for m in out["contacts"].values() if m["penetration_m"] is not None]
     out["max_penetration_m"] = max(penetrations) if penetrations else None
+    # robot.collision_geometry's link_penetration topic; None without it
+    out["link_penetration_max_m"] = series.link_penetration_max
     out["input_mode"] = series.input_mode
     out["bracing"] = bool(braced) if series.t.size else None
     out["targets_refused"] = targets_refused(series)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
+from bracing_core.link_penetration import TOPIC as LINK_PENETRATION_TOPIC
 from bracing_core.overrides import CONTROLLER
 from bracing_core.sensing import GROUND_TRUTH
 from bracing_core.targets import ACCEPTED, ORIENTATION_ERROR_TOPIC, POSE_TOPIC, REFUSED, echo_topic
@@ -54,10 +55,11 @@ def target_verdict_topics(contacts: Sequence[str]) -> list[tuple[str, str]]:
     return out
 
 
-OPTIONAL_STATE_TOPICS = [(ORIENTATION_ERROR_TOPIC, VECTOR3_STAMPED)]
-"""(relative topic, ROS 2 type name) of what the controller publishes once per state only in some
-configurations (hand_orientation_error: with an orientation task): recorded from the first message, at its
-header stamp, one by one or in record_batch; a run without it has no such topic (no count expected)."""
+OPTIONAL_STATE_TOPICS = [(ORIENTATION_ERROR_TOPIC, VECTOR3_STAMPED), (LINK_PENETRATION_TOPIC, CONTACTS)]
+"""(relative topic, ROS 2 type name) of what the nodes publish once per state only in some configurations
+(hand_orientation_error: the controller, with an orientation task; link_penetration: the simulator, with
+robot.collision_geometry): recorded from the first message, at its header stamp, one by one or in
+record_batch; a run without it has no such topic (no count expected)."""
 
 RECORDER_NODE = "bracing_recorder"
 
