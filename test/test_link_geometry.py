@@ -230,7 +230,9 @@ def test_point_geometry_braces_a_cylinder_link_at_its_surface_with_f_n_equal_to_
 
 
 def test_a_link_dropped_on_the_floor_comes_to_rest_on_it(tmp_path: Path) -> None:
-    """Unpowered, no bracing, the floor 0.2 m below the elbow: the links fall onto it and stay on its free side."""
+    """Unpowered, no bracing, the floor 0.2 m below the elbow: the links fall onto it, slide (mu 0.1) and rotate
+    down until link4 lies along it, on its free side at every state (the paper's a = 0: no Baumgarte term, so a
+    contact point that moves to the other end of a link lying down lands there, events.cpp)."""
     urdf = paper_with_shapes(tmp_path)
     sc = build_scenario(
         PAPER_YAML,
@@ -242,9 +244,6 @@ def test_a_link_dropped_on_the_floor_comes_to_rest_on_it(tmp_path: Path) -> None
             "robot.collision_links": ["link1", "link2", "link3", "link4"],
             "robot.collision_geometry": True,
         },
-        # a link lying along the floor touches it on a line: its nearest point may move along it from one evaluation
-        # to the next, and only the Baumgarte term takes the new point's approach back (the paper's a = 0 does not)
-        sim={"baumgarte": 50.0},
         with_controller=False,
     )
     sim = sc.sim
@@ -252,13 +251,17 @@ def test_a_link_dropped_on_the_floor_comes_to_rest_on_it(tmp_path: Path) -> None
     assert names == ["elbow", "link1@elbow", "link2@elbow", "link3@elbow", "link4@elbow"]
     watch = LinkPenetration(sc.plant, sim.dynamics.engine)
     zero = np.zeros(sim.n)
-    for _ in range(3000):
+    postures = []
+    for _ in range(5000):
         d = sim.step(zero)
-    watch.measure(sim.position, sim.time)
+        watch.measure(sim.position, sim.time)
+        postures.append(sim.position.copy())
     # touched down (kept-out links among them), at rest, none of the links' shapes deeper than 1 mm
     assert {e.contact for e in sim.events if e.kind == "touchdown"} & set(names[1:])
     assert max(watch.deepest.values()) <= 1e-3
-    assert float(np.max(np.abs(sim.velocity))) < 1e-2
+    # at rest: the posture moved less than 1 mrad over the last second (link4 lies along the floor, touching it on
+    # a line that one contact point per link and surface stands for: the point alternates between its ends)
+    assert float(np.max(np.abs(postures[-1] - postures[-1000]))) < 1e-3
     held = [n for n, f in zip(names, d.normal_force, strict=True) if f > 0.0]
     assert held and any("@" in n for n in held)  # a kept-out link carries weight: it is a contact with a force
 

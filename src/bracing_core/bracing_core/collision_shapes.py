@@ -1,18 +1,42 @@
-"""The URDF's collision shapes as the engine takes them (robot.collision_geometry, robot.collision_links,
-contacts.<name>.point: geometry): the text it loads them from, and the refusals, said before the run starts in
-the configuration's words."""
+"""What is kept out of the surfaces (robot.collision_frames, robot.collision_links) and the URDF's collision shapes
+as the engine takes them (robot.collision_geometry, robot.collision_links, contacts.<name>.point: geometry): the
+text it loads them from, and the refusals, said before the run starts in the configuration's words."""
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
-from bracing_core.contacts import Plane, Sphere
+from bracing_core.contacts import Contact, Plane, Sphere, Surface
 from bracing_core.meshes import resolved_description
 from bracing_core.params import ConfigError
 
 if TYPE_CHECKING:  # the configuration's types only
-    from bracing_core.config import SharedConfig
+    from bracing_core.config import ContactConfig, SharedConfig
+
+
+def kept_out_contacts(
+    config: SharedConfig,
+    surfaces: Sequence[ContactConfig],
+    surface_key: Callable[[Surface], tuple[Any, ...]],
+    enforced: bool,
+) -> list[Contact]:
+    """Each collision frame, and each collision link (its shapes' point nearest the surface), against each distinct
+    surface (``surfaces``: the first contact on each): unilateral, named <frame>@<contact> (<link>@<contact>), with
+    that contact's friction; none where a configured contact already holds that frame on that surface."""
+    taken = {(contact.frame, surface_key(contact.surface)) for contact in config.contacts}
+    kept_out = [(frame, "frame") for frame in config.collision_frames]
+    kept_out += [(link, "geometry") for link in config.collision_links]
+    out = []
+    for frame, point in kept_out:
+        for owner in surfaces:
+            if (frame, surface_key(owner.surface)) not in taken:
+                name = f"{frame}@{owner.name}"
+                out.append(
+                    Contact(name, frame, owner.surface, owner.friction, True, enforced, owner.friction_model, point)
+                )
+    return out
 
 
 def check_measurable(config: SharedConfig) -> None:

@@ -18,7 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from bracing_core import schema
-from bracing_core.collision_shapes import check_measurable, collision_description, shape_error
+from bracing_core.collision_shapes import check_measurable, collision_description, kept_out_contacts, shape_error
 from bracing_core.contacts import Contact, ContactSet, Cylinder, Plane, Sphere, Surface
 from bracing_core.dynamics import ConstrainedDynamics, InputMode, thermal_applies
 from bracing_core.meshes import resolved_description
@@ -327,7 +327,8 @@ class Plant:
         self._check_transmissions()
         self.mode = config.input_mode
         enforced = not config.free_space
-        contacts = [c.contact(enforced) for c in config.contacts] + self._collision_contacts(enforced)
+        kept_out = kept_out_contacts(config, self.distinct_surfaces(), surface_key, enforced)
+        contacts = [c.contact(enforced) for c in config.contacts] + kept_out
         try:
             self.contact_set = ContactSet(self.robot, contacts, slip_epsilon)
         except ValueError as exc:
@@ -353,22 +354,6 @@ class Plant:
         for contact in self.config.contacts:
             owners.setdefault(surface_key(contact.surface), contact)
         return list(owners.values())
-
-    def _collision_contacts(self, enforced: bool) -> list[Contact]:
-        """Each collision frame, and each collision link (its shapes' point nearest the surface), against each
-        distinct surface: unilateral, named <frame>@<contact> (<link>@<contact>)."""
-        taken = {(contact.frame, surface_key(contact.surface)) for contact in self.config.contacts}
-        kept_out = [(frame, "frame") for frame in self.config.collision_frames]
-        kept_out += [(link, "geometry") for link in self.config.collision_links]
-        out = []
-        for frame, point in kept_out:
-            for owner in self.distinct_surfaces():
-                if (frame, surface_key(owner.surface)) not in taken:
-                    name = f"{frame}@{owner.name}"
-                    out.append(
-                        Contact(name, frame, owner.surface, owner.friction, True, enforced, owner.friction_model, point)
-                    )
-        return out
 
     def frame_id(self, name: str, parameter: str) -> int:
         """The model frame ``name``; a ConfigError naming ``parameter`` if there is none."""
