@@ -49,44 +49,52 @@ class LinkPenetration:
     """What a run says of its links against the surfaces (module docstring), fed each state's q."""
 
     def __init__(self, plant: Plant, dynamics: engine.Dynamics) -> None:
-        config = plant.config
-        self.tolerance = config.penetration_tolerance
+        self.tolerance = plant.config.penetration_tolerance
         owners = plant.distinct_surfaces()
         self.contacts = [owner.name for owner in owners]
         self.surfaces = [engine_surface(owner.surface) for owner in owners]
         self.engine = dynamics
-        self.deepest: dict[str, float] = {}  # [m] per link with shapes: the deepest it went (0: never inside)
-        self._warned: set[str] = set()
+        q0 = np.zeros(dynamics.nv)
+        self.links: list[str] = list(dynamics.measure_links(q0, self.surfaces).links)  # the moving links with shapes
+        # per link (plain lists: a handful of links, measured at every state, costs less without numpy)
+        self._deepest = [0.0] * len(self.links)  # [m] the deepest it went (0: never inside)
+        self._warned = [False] * len(self.links)
+
+    @property
+    def deepest(self) -> dict[str, float]:
+        """{link: the deepest it went inside any surface so far [m] (0: never inside)}, per moving link with shapes."""
+        return dict(zip(self.links, self._deepest, strict=True))
 
     def measure(self, q: Vector, t: float) -> tuple[list[LinkDepth], list[str]]:
         """The deepest link per surface at posture ``q`` (sim time ``t`` [s]), and the warnings it gives (a link
         deeper than the tolerance, once per link)."""
-        measured = self.engine.measure_links(np.asarray(q, dtype=float), self.surfaces)
-        links = list(measured.links)
-        count = len(links)
-        distance = np.asarray(measured.distance).reshape(len(self.surfaces), count)
-        for k, link in enumerate(links):
-            self.deepest[link] = max(self.deepest.get(link, 0.0), -float(np.min(distance[:, k], initial=0.0)))
+        count = len(self.links)
+        if not count:
+            return [], []
+        measured = self.engine.measure_links(q, self.surfaces)
+        distance = measured.distance.tolist()  # row s * count + k: surface s, link k
         reports, warnings = [], []
         for s, contact in enumerate(self.contacts):
-            if not count:
-                break
-            k = int(np.argmin(distance[s]))
-            row = s * count + k
-            residual = float(distance[s, k])
+            own = distance[s * count : (s + 1) * count]
+            k = own.index(min(own))  # the link deepest into this surface (or nearest it)
+            row, link = s * count + k, self.links[k]
+            residual = own[k]
             reports.append(
                 LinkDepth(
-                    f"{links[k]}@{contact}",
-                    links[k],
-                    np.array(measured.points[row]),
-                    np.array(measured.normals[row]),
+                    f"{link}@{contact}",
+                    link,
+                    measured.points[row],
+                    measured.normals[row],
                     residual,
                     -residual > self.tolerance,
                 )
             )
-            for j, link in enumerate(links):
-                depth = -float(distance[s, j])
-                if depth > self.tolerance and link not in self._warned:
-                    self._warned.add(link)
-                    warnings.append(penetration_warning(link, contact, depth, t, self.tolerance))
+        for k in range(count):
+            depth = -min(distance[k::count])
+            if depth > self._deepest[k]:
+                self._deepest[k] = depth
+            if depth > self.tolerance and not self._warned[k]:
+                self._warned[k] = True
+                s = distance[k::count].index(-depth)
+                warnings.append(penetration_warning(self.links[k], self.contacts[s], depth, t, self.tolerance))
         return reports, warnings

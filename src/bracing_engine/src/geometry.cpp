@@ -1,9 +1,10 @@
-// The links' collision shapes against the contact surfaces, by coal's shape-vs-halfspace and shape-vs-sphere
-// distances (closed form or GJK on the shape's support function: a mesh by its convex hull).
+// The links' collision shapes against the contact surfaces, by coal: against a plane its halfspace distance's own
+// support point along -n (closed form for a primitive, a mesh by its convex hull), against a sphere its distance.
 #include "geometry.hpp"
 
 #include <coal/BVH/BVH_model.h>
 #include <coal/distance.h>
+#include <coal/narrowphase/support_functions.h>
 #include <coal/shape/geometric_shapes.h>
 
 #include <pinocchio/algorithm/model.hpp>
@@ -38,7 +39,13 @@ namespace {
 // What coal measures a shape by: a mesh by its convex hull (qhull), any other shape itself.
 std::shared_ptr<coal::CollisionGeometry> measured_shape(const pin::GeometryObject& object) {
   auto* mesh = dynamic_cast<coal::BVHModelBase*>(object.geometry.get());
-  if (!mesh) return object.geometry;
+  if (!mesh) {
+    if (!dynamic_cast<const coal::ShapeBase*>(object.geometry.get()))
+      throw std::invalid_argument("robot.collision_geometry: " + object.name +
+                                  " is a shape coal cannot measure against a surface (a box, cylinder, sphere, "
+                                  "capsule or mesh can be)");
+    return object.geometry;
+  }
   if (mesh->num_vertices < 4)
     throw std::invalid_argument("robot.collision_geometry: the mesh " + object.meshPath + " of " + object.name +
                                 " has fewer than 4 vertices");
@@ -53,9 +60,8 @@ std::shared_ptr<coal::CollisionGeometry> measured_shape(const pin::GeometryObjec
   return mesh->convex;
 }
 
-// coal's solid for a surface: the robot's free side is C >= 0, coal's solid the other side.
+// coal's solid for a sphere surface (the robot stays outside it).
 std::shared_ptr<coal::CollisionGeometry> surface_solid(const Surface& surface) {
-  if (surface.kind == SurfaceKind::plane) return std::make_shared<coal::Halfspace>(surface.normal, surface.offset);
   return std::make_shared<coal::Sphere>(surface.radius);
 }
 
@@ -128,24 +134,35 @@ void LinkShapes::check_surface(const Surface& surface, const std::string& what) 
 
 Witness LinkShapes::nearest(const pin::Data& data, const std::vector<int>& shapes, const Surface& surface) const {
   const Impl& m = *impl_;
-  const auto solid = surface_solid(surface);
-  const coal::Transform3s at_surface(Matrix3::Identity(), surface.kind == SurfaceKind::plane ? Vector3::Zero()
-                                                                                               : surface.center);
-  coal::DistanceRequest request;
-  request.enable_signed_distance = true;
   Witness best;
   best.distance = std::numeric_limits<double>::infinity();
+  std::shared_ptr<coal::CollisionGeometry> solid;  // a sphere's: coal's distance (GJK)
+  coal::DistanceRequest request;
+  request.enable_signed_distance = true;
   for (int k : shapes) {
     const auto& object = m.geometry.geometryObjects[k];
     const pin::SE3 placement = data.oMi[object.parentJoint] * object.placement;
-    coal::DistanceResult result;
-    coal::distance(m.measured[k].get(), pin::toCoalTransform3s(placement), solid.get(), at_surface, request, result);
-    // C at coal's witness on the shape: the surface's own signed distance, the same number the contact rows use
+    Vector3 point;
+    if (surface.kind == SurfaceKind::plane) {
+      // coal's halfspace distance itself: the shape's support point along -n (closed form for a primitive,
+      // hill climbing on a convex hull's vertices, from vertex 0 every time: a function of the posture alone)
+      int hint = 0;
+      const Vector3 along = -(placement.rotation().transpose() * surface.normal);
+      const auto* shape = static_cast<const coal::ShapeBase*>(m.measured[k].get());
+      point = placement.act(Vector3(coal::details::getSupport<coal::details::WithSweptSphere>(shape, along, hint)));
+    } else {
+      if (!solid) solid = surface_solid(surface);
+      coal::DistanceResult result;
+      coal::distance(m.measured[k].get(), pin::toCoalTransform3s(placement), solid.get(),
+                     coal::Transform3s(Matrix3::Identity(), surface.center), request, result);
+      point = result.nearest_points[0];
+    }
+    // C at the witness: the surface's own signed distance, the same number the contact rows use
     double c;
     Vector3 n;
     Matrix3 hessian;
-    surface.evaluate(result.nearest_points[0], c, n, hessian);
-    if (c < best.distance) best = {c, result.nearest_points[0], n, k};
+    surface.evaluate(point, c, n, hessian);
+    if (c < best.distance) best = {c, point, n, k};
   }
   return best;
 }
