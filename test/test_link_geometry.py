@@ -16,6 +16,7 @@ from conftest import CONFIG_DIR, PAPER_YAML
 from ros_helpers import pair_argv, run
 from rosbags.highlevel import AnyReader
 
+from bracing_analysis.surfaces import shape_from_values
 from bracing_core.collision_shapes import collision_description
 from bracing_core.link_penetration import LinkPenetration
 from bracing_core.params import ConfigError
@@ -327,9 +328,12 @@ def test_the_pair_publishes_and_records_the_deepest_link_and_summarises_it(tmp_p
     assert done.returncode == 0, done.stdout + done.stderr
     summary = json.loads((output / "summary.json").read_text())
     deepest = summary["link_penetration_max_m"]
-    # the shoulder and upper arm are inside the infinite table plane (the arm's base is 0.19 m below it): the
-    # topic carries the deepest link per surface, so the wrist, never the deepest, is not in the summary
-    assert set(deepest) <= {"shoulder_link", "upper_arm_link"} and max(deepest.values()) > 0.15
+    # every moving link with shapes (the base is fixed to the world), measured again from the bag by the engine
+    moving = ["shoulder_link", "upper_arm_link", "forearm_link", "wrist_1_link", "wrist_2_link", "wrist_3_link"]
+    assert sorted(deepest) == sorted([*moving, "ee_link"])
+    assert deepest["wrist_1_link"] == pytest.approx(0.0572, abs=5e-4)
+    # the shoulder and upper arm are inside the infinite table plane (the arm's base is 0.235 m below it)
+    assert deepest["shoulder_link"] > 0.15 and deepest["wrist_2_link"] == 0.0
     assert any(re.match(r"link 'wrist_1_link' is 0\.057\d* m inside", w) for w in summary["warnings"])
     with AnyReader([output / "bag"]) as reader:
         topics = {c.topic: c for c in reader.connections}
@@ -340,3 +344,11 @@ def test_the_pair_publishes_and_records_the_deepest_link_and_summarises_it(tmp_p
     (state,) = message.contacts
     assert state.name == f"{state.frame}@wrist" and state.active
     assert state.residual == pytest.approx(-deepest[state.frame], abs=1e-3)
+
+
+def test_the_recorder_reads_a_plane_contact_at_its_links_shapes() -> None:
+    """contacts.<name>.point: geometry is a word where a cylinder has its axis point: the bag's surfaces (the
+    recorder's metadata, the markers, the animation) still read the plane (it left them all out: no surfaces)."""
+    values = {"surface": "plane", "normal": [0.0, 0.0, 1.0], "offset": 0.19, "point": "geometry"}
+    shape = shape_from_values(values)
+    assert shape.kind == "plane" and shape.offset == 0.19 and shape.point == (0.0, 0.0, 0.0)

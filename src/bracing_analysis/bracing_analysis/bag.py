@@ -23,6 +23,7 @@ from rosbags.highlevel import AnyReader
 
 from bracing_analysis.bag_events import custom_data, read_events, stamp_ns
 from bracing_analysis.columns import Layout, column, decode
+from bracing_analysis.link_depths import every_link_deepest
 from bracing_analysis.series import BagSeries, ContactSeries, FloatArray
 from bracing_analysis.truth import (
     HAND,
@@ -298,7 +299,21 @@ def _read_streams(path: Path) -> BagSeries:
         raise BagReadError(msg) from exc
     series = _series(messages, texts, counts)
     events.apply(series, path)
+    _every_link(series)
     return series
+
+
+def _every_link(series: BagSeries) -> None:
+    """A run with link_penetration: every moving link's deepest (``link_depths``) where the bag has what it takes
+    (the URDF, the postures, the surfaces) and this machine the meshes; else the topic's (its deepest links)."""
+    if series.link_penetration_max is None or not series.robot_description or not series.surfaces:
+        return
+    try:
+        every = every_link_deepest(series.robot_description, series.joint_names, series.joint_position, series.surfaces)
+    except ValueError:
+        return
+    topic = series.link_penetration_max
+    series.link_penetration_max = {link: max(depth, topic.get(link, 0.0)) for link, depth in every.items()}
 
 
 def _series(messages: dict[_Kind, _Messages], texts: list[Layout], counts: dict[str, int]) -> BagSeries:
