@@ -20,7 +20,7 @@ from bracing_analysis.surfaces import shape_from_values
 from bracing_core.collision_shapes import collision_description
 from bracing_core.link_penetration import LinkPenetration
 from bracing_core.params import ConfigError
-from bracing_core.rollout import Scenario, build_scenario
+from bracing_core.rollout import Scenario, build_scenario, run_recorded
 
 UR5 = CONFIG_DIR / "ur5_table.yaml"
 F_ND = 10.0  # [N] the paper's desired normal force
@@ -352,3 +352,11 @@ def test_the_recorder_reads_a_plane_contact_at_its_links_shapes() -> None:
     values = {"surface": "plane", "normal": [0.0, 0.0, 1.0], "offset": 0.19, "point": "geometry"}
     shape = shape_from_values(values)
     assert shape.kind == "plane" and shape.offset == 0.19 and shape.point == (0.0, 0.0, 0.0)
+
+
+def test_an_in_process_run_warns_as_the_simulator_node_does() -> None:
+    """rollout.run_recorded (sweeps, studies, the optimiser) says the links' warnings too."""
+    rec = run_recorded(build_scenario(UR5, shared={"robot.collision_geometry": True}), 0.01)
+    assert any(re.match(r"link 'wrist_1_link' is 0\.057\d* m inside", w) for w in rec.warnings)
+    plain = run_recorded(build_scenario(UR5), 0.01)
+    assert not [w for w in plain.warnings if "inside the surface" in w]
