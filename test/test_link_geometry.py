@@ -194,7 +194,7 @@ def geometry_brace(tmp_path: Path, duration_steps: int) -> tuple[list[float], li
     sc = build_scenario(
         PAPER_YAML,
         shared={"robot.urdf": str(urdf), "input_mode": "torque", "contacts.elbow.point": "geometry"},
-        sim={"project_initial_position": True, "baumgarte": 50.0},
+        sim={"project_initial_position": True},  # the paper's a = 0: no Baumgarte term
     )
     sim, ctl = sc.sim, sc.controller
     forces, residuals = [], []
@@ -208,7 +208,9 @@ def geometry_brace(tmp_path: Path, duration_steps: int) -> tuple[list[float], li
 def test_point_geometry_braces_a_cylinder_link_at_its_surface_with_f_n_equal_to_f_nd(tmp_path: Path) -> None:
     forces, residuals, sc = geometry_brace(tmp_path, 1000)
     np.testing.assert_allclose(forces, F_ND, atol=1e-6)  # torque input: (40) makes f_n = f_nd, every step
-    assert max(abs(r) for r in residuals) < 1e-3
+    # the link's surface on the floor to 1e-9 m (measured 5e-13; the issue asks for 1 mm): in the plane of the
+    # joints' motion the rim's lowest point stays the same point of the link, so gamma is exact there
+    assert max(abs(r) for r in residuals) < 1e-9
     # the contact is on link2's surface, one radius (0.03 m) off its axis, not at the elbow frame on the axis
     sim = sc.sim
     terms = sim.dynamics.terms(sim.position, sim.velocity)
