@@ -38,6 +38,7 @@ from bracing_engine._engine import (
     Surface,
     Task,
     rollout,
+    stamp_seconds,
 )
 
 if PINOCCHIO_VERSION != pinocchio.__version__:
@@ -74,4 +75,5 @@ __all__ = [
     "Surface",
     "Task",
     "rollout",
+    "stamp_seconds",
 ]
