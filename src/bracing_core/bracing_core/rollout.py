@@ -209,8 +209,10 @@ def run_recorded(
     warnings: list[str] = []
     if watch is not None:
         watch.events(sim.events[events:])
-        warnings = watch.start() + watch.states(out.time, out.active, out.normal_force, out.residual)
+        warnings = watch.start()
+        # the node says a link's warning as the state goes out, before the watch's on the states around it
         warnings += link_warnings(scenario, out.time, out.position)
+        warnings += watch.states(out.time, out.active, out.normal_force, out.residual)
         warnings += [] if error is not None else watch.finish()
     outcome = _outcome(scenario, out, error, warnings) if keep_failure else Failure("ok", None, None)
     return Recording(
