@@ -8,7 +8,8 @@ rendered from (tools/docs_reference.py; bracing_experiments.recorded: its date, 
   a Python loop) against MuJoCo stepping an equivalent MJCF (bench/mujoco_paper.py); the closed
   loop (law + engine, ``Simulator.rollout``: no return to Python between steps) on the paper model
   and on hyper_7link; the engine step alone on hyper_7link (a fixed command); ``Simulator.step``,
-  the Python face the simulator node calls (the report as Python objects);
+  the Python face the simulator node calls (the report as Python objects); the share of a step the links'
+  distance queries take on ur5_table (robot.collision_geometry, the wrist at its link's surface);
 - the ROS pair vs the DDS bound: bracing-pair in lockstep for 10 s of sim time, against the
   round trips/s of two rclpy processes ping-ponging messages of the same size over the
   nodes' own transport, times the step, measured before and after the pair (bench/dds_bound.py);
@@ -52,6 +53,7 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 PAPER = ROOT / "config" / "paper_4link.yaml"
 HYPER = ROOT / "config" / "hyper_7link.yaml"
+UR5 = ROOT / "config" / "ur5_table.yaml"
 RECORD = ROOT / "docs" / "results" / "data" / "bench.json"
 TINY_RUN_S = 0.01  # the sim time of the turnaround's `bracing-pair --duration 0.01`
 sys.path.insert(0, str(HERE))
@@ -113,6 +115,59 @@ def engine_step_us(config: Path, steps: int = 3000, segment: int = 500, python_f
         elapsed += time.perf_counter() - begin
         done += count
     return 1e6 * elapsed / steps
+
+
+def collision_share_of_step(steps: int = 2000, repeats: int = 5) -> dict[str, Any]:
+    """The share of a simulator step the links' distance queries take on the shipped real arm (ur5_table.yaml,
+    torque input, a fixed command): the wrist braced at its link's surface (point: geometry, its point found by
+    coal at every evaluation) and every link's shapes measured against the table once per state
+    (robot.collision_geometry: the engine's ``measure_links``), against the same steps braced at the frame with
+    nothing measured, alternately in one run: share = 1 - frame step / (geometry step + measurement). Also the
+    simulator's bookkeeping of the measurement per state in Python (``LinkPenetration.measure``: the deepest link
+    per surface, each link's deepest, the warnings), which is reporting, not queries."""
+    from bracing_core.link_penetration import LinkPenetration
+    from bracing_core.rollout import build_scenario
+
+    geometry = {"robot.collision_geometry": True, "contacts.wrist.point": "geometry", "contacts.wrist.offset": 0.19}
+    samples: dict[str, list[float]] = {"frame": [], "geometry": [], "bookkeeping": []}
+
+    def per_step_us(shared: dict[str, Any]) -> None:
+        scenario = build_scenario(UR5, shared={"input_mode": "torque", **shared}, with_controller=False)
+        sim = scenario.sim
+        watch = LinkPenetration(scenario.plant, sim.dynamics.engine) if shared else None
+        command = np.zeros(sim.n)
+        step, start = sim.engine.step, sim.checkpoint()
+        for _ in range(20):  # warm-up
+            step(command)
+        sim.restore(start)
+        begin = time.perf_counter()
+        if watch is None:
+            for _ in range(steps):
+                step(command)
+            samples["frame"].append(1e6 * (time.perf_counter() - begin) / steps)
+            return
+        measure, surfaces, state = sim.dynamics.engine.measure_links, watch.surfaces, sim.engine
+        for _ in range(steps):
+            step(command)
+            measure(state.state[: sim.n], surfaces)
+        samples["geometry"].append(1e6 * (time.perf_counter() - begin) / steps)
+        q = sim.position
+        begin = time.perf_counter()
+        for _ in range(steps):
+            watch.measure(q, 0.0)
+        samples["bookkeeping"].append(1e6 * (time.perf_counter() - begin) / steps)
+
+    for _ in range(repeats):  # alternating: a drift of the machine's speed hits both alike
+        per_step_us({})
+        per_step_us(geometry)
+    frame, measured = statistics.median(samples["frame"]), statistics.median(samples["geometry"])
+    return {
+        "share": 1.0 - frame / measured,
+        "frame_step_us": frame,
+        "geometry_step_us": measured,
+        "bookkeeping_us": statistics.median(samples["bookkeeping"]),
+        "samples_us": samples,
+    }
 
 
 def rollout_steps_per_s(config: Path, duration: float = 10.0) -> float:
@@ -516,6 +571,8 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
     rollout = statistics.median(rollout_samples)
     rollout_hyper = statistics.median(rollout_hyper_samples)
     hyper_step = statistics.median(hyper_step_samples)
+    print("the links' distance queries' share of a step (ur5_table, robot.collision_geometry) ...", flush=True)
+    collision = collision_share_of_step(*((200, 1) if quick else (2000, 5)))
     print("controller ...", flush=True)
     latency = controller_latency_us(300 if quick else 3000)
     # The bound is measured right before and right after the pair and averaged: this machine's
@@ -577,6 +634,8 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
         "engine_hyper_7link_step_us_samples": hyper_step_samples,
         "simulator_step_us": statistics.median(python_step_samples),  # the Python face, paper model
         "simulator_step_us_samples": python_step_samples,
+        "collision_share_of_step": collision["share"],
+        "collision_step_us": collision,
         "pair_real_time_factor": pair["stepping"],
         "pair_real_time_factor_whole_run": pair["whole_run"],
         "pair_real_time_factor_no_recorder": without_recorder,
@@ -623,6 +682,11 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
         (f"closed-loop rollout steps/s, hyper_7link ({rollout_s:g} s runs)", f"{rollout_hyper:,.0f}"),
         ("engine step alone, hyper_7link (1 V held) [us]", f"{hyper_step:.1f}"),
         ("Simulator.step (the Python face, its report as objects), paper [us]", f"{result['simulator_step_us']:.1f}"),
+        (
+            "links' distance queries' share of a step, ur5_table (target <= 0.20)",
+            f"{collision['share']:.1%} ({collision['frame_step_us']:.1f} -> {collision['geometry_step_us']:.1f} us; "
+            f"+{collision['bookkeeping_us']:.1f} us reporting)",
+        ),
         ("pair real-time factor (lockstep stepping)", f"{pair['stepping']:.2f}"),
         ("pair real-time factor (whole run, with start-up)", f"{pair['whole_run']:.2f}"),
         ("the two nodes without the recorder: real-time factor", f"{without_recorder:.2f}"),

@@ -50,6 +50,7 @@ SPEC_KEYS = (
     "pair_real_time_factor_no_recorder",
     "optimize_trials_per_min",
     "pair_step_breakdown_us",
+    "collision_share_of_step",
 )
 # What the bench's table and the docs' Performance page (docs/results/performance.md) report besides.
 REPORTED_KEYS = (

@@ -23,6 +23,7 @@ from rosbags.highlevel import AnyReader
 
 from bracing_analysis.bag_events import custom_data, read_events, stamp_ns
 from bracing_analysis.columns import Layout, column, decode
+from bracing_analysis.link_depths import every_link_deepest
 from bracing_analysis.series import BagSeries, ContactSeries, FloatArray, LinkPenetrationSeries
 from bracing_analysis.truth import (
     HAND,
@@ -146,10 +147,9 @@ def wanted_connections(reader: AnyReader, counts: dict[str, int]) -> list[Any]:
 
 
 def _kind(conn: Any) -> tuple[str, str]:
-    """What the messages are grouped by: the type, and the contact of a wrench topic (``link_penetration``
-    for that Contacts topic, apart from ``contacts``)."""
+    """What the messages are grouped by: the type, and the contact of a wrench topic (link_penetration apart)."""
     if conn.msgtype == CONTACTS and conn.topic.endswith("/" + LINK_PENETRATION_TOPIC):
-        return (CONTACTS, LINK_PENETRATION_TOPIC)
+        return (CONTACTS, LINK_PENETRATION_TOPIC)  # the links against the surfaces: not the contacts
     return (conn.msgtype, conn.topic.rsplit(WRENCH_TOPIC, 1)[1] if conn.msgtype == WRENCH_STAMPED else "")
 
 
@@ -304,7 +304,21 @@ def _read_streams(path: Path) -> BagSeries:
         raise BagReadError(msg) from exc
     series = _series(messages, texts, counts)
     events.apply(series, path)
+    _every_link(series)
     return series
+
+
+def _every_link(series: BagSeries) -> None:
+    """A run with link_penetration: every moving link's deepest (``link_depths``) where the bag has what it takes
+    (the URDF, the postures, the surfaces) and this machine the meshes; else the topic's (its deepest links)."""
+    if series.link_penetration_max is None or not series.robot_description or not series.surfaces:
+        return
+    try:
+        every = every_link_deepest(series.robot_description, series.joint_names, series.joint_position, series.surfaces)
+    except ValueError:
+        return
+    topic = series.link_penetration_max
+    series.link_penetration_max = {link: max(depth, topic.get(link, 0.0)) for link, depth in every.items()}
 
 
 def _series(messages: dict[_Kind, _Messages], texts: list[Layout], counts: dict[str, int]) -> BagSeries:
@@ -341,6 +355,9 @@ def _series(messages: dict[_Kind, _Messages], texts: list[Layout], counts: dict[
     turn = messages.get((VECTOR3_STAMPED, ""))
     if turn is not None and turn.count:
         series.hand_orientation_error = _per_state_row(turn, ctrl, "vector")
+    links = messages.get((CONTACTS, LINK_PENETRATION_TOPIC))
+    if links is not None:
+        series.link_penetration_max = _link_depths(links)
     sim_rows = _per_contact(sim, "contacts", "contacts[{j}].name")
     ctrl_rows = _per_contact(ctrl, "contact_name", "contact_name[{j}]")
     for name in list(sim_rows) + [n for n in ctrl_rows if n not in sim_rows]:
@@ -364,6 +381,17 @@ def _link_penetration(rows: _Rows, sec: _Seconds) -> LinkPenetrationSeries:
         normal=rows.xyz("contacts[{j}].normal"),
         distance=rows.take("contacts[{j}].residual").astype(float),
     )
+
+
+def _link_depths(links: _Messages) -> dict[str, float]:
+    """Per link named on link_penetration (``<link>@<contact>``): the deepest it was inside a surface [m] (0: never
+    inside) when it was the link deepest into (or nearest) that surface."""
+    out: dict[str, float] = {}
+    for name, rows in _per_contact(links, "contacts", "contacts[{j}].name").items():
+        link = name.rsplit("@", 1)[0]
+        depth = max(0.0, -float(np.nanmin(rows.take("contacts[{j}].residual").astype(float), initial=np.inf)))
+        out[link] = max(out.get(link, 0.0), depth)
+    return out
 
 
 def _per_state_row(messages: _Messages, ctrl: _Messages, path: str) -> FloatArray:

@@ -146,6 +146,9 @@ class BagSeries:
     command_limit: dict[str, float] = field(default_factory=dict)
     # a differential drive's rolling residual max |A v| per state [m/s] (bracing_core.base); empty: not recorded
     base_rolling_residual: FloatArray = field(default_factory=_empty)
+    # robot.collision_geometry: per link the deepest it was inside a contact's surface [m], from link_penetration
+    # (the link deepest into each surface at each state); None: not measured (no such topic)
+    link_penetration_max: dict[str, float] | None = None
 
 
 def touched_kept_out(series: BagSeries) -> list[ContactSeries]:

@@ -58,6 +58,7 @@ SUMMARY_EXTRA_KEYS = (
     "kept_out",
     "base_travel_m",
     "base_rolling_residual_max_m_s",
+    "link_penetration_max_m",
 )
 """summary.json's keys after SUMMARY_KEYS (added later: tools that read SUMMARY_KEYS by position keep working)."""
 
@@ -227,6 +228,8 @@ def compute_summary(
     # Over braced and kept-out contacts alike: how far any frame went into any surface.
     penetrations = [m["penetration_m"] for m in measured.values() if m["penetration_m"] is not None]
     out["max_penetration_m"] = max(penetrations) if penetrations else None
+    # robot.collision_geometry's link_penetration topic; None without it
+    out["link_penetration_max_m"] = series.link_penetration_max
     out["input_mode"] = series.input_mode
     out["bracing"] = bool(braced) if series.t.size else None
     out["targets_refused"] = targets_refused(series)

@@ -68,7 +68,9 @@ def shape_from_values(values: Mapping[str, Any]) -> Shape:
         normal=_unit(values.get("normal"), (0.0, 0.0, 1.0)),
         offset=float(values.get("offset") or 0.0),
         center=_xyz(values.get("center")),
-        point=_xyz(values.get("point")),
+        point=_xyz(
+            None if isinstance(values.get("point"), str) else values.get("point")
+        ),  # a word: a plane's or sphere's
         axis=_unit(values.get("axis"), (0.0, 0.0, 1.0)),
         radius=float(values.get("radius") or 0.0),
         inside=bool(values.get("inside")),

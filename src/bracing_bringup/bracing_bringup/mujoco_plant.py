@@ -122,7 +122,7 @@ def _compile(spec: mujoco.MjSpec, collision_geometry: bool) -> mujoco.MjModel:
 
 def geometry_contacts(config: SimulatorConfig) -> list[str]:
     """The contacts placed on their frame's link's shapes (``contacts.<name>.point: geometry``)."""
-    return [c.name for c in config.shared.contacts if getattr(c, "point", "frame") == "geometry"]
+    return [c.name for c in config.shared.contacts if c.point == "geometry"]
 
 
 def _moving_body(body: Any) -> str:

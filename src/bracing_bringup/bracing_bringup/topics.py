@@ -57,9 +57,9 @@ def target_verdict_topics(contacts: Sequence[str]) -> list[tuple[str, str]]:
 
 OPTIONAL_STATE_TOPICS = [(ORIENTATION_ERROR_TOPIC, VECTOR3_STAMPED), (LINK_PENETRATION_TOPIC, CONTACTS)]
 """(relative topic, ROS 2 type name) of what the nodes publish once per state only in some configurations
-(the controller's hand_orientation_error: with an orientation task; the simulator's link_penetration: with
-robot.collision_geometry): recorded from the first message, at its
-header stamp, one by one or in record_batch; a run without it has no such topic (no count expected)."""
+(hand_orientation_error: the controller, with an orientation task; link_penetration: the simulator, with
+robot.collision_geometry): recorded from the first message, at its header stamp, one by one or in
+record_batch; a run without it has no such topic (no count expected)."""
 
 RECORDER_NODE = "bracing_recorder"
 

@@ -27,7 +27,7 @@ from bracing_core.base import (
     wheel_problem,
     wheels_of,
 )
-from bracing_core.contact_roles import kept_out_name
+from bracing_core.collision_shapes import check_measurable, collision_description, kept_out_contacts, shape_error
 from bracing_core.contacts import Contact, ContactSet, Cylinder, Plane, Sphere, Surface
 from bracing_core.dynamics import ConstrainedDynamics, InputMode, thermal_applies
 from bracing_core.meshes import resolved_description
@@ -91,6 +91,11 @@ def surface_from_values(key: str, values: Mapping[str, Any]) -> Surface:
     if kind == "sphere":
         return Sphere(np.array(values["center"]), values["radius"], values["inside"])
     if kind == "cylinder":
+        if isinstance(values["point"], str):
+            raise ConfigError(
+                f"{key}point: a cylinder surface's point is a point on its axis (3 numbers); point: "
+                f"{values['point']} is for a plane or a sphere (coal measures no link shape against a cylinder surface)"
+            )
         return Cylinder(np.array(values["point"]), np.array(values["axis"]), values["radius"], values["inside"])
     return Plane(np.array(values["normal"]), values["offset"])
 
@@ -124,6 +129,7 @@ class ContactConfig:
     feedback_ki: float = 0.0  # force_feedback.ki [1/s]
     feedback_topic: str = ""  # force_feedback.topic: a WrenchStamped in world axes; empty = contact_wrench/<name>
     ki: tuple[float, ...] = ()  # one per brace axis; empty: no integral action
+    point: str = "frame"  # frame: the frame's origin; geometry: its link's shapes' point nearest the surface
 
     @property
     def braced(self) -> bool:
@@ -170,12 +176,15 @@ class ContactConfig:
             feedback_ki=feedback[1] if desired is not None else 0.0,
             feedback_topic=values["force_feedback.topic"] or f"contact_wrench/{name}",
             ki=tuple(values["ki"] or ()) if desired is not None else (),
+            point=values["point"] if isinstance(values["point"], str) else "frame",
         )
 
     def contact(self, enforced: bool = True) -> Contact:
         """The core's contact; not ``enforced``: only watched (free space)."""
         unilateral = self.unilateral or not enforced
-        return Contact(self.name, self.frame, self.surface, self.friction, unilateral, enforced, self.friction_model)
+        return Contact(
+            self.name, self.frame, self.surface, self.friction, unilateral, enforced, self.friction_model, self.point
+        )
 
 
 @dataclass(frozen=True)
@@ -195,11 +204,19 @@ class SharedConfig:
     free_space: bool = False  # the surfaces only watched
     package_paths: tuple[str, ...] = ()  # robot.package_paths: where package://NAME/... meshes are looked up
     torque_limit_from_urdf: bool = False  # motors.torque_limit_from_urdf: each joint's URDF <limit effort>
-    collision_geometry: bool = False  # robot.collision_geometry: the links' URDF <collision> shapes are measured
-    penetration_tolerance: float = 0.005  # robot.penetration_tolerance [m]: deeper links are warned of
-    collision_links: tuple[str, ...] = ()  # robot.collision_links: links kept on the free side of every surface
+    collision_links: tuple[str, ...] = ()  # robot.collision_links: links whose shapes are kept out of the surfaces
+    collision_geometry: bool = False  # robot.collision_geometry: every link's shapes measured at each state
+    penetration_tolerance: float = 0.005  # [m] robot.penetration_tolerance: deeper links are warned about
     base: str = "fixed"  # robot.base: fixed | planar | diff_drive
     wheels: Wheels | None = None  # robot.base: diff_drive's wheels
+
+    @property
+    def uses_shapes(self) -> bool:
+        """Whether the engine loads the URDF's collision shapes (a measurement, a kept-out link or a contact at
+        its link's shapes asks for them)."""
+        return (
+            self.collision_geometry or bool(self.collision_links) or any(c.point == "geometry" for c in self.contacts)
+        )
 
     @property
     def braced_contacts(self) -> tuple[ContactConfig, ...]:
@@ -244,9 +261,9 @@ class SharedConfig:
             values["free_space"],
             package_paths=tuple(values["robot.package_paths"]),
             torque_limit_from_urdf=values["motors.torque_limit_from_urdf"],
+            collision_links=tuple(values["robot.collision_links"]),
             collision_geometry=values["robot.collision_geometry"],
             penetration_tolerance=values["robot.penetration_tolerance"],
-            collision_links=tuple(values["robot.collision_links"]),
             base=values["robot.base"],
             wheels=_wheels(values),
         )
@@ -337,7 +354,12 @@ class Plant:
             self.frame_id(contact.frame, f"contacts.{contact.name}.frame")
         for frame in config.collision_frames:
             self.frame_id(frame, "robot.collision_frames")
+        for link in config.collision_links:
+            self.frame_id(link, "robot.collision_links")
         self.config = config
+        if config.uses_shapes:
+            check_measurable(config)
+            self.robot.collision_description = collision_description(config)
         self.joint_names = self.robot.joint_names  # model order: the order of every message
         self.motors = (passive_padded(config.motors) if self.passive else config.motors).selected(self.order)
         if config.torque_limit_from_urdf:
@@ -345,7 +367,8 @@ class Plant:
         self._check_transmissions()
         self.mode = config.input_mode
         enforced = not config.free_space
-        contacts = [c.contact(enforced) for c in config.contacts] + self._collision_contacts(enforced)
+        kept_out = kept_out_contacts(config, self.distinct_surfaces(), surface_key, enforced)
+        contacts = [c.contact(enforced) for c in config.contacts] + kept_out
         try:
             self.contact_set = ContactSet(self.robot, contacts, slip_epsilon)
         except ValueError as exc:
@@ -367,24 +390,12 @@ class Plant:
             if not prismatic and radius > 0.0:
                 raise ConfigError(f"motors.transmission_radius: joint {name!r} is revolute: its radius must be 0")
 
-    def _collision_contacts(self, enforced: bool) -> list[Contact]:
-        """Each collision frame against each distinct surface: unilateral, named <frame>@<contact> (role
-        kept_out, ``contact_roles``)."""
-        surfaces: dict[tuple[Any, ...], ContactConfig] = {}
-        taken = set()
+    def distinct_surfaces(self) -> list[ContactConfig]:
+        """The first contact on each distinct surface (two contacts on one floor: one floor)."""
+        owners: dict[tuple[Any, ...], ContactConfig] = {}
         for contact in self.config.contacts:
-            key = surface_key(contact.surface)
-            surfaces.setdefault(key, contact)
-            taken.add((contact.frame, key))
-        out = []
-        for frame in self.config.collision_frames:
-            for key, owner in surfaces.items():
-                if (frame, key) not in taken:
-                    name = kept_out_name(frame, owner.name)
-                    out.append(
-                        Contact(name, frame, owner.surface, owner.friction, True, enforced, owner.friction_model)
-                    )
-        return out
+            owners.setdefault(surface_key(contact.surface), contact)
+        return list(owners.values())
 
     def frame_id(self, name: str, parameter: str) -> int:
         """The model frame ``name``; a ConfigError naming ``parameter`` if there is none."""
@@ -421,7 +432,14 @@ class Plant:
         return np.asarray(values, dtype=float)[self.order]
 
     def dynamics(self, baumgarte: float = 0.0) -> ConstrainedDynamics:
-        return ConstrainedDynamics(self.robot, self.motors, self.contact_set, self.mode, baumgarte)
+        """The model of the contact set; a ConfigError for the engine's refusal of the links' shapes (a mesh it
+        cannot read, a contact at its link's shapes whose link has none)."""
+        try:
+            return ConstrainedDynamics(self.robot, self.motors, self.contact_set, self.mode, baumgarte)
+        except ValueError as exc:
+            if not self.config.uses_shapes:
+                raise
+            raise ConfigError(shape_error(self.config, str(exc))) from None
 
 
 @dataclass(frozen=True)

@@ -85,6 +85,7 @@ class Cylinder:
 
 Surface = Plane | Sphere | Cylinder
 FRICTION_MODELS = ("coulomb", "regularized")
+CONTACT_POINTS = ("frame", "geometry")
 
 
 @dataclass(frozen=True)
@@ -106,8 +107,15 @@ class Contact:
     # coulomb: stick held as a constraint inside the cone |f_t| <= mu |f_n|, slide with |f_t| = mu |f_n|
     # against the slip; regularized: the paper's f_t = mu f_n s / sqrt(|s|^2 + eps^2)
     friction_model: str = "coulomb"
+    # frame: the frame's origin; geometry: the point of the frame's link's collision shapes nearest the surface
+    # (the engine finds it at every evaluation)
+    point: str = "frame"
 
     def __post_init__(self) -> None:
+        if self.point not in CONTACT_POINTS:
+            raise ValueError(
+                f"contacts.{self.name}.point: expected one of {', '.join(CONTACT_POINTS)}, got {self.point!r}"
+            )
         if self.friction_model not in FRICTION_MODELS:
             raise ValueError(
                 f"contacts.{self.name}.friction_model: expected one of {', '.join(FRICTION_MODELS)}, "

@@ -24,7 +24,7 @@ from enum import Enum
 import numpy as np
 
 import bracing_engine as engine
-from bracing_core.contacts import Contact, ContactSet, ContactTerms, Cylinder, Plane, Sphere
+from bracing_core.contacts import Contact, ContactSet, ContactTerms, Cylinder, Plane, Sphere, Surface
 from bracing_core.model import RobotModel
 from bracing_core.motors import MotorParams
 from bracing_core.types import Vector
@@ -81,7 +81,8 @@ def engine_robot(robot: RobotModel) -> engine.Robot:
         list(robot.locked_positions),
         robot.mass_scale,
         robot.urdf_xml,
-        *((robot.wheels.left[0], robot.wheels.right[0], robot.wheels.radius) if robot.wheels else ()),
+        *((robot.wheels.left[0], robot.wheels.right[0], robot.wheels.radius) if robot.wheels else ("", "", 0.0)),
+        robot.collision_description,
     )
 
 
@@ -111,25 +112,28 @@ def engine_drive(robot: RobotModel, motors: MotorParams, mode: InputMode) -> eng
     )
 
 
+def engine_surface(surface: Surface) -> engine.Surface:
+    """A surface as the engine takes it."""
+    if isinstance(surface, Plane):
+        return engine.Surface.plane(surface.normal, surface.offset)
+    if isinstance(surface, Sphere):
+        return engine.Surface.sphere(surface.center, surface.radius, surface.inside)
+    if isinstance(surface, Cylinder):
+        return engine.Surface.cylinder(surface.point, surface.axis, surface.radius, surface.inside)
+    raise TypeError(f"unknown surface {surface!r}")  # pragma: no cover - Surface is a closed union
+
+
 def engine_contact(contact: Contact) -> engine.Contact:
     """A contact as the engine takes it."""
-    surface = contact.surface
-    if isinstance(surface, Plane):
-        shape = engine.Surface.plane(surface.normal, surface.offset)
-    elif isinstance(surface, Sphere):
-        shape = engine.Surface.sphere(surface.center, surface.radius, surface.inside)
-    elif isinstance(surface, Cylinder):
-        shape = engine.Surface.cylinder(surface.point, surface.axis, surface.radius, surface.inside)
-    else:  # pragma: no cover - Surface is a closed union
-        raise TypeError(f"unknown surface {surface!r}")
     return engine.Contact(
         contact.name,
         contact.frame,
-        shape,
+        engine_surface(contact.surface),
         contact.friction,
         contact.unilateral,
         contact.enforced,
         contact.friction_model == "coulomb",
+        contact.point == "geometry",
     )
 
 

@@ -89,6 +89,8 @@ class RobotModel:
         self.locked_joints = tuple(locked_joints)
         self.locked_positions = tuple(float(v) for v in locked_positions) or (0.0,) * len(self.locked_joints)
         self.mass_scale = 1.0  # every moving link's mass and inertia times this (from_urdf's mass_scale)
+        # The URDF text whose <collision> shapes the engine measures (meshes as file:// paths); empty: none loaded.
+        self.collision_description = ""
         self.joint_names: tuple[str, ...] = tuple(model.names[j] for j in range(1, model.njoints))
         self.damping: Vector = np.array(model.damping, dtype=float)
         # Prismatic joints move in metres (a force drives them); the rest rotate.
@@ -210,6 +212,7 @@ class RobotModel:
             self.base,
             self.wheels,
         )
+        robot.collision_description = self.collision_description
         return robot
 
     def description(self) -> str:

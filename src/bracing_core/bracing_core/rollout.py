@@ -26,6 +26,7 @@ from bracing_core.config import Plant, SimulatorConfig, build_simulator
 from bracing_core.controller_config import ControllerConfig
 from bracing_core.failures import Failure, History, diagnose, fed_back_contacts, succeeded
 from bracing_core.law import DecoupledController
+from bracing_core.link_penetration import LinkPenetration
 from bracing_core.overrides import CONTROLLER, SIMULATOR, NodeOverrides, node_params
 from bracing_core.simulator import Energy, Simulator
 from bracing_core.watch import RunWatch
@@ -71,6 +72,15 @@ def build_scenario_from_params(
         controller = DecoupledController(ControllerConfig.from_params(ctl_params, search or []))
         controller.check_task_rank(simulator.position)  # its own law's: one model built, not two
     return Scenario(plant, simulator, controller, sim_config)
+
+
+def link_warnings(scenario: Scenario, times: np.ndarray, positions: np.ndarray) -> list[str]:
+    """robot.collision_geometry: what the simulator node warns of its links over these recorded states (a link
+    deeper than robot.penetration_tolerance inside a surface, once per link); none without it."""
+    if scenario.sim_config is None or not scenario.sim_config.shared.collision_geometry:
+        return []
+    links = LinkPenetration(scenario.plant, scenario.sim.dynamics.engine)
+    return [w for t, q in zip(times.tolist(), positions, strict=True) for w in links.measure(q, t)[1]]
 
 
 @dataclass
@@ -201,7 +211,10 @@ def run_recorded(
     warnings: list[str] = []
     if watch is not None:
         watch.events(sim.events[events:])
-        warnings = watch.start() + watch.states(out.time, out.active, out.normal_force, out.residual)
+        warnings = watch.start()
+        # the node says a link's warning as the state goes out, before the watch's on the states around it
+        warnings += link_warnings(scenario, out.time, out.position)
+        warnings += watch.states(out.time, out.active, out.normal_force, out.residual)
         warnings += [] if error is not None else watch.finish()
     outcome = _outcome(scenario, out, error, warnings) if keep_failure else Failure("ok", None, None)
     return Recording(

@@ -63,6 +63,9 @@ class Param:
     minimum: float | None = None  # inclusive (arrays: every value)
     positive: bool = False  # > 0 (arrays: every value)
     choices: tuple[str, ...] = ()
+    # a DOUBLE_ARRAY that also takes one of these words instead of numbers (contacts.<name>.point: a cylinder's
+    # axis point, or where a plane's or sphere's contact point is)
+    words: tuple[str, ...] = ()
     length: int | str | None = None  # a count, or the list parameter whose length it must match
     may_be_empty: bool = False  # with a length: an empty list is allowed too (and means a default)
     required_if: tuple[str, str] | None = None  # REQUIRED only when parameter [0] equals [1]
@@ -91,6 +94,8 @@ class Param:
 
     def bounds_text(self) -> str:
         parts = []
+        if self.words:
+            parts.append(" | ".join(self.words) + " | 3 numbers")
         if self.choices:
             parts.append(" | ".join(self.choices))
         if self.positive:
@@ -224,28 +229,29 @@ SHARED: tuple[Param, ...] = (
         "frames kept on the free side of every contact's surface (unilateral, inelastic touchdown)",
     ),
     Param(
+        "robot.collision_links",
+        Kind.STRING_ARRAY,
+        [],
+        "links whose URDF <collision> shapes are kept on the free side of every contact's surface (unilateral, "
+        "inelastic touchdown, the surface's friction), as robot.collision_frames keeps frames: a link that touches "
+        "is a contact named <link>@<contact>, with its force",
+    ),
+    Param(
         "robot.collision_geometry",
         Kind.BOOL,
         False,
-        "true: every link's URDF <collision> shapes (box, cylinder, sphere, mesh) are measured against every "
-        "contact's surface at each step (summary link_penetration_max_m, a warning per link deeper than "
-        "robot.penetration_tolerance, the link_penetration topic); bracing-pair --engine mujoco keeps them (those of "
-        "robot.collision_links and of point: geometry contacts collide); false: only frames are contacts",
+        "measure every link's URDF <collision> shapes (box, cylinder, sphere, mesh: coal) against every contact "
+        "surface at each state: link_penetration topic, summary link_penetration_max_m, a warning per link deeper "
+        "than robot.penetration_tolerance; bracing-pair --engine mujoco then keeps them (those of "
+        "robot.collision_links and of point: geometry contacts collide)",
     ),
     Param(
         "robot.penetration_tolerance",
         Kind.DOUBLE,
         0.005,
-        "a link whose collision shapes are deeper than this in a surface is warned of (robot.collision_geometry)",
+        "a link's shapes deeper than this inside a contact's surface are warned about (robot.collision_geometry)",
         "m",
         minimum=0.0,
-    ),
-    Param(
-        "robot.collision_links",
-        Kind.STRING_ARRAY,
-        [],
-        "links whose collision shapes are kept on the free side of every contact's surface (unilateral, "
-        "inelastic touchdown), as robot.collision_frames keeps frames",
     ),
     Param(
         "robot.package_paths",
@@ -477,10 +483,13 @@ CONTACT: tuple[Param, ...] = (
         "point",
         Kind.DOUBLE_ARRAY,
         REQUIRED,
-        "cylinder: a point on its axis",
+        "cylinder: a point on its axis; plane or sphere: where the contact point is, frame (the frame's origin, "
+        "the default) or geometry (the point of the frame's link's URDF <collision> shapes nearest the surface, "
+        "recomputed at every step)",
         "m",
         length=3,
         required_if=("surface", "cylinder"),
+        words=("frame", "geometry"),
     ),
     Param("axis", Kind.DOUBLE_ARRAY, [0.0, 0.0, 1.0], "cylinder: direction of its axis (normalised)", length=3),
     Param("radius", Kind.DOUBLE, 0.0, "sphere or cylinder: radius (> 0 for those surfaces)", "m", minimum=0.0),
@@ -1283,6 +1292,10 @@ def read_value(param: Param, name: str, params: Params, read: Mapping[str, Any])
     required = param.default is REQUIRED and (
         param.required_if is None or read.get(param.required_if[0]) == param.required_if[1]
     )
+    if param.words and isinstance(params.get(name), str):
+        if params[name] not in param.words:
+            raise ConfigError(f"{name}: expected {' or '.join(param.words)} or 3 numbers, got {params[name]!r}")
+        return params[name]
     if ((param.default is REQUIRED and not required) or param.default is ABSENT) and name not in params:
         return None  # required only under another setting, or absent by choice
     if param.kind is Kind.DOUBLE_ARRAY and param.default is REQUIRED and not required and not params.get(name):

@@ -24,6 +24,7 @@ from bracing_core.checks import REAL_TIME_ACHIEVED
 from bracing_core.config import Plant, SimulatorConfig
 from bracing_core.drive import CurrentLoopDrive, DriveGains
 from bracing_core.dynamics import Derivative, InputMode
+from bracing_core.link_penetration import LinkDepth, LinkPenetration
 from bracing_core.node_log import NodeLog
 from bracing_core.numbers import all_finite
 from bracing_core.simulator import DivergenceError, Energy, Simulator
@@ -64,6 +65,7 @@ class StateOut:
     velocity: Vector
     effort: Vector  # link-side motor torque under the held command
     measured: tuple[Vector, Vector] | None  # (position, velocity) as measured
+    links: list[LinkDepth] | None = None  # robot.collision_geometry: the link deepest into each surface
 
 
 @dataclass(frozen=True)
@@ -160,6 +162,8 @@ class SimulatorStepper:
         self._started = 0.0  # wall time real-time stepping started
         # What the run should be warned about (the in-process rollout says the same).
         self.watch = RunWatch(plant, config, sim)
+        # robot.collision_geometry: every link's shapes against the surfaces at each state out
+        self.links = LinkPenetration(plant, sim.dynamics.engine) if config.shared.collision_geometry else None
         self._watched: list[tuple[float, Vector, Vector, Vector]] = []  # states not yet handed to the watch
 
     # -- the run's start and end --------------------------------------------------------
@@ -364,7 +368,11 @@ class SimulatorStepper:
         """The current state; with sensors, once per state and in order (the velocity filter and the noise advance)."""
         position, velocity = self.sim.position, self.sim.velocity
         measured = self.sensors.joints(position, velocity) if self.sensors is not None else None
-        return StateOut(self.now_ns, position, velocity, effort, measured)
+        links = None
+        if self.links is not None:
+            links, warnings = self.links.measure(position, self.sim.time)
+            self.say(warnings)
+        return StateOut(self.now_ns, position, velocity, effort, measured, links)
 
     def step_out(
         self, t_ns: int, command: Vector, d: Derivative, current: Vector, temperature: Vector, energy: Energy

@@ -124,10 +124,12 @@ void bind_surfaces(nb::module_& m) {
       .def(
           "__init__",
           [](Contact* c, std::string name, std::string frame, const Surface& surface, double friction,
-             bool unilateral, bool enforced, bool coulomb) {
-            new (c) Contact{std::move(name), std::move(frame), surface, friction, unilateral, enforced, coulomb};
+             bool unilateral, bool enforced, bool coulomb, bool geometry) {
+            new (c) Contact{std::move(name), std::move(frame), surface, friction, unilateral, enforced, coulomb, geometry};
           },
-          "name"_a, "frame"_a, "surface"_a, "friction"_a, "unilateral"_a, "enforced"_a, "coulomb"_a);
+          "name"_a, "frame"_a, "surface"_a, "friction"_a, "unilateral"_a, "enforced"_a, "coulomb"_a,
+          "geometry"_a = false, "geometry: the contact point is where the frame's link's collision shapes are nearest "
+                                "the surface (point: geometry)");
 }
 
 // The robot and its drive.
@@ -137,16 +139,21 @@ void bind_robot(nb::module_& m) {
           "__init__",
           [](Robot* r, std::string urdf_path, const Vector3& gravity, std::vector<std::string> locked_joints,
              std::vector<double> locked_positions, double mass_scale, std::string urdf_xml, std::string left_wheel,
-             std::string right_wheel, double wheel_radius) {
-            new (r) Robot{std::move(urdf_path),  gravity,   std::move(locked_joints), std::move(locked_positions),
-                          mass_scale,            std::move(urdf_xml), std::move(left_wheel), std::move(right_wheel),
-                          wheel_radius};
+             std::string right_wheel, double wheel_radius, std::string collision_description) {
+            new (r) Robot{std::move(urdf_path),        gravity,
+                          std::move(locked_joints),    std::move(locked_positions),
+                          mass_scale,                  std::move(urdf_xml),
+                          std::move(left_wheel),       std::move(right_wheel),
+                          wheel_radius,                std::move(collision_description)};
           },
           "urdf_path"_a, "gravity"_a, "locked_joints"_a, "locked_positions"_a, "mass_scale"_a = 1.0,
           "urdf_xml"_a = "", "left_wheel"_a = "", "right_wheel"_a = "", "wheel_radius"_a = 0.0,
+          "collision_description"_a = "",
           "mass_scale: every moving link's mass and rotational inertia times this (a plant's model error); "
           "urdf_xml: the URDF text to build from instead of the file's (empty: the file); left_wheel, right_wheel, "
-          "wheel_radius [m]: a differential drive's wheel joints (empty: none), rolling without slipping");
+          "wheel_radius [m]: a differential drive's wheel joints (empty: none), rolling without slipping; "
+          "collision_description: the URDF text whose <collision> shapes are measured (meshes by absolute or "
+          "file:// paths), empty: none");
 
   nb::class_<Drive>(m, "Drive")
       .def(
@@ -226,7 +233,21 @@ void bind_dynamics(nb::module_& m) {
             const double loss = d.impact(q, dq, rows);
             return nb::make_tuple(q, dq, loss);
           },
-          "q"_a, "dq"_a, "rows"_a, "(q, dq, the kinetic energy lost)");
+          "q"_a, "dq"_a, "rows"_a, "(q, dq, the kinetic energy lost)")
+      .def(
+          "measure_links",
+          [](const Dynamics& d, const Vector& q, const std::vector<Surface>& surfaces) {
+            LinkMeasurement out;
+            d.measure_links(q, surfaces, out);
+            return out;
+          },
+          "q"_a, "surfaces"_a, "every link with collision shapes against each surface at q");
+  nb::class_<LinkMeasurement>(m, "LinkMeasurement")
+      .def_ro("links", &LinkMeasurement::links, "the links with collision shapes")
+      .def_ro("distance", &LinkMeasurement::distance,
+              "surfaces * links: C at each link's point nearest surface s (row s * links + k) [m], < 0 inside")
+      .def_ro("points", &LinkMeasurement::points, "that point, world [m]")
+      .def_ro("normals", &LinkMeasurement::normals, "the surface's normal there");
 }
 
 // A simulator's contact modes and events.

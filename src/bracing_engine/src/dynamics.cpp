@@ -6,7 +6,10 @@
 // solved through the Schur complement of the held contacts: Y = Mc^-1 J_c^T,
 // (Y^T W^T) f_n = b - Y^T r, Mc ddq = r + W^T f_n, with Mc factorised by pinocchio's cholesky.
 #include "bracing_engine/engine.hpp"
+#include "geometry.hpp"
 #include "model.hpp"
+
+#include <pinocchio/algorithm/kinematics.hpp>
 
 #include <Eigen/Dense>
 #include <Eigen/Eigenvalues>
@@ -20,7 +23,9 @@ namespace bracing_engine {
 namespace pin = pinocchio;
 
 struct Dynamics::Impl {
-  pin::Model model;
+  mutable pin::Model model;  // mutable: the geometry contacts' frames move to their points at each evaluation
+  LinkShapes shapes;         // the links' collision shapes (robot.collision_description)
+  GeometryPoints points;     // the contacts with point: geometry
   mutable pin::Data data;
   Drive drive;
   std::vector<Contact> contacts;
@@ -303,8 +308,7 @@ Dynamics::Dynamics(const Robot& robot, const Drive& drive, std::vector<Contact> 
                    double baumgarte_gain)
     : baumgarte(baumgarte_gain), impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
-  m.model = build_model(robot, drive.added_inertia);
-  m.data = pin::Data(m.model);
+  m.model = build_model(robot, drive.added_inertia, &m.shapes);
   m.drive = drive;
   const int n = m.model.nv;
   for (const Vector* v : {&drive.damping, &drive.torque_constant, &drive.resistance, &drive.inductance,
@@ -316,6 +320,8 @@ Dynamics::Dynamics(const Robot& robot, const Drive& drive, std::vector<Contact> 
     if (!m.model.existFrame(contact.frame)) throw std::invalid_argument("unknown frame " + contact.frame);
     m.frames.push_back(m.model.getFrameId(contact.frame));
   }
+  m.points.attach(m.model, m.shapes, contacts, m.frames);
+  m.data = pin::Data(m.model);  // with the geometry contacts' frames
   m.contacts = std::move(contacts);
   m.eps2 = slip_epsilon * slip_epsilon;
   m.frame_jacobian.setZero(6, n);
@@ -351,8 +357,17 @@ void Dynamics::terms(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const V
   const Impl& m = *impl_;
   m.resize(out);
   rigid_body_terms(m.model, m.data, q, dq);
+  if (!m.points.empty()) m.points.place(m.model, m.data);
   for (int j = 0; j < contact_count(); ++j) m.contact_terms(j, dq, out);
   if (m.wheels) m.rolling_terms(dq, out);
+}
+
+void Dynamics::measure_links(const Eigen::Ref<const Vector>& q, const std::vector<Surface>& surfaces,
+                             LinkMeasurement& out) const {
+  const Impl& m = *impl_;
+  for (const Surface& surface : surfaces) LinkShapes::check_surface(surface, "robot.collision_geometry");
+  pin::forwardKinematics(m.model, m.data, q);
+  bracing_engine::measure_links(m.shapes, m.data, surfaces, out);
 }
 
 int Dynamics::tangent_directions(const Vector3& n, const Eigen::Ref<const RowMatrix>& jacobian, Vector3 out[2]) {
@@ -403,6 +418,7 @@ void Dynamics::evaluate(const Eigen::Ref<const Vector>& q, const Eigen::Ref<cons
   const Impl& m = *impl_;
   m.resize(out);
   rigid_body_terms(m.model, m.data, q, dq);
+  if (!m.points.empty()) m.points.place(m.model, m.data);
   pin::cholesky::decompose(m.model, m.data);
   m.drive_balance(dq, current, u);
   const int rows = m.count_rows(modes, full, dq, out);

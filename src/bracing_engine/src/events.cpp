@@ -19,6 +19,9 @@ namespace {
 
 constexpr int kMaxEventsPerStep = 8;  // a stick-slip chatter guard: the rest of the step keeps its modes
 constexpr int kMaxIterations = 60;    // Illinois iterations per located event
+// [m/s] A held contact at its link's shapes approaching its surface faster than this has moved onto another part
+// of the shapes (the point of a smooth shape rolling on the surface moves with ~0 normal speed).
+constexpr double kShiftSpeed = 1e-6;
 
 int sign_of(double value) { return value < 0.0 ? -1 : 1; }
 
@@ -74,13 +77,19 @@ void Simulator::touchdown() {
   Answer terms;
   dynamics_->terms(y_.head(n), y_.segment(n, n), terms);
   const Vector approach = terms.normal_jacobian * y_.segment(n, n);
+  const auto& contacts = dynamics_->contacts();
   std::vector<int> landing, held;
+  bool shifted = false;
   for (int j = 0; j < p_; ++j) {
     const bool lands = !modes_.held[j] && enforced_[j] && terms.residual[j] <= 0.0 && approach[j] < 0.0;
+    // A held contact at its link's shapes whose nearest point moved to another part of them (a link lying down
+    // along the surface: the point jumps from one end to the other) meets the surface there with that part's
+    // approach speed: it lands again (the held rows only keep the normal acceleration).
+    shifted = shifted || (modes_.held[j] && contacts[j].geometry && unilateral_[j] && approach[j] < -kShiftSpeed);
     if (lands) landing.push_back(j);
     if (lands || modes_.held[j]) held.push_back(j);
   }
-  if (landing.empty()) return;
+  if (landing.empty() && !shifted) return;
   end_evaluated_ = false;  // the state moves
   Vector q = y_.head(n), dq = y_.segment(n, n);
   const double loss = dynamics_->impact(q, dq, held);

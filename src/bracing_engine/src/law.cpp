@@ -7,6 +7,7 @@
 // and, with a Coulomb contact at rest, its point-constraint form (docs/model.md, Control law under stick).
 #include "bracing_engine/law.hpp"
 
+#include "geometry.hpp"
 #include "model.hpp"
 
 #include <pinocchio/algorithm/cholesky.hpp>
@@ -81,6 +82,8 @@ struct Law::Impl {
   LawSpec spec;
   pin::Model model;
   mutable pin::Data data;
+  LinkShapes shapes;      // the links' collision shapes (robot.collision_description)
+  GeometryPoints points;  // the braces with point: geometry (the simulator's very points)
   std::vector<pin::FrameIndex> frames;  // hand, then each brace
   std::vector<Vector3> starts;          // the tasks' first measured positions
   bool started = false;
@@ -215,17 +218,22 @@ struct Law::Impl {
 Law::Law(const LawSpec& spec) : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
   m.spec = spec;
-  m.model = build_model(spec.robot, spec.drive.added_inertia);
+  m.model = build_model(spec.robot, spec.drive.added_inertia, &m.shapes);
   const int n = m.model.nv;
   if (spec.drive.added_inertia.size() != n || spec.drive.damping.size() != n || spec.voltage_gain.size() != n)
     throw std::invalid_argument("law: one value per joint expected");
-  m.data = pin::Data(m.model);
   auto frame = [&](const std::string& name) {
     if (!m.model.existFrame(name)) throw std::invalid_argument("unknown frame " + name);
     return m.model.getFrameId(name);
   };
   m.frames.push_back(frame(spec.hand.frame));
   for (const auto& brace : spec.braces) m.frames.push_back(frame(brace.contact.frame));
+  std::vector<Contact> brace_contacts;
+  for (const auto& brace : spec.braces) brace_contacts.push_back(brace.contact);
+  std::vector<pin::FrameIndex> brace_frames(m.frames.begin() + 1, m.frames.end());
+  m.points.attach(m.model, m.shapes, brace_contacts, brace_frames);
+  std::copy(brace_frames.begin(), brace_frames.end(), m.frames.begin() + 1);
+  m.data = pin::Data(m.model);  // with the geometry braces' frames
   m.starts.assign(m.frames.size(), Vector3::Zero());
   m.overridden.assign(m.frames.size(), false);
   m.reference_position.assign(m.frames.size(), Vector3::Zero());
@@ -392,6 +400,7 @@ Eigen::MatrixXd Law::allowed_task_rows(const Vector& q0, const std::vector<std::
   const int n = m.model.nv, p = braces();
   const Vector zero = Vector::Zero(n);
   rigid_body_terms(m.model, m.data, q0, zero);
+  if (!m.points.empty()) m.points.place(m.model, m.data);
   if (m.wheels) m.reduce(zero, false);  // the admissible motions (the base's as the wheels roll)
   auto translational = [&](std::size_t k) {
     const Eigen::MatrixXd jacobian = translational_jacobian(m.model, m.data, m.frames[k], m.frame_jacobian);
@@ -830,6 +839,7 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
   const LawSpec& s = m.spec;
   const int n = m.model.nv, p = braces();
   rigid_body_terms(m.model, m.data, q, dq);
+  if (!m.points.empty()) m.points.place(m.model, m.data);
   if (m.wheels) m.reduce(dq, false);
   const double dt = m.advance_clock(t, q);
   out.force_command.resize(p);

@@ -1,6 +1,8 @@
 // The robot's pinocchio model from its URDF (the one place the URDF parser is compiled).
 #include "model.hpp"
 
+#include "geometry.hpp"
+
 #include <pinocchio/algorithm/joint-configuration.hpp>
 #include <pinocchio/algorithm/model.hpp>
 #include <pinocchio/parsers/urdf.hpp>
@@ -13,9 +15,9 @@ std::string compiled_pinocchio_version() { return PINOCCHIO_VERSION; }
 
 namespace {
 
-// `full` with the locked joints removed at their positions (pinocchio's reduced model).
-pin::Model locked(const pin::Model& full, const Robot& robot) {
-  Eigen::VectorXd reference = pin::neutral(full);
+// The locked joints of `full` and the configuration that holds them at their positions.
+std::vector<pin::JointIndex> locked(const pin::Model& full, const Robot& robot, Eigen::VectorXd& reference) {
+  reference = pin::neutral(full);
   std::vector<pin::JointIndex> joints;
   for (std::size_t k = 0; k < robot.locked_joints.size(); ++k) {
     const auto& name = robot.locked_joints[k];
@@ -24,19 +26,22 @@ pin::Model locked(const pin::Model& full, const Robot& robot) {
     reference[full.idx_qs[joint]] = k < robot.locked_positions.size() ? robot.locked_positions[k] : 0.0;
     joints.push_back(joint);
   }
-  return pin::buildReducedModel(full, joints, reference);
+  return joints;
 }
 
 }  // namespace
 
-pin::Model build_model(const Robot& robot, const Vector& armature) {
+pin::Model build_model(const Robot& robot, const Vector& armature, LinkShapes* shapes) {
   pin::Model full;
   if (robot.urdf_xml.empty())
     pin::urdf::buildModel(robot.urdf_path, full);
   else
     pin::urdf::buildModelFromXML(robot.urdf_xml, full);
   full.gravity.linear(robot.gravity);
-  pin::Model model = robot.locked_joints.empty() ? full : locked(full, robot);
+  Eigen::VectorXd reference;
+  const std::vector<pin::JointIndex> joints = locked(full, robot, reference);
+  pin::Model model = joints.empty() ? full : pin::buildReducedModel(full, joints, reference);
+  if (shapes && !robot.collision_description.empty()) shapes->build(full, robot, joints, reference, model);
   if (model.nq != model.nv) throw std::invalid_argument("only 1-dof revolute/prismatic joints are supported");
   if (armature.size() != model.nv) throw std::invalid_argument("drive: one value per joint expected");
   model.armature += armature;

@@ -10,9 +10,12 @@
 
 namespace bracing_engine {
 
+class LinkShapes;
+
 // The robot's model from its URDF: gravity set, the locked joints removed at their positions
-// (pinocchio's reduced model), `armature` (one value per remaining joint) added to its armature.
-pinocchio::Model build_model(const Robot& robot, const Vector& armature);
+// (pinocchio's reduced model), `armature` (one value per remaining joint) added to its armature. `shapes`
+// (if given and robot.collision_description is not empty): the links' collision shapes on that model.
+pinocchio::Model build_model(const Robot& robot, const Vector& armature, LinkShapes* shapes = nullptr);
 
 // What the engine reads of pinocchio's computeAllTerms, its numbers bit for bit (rigid_body_terms.cpp): oMi, v,
 // a, a_gf (accelerations at ddq = 0), J (world), M (upper triangle, armature added) and nle = h + g at (q, v).

@@ -542,7 +542,10 @@ class ContactsEncoder:
         self._contacts = _Messages(self._ser.store, CONTACTS)
         self._contact = _Messages(self._ser.store, CONTACT_STATE)
 
-    def encode(self, stamp_ns: int, contacts: Sequence[ContactReport]) -> bytes:
+    def encode(
+        self, stamp_ns: int, contacts: Sequence[ContactReport], names: Sequence[tuple[str, str]] | None = None
+    ) -> bytes:
+        """``names``: (name, frame) of each contact in this message instead of the fixed ones."""
         ser = self._ser
         states = [
             self._contact(
@@ -556,7 +559,7 @@ class ContactsEncoder:
                 slip_velocity=ser.Vector3(*c.slip_velocity.tolist()),
                 residual=float(c.residual),
             )
-            for (name, frame), c in zip(self._names, contacts, strict=True)
+            for (name, frame), c in zip(self._names if names is None else names, contacts, strict=True)
         ]
         message = self._contacts(header=ser.header(stamp_ns, self._frame_id), contacts=states)
         return ser.serialize(message, CONTACTS)

@@ -7,6 +7,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from functools import partial
 
+import numpy as np
 from geometry_msgs.msg import WrenchStamped
 from rclpy.node import Node
 from rclpy.publisher import Publisher
@@ -16,6 +17,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
 from bracing_core.config import Plant, SimulatorConfig
+from bracing_core.link_penetration import TOPIC as LINK_PENETRATION_TOPIC
+from bracing_core.link_penetration import LinkDepth
 from bracing_core.sensing import GROUND_TRUTH
 from bracing_core.stepping import StateOut, StepOut
 from bracing_msgs.msg import Contacts, MotorState, RunStatus
@@ -77,6 +80,10 @@ class SimulatorTopics:
                 publisher(JointState, GROUND_TRUTH + "joint_states", STREAM_QOS),
                 publisher(MotorState, GROUND_TRUTH + "motor_state", STREAM_QOS),
             ]
+        # robot.collision_geometry: the link deepest into each surface, at each state
+        self.link_pubs: list[Publisher] = []
+        if config.shared.collision_geometry:
+            self.link_pubs = [publisher(Contacts, LINK_PENETRATION_TOPIC, STREAM_QOS)]
         self.joint_command_pubs: list[Publisher] = []  # joint_commands: the ros2_control side's state topic
         if config.command_source == "joint_commands":
             self.joint_command_pubs = [node.create_publisher(JointState, config.joint_states_topic, JOINT_COMMANDS_QOS)]
@@ -87,11 +94,12 @@ class SimulatorTopics:
         self.motor_wire = wire.MotorStateEncoder(joint_names)
         # robot_description too: a short run could otherwise end before the recorder has it.
         self.data_pubs = [self.joint_pub, self.contacts_pub, self.motor_pub, self.clock_pub, *self.wrench_pubs]
-        self.data_pubs += [self.description_pub, *self.truth_pubs]
+        self.data_pubs += [self.description_pub, *self.truth_pubs, *self.link_pubs]
         self.flow = AckWindow(node, self.data_pubs, STREAM_QOS.depth)
         # record_batch: the per-state messages also reach the recorder in batches (it subscribes to those
         # and robot_description only); otherwise it subscribes to every topic.
         per_state = [self.joint_pub, *self.truth_pubs, self.clock_pub, *self.wrench_pubs, self.contacts_pub]
+        per_state += self.link_pubs
         self.batch = RecordBatchPublisher(node, [*per_state, self.motor_pub], config.record_batch)
         batched = self.batch.publisher
         self.recorder_pubs = self.data_pubs if batched is None else [batched, self.description_pub]
@@ -111,8 +119,16 @@ class SimulatorTopics:
         for pub in self.joint_command_pubs:  # the ros2_control face: the full truth, as a robot's driver gives it
             pub.publish(truth)
         send(self.clock_pub, self.clock_wire.encode(t_ns))
+        if state.links is not None and self.link_pubs:
+            send(self.link_pubs[0], self.link_message(t_ns, state.links))
         if self.state_out is not None:
             self.state_out()
+
+    def link_message(self, t_ns: int, links: list[LinkDepth]) -> bytes:
+        """link_penetration: per surface the link deepest into it (or nearest), no force."""
+        zero = np.zeros(3)
+        reports = [wire.ContactReport(d.active, d.position, d.normal, 0.0, 0.0, zero, d.residual) for d in links]
+        return self.contacts_wire.encode(t_ns, reports, [(d.name, d.link) for d in links])
 
     def publish_step(self, step: StepOut) -> None:
         t_ns, d, send = step.t_ns, step.forces, self.batch.publish

@@ -75,6 +75,9 @@ struct Contact {
   // with |f_t| = mu |f_n| against the slip; false: the paper's regularised law
   // f_t = mu f_n s / sqrt(|s|^2 + eps^2).
   bool coulomb = false;
+  // point: geometry: the contact is where the collision shapes of the frame's link are nearest the surface
+  // (recomputed at every evaluation), not the frame's origin
+  bool geometry = false;
 };
 
 // A slip speed [m/s] below which a Coulomb contact's slip has no direction of its own (it slides
@@ -109,6 +112,16 @@ struct Robot {
   std::string left_wheel, right_wheel;
   double wheel_radius = 0.0;
   bool rolls() const { return !left_wheel.empty(); }
+  // The URDF text whose <collision> shapes are measured (meshes by absolute or file:// paths); empty: none.
+  std::string collision_description;
+};
+
+// Every link with collision shapes against each surface: row s * links + k for surface s and link k.
+struct LinkMeasurement {
+  std::vector<std::string> links;  // the links with shapes
+  Vector distance;                 // C at each link's point nearest the surface (< 0: inside) [m]
+  RowMatrix points;                // that point, world [m]
+  RowMatrix normals;               // the surface's n there
 };
 
 // Per joint, model order. Voltage mode: drive = K_m i, Mc = M + J_m, Dc = D + D_m, and
@@ -187,6 +200,10 @@ class Dynamics {
   void rerun_circuit(const Eigen::Ref<const Vector>& dq, const Eigen::Ref<const Vector>& current,
                      const Eigen::Ref<const Vector>& temperature, const Eigen::Ref<const Vector>& u,
                      Answer& out) const;
+  // Every link with collision shapes (robot.collision_description) measured against each of `surfaces` at q.
+  // Throws std::invalid_argument naming a surface coal cannot measure them against.
+  void measure_links(const Eigen::Ref<const Vector>& q, const std::vector<Surface>& surfaces,
+                     LinkMeasurement& out) const;
   // Every contact's terms at (q, dq), no solve (force, ddq and di untouched).
   void terms(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& dq, Answer& out) const;
   // Newton steps in the metric of Mc onto C = 0 for the contacts `rows`; throws std::domain_error

@@ -1,0 +1,101 @@
+"""Every link's collision shapes against every contact surface, at each state (``robot.collision_geometry``).
+
+The engine measures them (coal, on the URDF's ``<collision>`` shapes: ``bracing_engine.Dynamics.measure_links``);
+this module keeps what a run reports of it: per surface, the link deepest into it (or nearest it) at each state
+(the simulator's ``link_penetration`` topic, one ``ContactState`` per surface named ``<link>@<contact>``), the
+deepest each link went, and one warning per link deeper than ``robot.penetration_tolerance``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+import bracing_engine as engine
+from bracing_core.contact_roles import LINK_PENETRATION_TOPIC
+from bracing_core.dynamics import engine_surface
+from bracing_core.types import Vector
+
+if TYPE_CHECKING:  # the configuration's types only
+    from bracing_core.config import Plant
+
+TOPIC = LINK_PENETRATION_TOPIC
+"""The simulator's per-state topic (bracing_msgs/Contacts) with robot.collision_geometry."""
+
+
+@dataclass(frozen=True)
+class LinkDepth:
+    """The link deepest into (or nearest) one contact surface at one state: a ``ContactState`` of the topic."""
+
+    name: str  # <link>@<contact>
+    link: str  # the ContactState's frame
+    position: Vector  # the link's point deepest in / nearest the surface, world [m]
+    normal: Vector  # the surface's normal there
+    residual: float  # [m] signed distance of that point from the surface (< 0: inside)
+    active: bool  # deeper than robot.penetration_tolerance
+
+
+def penetration_warning(link: str, contact: str, depth: float, t: float, tolerance: float) -> str:
+    """The warning for a link found ``depth`` [m] inside the surface of ``contact`` at sim time ``t`` [s]."""
+    return (
+        f"link {link!r} is {depth:.4g} m inside the surface of contact {contact!r} at t = {t:.3f} s (deeper than "
+        f"robot.penetration_tolerance {tolerance:g} m): its collision shapes cross the surface. Brace it at its "
+        f"surface with contacts.<name>.point: geometry, or keep it out with robot.collision_links"
+    )
+
+
+class LinkPenetration:
+    """What a run says of its links against the surfaces (module docstring), fed each state's q."""
+
+    def __init__(self, plant: Plant, dynamics: engine.Dynamics) -> None:
+        self.tolerance = plant.config.penetration_tolerance
+        owners = plant.distinct_surfaces()
+        self.contacts = [owner.name for owner in owners]
+        self.surfaces = [engine_surface(owner.surface) for owner in owners]
+        self.engine = dynamics
+        q0 = np.zeros(dynamics.nv)
+        self.links: list[str] = list(dynamics.measure_links(q0, self.surfaces).links)  # the moving links with shapes
+        # per link (plain lists: a handful of links, measured at every state, costs less without numpy)
+        self._deepest = [0.0] * len(self.links)  # [m] the deepest it went (0: never inside)
+        self._warned = [False] * len(self.links)
+
+    @property
+    def deepest(self) -> dict[str, float]:
+        """{link: the deepest it went inside any surface so far [m] (0: never inside)}, per moving link with shapes."""
+        return dict(zip(self.links, self._deepest, strict=True))
+
+    def measure(self, q: Vector, t: float) -> tuple[list[LinkDepth], list[str]]:
+        """The deepest link per surface at posture ``q`` (sim time ``t`` [s]), and the warnings it gives (a link
+        deeper than the tolerance, once per link)."""
+        count = len(self.links)
+        if not count:
+            return [], []
+        measured = self.engine.measure_links(q, self.surfaces)
+        distance = measured.distance.tolist()  # row s * count + k: surface s, link k
+        reports, warnings = [], []
+        for s, contact in enumerate(self.contacts):
+            own = distance[s * count : (s + 1) * count]
+            k = own.index(min(own))  # the link deepest into this surface (or nearest it)
+            row, link = s * count + k, self.links[k]
+            residual = own[k]
+            reports.append(
+                LinkDepth(
+                    f"{link}@{contact}",
+                    link,
+                    measured.points[row],
+                    measured.normals[row],
+                    residual,
+                    -residual > self.tolerance,
+                )
+            )
+        for k in range(count):
+            depth = -min(distance[k::count])
+            if depth > self._deepest[k]:
+                self._deepest[k] = depth
+            if depth > self.tolerance and not self._warned[k]:
+                self._warned[k] = True
+                s = distance[k::count].index(-depth)
+                warnings.append(penetration_warning(self.links[k], self.contacts[s], depth, t, self.tolerance))
+        return reports, warnings
