@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
+from bracing_core.mobile_base import CMD_VEL_TOPIC, ODOM_TOPIC
 from bracing_core.overrides import CONTROLLER
 from bracing_core.sensing import GROUND_TRUTH
 from bracing_core.targets import ACCEPTED, ORIENTATION_ERROR_TOPIC, POSE_TOPIC, REFUSED, echo_topic
@@ -20,10 +21,12 @@ from bracing_core.typestore import (
     MARKER_ARRAY,
     MOTOR_COMMAND,
     MOTOR_STATE,
+    ODOMETRY,
     PATH,
     POINT_STAMPED,
     POSE_STAMPED,
     TF_MESSAGE,
+    TWIST_STAMPED,
     VECTOR3_STAMPED,
     WRENCH_STAMPED,
 )
@@ -54,10 +57,14 @@ def target_verdict_topics(contacts: Sequence[str]) -> list[tuple[str, str]]:
     return out
 
 
-OPTIONAL_STATE_TOPICS = [(ORIENTATION_ERROR_TOPIC, VECTOR3_STAMPED)]
-"""(relative topic, ROS 2 type name) of what the controller publishes once per state only in some
-configurations (hand_orientation_error: with an orientation task): recorded from the first message, at its
-header stamp, one by one or in record_batch; a run without it has no such topic (no count expected)."""
+OPTIONAL_STATE_TOPICS = [(ORIENTATION_ERROR_TOPIC, VECTOR3_STAMPED), (ODOM_TOPIC, ODOMETRY)]
+"""(relative topic, ROS 2 type name) of what the nodes publish once per state only in some configurations
+(hand_orientation_error: with an orientation task; odom: with a mobile base): recorded from the first message,
+at its header stamp, one by one or in record_batch; a run without it has no such topic (no count expected)."""
+
+COMMAND_TOPICS = [(CMD_VEL_TOPIC, TWIST_STAMPED)]
+"""(relative topic, ROS 2 type name) of what a teleop or navigation stack sends the controller at any time
+(cmd_vel: base_command cmd_vel): recorded as they come, as the targets; a run without any has no such topic."""
 
 RECORDER_NODE = "bracing_recorder"
 
