@@ -130,6 +130,8 @@ def unit(key: str) -> str:
     for rate in ("per_s", "per_min"):
         if key.endswith(rate):
             return "1/" + rate.removeprefix("per_")
+    if key.endswith("_m_s"):  # a speed
+        return "m/s"
     words = [word for word in reversed(key.split("_")) if word in UNITS]
     return UNITS[words[0]] if words else ""
 

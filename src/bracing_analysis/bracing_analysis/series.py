@@ -127,6 +127,8 @@ class BagSeries:
     # the hand frame's orientation error per controller_state row [rad], world axes; (t, 0) or empty without the task
     hand_orientation_error: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
     command_limit: dict[str, float] = field(default_factory=dict)
+    # a differential drive's rolling residual max |A v| per state [m/s] (bracing_core.base); empty: not recorded
+    base_rolling_residual: FloatArray = field(default_factory=_empty)
 
 
 def scenario_name(series: BagSeries) -> str:

@@ -50,6 +50,8 @@ SUMMARY_EXTRA_KEYS = (
     "status",
     "error",
     "hint",
+    "base_travel_m",
+    "base_rolling_residual_max_m_s",
 )
 """summary.json's keys after SUMMARY_KEYS (added later: tools that read SUMMARY_KEYS by position keep working)."""
 
@@ -211,8 +213,21 @@ def compute_summary(
     refusals = refusal_warnings(series)
     out["warnings"] = list(dict.fromkeys([*warnings, *data_warnings(series), *series.warnings, *refusals]))
     out["saturation_fraction"] = saturation_fraction(series)
+    out["base_travel_m"] = base_travel(series)
+    rolling = series.base_rolling_residual
+    out["base_rolling_residual_max_m_s"] = float(np.max(rolling)) if rolling.size else None
     out.update(outcome if outcome is not None else succeeded(out["warnings"], fed_back).keys())
     return out
+
+
+def base_travel(series: BagSeries) -> float | None:
+    """How far a mobile base's root went in the plane [m]: the length of its (base_x, base_y) path over the
+    joint_states; None without a moving base (no base_x and base_y among the joints)."""
+    names = series.joint_names
+    if "base_x" not in names or "base_y" not in names or series.joint_position.shape[0] == 0:
+        return None
+    path = series.joint_position[:, [names.index("base_x"), names.index("base_y")]]
+    return float(np.sum(np.linalg.norm(np.diff(path, axis=0), axis=1)))
 
 
 def targets_refused(series: BagSeries) -> dict[str, int]:

@@ -18,6 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from bracing_core import schema
+from bracing_core.base import Wheels, urdf_joint_types, wheel_problem
 from bracing_core.contacts import Contact, ContactSet, Cylinder, Plane, Sphere, Surface
 from bracing_core.dynamics import ConstrainedDynamics, InputMode, thermal_applies
 from bracing_core.meshes import resolved_description
@@ -185,6 +186,8 @@ class SharedConfig:
     free_space: bool = False  # the surfaces only watched
     package_paths: tuple[str, ...] = ()  # robot.package_paths: where package://NAME/... meshes are looked up
     torque_limit_from_urdf: bool = False  # motors.torque_limit_from_urdf: each joint's URDF <limit effort>
+    base: str = "fixed"  # robot.base: fixed | planar | diff_drive
+    wheels: Wheels | None = None  # robot.base: diff_drive's wheels
 
     @property
     def braced_contacts(self) -> tuple[ContactConfig, ...]:
@@ -229,7 +232,21 @@ class SharedConfig:
             values["free_space"],
             package_paths=tuple(values["robot.package_paths"]),
             torque_limit_from_urdf=values["motors.torque_limit_from_urdf"],
+            base=values["robot.base"],
+            wheels=_wheels(values),
         )
+
+
+def _wheels(values: Values) -> Wheels | None:
+    """robot.base: diff_drive's wheels (the schema has checked that each value is given, radii > 0)."""
+    if values["robot.base"] != "diff_drive":
+        return None
+    return Wheels(
+        tuple(values["robot.left_wheel_names"]),
+        tuple(values["robot.right_wheel_names"]),
+        values["robot.wheel_radius"],
+        values["robot.wheel_separation"],
+    )
 
 
 def joint_names_mismatch(actuated: Sequence[str], model: Sequence[str], listed: Sequence[str]) -> str | None:
@@ -274,9 +291,24 @@ class Plant:
 
     def __init__(self, config: SharedConfig, slip_epsilon: float, mass_scale: float = 1.0) -> None:
         try:
+            self._check_wheels(config)
             self.robot = RobotModel.from_urdf(
-                config.urdf, config.gravity, config.locked_joints, config.locked_positions, mass_scale
+                config.urdf,
+                config.gravity,
+                config.locked_joints,
+                config.locked_positions,
+                mass_scale,
+                config.base,
+                config.wheels,
             )
+            if self.robot.wheels is not None:
+                # The engine rolls the base on its wheels (RobotModel.wheels: its rolling rows); the nodes'
+                # plant has a motor on every joint and the law none on that constrained system yet.
+                raise ConfigError(
+                    "robot.base: diff_drive with turning wheels: the engine rolls the base on them, but the nodes' "
+                    "law does not yet run on that constrained system; lock both wheels (robot.locked_joints: a "
+                    "braked base) or set robot.base: planar (a holonomic base, its three velocities driven)"
+                )
             # Index array taking configuration-ordered data to model order (locked joints dropped).
             actuated = [name for name in config.joint_names if name not in config.locked_joints]
             mismatch = joint_names_mismatch(actuated, self.robot.joint_names, config.joint_names)
@@ -304,6 +336,16 @@ class Plant:
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
         self.braced_set = ContactSet(self.robot, [c.contact() for c in config.braced_contacts], slip_epsilon)
+
+    @staticmethod
+    def _check_wheels(config: SharedConfig) -> None:
+        """robot.base: diff_drive's wheels are wheels of this URDF, listed or locked (before the run starts)."""
+        if config.wheels is None:
+            return
+        kinds = urdf_joint_types(Path(config.urdf).read_text(encoding="utf-8"))
+        problem = wheel_problem(config.wheels, kinds, config.joint_names, config.locked_joints, f"{config.urdf}")
+        if problem:
+            raise ConfigError(problem)
 
     def _check_transmissions(self) -> None:
         """A prismatic joint needs a transmission radius (its motor turns a wheel or pinion); a revolute none."""

@@ -68,12 +68,20 @@ class Derivative:
     friction_force: Vector = field(default_factory=lambda: np.zeros(0))
     tangential_force: Vector = field(default_factory=lambda: np.zeros((0, 3)))  # (p, 3) friction on the robot [N]
     sticking: Vector = field(default_factory=lambda: np.zeros(0, dtype=bool))  # (p,) Coulomb contacts that stick
+    # a differential drive's rolling rows A v [m/s]: each wheel's forward slip, the left one's lateral (empty: none)
+    rolling_velocity: Vector = field(default_factory=lambda: np.zeros(0))
 
 
 def engine_robot(robot: RobotModel) -> engine.Robot:
     """What the engine rebuilds ``robot``'s pinocchio model from."""
     return engine.Robot(
-        str(robot.urdf_path), robot.gravity, list(robot.locked_joints), list(robot.locked_positions), robot.mass_scale
+        str(robot.urdf_path),
+        robot.gravity,
+        list(robot.locked_joints),
+        list(robot.locked_positions),
+        robot.mass_scale,
+        robot.urdf_xml,
+        *((robot.wheels.left[0], robot.wheels.right[0], robot.wheels.radius) if robot.wheels else ()),
     )
 
 
@@ -151,6 +159,7 @@ def derivative_of(answer: engine.Answer, contacts: ContactSet) -> Derivative:
         answer.friction,
         answer.tangential_force,
         answer.sticking,
+        answer.rolling_velocity,
     )
 
 

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from bracing_core.base import BASE_JOINTS, BaseError, Wheels, chart_urdf
 from bracing_core.types import Vector
 
 _WORLD = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -52,22 +53,34 @@ class RobotModel:
         locked_positions: Sequence[float] = (),
     ) -> None:
         if model.nq != model.nv:
+            joints = [
+                f"{model.names[j]!r} ({model.joints[j].shortname()})"
+                for j in range(1, model.njoints)
+                if model.nqs[j] != model.nvs[j] or model.nvs[j] != 1
+            ]
             raise ModelError(
-                f"{source}: only 1-dof revolute/prismatic joints are supported (nq={model.nq}, nv={model.nv})"
+                f"{source}: only 1-dof joints are supported (revolute, continuous, prismatic; a planar root joint), "
+                f"not {', '.join(joints)}: make {'it' if len(joints) == 1 else 'them'} fixed in the URDF"
             )
         if model.nv == 0:
             raise ModelError(f"{source}: the model has no moving joints")
         for joint in range(1, model.njoints):
             mass = float(model.inertias[joint].mass)
-            if not mass > 0.0:  # also catches NaN
+            if not mass > 0.0 and not (mass == 0.0 and _massless_allowed(model, joint)):  # also catches NaN
                 links = [f.name for f in model.frames if f.parentJoint == joint and f.type == pin.FrameType.BODY]
                 raise ModelError(
                     f"{source}: link {links[0] if links else model.names[joint]!r} (moved by {model.names[joint]!r}) "
-                    f"has mass {mass} kg; every moving link needs a positive mass"
+                    f"has mass {mass} kg and moves no other; every moving link needs a positive mass"
                 )
         self.model = model
         self.data = model.createData()
         self.source = source
+        # The text pinocchio read when it is not the file's own (``base.chart_urdf`` rewrote it): what the
+        # engine builds the same model from; "" = the file at urdf_path as it is.
+        self.urdf_xml = ""
+        self.base = "fixed"
+        # robot.base: diff_drive's wheels (None: none); the engine's rolling rows hold them to the ground
+        self.wheels: Wheels | None = None
         # What the engine rebuilds the same model from (bracing_engine.Robot): the URDF, gravity and
         # the locked joints with their positions (0 each if none are given).
         self.urdf_path = source
@@ -93,10 +106,15 @@ class RobotModel:
         locked_joints: Sequence[str] = (),
         locked_positions: Sequence[float] = (),
         mass_scale: float = 1.0,
+        base: str = "fixed",
+        wheels: Wheels | None = None,
     ) -> RobotModel:
         """The URDF's model; ``locked_joints`` are held at ``locked_positions`` (default 0) and removed
         with pinocchio's ``buildReducedModel`` (their links ride along, rigidly); every moving link's mass
-        and rotational inertia times ``mass_scale`` (a plant's model error; the engine does the same)."""
+        and rotational inertia times ``mass_scale`` (a plant's model error; the engine does the same);
+        ``base`` (robot.base) and the URDF's continuous joints as ``base.chart_urdf`` reads them; ``wheels``
+        (robot.base: diff_drive) roll without slipping, or, both locked (a braked base), hold the base where
+        it is locked too (base_x, base_y, base_yaw added to the locked joints, at 0 unless listed)."""
         path = Path(path)
         if not path.is_file():
             raise ModelError(f"robot.urdf: file not found: {path}")
@@ -104,7 +122,26 @@ class RobotModel:
             model = pin.buildModelFromUrdf(str(path))
         except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError on bad XML
             raise ModelError(f"robot.urdf: pinocchio cannot load {path}: {exc}") from exc
+        try:
+            text = path.read_text(encoding="utf-8")
+            charted = chart_urdf(text, base, f"robot.urdf {path}")
+            if charted is not text:  # continuous joints or a planar base: the chart's text (base.py)
+                model = pin.buildModelFromXML(charted)
+        except (OSError, UnicodeDecodeError, BaseError) as exc:
+            raise ModelError(str(exc)) from None
+        if wheels is not None and set(wheels.names) <= set(locked_joints):
+            locked_positions = list(locked_positions) or [0.0] * len(locked_joints)
+            added = [name for name in BASE_JOINTS if name not in locked_joints]
+            locked_joints, locked_positions = [*locked_joints, *added], [*locked_positions, *[0.0] * len(added)]
+            wheels = None
+        elif wheels is not None and set(wheels.names) & set(locked_joints):
+            raise ModelError(
+                f"robot.locked_joints: {sorted(set(wheels.names) & set(locked_joints))} locks one wheel of the "
+                "differential drive: lock both (a braked base) or neither"
+            )
         robot = cls._built(model, str(path), gravity, locked_joints, locked_positions)
+        robot.urdf_xml = "" if charted is text else charted
+        robot.base, robot.wheels = base, wheels
         if mass_scale != 1.0:
             for k, inertia in enumerate(robot.model.inertias):
                 robot.model.inertias[k] = pin.Inertia(
@@ -122,6 +159,7 @@ class RobotModel:
         gravity: Sequence[float] = (0.0, 0.0, -9.81),
         locked_joints: Sequence[str] = (),
         locked_positions: Sequence[float] = (),
+        base: str = "fixed",
     ) -> RobotModel:
         """``from_urdf`` of URDF text (e.g. a recorded ``robot_description``); ``source`` names it in errors.
 
@@ -129,10 +167,14 @@ class RobotModel:
         (the viewers'), not for rebuilding in the engine.
         """
         try:
-            model = pin.buildModelFromXML(urdf_xml)
+            model = pin.buildModelFromXML(chart_urdf(urdf_xml, base, source))
+        except BaseError as exc:
+            raise ModelError(str(exc)) from None
         except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError on bad XML
             raise ModelError(f"{source}: pinocchio cannot read the URDF: {exc}") from exc
-        return cls._built(model, source, gravity, locked_joints, locked_positions)
+        robot = cls._built(model, source, gravity, locked_joints, locked_positions)
+        robot.base = base
+        return robot
 
     @classmethod
     def _built(
@@ -163,7 +205,12 @@ class RobotModel:
         model = self.model.copy()
         model.armature[:] = model.armature + values
         robot = RobotModel(model, self.source, self.locked_joints, self.locked_positions)
-        robot.mass_scale = self.mass_scale
+        robot.mass_scale, robot.urdf_xml, robot.base, robot.wheels = (
+            self.mass_scale,
+            self.urdf_xml,
+            self.base,
+            self.wheels,
+        )
         return robot
 
     def description(self) -> str:
@@ -228,10 +275,19 @@ def simulated_urdf(urdf_xml: str, locked_joints: Sequence[str] = (), locked_posi
         return urdf_xml
     source = "robot.urdf"
     try:
-        model = pin.buildModelFromXML(urdf_xml)
+        model = pin.buildModelFromXML(chart_urdf(urdf_xml, "fixed", source))  # a continuous joint: its angle
         root = ET.fromstring(urdf_xml, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
-    except Exception as exc:  # pinocchio: RuntimeError/ValueError; ElementTree: ParseError
+    except Exception as exc:  # pinocchio: RuntimeError/ValueError; ElementTree: ParseError; BaseError
         raise ModelError(f"{source}: cannot read the URDF: {exc}") from exc
+    # A locked base joint is none of the text's: the base's pose is the odom transform's, not the URDF's.
+    kept = [
+        (n, v)
+        for n, v in zip(locked_joints, list(locked_positions) or [0.0] * len(locked_joints), strict=True)
+        if n not in BASE_JOINTS
+    ]
+    if not kept:
+        return urdf_xml
+    locked_joints, locked_positions = [n for n, _ in kept], [v for _, v in kept]
     ids, reference = _locked_reference(model, locked_joints, locked_positions, source)
     elements = {element.get("name"): element for element in root.findall("joint")}
     for name, joint in zip(locked_joints, ids, strict=True):
@@ -256,6 +312,19 @@ def simulated_urdf(urdf_xml: str, locked_joints: Sequence[str] = (), locked_posi
         element[:0] = [note, origin]
         element[-1].tail = closing or element[-1].tail
     return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def _massless_allowed(model: pin.Model, joint: int) -> bool:
+    """A massless link that its joint may move: a prismatic carriage (base_x's and base_y's, a hand-built
+    stand-in's) or the link under base_yaw (a URDF's massless root), where the joint still moves inertia
+    further out (its diagonal of M at the neutral posture > 0; else M would be singular). Elsewhere a
+    massless moving link is a slip in the URDF."""
+    prismatic = model.joints[joint].shortname().startswith("JointModelP")
+    if not prismatic and model.names[joint] != BASE_JOINTS[2]:
+        return False
+    inertia = pin.crba(model, model.createData(), pin.neutral(model))
+    index = int(model.idx_vs[joint])
+    return bool(inertia[index, index] > 0.0)
 
 
 def _origin(joint: ET.Element) -> pin.SE3:
@@ -283,8 +352,12 @@ def _locked_reference(
         if not model.existJointName(name):
             raise ModelError(f"robot.locked_joints: {name!r} is not a joint of {source}")
         joint = model.getJointId(name)
-        if model.nqs[joint] != 1:
-            raise ModelError(f"robot.locked_joints: {name!r} is not a 1-dof joint")
+        if model.nqs[joint] != 1 or model.nvs[joint] != 1:
+            raise ModelError(
+                f"robot.locked_joints: {name!r} is a {model.joints[joint].shortname()} joint "
+                f"(nq={model.nqs[joint]}, nv={model.nvs[joint]}), not a 1-dof one: only revolute, continuous and "
+                "prismatic joints (and base_x, base_y, base_yaw) lock; make it fixed in the URDF"
+            )
         reference[model.idx_qs[joint]] = value
         ids.append(joint)
     if len(ids) == model.njoints - 1:

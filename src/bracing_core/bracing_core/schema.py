@@ -233,6 +233,49 @@ SHARED: tuple[Param, ...] = (
         "published on robot_description as file:// paths; those not found are named in one warning",
     ),
     Param(
+        "robot.base",
+        Kind.STRING,
+        "fixed",
+        "fixed: the URDF's root is the world; planar: a planar root joint whose three velocities are the joints "
+        "base_x, base_y [m] (the root's world-frame position) and base_yaw [rad] (listed, driven and locked like "
+        "any joint; a URDF planar joint at the root is read the same way); diff_drive: the planar root without "
+        "actuators of its own, moved by the wheels rolling without slipping (robot.left_wheel_names, ...)",
+        choices=("fixed", "planar", "diff_drive"),
+    ),
+    Param(
+        "robot.left_wheel_names",
+        Kind.STRING_ARRAY,
+        REQUIRED,
+        "the left wheels' joints (continuous or revolute, each turning about its own axis; diff_drive_controller's "
+        "name)",
+        required_if=("robot.base", "diff_drive"),
+    ),
+    Param(
+        "robot.right_wheel_names",
+        Kind.STRING_ARRAY,
+        REQUIRED,
+        "the right wheels' joints, as robot.left_wheel_names",
+        required_if=("robot.base", "diff_drive"),
+    ),
+    Param(
+        "robot.wheel_radius",
+        Kind.DOUBLE,
+        REQUIRED,
+        "every wheel's radius (diff_drive_controller's name)",
+        "m",
+        positive=True,
+        required_if=("robot.base", "diff_drive"),
+    ),
+    Param(
+        "robot.wheel_separation",
+        Kind.DOUBLE,
+        REQUIRED,
+        "the distance between the left and right wheels' contact lines (diff_drive_controller's name)",
+        "m",
+        positive=True,
+        required_if=("robot.base", "diff_drive"),
+    ),
+    Param(
         "input_mode",
         Kind.STRING,
         "voltage",

@@ -136,12 +136,17 @@ void bind_robot(nb::module_& m) {
       .def(
           "__init__",
           [](Robot* r, std::string urdf_path, const Vector3& gravity, std::vector<std::string> locked_joints,
-             std::vector<double> locked_positions, double mass_scale) {
-            new (r) Robot{std::move(urdf_path), gravity, std::move(locked_joints), std::move(locked_positions),
-                          mass_scale};
+             std::vector<double> locked_positions, double mass_scale, std::string urdf_xml, std::string left_wheel,
+             std::string right_wheel, double wheel_radius) {
+            new (r) Robot{std::move(urdf_path),  gravity,   std::move(locked_joints), std::move(locked_positions),
+                          mass_scale,            std::move(urdf_xml), std::move(left_wheel), std::move(right_wheel),
+                          wheel_radius};
           },
           "urdf_path"_a, "gravity"_a, "locked_joints"_a, "locked_positions"_a, "mass_scale"_a = 1.0,
-          "mass_scale: every moving link's mass and rotational inertia times this (a plant's model error)");
+          "urdf_xml"_a = "", "left_wheel"_a = "", "right_wheel"_a = "", "wheel_radius"_a = 0.0,
+          "mass_scale: every moving link's mass and rotational inertia times this (a plant's model error); "
+          "urdf_xml: the URDF text to build from instead of the file's (empty: the file); left_wheel, right_wheel, "
+          "wheel_radius [m]: a differential drive's wheel joints (empty: none), rolling without slipping");
 
   nb::class_<Drive>(m, "Drive")
       .def(
@@ -180,6 +185,9 @@ void bind_answer(nb::module_& m) {
       .def_ro("normals", &Answer::normals, "p x 3")
       .def_ro("tangential_force", &Answer::tangential_force, "p x 3, the friction force on the robot [N]")
       .def_ro("friction", &Answer::friction, "|f_t| of a Coulomb contact, mu f_n of a regularised one [N]")
+      .def_ro("rolling_velocity", &Answer::rolling_velocity,
+              "a differential drive's rolling rows A v [m/s] (the wheels' forward slip, the left one's lateral)")
+      .def_ro("rolling_force", &Answer::rolling_force, "the rolling rows' forces [N]")
       .def_ro("held", &ModalAnswer::held)
       .def_ro("sticking", &ModalAnswer::sticking);
 }
@@ -190,6 +198,7 @@ void bind_dynamics(nb::module_& m) {
       .def(nb::init<const Robot&, const Drive&, std::vector<Contact>, double, double>(), "robot"_a, "drive"_a,
            "contacts"_a, "slip_epsilon"_a, "baumgarte"_a)
       .def_prop_ro("nv", &Dynamics::nv)
+      .def_prop_ro("rolling_rows", &Dynamics::rolling_rows)
       .def_prop_ro("joint_names", &Dynamics::joint_names)
       .def_rw("baumgarte", &Dynamics::baumgarte)
       .def(

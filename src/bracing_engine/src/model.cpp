@@ -31,7 +31,10 @@ pin::Model locked(const pin::Model& full, const Robot& robot) {
 
 pin::Model build_model(const Robot& robot, const Vector& armature) {
   pin::Model full;
-  pin::urdf::buildModel(robot.urdf_path, full);
+  if (robot.urdf_xml.empty())
+    pin::urdf::buildModel(robot.urdf_path, full);
+  else
+    pin::urdf::buildModelFromXML(robot.urdf_xml, full);
   full.gravity.linear(robot.gravity);
   pin::Model model = robot.locked_joints.empty() ? full : locked(full, robot);
   if (model.nq != model.nv) throw std::invalid_argument("only 1-dof revolute/prismatic joints are supported");

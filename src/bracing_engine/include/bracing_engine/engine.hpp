@@ -89,6 +89,15 @@ struct Robot {
   // Every moving link's mass and rotational inertia times this (plant_error.mass_scale: a plant that
   // differs from the controller's model; 1 leaves the URDF's numbers untouched).
   double mass_scale = 1.0;
+  // The URDF text to build from instead of the file's (bracing_core.base.chart_urdf: continuous joints as
+  // unlimited revolute ones, a planar root as base_x, base_y, base_yaw); empty: the file at urdf_path.
+  std::string urdf_xml;
+  // A differential drive (robot.base: diff_drive): the left and right wheel joints (empty: none) and their
+  // radius [m]. The planar root (base_x, base_y, base_yaw) then moves only as the wheels roll without
+  // slipping on the plane z = const: the rolling rows (Dynamics) beside the contacts.
+  std::string left_wheel, right_wheel;
+  double wheel_radius = 0.0;
+  bool rolls() const { return !left_wheel.empty(); }
 };
 
 // Per joint, model order. Voltage mode: drive = K_m i, Mc = M + J_m, Dc = D + D_m, and
@@ -136,6 +145,9 @@ struct Answer {
   Vector residual;                // C
   RowMatrix tangential_force;     // p x 3, the friction force on the robot [N]
   Vector friction;                // p: |f_t| of a Coulomb contact, mu f_n of a regularised one [N]
+  // A differential drive's rolling rows A v (the left and right wheels' contact points' forward velocities, the
+  // left one's lateral velocity) [m/s]: zero without slip; and their forces [N] (the ground on the wheels).
+  Vector rolling_velocity, rolling_force;
 };
 
 class Dynamics {
@@ -151,7 +163,8 @@ class Dynamics {
   const std::vector<Contact>& contacts() const;
   const Drive& drive() const;
   std::vector<std::string> joint_names() const;
-  double baumgarte = 0.0;  // a [1/s]: J_c ddq = -gamma - 2 a J_c dq - a^2 C
+  double baumgarte = 0.0;  // a [1/s]: J_c ddq = -gamma - 2 a J_c dq - a^2 C (rolling rows: A dv = -dA v - 2 a A v)
+  int rolling_rows() const;  // 3 with a differential drive, else 0
 
   // ddq, di, f_n at (q, dq, i, T) with input u held, the contacts in `held` holding forces. `full`:
   // also every contact's terms. Throws SingularError.
