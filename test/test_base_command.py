@@ -13,15 +13,14 @@ import pytest
 from test_stepping import Clock, Log
 
 from bracing_core.answering import Answer, StateAnswerer
+from bracing_core.base import BASE_JOINTS, Wheels
 from bracing_core.mobile_base import (
-    BASE_JOINTS,
     BaseDrive,
     BaseFrame,
     BaseOdometry,
     BaseTwist,
     CmdVelGate,
     CmdVelRefused,
-    Wheels,
     base_indices,
     odometry,
     root_link,
@@ -103,7 +102,7 @@ def test_targets_are_carried_with_the_base() -> None:
 
 def test_wheels_follow_the_inverse_kinematics_and_a_planar_base_its_joints() -> None:
     names = ["base_x", "base_y", "base_yaw", "wheel_left_joint", "wheel_right_joint"]
-    wheels = Wheels((3,), (4,), 0.1, 0.4)
+    wheels = Wheels(("wheel_left_joint",), ("wheel_right_joint",), 0.1, 0.4)
     drive = BaseDrive(names, 0.5, 10.0, wheels)
     assert drive.actuators == [3, 4]
     drive.gate.offer(0, [0.2, 0.0, 0.0], [0.0, 0.0, 1.0], 0)
@@ -146,7 +145,7 @@ def drive_in_process(duration_s: float, forward: float, send_until_s: float) -> 
     """The stand-in run by the simulator and the controller's policy (no DDS), cmd_vel ``forward`` [m/s] sent
     every 0.1 s of sim time until ``send_until_s``: per step base_x [m], f_n [N] and the friction force's x
     component on the robot [N]; the policy's log."""
-    scenario = stand_in({"base_command": "cmd_vel"})
+    scenario = stand_in({"base_command": "cmd_vel", "null_space_posture.kd": [0.0] * 7})
     sim = scenario.sim
     log = Log()
     core = StateAnswerer(scenario.controller.config, log, Clock())  # type: ignore[union-attr]
@@ -172,15 +171,15 @@ def test_cmd_vel_moves_the_base_while_the_elbow_stays_braced() -> None:
     # cruising, the velocity loop tau = kd (v_cmd - v), kd 100 N s/m, pushes against the braced elbow's Coulomb
     # friction, mu f_n = 1 N against the slip, which is partly along y (the arm sags as the paper's law lets it):
     # the speed lies between 0.1 - mu f_nd / kd = 0.09 m/s (all of it along x) and 0.1 - |f_x| / kd
-    cruise = slice(800, 1399)
-    assert 0.09 - 1e-4 < speed[cruise].min()
+    cruise = slice(1000, 1399)
+    assert 0.09 - 5e-4 < speed[cruise].min()
     assert np.all(speed[cruise] < 0.1 + friction_x[cruise] / 100.0 + 1e-3)
     assert np.all(friction_x[cruise] < -0.7)  # most of it along x, against the motion
     # the last cmd_vel at 0.9 s: 0.5 s later it has timed out and the base brakes to a stop
     assert log.warnings == ["cmd_vel timed out at t = 1.401000 s: braking (zero velocity)"]
     assert abs(speed[-1]) < 1e-3 and base_x[-1] > 0.1
-    # the arm takes up what the base's loop would lean on the brace (eq. 40 as the law set it): f_n = f_nd while
-    # the elbow slides, the base speeding up, cruising and braking; where it sticks (at rest: the first step,
-    # the stop) eq. 40's sliding friction is not the floor's, as on a fixed base (test_ur5_scenario)
-    assert np.abs(f_n[1:1990] - 10.0).max() < 1e-9
-    assert np.abs(f_n - 10.0).max() < 0.3
+    # the arm takes up what the base's loop would lean on the brace (eq. 40 as the law set it): f_n = f_nd to
+    # rounding while the elbow slides, the base speeding up, cruising, braking and at rest; the first step, the
+    # elbow breaking free of the floor, is Coulomb friction's, not eq. 40's sliding friction (as test_ur5_scenario)
+    assert np.abs(f_n[1:] - 10.0).max() < 1e-9
+    assert abs(f_n[0] - 10.0) < 0.3

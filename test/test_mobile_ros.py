@@ -49,7 +49,7 @@ def driven(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict[str, list[Any
     bag = tmp / "bag"
     recorder = _start_recorder(bag, env)
     urdf = str(STAND_IN.parent / "planar_base_arm.urdf")
-    ctl = {"robot.urdf": urdf, "base_command": "cmd_vel", "wait_for_recorder": True}
+    ctl = {"robot.urdf": urdf, "base_command": "cmd_vel", "wait_for_recorder": True, "null_space_posture.kd": [0.0] * 7}
     controller = start(node_argv("bracing_controller.node", params_file(tmp, "bracing_controller", ctl)), env)
     sim = {"robot.urdf": urdf, "duration": DURATION_S, "wait_for_recorder": True, "min_subscribers": 3}
     simulator = start(node_argv("bracing_sim.node", params_file(tmp, "bracing_simulator", sim)), env)

@@ -158,7 +158,8 @@ class StateAnswerer:
         self.answers = 0  # states answered (the null-space watch samples them)
         self.base_drive: BaseDrive | None = None  # base_command cmd_vel: the base follows cmd_vel
         if config.base_command == "cmd_vel":
-            self.base_drive = BaseDrive(self.joint_names, config.cmd_vel_timeout, config.base_velocity_kd)
+            wheels = config.shared.wheels if config.shared.base == "diff_drive" else None
+            self.base_drive = BaseDrive(self.joint_names, config.cmd_vel_timeout, config.base_velocity_kd, wheels)
             plant = self.law.plant  # the law's model: J_c and Mc for B = J_c Mc^-1
             self.braced = ConstrainedDynamics(plant.robot, plant.motors, self.law.contact_set, plant.mode)
 
@@ -321,7 +322,8 @@ class StateAnswerer:
             engine.set_reference(task, position, velocity)
 
     def drive_base(self, stamp_ns: int, q: Vector, dq: Vector, out: ControlOutput) -> None:
-        """base_command cmd_vel: the base actuators' velocity loop in place of the law's command on them."""
+        """base_command cmd_vel: the base actuators' velocity loop added to the law's command on them, the arm
+        taking up what it would lean on the braces (``keep_contact_force``)."""
         drive = self.base_drive
         if drive is None:
             return
@@ -331,7 +333,8 @@ class StateAnswerer:
         tau = drive.torques(stamp_ns, q, dq)
         if drive.gate.braking and not was_braking:
             self.log.warning(f"cmd_vel timed out at t = {stamp_ns * 1e-9:.6f} s: braking (zero velocity)")
-        torque = keep_contact_force(self.contact_map(q, dq), out.torque, drive.actuators, tau)
+        joints = drive.actuators
+        torque = keep_contact_force(self.contact_map(q, dq), out.torque, joints, out.torque[joints] + tau)
         if self.config.shared.input_mode.value == "voltage":  # eq. 41 on the change
             out.command = out.command + self.law.plant.to_model_order(self.config.voltage_gain) * (torque - out.torque)
         else:

@@ -8,8 +8,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bracing_core import schema
+from bracing_core.base import BASE_JOINTS
 from bracing_core.config import SharedConfig, axes_indices, trajectory_from_values
-from bracing_core.mobile_base import BASE_JOINTS
 from bracing_core.params import ConfigError, Params
 from bracing_core.trajectory import TrajectoryConfig
 

@@ -25,10 +25,9 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from bracing_core.base import BASE_JOINTS, Wheels
 from bracing_core.types import Vector
 
-BASE_JOINTS = ("base_x", "base_y", "base_yaw")
-"""The planar base's joints, in this order (SPEC section 8)."""
 ODOM_FRAME = "odom"
 """The odometry frame (diff_drive_controller's ``odom_frame_id`` default)."""
 ODOM_TOPIC = "odom"
@@ -186,37 +185,33 @@ def world_twist(twist: BaseTwist, yaw: float) -> Vector:
     return np.array([c * twist.forward - s * twist.left, s * twist.forward + c * twist.left, twist.yaw_rate])
 
 
-@dataclass(frozen=True)
-class Wheels:
-    """A differential drive's wheels: their joints' indices (each side, any count) and geometry [m]."""
-
-    left: tuple[int, ...]
-    right: tuple[int, ...]
-    radius: float
-    separation: float
-
-
 class BaseDrive:
     """The base following cmd_vel (``base_command: cmd_vel``): on the base's actuators (base_x, base_y,
     base_yaw; or the wheels, each side at the speed diff_drive_controller's inverse kinematics gives) a
-    velocity loop tau = kd (v_cmd - v) replaces the law's command, as a base driver owns its wheels while
-    the arm's controller owns the arm; the tasks' paths, given in the world at the start, are carried with
-    the base (``BaseFrame``), so the hand is tracked relative to the moving base."""
+    velocity loop tau = kd (v_cmd - v) is added to the law's command (the law keeps its whole-body torques:
+    without them its tasks, planned with the base's share, run away); the tasks' paths, given in the world at
+    the start, are carried with the base (``BaseFrame``), so the hand is tracked relative to the moving base."""
 
     def __init__(self, joint_names: Sequence[str], timeout_s: float, kd: float, wheels: Wheels | None = None) -> None:
+        """``joint_names``: the law's (model order); ``wheels``: a differential drive's (None: the base's joints are
+        its actuators)."""
         indices = base_indices(joint_names)
         if indices is None:
             raise ValueError(f"no planar base: {list(BASE_JOINTS)} are not all among {list(joint_names)}")
         self.indices, self.kd, self.wheels = indices, kd, wheels
+        names = list(joint_names)
+        self.sides = (
+            None if wheels is None else ([names.index(j) for j in wheels.left], [names.index(j) for j in wheels.right])
+        )
         self.gate = CmdVelGate(timeout_s, holonomic=wheels is None)
         self.frame: BaseFrame | None = None  # set at the first state
 
     @property
     def actuators(self) -> list[int]:
         """The joints whose command the velocity loop sets."""
-        if self.wheels is None:
+        if self.sides is None:
             return list(self.indices)
-        return [*self.wheels.left, *self.wheels.right]
+        return [*self.sides[0], *self.sides[1]]
 
     def targets(self, q: Vector, dq: Vector, paths: Sequence[tuple[Vector, Vector]]) -> list[tuple[Vector, Vector]]:
         """The tasks' references now: each ``paths`` sample (position, velocity at t, world at the start)
@@ -240,10 +235,11 @@ class BaseDrive:
 
 
 def keep_contact_force(b: Vector, torque: Vector, base: Sequence[int], base_torque: Vector) -> Vector:
-    """``torque`` (the law's, eq. 38) with ``base_torque`` on the joints ``base`` instead, and the other joints'
-    torques changed by the least that keeps B tau as the law set it: delta_arm = -B_arm^+ B_base delta_base,
-    B = J_c Mc^-1 (p x n, eq. 36). Eq. 40 (A f_n = B tau - a) then gives the normal forces the law chose
-    (f_nd with torque input): the base's loop accelerating the robot does not lean on the braces."""
+    """``torque`` (the law's, eq. 38) with ``base_torque`` on the joints ``base`` (the law's own plus the base's
+    velocity loop), and the other joints' torques changed by the least that keeps B tau as the law set it:
+    delta_arm = -B_arm^+ B_base delta_base, B = J_c Mc^-1 (p x n, eq. 36). Eq. 40 (A f_n = B tau - a) then
+    gives the normal forces the law chose (f_nd with torque input): the base's loop accelerating the robot
+    does not lean on the braces."""
     out = np.array(torque, dtype=float)
     b = np.asarray(b, dtype=float)
     base = list(base)

@@ -1078,8 +1078,8 @@ CONTROLLER: tuple[Param, ...] = (
         "task",
         "a mobile base (base_x, base_y, base_yaw among the joints): task: the law moves the base as part of the arm; "
         "cmd_vel: the base follows cmd_vel (geometry_msgs/TwistStamped, diff_drive_controller's conventions) "
-        "through a velocity loop on its actuators, the law's command kept on the others, the hand and brace paths "
-        "carried with the base",
+        "through a velocity loop added on its actuators (the arm taking up what it would lean on the braces), the "
+        "hand and brace paths carried with the base",
         choices=("task", "cmd_vel"),
     ),
     Param(

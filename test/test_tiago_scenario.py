@@ -1,0 +1,102 @@
+"""The shipped mobile manipulator (config/tiago_table.yaml): PAL's TIAGo from example-robot-data, its URDF
+unmodified (the wheels its continuous joints, robot.base: diff_drive), its elbow leaning 10 N on a table with
+the base braked (both wheels held); then the same robot on a planar base driven by cmd_vel while the brace holds
+(the nodes do not turn a differential drive's wheels yet: robot.base planar carries the arm in the plane as the
+wheels would, its three velocities driven by the base's velocity loop). Short runs: a few seconds of sim time."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from conftest import CONFIG_DIR
+from ros_helpers import pair_argv, run
+from test_stepping import Clock, Log
+
+from bracing_core.answering import Answer, StateAnswerer
+from bracing_core.base import BASE_JOINTS
+from bracing_core.rollout import build_scenario, run_recorded
+
+TIAGO = CONFIG_DIR / "tiago_table.yaml"
+F_ND = 10.0  # [N] contacts.elbow.desired_normal_force
+ARM = ["torso_lift_joint", *(f"arm_{k}_joint" for k in range(1, 8))]
+LOCKED = ["wheel_left_joint", "wheel_right_joint", "head_1_joint", "head_2_joint"]
+
+
+MOTOR = {"torque_constant": 0.1, "resistance": 0.5, "inductance": 1e-4, "rotor_inertia": 1e-6, "gear_ratio": 100.0,
+         "gear_damping": 1e-5}  # fmt: skip
+"""The file's servo, the same on every joint."""
+
+
+def planar_tiago(kd: float) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+    """(shared, simulator, controller) overrides: the file's robot on robot.base: planar (its wheels still held),
+    the base's three joints first in every per-joint list, driven by cmd_vel with the velocity loop's ``kd``."""
+    n = 3 + len(ARM)
+    shared: dict[str, Any] = {"robot.base": "planar", "robot.joint_names": [*BASE_JOINTS, *ARM]}
+    shared |= {f"motors.{field}": [value] * n for field, value in MOTOR.items()}
+    shared["motors.transmission_radius"] = [0.0985, 0.0985, 0.0, 0.01] + [0.0] * 7  # the wheel's; the torso's pinion
+    sim = {"initial_position": [0.0, 0.0, 0.0, 0.1, 1.5, 0.3, -1.5, 0.8, 0.0, 0.0, 0.0]}
+    ctl = {
+        "voltage_gain": [1.0] * n,
+        "null_space_posture.kd": [0.0, 0.0, 0.0, 100.0] + [1.0] * 7,  # none on the base: it would brake the loop
+        "base_command": "cmd_vel",
+        "base_velocity_kd": kd,
+    }
+    return shared, sim, ctl
+
+
+def test_the_unmodified_urdf_loads_braked_with_head_and_hand_locked() -> None:
+    scenario = build_scenario(TIAGO)
+    robot = scenario.plant.robot
+    assert list(scenario.plant.joint_names) == ARM
+    assert set(LOCKED) | set(BASE_JOINTS) <= set(robot.locked_joints)  # the base held with its wheels
+    assert sum(name.startswith("hand_") for name in robot.locked_joints) == 36
+
+
+def test_braked_the_elbow_holds_f_nd_while_the_tool_circles() -> None:
+    rec = run_recorded(build_scenario(TIAGO), 2.0)
+    f_n = rec.normal_force[:, 0]
+    assert np.abs(f_n[1:] - F_ND).max() < 1e-6
+    error = np.linalg.norm(rec.hand_desired - rec.hand_actual, axis=1)
+    assert error[rec.time >= 1.0].max() < 2e-3
+
+
+def test_the_scenario_runs_through_bracing_pair(tmp_path: Path) -> None:
+    result = run(pair_argv(tmp_path, "--duration", "1.0", "--no-animation", config=TIAGO), timeout=600)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"] == "ok" and summary["contacts"]["elbow"]["active_fraction"] == 1.0
+    assert summary["normal_force_rms_error_n"] < 1e-6
+
+
+def test_driven_by_cmd_vel_the_base_moves_while_the_brace_holds() -> None:
+    """robot.base: planar, base_command cmd_vel, kd 500 N s/m: 0.1 m/s forward sent from 0.5 s to 1.4 s (in
+    process: the policy the controller node runs; test_mobile_ros drives the same policy over DDS)."""
+    shared, sim, ctl = planar_tiago(500.0)
+    scenario = build_scenario(TIAGO, shared=shared, sim=sim, ctl=ctl)
+    assert scenario.controller is not None
+    log = Log()
+    core = StateAnswerer(scenario.controller.config, log, Clock())
+    plant, sent = scenario.sim, list[Answer]()
+    steps = 2500
+    x, f_n, hand_error = np.zeros(steps), np.zeros(steps), np.zeros(steps)
+    for k in range(steps):
+        if k % 100 == 0 and 500 <= k < 1500:
+            core.take_cmd_vel(k * 1_000_000, [0.1, 0.0, 0.0], [0.0, 0.0, 0.0])
+        core.answer(k * 1_000_000, plant.position, plant.velocity, lambda _: None, sent.append)
+        out = sent[-1].output
+        x[k], hand_error[k] = plant.position[0], np.linalg.norm(out.hand_desired - out.hand_actual)
+        f_n[k] = plant.step(out.command).normal_force[0]
+    speed = np.diff(x) / 0.001
+    # cruising at 0.1 m/s less (the elbow's friction + the law's own push on the base) over the loop's gain:
+    # mu f_nd / kd = 0.3 x 10 / 500 = 0.006 m/s, the law's a few newtons more
+    assert np.all((0.085 < speed[1200:1400]) & (speed[1200:1400] < 0.1))
+    assert x[-1] > 0.1 and abs(speed[-1]) < 5e-3  # braked once the last cmd_vel is 0.5 s old
+    assert log.warnings == ["cmd_vel timed out at t = 1.901000 s: braking (zero velocity)"]
+    # the elbow stays on the table at f_nd while the base drives it along (sliding: eq. 40 exact) and the tool
+    # keeps its circle relative to the base within a millimetre
+    assert np.abs(f_n[510:1950] - F_ND).max() < 1e-9
+    assert np.abs(f_n - F_ND).max() < 1.0  # at rest the elbow sticks (Coulomb): eq. 40 slides
+    assert hand_error[500:].max() < 1e-3
