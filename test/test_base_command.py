@@ -183,3 +183,12 @@ def test_cmd_vel_moves_the_base_while_the_elbow_stays_braced() -> None:
     # elbow breaking free of the floor, is Coulomb friction's, not eq. 40's sliding friction (as test_ur5_scenario)
     assert np.abs(f_n[1:] - 10.0).max() < 1e-9
     assert abs(f_n[0] - 10.0) < 0.3
+
+
+def test_the_loop_s_integral_is_on_the_commanded_velocity_s_integral() -> None:
+    drive = BaseDrive(["base_x", "base_y", "base_yaw"], 0.5, 10.0, ki=100.0)
+    drive.gate.offer(0, [0.2, 0.0, 0.0], [0.0, 0.0, 0.0], 0)
+    q = np.array([1.0, 2.0, 0.0])
+    assert drive.torques(0, q, np.zeros(3)) == pytest.approx([2.0, 0.0, 0.0], abs=1e-15)  # kd 0.2: no error yet
+    # 0.1 s later, the base not moved: 2 cm behind where 0.2 m/s puts it
+    assert drive.torques(100 * MS, q, np.zeros(3)) == pytest.approx([2.0 + 100.0 * 0.02, 0.0, 0.0], abs=1e-12)

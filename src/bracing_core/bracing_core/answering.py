@@ -159,7 +159,9 @@ class StateAnswerer:
         self.base_drive: BaseDrive | None = None  # base_command cmd_vel: the base follows cmd_vel
         if config.base_command == "cmd_vel":
             wheels = config.shared.wheels if config.shared.base == "diff_drive" else None
-            self.base_drive = BaseDrive(self.joint_names, config.cmd_vel_timeout, config.base_velocity_kd, wheels)
+            self.base_drive = BaseDrive(
+                self.joint_names, config.cmd_vel_timeout, config.base_velocity_kd, wheels, config.base_velocity_ki
+            )
             plant = self.law.plant  # the law's model: J_c and Mc for B = J_c Mc^-1
             self.braced = ConstrainedDynamics(plant.robot, plant.motors, self.law.contact_set, plant.mode)
 

@@ -86,6 +86,7 @@ class ControllerConfig:
     base_command: str = "task"  # | cmd_vel: the base follows cmd_vel (bracing_core.mobile_base)
     cmd_vel_timeout: float = 0.5  # [s] node's clock; 0: off
     base_velocity_kd: float = 100.0  # [N s/m or N m s/rad] the base actuators' velocity loop
+    base_velocity_ki: float = 0.0  # [N/m or N m/rad] its integral gain (0: none)
 
     @property
     def task_dimension(self) -> int:
@@ -143,6 +144,7 @@ class ControllerConfig:
             base_command=values["base_command"],
             cmd_vel_timeout=values["cmd_vel_timeout"],
             base_velocity_kd=values["base_velocity_kd"],
+            base_velocity_ki=values["base_velocity_ki"],
         )
         check_effort_forward(config)
         check_base_command(config)

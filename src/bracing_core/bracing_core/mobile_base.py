@@ -192,9 +192,11 @@ class BaseDrive:
     without them its tasks, planned with the base's share, run away); the tasks' paths, given in the world at
     the start, are carried with the base (``BaseFrame``), so the hand is tracked relative to the moving base."""
 
-    def __init__(self, joint_names: Sequence[str], timeout_s: float, kd: float, wheels: Wheels | None = None) -> None:
+    def __init__(
+        self, joint_names: Sequence[str], timeout_s: float, kd: float, wheels: Wheels | None = None, ki: float = 0.0
+    ) -> None:
         """``joint_names``: the law's (model order); ``wheels``: a differential drive's (None: the base's joints are
-        its actuators)."""
+        its actuators); ``ki``: the loop's integral gain (0: none), on the commanded velocity's integral."""
         indices = base_indices(joint_names)
         if indices is None:
             raise ValueError(f"no planar base: {list(BASE_JOINTS)} are not all among {list(joint_names)}")
@@ -205,6 +207,9 @@ class BaseDrive:
         )
         self.gate = CmdVelGate(timeout_s, holonomic=wheels is None)
         self.frame: BaseFrame | None = None  # set at the first state
+        self.ki = ki
+        self.reference: Vector | None = None  # the actuators' commanded positions (the velocity's integral)
+        self.reference_ns = 0
 
     @property
     def actuators(self) -> list[int]:
@@ -223,7 +228,8 @@ class BaseDrive:
         return [self.frame.carry(base, moving, point, velocity) for point, velocity in paths]
 
     def torques(self, now_ns: int, q: Vector, dq: Vector) -> Vector:
-        """tau [N or N m] of the velocity loop on each of ``actuators`` at the node's time ``now_ns``."""
+        """tau [N or N m] of the velocity loop on each of ``actuators`` at the node's time ``now_ns``:
+        kd (v_cmd - v) + ki (integral of v_cmd - q)."""
         twist = self.gate.command(now_ns)
         if self.wheels is None:
             wanted = world_twist(twist, float(q[self.indices[2]]))
@@ -231,7 +237,15 @@ class BaseDrive:
             w = self.wheels
             left, right = wheel_velocities(twist.forward, twist.yaw_rate, w.radius, w.separation)
             wanted = np.array([left] * len(w.left) + [right] * len(w.right))
-        return self.kd * (wanted - np.asarray([dq[i] for i in self.actuators], dtype=float))
+        joints = self.actuators
+        position = np.asarray([q[i] for i in joints], dtype=float)
+        if self.reference is None:
+            self.reference = position
+        else:  # the commanded velocity integrated: with ki > 0 the base holds where cmd_vel puts it, no creep
+            self.reference = self.reference + wanted * ((now_ns - self.reference_ns) * 1e-9)
+        self.reference_ns = now_ns
+        velocity = np.asarray([dq[i] for i in joints], dtype=float)
+        return self.kd * (wanted - velocity) + self.ki * (self.reference - position)
 
 
 def keep_contact_force(b: Vector, torque: Vector, base: Sequence[int], base_torque: Vector) -> Vector:

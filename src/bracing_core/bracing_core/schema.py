@@ -1101,6 +1101,15 @@ CONTROLLER: tuple[Param, ...] = (
         positive=True,
     ),
     Param(
+        "base_velocity_ki",
+        Kind.DOUBLE,
+        0.0,
+        "base_command cmd_vel: the velocity loop's integral gain, on the commanded velocity's integral: tau += ki "
+        "(integral of v_cmd dt - q), so the base holds where cmd_vel puts it against the law's push; 0: none",
+        "N/m or N m/rad",
+        minimum=0.0,
+    ),
+    Param(
         "targets.max_velocity",
         Kind.DOUBLE,
         0.05,
