@@ -25,8 +25,9 @@ from bracing_core.dynamics import ConstrainedDynamics, InputMode
 from bracing_core.model import ModelError, RobotModel, simulated_urdf
 from bracing_core.motors import MotorParams
 from bracing_core.params import ConfigError, resolve_file
-from bracing_core.rollout import run_closed_loop
+from bracing_core.rollout import run_closed_loop, run_recorded
 from bracing_core.simulator import Simulator
+from bracing_experiments.experiment import summarize
 
 TIAGO = "package://example-robot-data/robots/tiago_description/robots/tiago.urdf"
 WHEELS = ["wheel_left_joint", "wheel_right_joint"]
@@ -234,15 +235,19 @@ def _inertial(mass: float, ixx: float, iyy: float, izz: float) -> str:
     )
 
 
-def diff_drive_urdf(axis_right: str = "0 1 0") -> str:
-    """A box on two wheels (axle along y, the base's centre of mass on the axle's midpoint at wheel height)."""
+def diff_drive_urdf(axis_right: str = "0 1 0", axle: str = "y") -> str:
+    """A box on two wheels (axle along the base's y, its forward x; or with ``axle`` "x": forward y, the wheels'
+    axes -x), the base's centre of mass on the axle's midpoint at wheel height."""
     wheels = ""
-    for side, y in (("left", SEPARATION / 2), ("right", -SEPARATION / 2)):
+    for side, offset in (("left", SEPARATION / 2), ("right", -SEPARATION / 2)):
         axis = "0 1 0" if side == "left" else axis_right
+        origin = f"0 {offset!r} 0"
+        if axle == "x":
+            axis, origin = "-1 0 0", f"{-offset!r} 0 0"
         wheels += (
             f'<link name="wheel_{side}_link">{_inertial(WHEEL_MASS, WHEEL_ACROSS, WHEEL_SPIN, WHEEL_ACROSS)}</link>'
             f'<joint name="wheel_{side}_joint" type="continuous"><parent link="base_link"/>'
-            f'<child link="wheel_{side}_link"/><origin xyz="0 {y!r} 0"/><axis xyz="{axis}"/></joint>'
+            f'<child link="wheel_{side}_link"/><origin xyz="{origin}"/><axis xyz="{axis}"/></joint>'
         )
     return (
         '<?xml version="1.0"?><robot name="cart"><link name="base_footprint"/>'
@@ -361,6 +366,12 @@ def test_bad_wheels_are_named_before_the_run_starts(tmp_path: Path) -> None:
         _cart_scenario(tmp_path, cart, ["wheel_left_joint"], **DIFF_DRIVE)
     with pytest.raises(ConfigError, match=r"locks one wheel of the differential drive: lock both .* or neither"):
         _cart_scenario(tmp_path, cart, wheels, **(DIFF_DRIVE | {"locked_joints": ["wheel_left_joint"]}))
+    with pytest.raises(ConfigError, match=r"robot\.wheel_separation: 0\.45 m, but the URDF's wheels are 0\.5 m apart"):
+        _cart_scenario(tmp_path, cart, wheels, **(DIFF_DRIVE | {"wheel_separation": 0.45}))
+    with pytest.raises(ConfigError, match=r"not on their common axis"):
+        _cart_scenario(tmp_path, cart.replace('xyz="0 0.25 0"', 'xyz="0.1 0.25 0"'), wheels, **DIFF_DRIVE)
+    with pytest.raises(ConfigError, match=r"turning wheels takes input_mode: torque .*or lock both wheels"):
+        _cart_scenario(tmp_path, cart, wheels, **DIFF_DRIVE)
     floating = cart.replace(
         '<link name="base_footprint"/>',
         '<link name="floor"/><joint name="slide" type="planar"><parent link="floor"/><child link="base_footprint"/>'
@@ -370,9 +381,9 @@ def test_bad_wheels_are_named_before_the_run_starts(tmp_path: Path) -> None:
         _cart_scenario(tmp_path, floating, wheels, **DIFF_DRIVE)
 
 
-def arm_on_cart_urdf() -> str:
+def arm_on_cart_urdf(axle: str = "y") -> str:
     """The paper's arm on the cart: its base_link is the cart's (massive, on the axle 0.1 m up), its joint1 there."""
-    cart = diff_drive_urdf()
+    cart = diff_drive_urdf(axle=axle)
     body = cart[cart.index('<link name="base_footprint"/>') : cart.index("</robot>")]
     return PAPER_URDF.read_text().replace('<link name="base_link"/>', body)
 
@@ -428,3 +439,51 @@ def test_the_summary_has_the_bases_travel_and_rolling_residual() -> None:
     assert summary["base_rolling_residual_max_m_s"] == 3e-11
     fixed = compute_summary(BagSeries(joint_t=np.arange(4.0), joint_names=["joint1"], joint_position=path[:, 2:]))
     assert fixed["base_travel_m"] is None and fixed["base_rolling_residual_max_m_s"] is None
+
+
+def test_the_torque_law_on_the_rolling_arm_holds_the_brace_and_the_hand_while_the_wheels_drive_the_base(
+    tmp_path: Path,
+) -> None:
+    """Fails on main (robot.base unknown). The paper arm on the cart with its wheels turning (torque input): the
+    base has no motor, the law runs on the admissible motions (the base's velocities those the wheels' rolling
+    gives, docs/model.md), so the brace holds f_n = f_nd to 1e-9 N every step, the base's torque is zero, the
+    wheels roll without slipping (residual <= 1e-9 m/s) and the hand's task moves the base on its wheels."""
+    urdf = tmp_path / "arm_on_cart.urdf"
+    urdf.write_text(arm_on_cart_urdf(axle="x"))  # the cart rolls along y, in the arm's plane
+    joints = ["wheel_left_joint", "wheel_right_joint", "joint1", "joint2", "joint3", "joint4"]
+    paper = node_params("bracing_simulator")
+    motors = {
+        k: [v[0]] * 6 for k, v in paper.items() if k.startswith("motors.") and isinstance(v, list) and len(v) == 4
+    }
+    shared = {
+        "robot.urdf": str(urdf),
+        "robot.joint_names": joints,
+        "input_mode": "torque",
+        "contacts.elbow.offset": RADIUS,
+        **motors,
+        **{f"robot.{key}": value for key, value in DIFF_DRIVE.items()},
+    }
+    q0 = [0.0, 0.0, *(np.array([-0.2, -0.6, 0.8, -0.4]) * np.pi)]
+    sim = {"initial_position": q0, "initial_velocity": [0.0] * 6}
+    ctl = {"voltage_gain": [1.0] * 6, "null_space_posture.kp": [0.0] * 6, "null_space_posture.kd": [0.0] * 6}
+    scenario = build_scenario(shared, sim=sim, ctl=ctl)
+    names = scenario.plant.joint_names
+    assert names[:3] == ("base_x", "base_y", "base_yaw") and scenario.plant.robot.wheels is not None
+    run = run_closed_loop(scenario, 1.0)
+    assert np.max(np.abs(run.normal_force[:, 0] - 10.0)) <= 1e-9
+    assert np.max(np.abs(run.command[:, :3])) == 0.0  # no base motor
+    assert np.max(np.abs(run.residual)) <= 1e-9
+    base = run.position[:, :3]
+    assert np.ptp(base[:, 0]) + np.ptp(base[:, 1]) > 1e-4  # the wheels move the base
+    # no slip: the base's velocity has no part along its axle (its x); the forward speed (along its y) is
+    # r (wl + wr) / 2 and the yaw rate r (wr - wl) / b: the unicycle's kinematics
+    yaw, velocity = run.position[:, 2], run.velocity
+    lateral = np.cos(yaw) * velocity[:, 0] + np.sin(yaw) * velocity[:, 1]
+    forward = -np.sin(yaw) * velocity[:, 0] + np.cos(yaw) * velocity[:, 1]
+    wheels = velocity[:, [names.index("wheel_left_joint"), names.index("wheel_right_joint")]]
+    assert np.max(np.abs(lateral)) <= 1e-9
+    np.testing.assert_allclose(forward, RADIUS * wheels.mean(axis=1), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(velocity[:, 2], RADIUS * (wheels[:, 1] - wheels[:, 0]) / SEPARATION, rtol=0, atol=1e-9)
+    assert run.hand_error[-1] < run.hand_error[0]  # the hand closes on its path
+    summary = summarize(run_recorded(build_scenario(shared, sim=sim, ctl=ctl), 1.0), wall_time_s=1.0)
+    assert 0.05 < summary["base_travel_m"] < 0.2 and summary["base_rolling_residual_max_m_s"] <= 1e-9

@@ -26,6 +26,13 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from bracing_core.motors import FIELDS, MotorParams
 
 BASES = ("fixed", "planar", "diff_drive")
 BASE_JOINTS = ("base_x", "base_y", "base_yaw")
@@ -181,11 +188,76 @@ class Wheels:
         return self.left + self.right
 
 
-def wheel_problem(
-    wheels: Wheels, kinds: Mapping[str, str], listed: Sequence[str], locked: Sequence[str], source: str
-) -> str | None:
-    """Why ``wheels`` cannot drive the base, or None. ``kinds``: each joint of the URDF and its type
-    (``urdf_joint_types``); ``listed``: robot.joint_names; ``locked``: robot.locked_joints."""
+# A differential drive's base joints have no motor; in voltage mode each joint has a motor circuit (a shorted
+# one would brake the base), so turning wheels take torque input for now.
+TURNING_WHEELS = (
+    "robot.base: diff_drive with turning wheels takes input_mode: torque (the base joints have no motor circuit); "
+    "or lock both wheels (robot.locked_joints: a braked base), or set robot.base: planar"
+)
+
+
+def passive_padded(motors: MotorParams) -> MotorParams:
+    """``motors`` and one more row for the joints without a motor (a differential drive's base): torque input
+    gives them no torque (the law's is zero there); its values only keep the parameters' checks."""
+    values = {name: np.append(getattr(motors, name), 0.0 if name in _ZERO_FOR_PASSIVE else 1.0) for name in FIELDS}
+    return MotorParams(
+        **values,
+        voltage_limit=motors.voltage_limit,
+        torque_limit=np.append(motors.torque_limit, 0.0),
+        thermal=motors.thermal,
+        ambient_temperature=motors.ambient_temperature,
+        temperature_coefficient=motors.temperature_coefficient,
+    )
+
+
+_ZERO_FOR_PASSIVE = ("rotor_inertia", "gear_damping", "transmission_radius")
+
+
+def wheels_of(values: Mapping[str, Any]) -> Wheels | None:
+    """robot.base: diff_drive's wheels from the schema's values; BaseError names a missing or bad one."""
+    if values["robot.base"] != "diff_drive":
+        return None
+    for key in ("robot.left_wheel_names", "robot.right_wheel_names"):
+        if not values[key]:
+            raise BaseError(f"{key}: robot.base: diff_drive needs the wheel's joint (one per side), got none")
+    for key in ("robot.wheel_radius", "robot.wheel_separation"):
+        if not values[key] > 0.0:
+            raise BaseError(f"{key}: robot.base: diff_drive needs it > 0 [m], got {values[key]!r}")
+    return Wheels(
+        tuple(values["robot.left_wheel_names"]),
+        tuple(values["robot.right_wheel_names"]),
+        values["robot.wheel_radius"],
+        values["robot.wheel_separation"],
+    )
+
+
+def braked(
+    wheels: Wheels, locked: Sequence[str], positions: Sequence[float]
+) -> tuple[Wheels | None, list[str], list[float]]:
+    """The wheels that roll (None: both locked, a braked base) and the locked joints with their positions: on
+    wheels that can neither turn nor slip the base cannot move, so base_x, base_y, base_yaw lock with them (at
+    robot.locked_positions if listed, else 0). BaseError for one wheel locked alone."""
+    held = [name for name in wheels.names if name in locked]
+    if not held:
+        return wheels, list(locked), list(positions)
+    if len(held) == 1:
+        raise BaseError(
+            f"robot.locked_joints: {held} locks one wheel of the differential drive: lock both (a braked base) "
+            "or neither"
+        )
+    values = list(positions) or [0.0] * len(locked)
+    added = [name for name in BASE_JOINTS if name not in locked]
+    return None, [*locked, *added], [*values, *[0.0] * len(added)]
+
+
+def wheel_problem(wheels: Wheels, urdf: Path, listed: Sequence[str], locked: Sequence[str]) -> str | None:
+    """Why ``wheels`` cannot drive the base of the URDF at ``urdf``, or None. ``listed``: robot.joint_names;
+    ``locked``: robot.locked_joints."""
+    try:
+        kinds = urdf_joint_types(urdf.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ET.ParseError):
+        return None  # the model's loading names what is wrong with the file
+    source = str(urdf)
     for side in ("left", "right"):
         names = getattr(wheels, side)
         if len(names) != 1:
@@ -214,3 +286,28 @@ def wheel_problem(
 def urdf_joint_types(urdf_xml: str) -> dict[str, str]:
     """Each joint of the URDF text and its type as written (continuous, revolute, prismatic, fixed, ...)."""
     return {str(j.get("name")): str(j.get("type")) for j in ET.fromstring(urdf_xml).findall("joint")}
+
+
+def axle_problem(model: pin.Model, wheels: Wheels, tolerance: float = 1e-6) -> str | None:
+    """Why the URDF's wheels (at the neutral posture) are not the two wheels of one axle ``wheels`` describes:
+    spin axes parallel and horizontal, the centres on a common axis, wheel_separation [m] apart, or None."""
+    data = model.createData()
+    q = pin.neutral(model)
+    pin.computeJointJacobians(model, data, q)
+    centres, axes = [], []
+    for name in wheels.names:
+        joint = model.getJointId(name)
+        jacobian = pin.getJointJacobian(model, data, joint, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        centres.append(np.array(data.oMi[joint].translation))
+        axes.append(np.array(jacobian[3:, model.idx_vs[joint]]))
+    offset, names = centres[1] - centres[0], "robot.left_wheel_names / right_wheel_names"
+    if abs(axes[0][2]) > tolerance or np.linalg.norm(np.cross(axes[0], axes[1])) > tolerance:
+        return f"{names}: the wheels' spin axes {axes[0]} and {axes[1]} are not one horizontal axle"
+    if np.linalg.norm(np.cross(offset, axes[0])) > tolerance or abs(offset[2]) > tolerance:
+        return f"{names}: the wheels' centres {centres[0]} and {centres[1]} are not on their common axis"
+    apart = float(np.linalg.norm(offset))
+    if abs(apart - wheels.separation) > tolerance:
+        return (
+            f"robot.wheel_separation: {wheels.separation!r} m, but the URDF's wheels are {apart:.6g} m apart: set that"
+        )
+    return None

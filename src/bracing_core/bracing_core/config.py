@@ -18,7 +18,16 @@ import numpy as np
 import pinocchio as pin
 
 from bracing_core import schema
-from bracing_core.base import Wheels, chart_urdf, urdf_joint_types, wheel_problem
+from bracing_core.base import (
+    BASE_JOINTS,
+    TURNING_WHEELS,
+    BaseError,
+    Wheels,
+    chart_urdf,
+    passive_padded,
+    wheel_problem,
+    wheels_of,
+)
 from bracing_core.contacts import Contact, ContactSet, Cylinder, Plane, Sphere, Surface
 from bracing_core.dynamics import ConstrainedDynamics, InputMode, thermal_applies
 from bracing_core.meshes import resolved_description
@@ -238,15 +247,10 @@ class SharedConfig:
 
 
 def _wheels(values: Values) -> Wheels | None:
-    """robot.base: diff_drive's wheels (the schema has checked that each value is given, radii > 0)."""
-    if values["robot.base"] != "diff_drive":
-        return None
-    return Wheels(
-        tuple(values["robot.left_wheel_names"]),
-        tuple(values["robot.right_wheel_names"]),
-        values["robot.wheel_radius"],
-        values["robot.wheel_separation"],
-    )
+    try:
+        return wheels_of(values.values)
+    except BaseError as exc:
+        raise ConfigError(str(exc)) from None
 
 
 def joint_names_mismatch(actuated: Sequence[str], model: Sequence[str], listed: Sequence[str]) -> str | None:
@@ -291,7 +295,10 @@ class Plant:
 
     def __init__(self, config: SharedConfig, slip_epsilon: float, mass_scale: float = 1.0) -> None:
         try:
-            self._check_wheels(config)
+            if config.wheels is not None:  # before the model: the wheels' names as the URDF has them
+                problem = wheel_problem(config.wheels, config.urdf, config.joint_names, config.locked_joints)
+                if problem:
+                    raise ConfigError(problem)
             self.robot = RobotModel.from_urdf(
                 config.urdf,
                 config.gravity,
@@ -301,30 +308,32 @@ class Plant:
                 config.base,
                 config.wheels,
             )
-            if self.robot.wheels is not None:
-                # The engine rolls the base on its wheels (RobotModel.wheels: its rolling rows); the nodes'
-                # plant has a motor on every joint and the law none on that constrained system yet.
-                raise ConfigError(
-                    "robot.base: diff_drive with turning wheels: the engine rolls the base on them, but the nodes' "
-                    "law does not yet run on that constrained system; lock both wheels (robot.locked_joints: a "
-                    "braked base) or set robot.base: planar (a holonomic base, its three velocities driven)"
-                )
+            # A differential drive's base joints have no motor: the wheels roll them (RobotModel.wheels).
+            self.passive = BASE_JOINTS if self.robot.wheels is not None else ()
+            if self.passive and config.input_mode is InputMode.VOLTAGE:
+                raise ConfigError(TURNING_WHEELS)
             # Index array taking configuration-ordered data to model order (locked joints dropped).
             actuated = [name for name in config.joint_names if name not in config.locked_joints]
-            mismatch = joint_names_mismatch(actuated, self.robot.joint_names, config.joint_names)
+            moving = [name for name in self.robot.joint_names if name not in self.passive]
+            mismatch = joint_names_mismatch(actuated, moving, config.joint_names)
             if mismatch:
                 raise ConfigError(mismatch)
-            order = self.robot.joint_permutation(actuated)
+            if not self.passive:
+                order = self.robot.joint_permutation(actuated)
         except ModelError as exc:
             raise ConfigError(str(exc)) from None
-        self.order = np.array([config.joint_names.index(actuated[k]) for k in order], dtype=int)
+        if self.passive:  # the passive joints read the padding slot after the configured values
+            slot = {name: k for k, name in enumerate(config.joint_names)}
+            self.order = np.array([slot.get(name, len(slot)) for name in self.robot.joint_names], dtype=int)
+        else:
+            self.order = np.array([config.joint_names.index(actuated[k]) for k in order], dtype=int)
         for contact in config.contacts:
             self.frame_id(contact.frame, f"contacts.{contact.name}.frame")
         for frame in config.collision_frames:
             self.frame_id(frame, "robot.collision_frames")
         self.config = config
         self.joint_names = self.robot.joint_names  # model order: the order of every message
-        self.motors = config.motors.selected(self.order)
+        self.motors = (passive_padded(config.motors) if self.passive else config.motors).selected(self.order)
         if config.torque_limit_from_urdf:
             self.motors = dataclasses.replace(self.motors, torque_limit=urdf_effort_limits(self.robot))
         self._check_transmissions()
@@ -337,21 +346,13 @@ class Plant:
             raise ConfigError(str(exc)) from None
         self.braced_set = ContactSet(self.robot, [c.contact() for c in config.braced_contacts], slip_epsilon)
 
-    @staticmethod
-    def _check_wheels(config: SharedConfig) -> None:
-        """robot.base: diff_drive's wheels are wheels of this URDF, listed or locked (before the run starts)."""
-        if config.wheels is None:
-            return
-        kinds = urdf_joint_types(Path(config.urdf).read_text(encoding="utf-8"))
-        problem = wheel_problem(config.wheels, kinds, config.joint_names, config.locked_joints, f"{config.urdf}")
-        if problem:
-            raise ConfigError(problem)
-
     def _check_transmissions(self) -> None:
         """A prismatic joint needs a transmission radius (its motor turns a wheel or pinion); a revolute none."""
         for name, prismatic, radius in zip(
             self.joint_names, self.robot.prismatic, self.motors.transmission_radius, strict=True
         ):
+            if name in self.passive:
+                continue
             if prismatic and not radius > 0.0:
                 raise ConfigError(
                     f"motors.transmission_radius: joint {name!r} is prismatic, so its motor drives it through a wheel "
@@ -414,6 +415,8 @@ class Plant:
 
     def to_model_order(self, values: Sequence[float]) -> np.ndarray:
         """Per-joint values in robot.joint_names order -> model order (locked joints dropped)."""
+        if self.passive:  # a passive joint's value: 0 (the base's start at the odom origin, no gain, no motor)
+            return np.append(np.asarray(values, dtype=float), 0.0)[self.order]
         return np.asarray(values, dtype=float)[self.order]
 
     def dynamics(self, baumgarte: float = 0.0) -> ConstrainedDynamics:

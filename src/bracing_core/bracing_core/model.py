@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from bracing_core.base import BASE_JOINTS, BaseError, Wheels, chart_urdf
+from bracing_core.base import BASE_JOINTS, BaseError, Wheels, axle_problem, braked, chart_urdf
 from bracing_core.types import Vector
 
 _WORLD = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -70,7 +70,8 @@ class RobotModel:
                 links = [f.name for f in model.frames if f.parentJoint == joint and f.type == pin.FrameType.BODY]
                 raise ModelError(
                     f"{source}: link {links[0] if links else model.names[joint]!r} (moved by {model.names[joint]!r}) "
-                    f"has mass {mass} kg and moves no other; every moving link needs a positive mass"
+                    f"has mass {mass} kg; every moving link needs a positive mass (a massless carriage only behind "
+                    "a prismatic joint or base_yaw)"
                 )
         self.model = model
         self.data = model.createData()
@@ -129,16 +130,14 @@ class RobotModel:
                 model = pin.buildModelFromXML(charted)
         except (OSError, UnicodeDecodeError, BaseError) as exc:
             raise ModelError(str(exc)) from None
-        if wheels is not None and set(wheels.names) <= set(locked_joints):
-            locked_positions = list(locked_positions) or [0.0] * len(locked_joints)
-            added = [name for name in BASE_JOINTS if name not in locked_joints]
-            locked_joints, locked_positions = [*locked_joints, *added], [*locked_positions, *[0.0] * len(added)]
-            wheels = None
-        elif wheels is not None and set(wheels.names) & set(locked_joints):
-            raise ModelError(
-                f"robot.locked_joints: {sorted(set(wheels.names) & set(locked_joints))} locks one wheel of the "
-                "differential drive: lock both (a braked base) or neither"
-            )
+        if wheels is not None:
+            problem = axle_problem(model, wheels)
+            if problem:
+                raise ModelError(problem)
+            try:
+                wheels, locked_joints, locked_positions = braked(wheels, locked_joints, locked_positions)
+            except BaseError as exc:
+                raise ModelError(str(exc)) from None
         robot = cls._built(model, str(path), gravity, locked_joints, locked_positions)
         robot.urdf_xml = "" if charted is text else charted
         robot.base, robot.wheels = base, wheels

@@ -154,6 +154,8 @@ class Recording:
     status: str = "ok"  # summary.json's: ok | failed (run_recorded's keep_failure)
     error: str | None = None  # what stopped the run, what ran away (failures.diagnose)
     hint: str | None = None  # what to change, for a known cause (failures)
+    # a differential drive's rolling residual max |A v| per state [m/s] (the engine's rolling rows); empty: none
+    rolling_residual: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Every field as an array (for an .npz; the names as string arrays, no pickles)."""
@@ -237,7 +239,17 @@ def run_recorded(
         status=outcome.status,
         error=outcome.error,
         hint=outcome.hint,
+        rolling_residual=_rolling_residual(sim, out.position, out.velocity),
     )
+
+
+def _rolling_residual(sim: Simulator, position: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+    """max |A v| [m/s] of a differential drive's rolling rows at each recorded state (empty without them)."""
+    dynamics = sim.dynamics.engine
+    if not dynamics.rolling_rows:
+        return np.zeros(0)
+    states = zip(position, velocity, strict=True)
+    return np.array([np.max(np.abs(dynamics.terms(q, v).rolling_velocity)) for q, v in states])
 
 
 def _outcome(scenario: Scenario, out: engine.Recording, error: Exception | None, warnings: list[str]) -> Failure:

@@ -245,35 +245,30 @@ SHARED: tuple[Param, ...] = (
     Param(
         "robot.left_wheel_names",
         Kind.STRING_ARRAY,
-        REQUIRED,
-        "the left wheels' joints (continuous or revolute, each turning about its own axis; diff_drive_controller's "
+        [],
+        "robot.base: diff_drive: the left wheel's joint (continuous or revolute; one per side; diff_drive_controller's "
         "name)",
-        required_if=("robot.base", "diff_drive"),
     ),
     Param(
         "robot.right_wheel_names",
         Kind.STRING_ARRAY,
-        REQUIRED,
-        "the right wheels' joints, as robot.left_wheel_names",
-        required_if=("robot.base", "diff_drive"),
+        [],
+        "robot.base: diff_drive: the right wheel's joint, as robot.left_wheel_names",
     ),
     Param(
         "robot.wheel_radius",
         Kind.DOUBLE,
-        REQUIRED,
-        "every wheel's radius (diff_drive_controller's name)",
+        0.0,
+        "robot.base: diff_drive: the wheels' radius, > 0 (diff_drive_controller's name); unused otherwise",
         "m",
-        positive=True,
-        required_if=("robot.base", "diff_drive"),
     ),
     Param(
         "robot.wheel_separation",
         Kind.DOUBLE,
-        REQUIRED,
-        "the distance between the left and right wheels' contact lines (diff_drive_controller's name)",
+        0.0,
+        "robot.base: diff_drive: the distance between the wheels' centres, > 0, as the URDF has them "
+        "(diff_drive_controller's name); unused otherwise",
         "m",
-        positive=True,
-        required_if=("robot.base", "diff_drive"),
     ),
     Param(
         "input_mode",

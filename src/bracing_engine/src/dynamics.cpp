@@ -8,9 +8,6 @@
 #include "bracing_engine/engine.hpp"
 #include "model.hpp"
 
-#include <pinocchio/algorithm/jacobian.hpp>
-#include <pinocchio/algorithm/kinematics.hpp>
-
 #include <Eigen/Dense>
 #include <Eigen/Eigenvalues>
 
@@ -42,8 +39,7 @@ struct Dynamics::Impl {
   mutable std::vector<int> tangent_count;               // per contact: its sticking rows
   // A differential drive: the wheels' joints (left, right; 0: none), their radius, and the rolling rows A
   // (3 x n) with their drift dA v at the state of the last rolling_terms.
-  pin::JointIndex wheels[2] = {0, 0};
-  double wheel_radius = 0.0;
+  Wheels wheels;
   mutable RowMatrix rolling;
   mutable Vector rolling_drift;
   mutable pin::Data::Matrix6x wheel_jacobian;
@@ -100,35 +96,8 @@ void Dynamics::Impl::contact_terms(int j, const Eigen::Ref<const Vector>& dq, An
   out.residual[j] = point.residual;
 }
 
-// Each wheel rolls on the plane under its centre without slipping: its contact point, the material point at
-// d = -r z below the centre, has no horizontal velocity. v_p = v_c + w x d, so J_p = J_c,lin + r [z]x J_ang;
-// its forward part (f = z x l, l the spin axis' horizontal direction) for each wheel and the lateral part
-// (along l) of the left one (the right's is the same on a common axle) are the three rows. Their drift:
-// d/dt (e . v_p) = e . a_p + de . v_p with a_p = a_c + alpha x d at dv = 0 (d is fixed in the world: the
-// contact point is a new material point at each instant) and de from the axis turning with the wheel (da = w x a).
 void Dynamics::Impl::rolling_terms(const Eigen::Ref<const Vector>& dq, Answer& out) const {
-  const Vector3 up = Vector3::UnitZ(), d = -wheel_radius * up;
-  Eigen::Matrix3d up_cross;
-  up_cross << 0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0;  // [z]x
-  for (int w = 0; w < 2; ++w) {
-    const pin::JointIndex joint = wheels[w];
-    wheel_jacobian.setZero();
-    pin::getJointJacobian(model, data, joint, pin::LOCAL_WORLD_ALIGNED, wheel_jacobian);
-    const RowMatrix point = wheel_jacobian.topRows<3>() + wheel_radius * up_cross * wheel_jacobian.bottomRows<3>();
-    const Vector3 axis = wheel_jacobian.col(model.idx_vs[joint]).tail<3>();  // the spin axis, world
-    const Vector3 along = (axis - axis.dot(up) * up).normalized(), forward = up.cross(along);
-    const Vector3 omega = pin::getVelocity(model, data, joint, pin::LOCAL_WORLD_ALIGNED).angular();
-    const pin::Motion accel = pin::getClassicalAcceleration(model, data, joint, pin::LOCAL_WORLD_ALIGNED);
-    const Vector3 point_acceleration = accel.linear() + accel.angular().cross(d);  // d stays below the centre
-    const Vector3 turn = omega.cross(axis), along_rate = turn - turn.dot(up) * up;
-    const Vector3 velocity = point * dq;
-    rolling.row(w).noalias() = forward.transpose() * point;
-    rolling_drift[w] = forward.dot(point_acceleration) + up.cross(along_rate).dot(velocity);
-    if (w == 0) {
-      rolling.row(2).noalias() = along.transpose() * point;
-      rolling_drift[2] = along.dot(point_acceleration) + along_rate.dot(velocity);
-    }
-  }
+  bracing_engine::rolling_rows(model, data, wheels, dq, rolling, rolling_drift, wheel_jacobian);
   out.rolling_velocity.noalias() = rolling * dq;
 }
 
@@ -160,8 +129,8 @@ void Dynamics::Impl::resize(Answer& out) const {
   out.residual.setZero(p);
   out.tangential_force.setZero(p, 3);
   out.friction.setZero(p);
-  out.rolling_velocity.setZero(wheels[0] ? 3 : 0);
-  out.rolling_force.setZero(wheels[0] ? 3 : 0);
+  out.rolling_velocity.setZero(wheels ? 3 : 0);
+  out.rolling_force.setZero(wheels ? 3 : 0);
 }
 
 void Dynamics::Impl::drive_balance(const Eigen::Ref<const Vector>& dq, const Eigen::Ref<const Vector>& current,
@@ -187,7 +156,7 @@ int Dynamics::Impl::count_rows(const ContactModes& modes, bool full, const Eigen
       rows += count;
     }
   }
-  if (wheels[0]) {
+  if (wheels) {
     rolling_terms(dq, out);
     rows += 3;
   }
@@ -250,7 +219,7 @@ void Dynamics::Impl::assemble_rows(int rows, const ContactModes& modes, const Ei
     if (modes.held[j]) normal_row(i++, j, modes, dq, baumgarte, out);
   for (int j = 0; j < p; ++j)
     if (modes.held[j] && modes.sticking[j]) i = tangent_rows(i, j, dq, baumgarte, out);
-  if (wheels[0]) rolling_rows(i, dq, baumgarte);
+  if (wheels) rolling_rows(i, dq, baumgarte);
   mass_inverse_rows(model, data, constraint, y_column, y);
 }
 
@@ -306,7 +275,7 @@ void Dynamics::Impl::scatter_forces(const ContactModes& modes, Answer& out) cons
     out.tangential_force.row(j) = tangential.transpose();
     out.friction[j] = tangential.norm();
   }
-  if (!wheels[0]) return;
+  if (!wheels) return;
   for (int k = 0; k < 3; ++k, ++i) {  // the rolling rows, last
     out.rolling_force[k] = force[i];
     out.constraint_power += force[i] * normal_velocity[i];
@@ -356,22 +325,15 @@ Dynamics::Dynamics(const Robot& robot, const Drive& drive, std::vector<Contact> 
   m.tangent_count.assign(m.contacts.size(), 0);
   m.r.setZero(n);
   m.y_column.setZero(n);
-  if (robot.rolls()) {
-    if (!(robot.wheel_radius > 0.0)) throw std::invalid_argument("robot.wheel_radius: must be > 0");
-    const std::string* names[2] = {&robot.left_wheel, &robot.right_wheel};
-    for (int w = 0; w < 2; ++w) {
-      if (!m.model.existJointName(*names[w]) || m.model.nvs[m.model.getJointId(*names[w])] != 1)
-        throw std::invalid_argument("wheel " + *names[w] + ": not a 1-dof joint of the model");
-      m.wheels[w] = m.model.getJointId(*names[w]);
-    }
-    m.wheel_radius = robot.wheel_radius;
+  m.wheels = wheels_of(m.model, robot);
+  if (m.wheels) {
     m.rolling.setZero(3, n);
     m.rolling_drift.setZero(3);
     m.wheel_jacobian.setZero(6, n);
   }
 }
 
-int Dynamics::rolling_rows() const { return impl_->wheels[0] ? 3 : 0; }
+int Dynamics::rolling_rows() const { return impl_->wheels ? 3 : 0; }
 
 Dynamics::~Dynamics() = default;
 
@@ -390,7 +352,7 @@ void Dynamics::terms(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const V
   m.resize(out);
   rigid_body_terms(m.model, m.data, q, dq);
   for (int j = 0; j < contact_count(); ++j) m.contact_terms(j, dq, out);
-  if (m.wheels[0]) m.rolling_terms(dq, out);
+  if (m.wheels) m.rolling_terms(dq, out);
 }
 
 int Dynamics::tangent_directions(const Vector3& n, const Eigen::Ref<const RowMatrix>& jacobian, Vector3 out[2]) {
@@ -481,7 +443,7 @@ double Dynamics::hold_velocity(const Vector& q, Vector& dq, const ContactModes& 
     const int count = tangent_directions(answer.normals.row(j).transpose(), answer.jacobians.middleRows<3>(3 * j), t);
     for (int k = 0; k < count; ++k) rows.push_back((t[k].transpose() * answer.jacobians.middleRows<3>(3 * j)).transpose());
   }
-  if (m.wheels[0])  // the wheels keep rolling through the impulse
+  if (m.wheels)  // the wheels keep rolling through the impulse
     for (int i = 0; i < 3; ++i) rows.push_back(m.rolling.row(i).transpose());
   const int k = static_cast<int>(rows.size());
   if (!k) return 0.0;

@@ -109,6 +109,34 @@ struct Law::Impl {
   Vector temperature;  // the windings' measured temperatures [degC]
   Vector rest;         // the posture task's rest position (the first measured one unless configured)
   bool posture = false;
+  // A differential drive (docs/model.md, Control law on a differential drive): the law runs on the admissible
+  // motions dq = T dq, T = [0 S_b; 0 I] (the base's velocities those the wheels' rolling gives the actuated
+  // ones), every Jacobian J T, Mc as T^T Mc T (the base block I, decoupled), the drifts plus J (dT dq).
+  Wheels wheels;
+  RowMatrix rolling;
+  Vector rolling_drift, base_acceleration;  // dA dq; the base's acceleration at zero actuated acceleration
+  Eigen::MatrixXd embed;                    // T (n x n)
+  Eigen::LLT<Eigen::MatrixXd> reduced_mass;
+  std::vector<Vector3> base_drifts;  // per task frame: J_base times the base's acceleration
+
+  // T and the base's acceleration (`mass` false) or T^T Mc T's factor (`mass` true) at the state of the last
+  // rigid_body_terms (rolling only).
+  void reduce(const Vector& dq, bool mass);
+  // Mc^-1 (or (T^T Mc T)^-1 when rolling) applied to the rows of R: row i of `out` becomes (Mc^-1 R_i^T)^T.
+  template <typename Rows, typename Out>
+  void inverse_rows(const Eigen::MatrixBase<Rows>& rows, Out&& out) {
+    if (wheels)
+      out = reduced_mass.solve(Eigen::MatrixXd(rows.transpose())).transpose();
+    else
+      mass_inverse_rows(model, data, rows, y_column, out);
+  }
+  // Mc's factor (pinocchio's Cholesky, or T^T Mc T's when rolling).
+  void decompose() {
+    if (wheels)
+      reduce(Vector::Zero(0), true);
+    else
+      pin::cholesky::decompose(model, data);
+  }
 
   // The rows of `jacobian` along `axes`, appended to `rows`.
   void stack(Eigen::MatrixXd& rows, const std::vector<int>& axes) const {
@@ -124,10 +152,11 @@ struct Law::Impl {
     Vector w = Vector::Zero(n);
     if (spec.posture_kp.size()) w += spec.posture_kp.cwiseProduct(rest - q);
     if (spec.posture_kd.size()) w -= spec.posture_kd.cwiseProduct(dq);
+    if (wheels) w.head<3>().setZero();  // the base has no motor
     if (rows.rows() == 0) return w;
-    pin::cholesky::decompose(model, data);
+    decompose();
     Eigen::MatrixXd y(n, rows.rows());  // Mc^-1 J^T
-    mass_inverse_rows(model, data, rows, y_column, y.transpose());
+    inverse_rows(rows, y.transpose());
     const Eigen::MatrixXd inverse_inertia = rows * y;  // J Mc^-1 J^T
     return w - rows.transpose() * inverse_inertia.completeOrthogonalDecomposition().solve(y.transpose() * w);
   }
@@ -205,6 +234,11 @@ Law::Law(const LawSpec& spec) : impl_(std::make_unique<Impl>()) {
   m.frame_jacobian.setZero(6, n);
   m.y_column.setZero(n);
   m.measured_force.setZero(braces(), 3);
+  m.wheels = wheels_of(m.model, spec.robot);
+  m.base_drifts.assign(m.frames.size(), Vector3::Zero());
+  if (m.wheels && (m.model.nv <= 3 || !m.model.existJointName("base_yaw") ||
+                   m.model.idx_vs[m.model.getJointId("base_yaw")] != 2))
+    throw std::invalid_argument("law: a differential drive's base_x, base_y, base_yaw must be the first joints");
   for (const Vector* v : {&spec.posture_kp, &spec.posture_kd, &spec.posture_rest})
     if (v->size() != 0 && v->size() != n) throw std::invalid_argument("law: one posture value per joint expected");
   if (spec.command_limit.size() != 0 && spec.command_limit.size() != n)
@@ -328,13 +362,18 @@ double Law::null_space_speed(const Vector& dq) {
   Eigen::MatrixXd rows(0, m.model.nv);
   for (std::size_t k = 0; k < m.frames.size(); ++k) {  // the Jacobians of the last update's pass
     m.jacobian = translational_jacobian(m.model, m.data, m.frames[k], m.frame_jacobian);
+    if (m.wheels) m.jacobian = m.jacobian * m.embed;
     m.stack(rows, k ? m.spec.braces[k - 1].task.axes : m.spec.hand.axes);
     if (k == 0 && m.orientation) {  // the hand's angular rows
       m.jacobian = m.frame_jacobian.bottomRows<3>();
+      if (m.wheels) m.jacobian = m.jacobian * m.embed;
       m.stack(rows, m.spec.orientation.axes);
     }
   }
-  return bracing_engine::null_space_speed(rows, dq);
+  if (!m.wheels) return bracing_engine::null_space_speed(rows, dq);
+  Vector moving = dq;  // the base moves as the wheels roll: not a joint of its own
+  moving.head<3>().setZero();
+  return bracing_engine::null_space_speed(rows, moving);
 }
 
 const std::string& Law::brace_name(int brace) const { return impl_->spec.braces.at(brace).contact.name; }
@@ -353,12 +392,14 @@ Eigen::MatrixXd Law::allowed_task_rows(const Vector& q0, const std::vector<std::
   const int n = m.model.nv, p = braces();
   const Vector zero = Vector::Zero(n);
   rigid_body_terms(m.model, m.data, q0, zero);
+  if (m.wheels) m.reduce(zero, false);  // the admissible motions (the base's as the wheels roll)
   auto translational = [&](std::size_t k) {
-    return Eigen::MatrixXd(translational_jacobian(m.model, m.data, m.frames[k], m.frame_jacobian));
+    const Eigen::MatrixXd jacobian = translational_jacobian(m.model, m.data, m.frames[k], m.frame_jacobian);
+    return m.wheels ? Eigen::MatrixXd(jacobian * m.embed) : jacobian;
   };
   auto task_row = [&](std::size_t k, int axis) -> Eigen::RowVectorXd {  // axis 3-5: the angular rows
     translational_jacobian(m.model, m.data, m.frames[k], m.frame_jacobian);
-    return m.frame_jacobian.row(axis);
+    return m.wheels ? Eigen::RowVectorXd(m.frame_jacobian.row(axis) * m.embed) : m.frame_jacobian.row(axis);
   };
   // the motions the braced contacts allow: I - J_c^+ J_c
   Eigen::MatrixXd allowed = Eigen::MatrixXd::Identity(n, n);
@@ -484,7 +525,7 @@ void Law::Impl::orientation_torque(const Vector& dq, double dt, LawOutput& out, 
   const OrientationTask& task = spec.orientation;
   frame_jacobian.setZero();
   pin::getFrameJacobian(model, data, frames[0], pin::LOCAL_WORLD_ALIGNED, frame_jacobian);
-  const Eigen::MatrixXd angular = frame_jacobian.bottomRows<3>();  // w = angular dq, world axes
+  Eigen::MatrixXd angular = frame_jacobian.bottomRows<3>();  // w = angular dq, world axes
   const Matrix3 rotation = pin::updateFramePlacement(model, data, frames[0]).rotation();
   out.orientation_error = pin::log3(Matrix3(orientation_target * rotation.transpose()));  // world axes
   // a moving reference's angular velocity in the damping (none otherwise: the configured law, bit for bit)
@@ -492,9 +533,13 @@ void Law::Impl::orientation_torque(const Vector& dq, double dt, LawOutput& out, 
       orientation_overridden ? Vector3(orientation_velocity - angular * dq) : Vector3(-(angular * dq));
   const Vector3 moment =
       pid(task.kp, task.kd, task.ki, out.orientation_error, velocity_error, dt, orientation_integral);
+  Vector3 drift =  // dJ dq: the frame's angular acceleration at ddq = 0
+      pin::getFrameClassicalAcceleration(model, data, frames[0], pin::LOCAL_WORLD_ALIGNED).angular();
+  if (wheels) {
+    drift += angular.leftCols<3>() * base_acceleration;
+    angular = angular * embed;
+  }
   if (spec.acceleration_gains) {
-    const Vector3 drift =  // dJ dq: the frame's angular acceleration at ddq = 0
-        pin::getFrameClassicalAcceleration(model, data, frames[0], pin::LOCAL_WORLD_ALIGNED).angular();
     for (int axis : task.axes) {
       task_accelerations.conservativeResize(task_accelerations.size() + 1);
       task_accelerations[task_accelerations.size() - 1] = moment[axis] - drift[axis];
@@ -513,7 +558,8 @@ void Law::Impl::orientation_torque(const Vector& dq, double dt, LawOutput& out, 
 void Law::Impl::stack_acceleration(int k, const Vector3& acceleration, Vector& accelerations) const {
   const Task& task = k ? spec.braces[k - 1].task : spec.hand;
   // dJ dq: the frame's classical acceleration at ddq = 0 (rigid_body_terms' pass)
-  const Vector3 drift = pin::getFrameClassicalAcceleration(model, data, frames[k], pin::LOCAL_WORLD_ALIGNED).linear();
+  Vector3 drift = pin::getFrameClassicalAcceleration(model, data, frames[k], pin::LOCAL_WORLD_ALIGNED).linear();
+  if (wheels) drift += base_drifts[k];
   const Eigen::Index before = accelerations.size();
   accelerations.conservativeResize(before + static_cast<Eigen::Index>(task.axes.size()));
   for (std::size_t i = 0; i < task.axes.size(); ++i)
@@ -528,6 +574,10 @@ Vector Law::Impl::task_torque(double t, double dt, const Vector& dq, LawOutput& 
     jacobian = translational_jacobian(model, data, frames[k], frame_jacobian);
     const Vector3 position = pin::updateFramePlacement(model, data, frames[k]).translation();
     const Vector3 velocity = jacobian * dq;
+    if (wheels) {  // the admissible motions' columns, the base's share of the drift
+      base_drifts[k] = jacobian.leftCols<3>() * base_acceleration;
+      jacobian = jacobian * embed;
+    }
     Vector3 desired, desired_velocity;
     if (overridden[k]) {
       desired = reference_position[k];
@@ -565,6 +615,7 @@ BraceRows Law::Impl::brace_rows(const Eigen::MatrixXd& brace_jacobians, const Ve
     const Vector3 position = out.brace_actual.row(j).transpose();
     rows.accelerations[j] =
         pin::getFrameClassicalAcceleration(model, data, frames[j + 1], pin::LOCAL_WORLD_ALIGNED).linear();
+    if (wheels) rows.accelerations[j] += base_drifts[j + 1];
     const Vector3 velocity = jacobian * dq;
     const ContactPoint point = contact_point(contact.surface, position, velocity, rows.accelerations[j]);
     rows.normals[j] = point.normal;
@@ -591,7 +642,7 @@ Vector Law::Impl::sliding_torque(const BraceRows& rows, const Vector& bias, cons
                                  ArmResponse* response) {
   const int n = model.nv, p = static_cast<int>(rows.jc.rows());
   Eigen::MatrixXd b(p, n);  // B = J_c Mc^-1 (Mc symmetric)
-  mass_inverse_rows(model, data, rows.jc, y_column, b);
+  inverse_rows(rows.jc, b);
   const Eigen::MatrixXd a_matrix = b * rows.w.transpose();
   const Vector a_vector = b * bias - rows.gamma;
   const Eigen::MatrixXd b_pinv =
@@ -678,7 +729,7 @@ Vector Law::Impl::sticking_torque(const BraceRows& rows, const Eigen::MatrixXd& 
   const Eigen::Index p = rows.jc.rows();
   const StickRows s = stick_rows(rows, brace_jacobians);
   Eigen::MatrixXd y(model.nv, s.r.rows());  // Mc^-1 R^T
-  mass_inverse_rows(model, data, s.r, y_column, y.transpose());
+  inverse_rows(s.r, y.transpose());
   const Eigen::MatrixXd g = y.transpose() * s.wr.transpose();  // R Mc^-1 W^T
   // (least-norm where the rows are dependent, as the simulator solves them)
   const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> g_lu(g);
@@ -708,7 +759,7 @@ Vector Law::Impl::sticking_torque(const BraceRows& rows, const Eigen::MatrixXd& 
     response->acceleration = mass_solve(torque - bias + s.wr.transpose() * lambda);
     const int n = model.nv;
     Eigen::MatrixXd w_inverse(s.wr.rows(), n);  // W Mc^-1
-    mass_inverse_rows(model, data, s.wr, y_column, w_inverse);
+    inverse_rows(s.wr, w_inverse);
     // d tau / d l: (I - C^+ C) and the cone's correction (piecewise affine in l: a difference is exact in its piece)
     Eigen::MatrixXd torque_rate(n, n);
     const double h = 1e-6 * std::max(1.0, l.cwiseAbs().maxCoeff());
@@ -725,13 +776,30 @@ Vector Law::Impl::sticking_torque(const BraceRows& rows, const Eigen::MatrixXd& 
 Eigen::MatrixXd Law::Impl::mass_inverse() {
   const int n = model.nv;
   Eigen::MatrixXd out(n, n);
-  mass_inverse_rows(model, data, Eigen::MatrixXd::Identity(n, n), y_column, out);  // Mc^-1 symmetric
+  inverse_rows(Eigen::MatrixXd::Identity(n, n), out);  // Mc^-1 symmetric
   return out;
 }
 
 Vector Law::Impl::mass_solve(Vector x) const {
+  if (wheels) return reduced_mass.solve(x);
   pin::cholesky::solve(model, data, x);
   return x;
+}
+
+void Law::Impl::reduce(const Vector& dq, bool mass) {
+  const int n = model.nv, m = n - 3;
+  if (!mass) {
+    rolling_rows(model, data, wheels, dq, rolling, rolling_drift, frame_jacobian);
+    const Eigen::PartialPivLU<Eigen::Matrix3d> base(Eigen::Matrix3d(rolling.leftCols<3>()));
+    embed.setZero(n, n);
+    embed.topRightCorner(3, m) = -base.solve(Eigen::MatrixXd(rolling.rightCols(m)));
+    embed.bottomRightCorner(m, m).setIdentity();
+    base_acceleration = -base.solve(Eigen::Vector3d(rolling_drift));
+    return;
+  }
+  Eigen::MatrixXd reduced = embed.transpose() * Eigen::MatrixXd(data.M.selfadjointView<Eigen::Upper>()) * embed;
+  reduced.topLeftCorner<3, 3>() += Eigen::Matrix3d::Identity();  // the base's block: no motor, decoupled
+  reduced_mass.compute(reduced);
 }
 
 Vector Law::Impl::task_space_torque(const Eigen::MatrixXd& task_rows, const Vector& accelerations,
@@ -762,6 +830,7 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
   const LawSpec& s = m.spec;
   const int n = m.model.nv, p = braces();
   rigid_body_terms(m.model, m.data, q, dq);
+  if (m.wheels) m.reduce(dq, false);
   const double dt = m.advance_clock(t, q);
   out.force_command.resize(p);
   out.brace_desired.resize(p, 3);
@@ -772,17 +841,24 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
   Vector l = m.task_torque(t, dt, dq, out, brace_jacobians, task_rows, task_accelerations);
   out.orientation_error.setZero();
   if (m.orientation) m.orientation_torque(dq, dt, out, l, task_rows, task_accelerations);
-  if (s.gravity_compensation) l += pin::computeGeneralizedGravity(m.model, m.data, q);
+  if (s.gravity_compensation) {
+    const Vector gravity = pin::computeGeneralizedGravity(m.model, m.data, q);
+    l += m.wheels ? Vector(m.embed.transpose() * gravity) : gravity;
+  }
   if (m.posture) l += m.posture_torque(task_rows, q, dq);
   out.damped = false;
   if (p == 0 && !s.acceleration_gains) {
     out.torque = l;
   } else {
-    pin::cholesky::decompose(m.model, m.data);
+    m.decompose();
     BraceRows rows;
     if (p) rows = m.brace_rows(brace_jacobians, dq, dt, out);
     const BraceRows* braced = p ? &rows : nullptr;
-    const Vector bias = m.data.nle + s.drive.damping.cwiseProduct(dq);  // h + g + Dc dq
+    Vector bias = m.data.nle + s.drive.damping.cwiseProduct(dq);  // h + g + Dc dq
+    if (m.wheels) {  // T^T (h + g + Dc dq + Mc dT dq): the admissible motions' share
+      const Eigen::MatrixXd mass = m.data.M.selfadjointView<Eigen::Upper>();
+      bias = m.embed.transpose() * (bias + mass.leftCols<3>() * m.base_acceleration);
+    }
     if (s.acceleration_gains) {  // ddq is affine in l: the task part from how the constrained arm answers l
       ArmResponse response;
       bool ignored = false;
@@ -791,6 +867,7 @@ void Law::update(double t, const Vector& q, const Vector& dq, LawOutput& out) {
     }
     out.torque = m.contact_torque(braced, brace_jacobians, bias, l, out.damped);
   }
+  if (m.wheels) out.torque.head<3>().setZero();  // the base has no motor: the wheels move it
   out.command = voltage_command(out.torque, dq);
   m.saturated = false;
   for (Eigen::Index i = 0; i < s.command_limit.size() && i < out.command.size(); ++i)

@@ -19,6 +19,21 @@ pinocchio::Model build_model(const Robot& robot, const Vector& armature);
 void rigid_body_terms(const pinocchio::Model& model, pinocchio::Data& data, const Eigen::Ref<const Vector>& q,
                       const Eigen::Ref<const Vector>& v);
 
+// A differential drive's wheel joints in `model` (0: none; robot.left_wheel, right_wheel) and their radius [m].
+struct Wheels {
+  pinocchio::JointIndex joints[2] = {0, 0};
+  double radius = 0.0;
+  explicit operator bool() const { return joints[0] != 0; }
+};
+// The robot's wheels in `model`; throws naming a wheel that is not a 1-dof joint of it.
+Wheels wheels_of(const pinocchio::Model& model, const Robot& robot);
+
+// The rolling rows A (3 x n: each wheel's contact point's forward velocity, the left one's lateral) and their
+// drift dA dq after rigid_body_terms at (q, dq) (docs/model.md, Differential drive); `work`: 6 x n.
+void rolling_rows(const pinocchio::Model& model, pinocchio::Data& data, const Wheels& wheels,
+                  const Eigen::Ref<const Vector>& dq, RowMatrix& rows, Vector& drift,
+                  pinocchio::Data::Matrix6x& work);
+
 // Mc^-1 R^T by Mc's Cholesky factor (pinocchio::cholesky::decompose done on `data`), one solve per row
 // of R: row i of `out` becomes (Mc^-1 R_i^T)^T (pass y.transpose() for an n x k Y). `column`: n of work.
 template <typename Rows, typename Out>

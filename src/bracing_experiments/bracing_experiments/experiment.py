@@ -57,6 +57,9 @@ def series_from_recording(rec: Recording) -> BagSeries:
     """The time series a bag of the same run holds, so that summary.compute_summary applies as is."""
     series = BagSeries(
         joint_t=rec.time,
+        joint_names=list(rec.joint_names),
+        joint_position=rec.position,
+        base_rolling_residual=rec.rolling_residual,
         t=rec.time,
         hand_desired=rec.hand_desired,
         hand_actual=rec.hand_actual,
