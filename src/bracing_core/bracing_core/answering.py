@@ -336,7 +336,11 @@ class StateAnswerer:
         if drive.gate.braking and not was_braking:
             self.log.warning(f"cmd_vel timed out at t = {stamp_ns * 1e-9:.6f} s: braking (zero velocity)")
         joints = drive.actuators
-        torque = keep_contact_force(self.contact_map(q, dq), out.torque, joints, out.torque[joints] + tau)
+        if drive.wheels is None:
+            torque = keep_contact_force(self.contact_map(q, dq), out.torque, joints, out.torque[joints] + tau)
+        else:  # the wheels' torque alone: B on the rolling system is the law's (not taken up by the arm here)
+            torque = out.torque.copy()
+            torque[joints] += tau
         if self.config.shared.input_mode.value == "voltage":  # eq. 41 on the change
             out.command = out.command + self.law.plant.to_model_order(self.config.voltage_gain) * (torque - out.torque)
         else:

@@ -177,12 +177,15 @@ def check_effort_forward(config: ControllerConfig) -> None:
 
 
 def check_base_command(config: ControllerConfig) -> None:
-    """base_command cmd_vel needs a planar base: base_x, base_y and base_yaw among the moving joints."""
+    """base_command cmd_vel needs a mobile base: base_x, base_y and base_yaw among the moving joints, or a
+    differential drive whose wheels turn."""
     if config.base_command != "cmd_vel":
         return
-    moving = [j for j in config.shared.joint_names if j not in config.shared.locked_joints]
+    shared = config.shared
+    moving = [j for j in shared.joint_names if j not in shared.locked_joints]
     missing = [j for j in BASE_JOINTS if j not in moving]
-    if missing:
+    rolling = shared.wheels is not None and not set(shared.wheels.names) <= set(shared.locked_joints)
+    if missing and not rolling:  # a differential drive's base joints are the model's, not listed: its wheels turn
         raise ConfigError(
             f"base_command: cmd_vel drives a mobile base, but {missing} are not moving joints (set robot.base to "
             "planar or diff_drive, or base_command to task)"
