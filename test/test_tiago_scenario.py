@@ -1,8 +1,8 @@
 """The shipped mobile manipulator (config/tiago_table.yaml): PAL's TIAGo from example-robot-data, its URDF
 unmodified (the wheels its continuous joints, robot.base: diff_drive), its elbow leaning 10 N on a table with
-the base braked (both wheels held); then the same robot on a planar base driven by cmd_vel while the brace holds
-(the nodes do not turn a differential drive's wheels yet: robot.base planar carries the arm in the plane as the
-wheels would, its three velocities driven by the base's velocity loop). Short runs: a few seconds of sim time."""
+the base braked (both wheels held); then driven by cmd_vel while the brace holds, on its turning wheels and on a
+planar base (robot.base: planar, the wheels held: where the arm takes up the base's push). Short runs: a few
+seconds of sim time."""
 
 from __future__ import annotations
 
