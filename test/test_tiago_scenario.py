@@ -73,6 +73,15 @@ def test_the_scenario_runs_through_bracing_pair(tmp_path: Path) -> None:
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["status"] == "ok" and summary["contacts"]["elbow"]["active_fraction"] == 1.0
     assert summary["normal_force_rms_error_n"] < 1e-6
+    # robot.base is not fixed: odom on every state, the braked base at rest where it is held
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([tmp_path / "bag"]) as reader:
+        connections = [c for c in reader.connections if c.topic == "/odom"]
+        odom = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=connections)]
+    assert len(odom) == 1001 and {(m.header.frame_id, m.child_frame_id) for m in odom} == {("odom", "base_footprint")}
+    assert all(m.pose.pose.position.x == 0.0 and m.pose.pose.orientation.w == 1.0 for m in odom)
+    assert all(m.twist.twist.linear.x == 0.0 for m in odom)
 
 
 def test_driven_by_cmd_vel_the_base_moves_while_the_brace_holds() -> None:

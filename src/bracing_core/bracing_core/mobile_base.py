@@ -37,13 +37,17 @@ ARM_AUTHORITY = 1e-3
 
 
 def root_link(model: Any) -> str:
-    """The link the base carries (odom's child frame): the first body of the joint that turns base_yaw (a
-    hand-built prismatic-prismatic-revolute base), else of the model's first joint (a planar root joint)."""
-    joint = model.getJointId("base_yaw") if model.existJointName("base_yaw") else 1
+    """The link the base carries (odom's child frame): the body right after base_yaw (a joint, or a fixed frame
+    once the base is locked), else the first body of the model's first joint."""
+    if model.existFrame("base_yaw"):
+        after = model.getFrameId("base_yaw")
+        for frame in model.frames:
+            if frame.previousFrame == after and frame.type == pin.FrameType.BODY:
+                return str(frame.name)
     for frame in model.frames:
-        if frame.parentJoint == joint and frame.type == pin.FrameType.BODY:
+        if frame.parentJoint == 1 and frame.type == pin.FrameType.BODY:
             return str(frame.name)
-    raise ValueError(f"no link on joint {model.names[joint]!r}")
+    raise ValueError("no link carried by the base")
 
 
 def base_indices(joint_names: Sequence[str]) -> tuple[int, int, int] | None:
@@ -82,6 +86,16 @@ def odometry(position: Vector, velocity: Vector, indices: tuple[int, int, int]) 
     return BaseOdometry(
         float(position[ix]), float(position[iy]), yaw, c * dx + s * dy, -s * dx + c * dy, float(velocity[iyaw])
     )
+
+
+def braked_pose(locked_joints: Sequence[str], locked_positions: Sequence[float]) -> BaseOdometry | None:
+    """The odometry of a base held in place (base_x, base_y, base_yaw all locked: a differential drive's wheels
+    held) at its locked positions, at rest; None if its joints are not all locked."""
+    held = dict(zip(locked_joints, list(locked_positions) or [0.0] * len(locked_joints), strict=True))
+    if not all(name in held for name in BASE_JOINTS):
+        return None
+    x, y, yaw = (float(held[name]) for name in BASE_JOINTS)
+    return BaseOdometry(x, y, yaw, 0.0, 0.0, 0.0)
 
 
 def wheel_velocities(forward: float, yaw_rate: float, radius: float, separation: float) -> tuple[float, float]:

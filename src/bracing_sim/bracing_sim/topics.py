@@ -18,7 +18,15 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
 from bracing_core.config import Plant, SimulatorConfig
-from bracing_core.mobile_base import ODOM_FRAME, ODOM_TOPIC, BaseOdometry, base_indices, odometry, root_link
+from bracing_core.mobile_base import (
+    ODOM_FRAME,
+    ODOM_TOPIC,
+    BaseOdometry,
+    base_indices,
+    braked_pose,
+    odometry,
+    root_link,
+)
 from bracing_core.sensing import GROUND_TRUTH
 from bracing_core.stepping import StateOut, StepOut
 from bracing_msgs.msg import Contacts, MotorState, RunStatus
@@ -83,9 +91,10 @@ class SimulatorTopics:
         # A mobile base (base_x, base_y, base_yaw among the joints): odom, as diff_drive_controller publishes it,
         # on every state as the other per-state topics (recorded, in record_batch too).
         self.base = base_indices(joint_names)
+        self.braked = braked_pose(plant.robot.locked_joints, plant.robot.locked_positions)  # a base held in place
         self.odom_pubs: list[Publisher] = []
         self.root_link = ""
-        if self.base is not None:
+        if self.base is not None or (config.shared.base != "fixed" and self.braked is not None):
             self.root_link = root_link(plant.robot.model)
             self.odom_pubs = [publisher(Odometry, ODOM_TOPIC, STREAM_QOS)]
         self.joint_command_pubs: list[Publisher] = []  # joint_commands: the ros2_control side's state topic
@@ -125,6 +134,8 @@ class SimulatorTopics:
         send(self.clock_pub, self.clock_wire.encode(t_ns))
         if self.base is not None:
             self.publish_odometry(t_ns, odometry(state.position, state.velocity, self.base))
+        elif self.odom_pubs and self.braked is not None:
+            self.publish_odometry(t_ns, self.braked)
         if self.state_out is not None:
             self.state_out()
 
