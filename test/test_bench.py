@@ -85,7 +85,7 @@ def test_quick_bench_produces_every_key(tmp_path: Path) -> None:
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", PYTHONUNBUFFERED="1")
     start = time.monotonic()
     bench = subprocess.Popen(
-        [sys.executable, str(BENCH), "--quick", "--output", str(output)],
+        [sys.executable, str(BENCH), "--quick", "--output", str(output), "--record", str(tmp_path / "bench.json")],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -105,6 +105,7 @@ def test_quick_bench_produces_every_key(tmp_path: Path) -> None:
     assert bench.returncode == 0, f"bench/run.py --quick failed after {took:.0f} s:\n{stdout[-3000:]}\n{stderr[-3000:]}"
     result = json.loads(output.read_text())
     assert result["quick"] is True
+    _check_recorded(result, json.loads((tmp_path / "bench.json").read_text()))
 
     missing = [key for key in (*SPEC_KEYS, *REPORTED_KEYS) if key not in result]
     assert not missing, f"keys not produced: {missing}"
@@ -146,3 +147,23 @@ def test_quick_bench_produces_every_key(tmp_path: Path) -> None:
             assert 0 < work[node]["writes_mean"] <= work[node]["mean"]  # rclpy's publish, inside the step's work
         for node in ("simulator", "controller"):  # the answer (state, command) is out before the reports
             assert 0 < work[node]["out_mean"] <= work[node]["mean"]
+
+
+def _check_recorded(result: dict[str, Any], recorded: dict[str, Any]) -> None:
+    """The recorded file (docs/results/data/bench.json's format) is bench/latest.json's figures with when, from
+    which commit and on which machine they were measured, and the Performance page's tables render from it."""
+    sys.path.insert(0, str(REPO_ROOT / "tools"))
+    import bench_tables
+
+    head = subprocess.run(
+        ["git", "-C", str(REPO_ROOT), "rev-parse", "--short=7", "HEAD"], capture_output=True, text=True
+    )
+    assert {k: v for k, v in recorded.items() if k != "recorded"} == {
+        k: v for k, v in result.items() if k != "recorded"
+    }
+    assert recorded["recorded"]["commit"] == head.stdout.strip() and recorded["recorded"]["date"] == time.strftime(
+        "%Y-%m-%d", time.gmtime()
+    )
+    assert recorded["recorded"]["machine"]["cores"] == os.cpu_count()
+    for name, table in bench_tables.TABLES.items():
+        assert table(recorded).startswith("| "), name

@@ -218,12 +218,9 @@ def test_the_pairs_orientation_error_is_the_in_process_runs(tmp_path: Path) -> N
     (spec,) = build_specs(PAPER_YAML, sets, zipped=False, duration=2.3)
     in_process = execute_run(spec).summary
     assert in_process is not None
-    # the same engine; the nodes' time is the states' stamps in whole ns (the integral's dt differs in its last
-    # bits from the rollout's k h): measured 4e-12 apart
-    assert pair["hand_orientation_rms_error_rad"] == pytest.approx(
-        in_process["hand_orientation_rms_error_rad"], rel=1e-6
-    )
-    assert pair["hand_rms_error_m"] == pytest.approx(in_process["hand_rms_error_m"], rel=1e-6)
+    # the same engine and the same time (the states' stamps, engine.stamp_seconds, on both paths): bit for bit
+    assert pair["hand_orientation_rms_error_rad"] == in_process["hand_orientation_rms_error_rad"]
+    assert pair["hand_rms_error_m"] == in_process["hand_rms_error_m"]
     assert 0.0 < pair["hand_orientation_rms_error_rad"] < 5e-3  # from 2 s on (HAND_ERROR_T_MIN_S)
     series = read_series(out)
     assert series.hand_orientation_error.shape == (series.t.size, 3)

@@ -116,7 +116,7 @@ def test_the_pair_runs_it_as_the_in_process_loop(name: str, tmp_path: Path) -> N
     states.sort(key=lambda m: (m.header.stamp.sec, m.header.stamp.nanosec))
     positions = np.array([m.position for m in states])
     reference = run_recorded(scenario(name), seconds)
-    np.testing.assert_allclose(positions, reference.position, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(positions, reference.position)  # bit for bit (test_pair_equals_rollout: all of it)
     summary = json.loads((output / "summary.json").read_text())
     assert summary["bracing"] is True and summary["max_penetration_m"] < 1e-9
     assert set(summary["contacts"]) == set(reference.contact_names)

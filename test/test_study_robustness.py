@@ -181,6 +181,8 @@ def test_bracing_study_robustness_runs_the_study_and_refuses_bad_arguments(
     assert len(rows) == 19 * 2 * 3 + 8 * 2 and {row["factor"] for row in rows} == {"nominal", *FACTORS}
     assert "Against free space, bracing pays (less energy) in " in report
     assert "braced |f_n - f_nd| RMS over the run from" in report
+    # Runs that end before the hand window opens: run, and the report says the hand is not judged.
+    assert "runs of 0.3 s end before that window opens, so they are not measured here" in report
     assert len(list(output.glob("robustness_*.png"))) == len(FACTORS)
 
     # A run that fails: exit 1, the report still written, its cells say so.

@@ -23,6 +23,9 @@ from bracing_core.failures import succeeded
 
 HAND_ERROR_T_MIN_S = 2.0
 """Hand errors are taken over t >= this [s] (after the initial transient)."""
+WINDOWED_KEYS = ("hand_rms_error_m", "hand_max_error_m", "hand_orientation_rms_error_rad")
+"""summary.json's metrics taken over t >= HAND_ERROR_T_MIN_S only: null for a run no longer than that, and over
+the run's last (duration - HAND_ERROR_T_MIN_S) s otherwise (the output reference and the studies' reports say so)."""
 
 SUMMARY_KEYS = (
     "hand_rms_error_m",

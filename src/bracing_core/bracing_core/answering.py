@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+import bracing_engine as engine
 from bracing_core import schema
 from bracing_core.checks import configuration_warnings, desired_force_warning, frame_reach, null_space_warning
 from bracing_core.controller_config import ControllerConfig
@@ -202,7 +203,7 @@ class StateAnswerer:
         changed = {name for name, _ in changes}
         for contact in config.shared.braced_contacts:
             if f"contacts.{contact.name}.desired_normal_force" in changed:
-                t = self.answered_ns * 1e-9
+                t = engine.stamp_seconds(self.answered_ns)
                 warning = desired_force_warning(contact.name, contact.desired_normal_force or 0.0, t)
                 if warning is not None:
                     self.log.warning(warning)
@@ -263,7 +264,7 @@ class StateAnswerer:
             if target != self.config.orientation.target and target is not None:  # turned to, as a pose's
                 self.targets.turn_to(target)
             self.config, self.retuned = self.retuned, None
-        t = stamp_ns * 1e-9
+        t = engine.stamp_seconds(stamp_ns)  # the rollout's conversion: the same law's time, bit for bit
         self.measure(receive)
         self.follow_targets(t)
         self.carry_paths(t, q, dq)

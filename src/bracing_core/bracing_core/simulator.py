@@ -130,7 +130,7 @@ class Simulator:
         self.step_size = float(step)
         self.substeps = int(substeps)
         self.n = n
-        self.t0 = 0.0
+        self.t0_ns = 0  # [ns] the stamp of the state before the first step
         self.events: list[ContactEvent] = []
         self.engine = engine.Simulator(  # the compiled integrator (public: a rollout steps it)
             dynamics.engine, self.step_size, self.substeps, q0, dq0, robot.lower_limits, robot.upper_limits
@@ -146,8 +146,19 @@ class Simulator:
         self.engine.steps_taken = int(value)
 
     @property
+    def step_ns(self) -> int:
+        """[ns] what each step adds to the state's stamp."""
+        return int(self.engine.step_ns)
+
+    @property
+    def now_ns(self) -> int:
+        """[ns] the current state's stamp (the simulator node's joint_states stamp)."""
+        return self.t0_ns + self.steps_taken * self.step_ns
+
+    @property
     def time(self) -> float:
-        return self.t0 + self.steps_taken * self.step_size
+        """[s] the current state's time: its stamp as the controller node reads it (``engine.stamp_seconds``)."""
+        return engine.stamp_seconds(self.now_ns)
 
     @property
     def position(self) -> Vector:
@@ -264,7 +275,7 @@ class Simulator:
         limit = np.zeros(0) if command_limit is None else np.asarray(command_limit, dtype=float)
         try:
             out = engine.rollout(
-                law, self.engine, int(steps), self.t0, divergence_speed, divergence_residual, sensors, limit
+                law, self.engine, int(steps), self.t0_ns, divergence_speed, divergence_residual, sensors, limit
             )
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
@@ -319,7 +330,7 @@ class Simulator:
     def _take_events(self) -> None:
         """The engine's new release and touchdown events into ``events``."""
         for event in self.engine.events_since(len(self.events)):
-            time = self.t0 + event.step * self.step_size + event.offset
+            time = engine.stamp_seconds(self.t0_ns + event.step * self.step_ns) + event.offset
             self.events.append(ContactEvent(time, self._names[event.contact], event.kind.name, event.energy_loss))
 
     # -- unilateral contacts ----------------------------------------------------------

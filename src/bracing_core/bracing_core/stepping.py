@@ -140,7 +140,7 @@ class SimulatorStepper:
         self.log, self.outlet, self.clock = log, outlet, clock
         self.mode = config.shared.input_mode
         self.limit = plant.command_limit  # per joint, model order (0: none)
-        self.step_ns = round(config.step * 1e9)
+        self.step_ns = sim.step_ns
         self.total_steps = round(config.duration / config.step) if config.duration > 0 else None
         # What the controller receives, as a real arm measures it (sensors.*); None: exact.
         sensing = config.sensors
@@ -187,7 +187,7 @@ class SimulatorStepper:
     @property
     def now_ns(self) -> int:
         """The current state's stamp [ns]."""
-        return self.sim.steps_taken * self.step_ns
+        return self.sim.now_ns
 
     def progress_line(self) -> str:
         return f"progress t={self.sim.time:.3f} max_residual={self.max_residual:.3e}"

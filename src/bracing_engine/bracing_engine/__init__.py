@@ -37,6 +37,7 @@ from bracing_engine._engine import (
     Surface,
     Task,
     rollout,
+    stamp_seconds,
 )
 
 if PINOCCHIO_VERSION != pinocchio.__version__:
@@ -72,4 +73,5 @@ __all__ = [
     "Surface",
     "Task",
     "rollout",
+    "stamp_seconds",
 ]

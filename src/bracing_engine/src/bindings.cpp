@@ -290,6 +290,7 @@ void bind_simulator(nb::module_& m) {
       .def_prop_ro("modes", [](const Simulator& s) { return s.modes(); })
       .def("set_modes", &Simulator::set_modes, "modes"_a)
       .def_rw("steps_taken", &Simulator::steps_taken)
+      .def_prop_ro("step_ns", &Simulator::step_ns, "[ns] what each step adds to the state's stamp")
       .def_rw("steady_start", &Simulator::steady_start,
               "voltage input: the first step starts its windings at its command's steady current")
       .def("hold_current", &Simulator::hold_current, "u"_a, "the windings at their steady current under u, now")
@@ -513,17 +514,17 @@ void bind_rollout(nb::module_& m) {
       .def_ro("measured", &Recording::measured, "the refusal's speed, temperature or residual");
   m.def(
       "rollout",
-      [](Law& law, Simulator& simulator, long steps, double t0, double divergence_speed, double divergence_residual,
+      [](Law& law, Simulator& simulator, long steps, std::int64_t t0_ns, double divergence_speed, double divergence_residual,
          Sensors* sensors, const Vector& command_limit) {
         Recording r;
         {
           nb::gil_scoped_release release;
-          rollout(law, simulator, steps, t0, divergence_speed, divergence_residual, r, sensors, command_limit);
+          rollout(law, simulator, steps, t0_ns, divergence_speed, divergence_residual, r, sensors, command_limit);
         }
         keep_filled_rows(r);
         return r;
       },
-      "law"_a, "simulator"_a, "steps"_a, "t0"_a, "divergence_speed"_a, "divergence_residual"_a,
+      "law"_a, "simulator"_a, "steps"_a, "t0_ns"_a, "divergence_speed"_a, "divergence_residual"_a,
       "sensors"_a.none() = nb::none(), "command_limit"_a = Vector(),
       "The closed loop for `steps` steps (and the final state's answer), all in C++: the Recording, stopped "
       "early where a step is refused (step_status) or the node would refuse it (refusal); each applied |command| "
@@ -536,6 +537,9 @@ NB_MODULE(_engine, m) {
   m.doc() = "The bracing engine: constrained robot + motor-circuit dynamics and RK4 on pinocchio (C++).";
   m.attr("PINOCCHIO_VERSION") = compiled_pinocchio_version();
   m.attr("WINDING_TEMPERATURE_LIMIT") = kWindingTemperatureLimit;  // [degC], Refusal.too_hot
+  m.def("stamp_seconds", &stamp_seconds, "ns"_a,
+        "[s] the sim time of a stamp [ns]: the one conversion the controller node, the rollout and the "
+        "Simulator read a state's time with");
   nb::exception<SingularError>(m, "SingularError", PyExc_ArithmeticError);
   bind_kinds(m);
   bind_surfaces(m);

@@ -115,7 +115,7 @@ Vector saturated(const Vector& command, const Vector& limit) {
 
 }  // namespace
 
-void rollout(Law& law, Simulator& simulator, long steps, double t0, double divergence_speed,
+void rollout(Law& law, Simulator& simulator, long steps, std::int64_t t0_ns, double divergence_speed,
              double divergence_residual, Recording& out, Sensors* sensors, const Vector& command_limit) {
   const int n = simulator.nv(), p = simulator.dynamics().contact_count(), b = law.braces();
   const long rows = steps + 1;
@@ -126,7 +126,7 @@ void rollout(Law& law, Simulator& simulator, long steps, double t0, double diver
   const bool limited = command_limit.size() && command_limit.maxCoeff() > 0.0;
   Vector limited_command;
   for (long k = 0; k < rows; ++k) {
-    const double t = t0 + static_cast<double>(simulator.steps_taken) * simulator.step_size();
+    const double t = stamp_seconds(t0_ns + simulator.steps_taken * simulator.step_ns());  // as the node reads it
     const Vector& y = simulator.state();
     const Vector temperature = y.segment(3 * n, n);  // what the law measures with the step's report
     answer(law, sensors, t, y.head(n), y.segment(n, n), k, command, out);

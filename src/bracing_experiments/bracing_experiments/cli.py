@@ -53,9 +53,28 @@ def add_progress(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
+def add_scenario_and_seeds(parser: argparse.ArgumentParser) -> None:
+    """--config (any scenario) and --seeds N (runs per condition; checked by ``check_options``): every
+    bracing-study form's (bracing_experiments.study_runs seeds the runs and writes runs.csv)."""
+    parser.add_argument(
+        "--config",
+        default=None,
+        help="scenario params file, or a scenario's name in config/ (default: 'paper', config/paper_4link.yaml)",
+    )
+    parser.add_argument(
+        "--seeds",
+        type=int,
+        default=1,
+        help="runs per condition, each with its own sensors.noise_seed (the form's first, then the next ones; a run "
+        "that draws no noise is run once for every seed); the report gives medians with their spread, and runs.csv "
+        "every run (default 1)",
+    )
+
+
 def add_study_options(parser: argparse.ArgumentParser, exclusive_executors: bool = False) -> None:
-    """bracing-study's options (the paper study's and the robustness study's): the report's directory,
-    each run's duration, the executor, the overrides of every run and the progress bar."""
+    """bracing-study's options (every form's): the scenario and the seeds, the report's directory, each
+    run's duration, the executor, the overrides of every run and the progress bar."""
+    add_scenario_and_seeds(parser)
     add_output(parser, "report")
     add_duration(parser)
     add_executor(parser, exclusive_executors)
@@ -64,11 +83,13 @@ def add_study_options(parser: argparse.ArgumentParser, exclusive_executors: bool
 
 
 def check_options(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
-    """The checks of --duration and --workers (argparse's error: usage, the message, exit 2)."""
+    """The checks of --duration, --workers and --seeds (argparse's error: usage, the message, exit 2)."""
     if args.duration is not None and args.duration <= 0:
         parser.error("--duration must be > 0")
     if args.workers is not None and args.workers < 1:
         parser.error("--workers must be >= 1")
+    if getattr(args, "seeds", 1) < 1:
+        parser.error("--seeds must be >= 1")
 
 
 def handle_stop_signals() -> None:

@@ -65,6 +65,7 @@ from bracing_experiments.cli import (
 )
 from bracing_experiments.executors import Executor, make_executor
 from bracing_experiments.experiment import STATUS_OK, RunSpec, execute_run
+from bracing_experiments.study_runs import check_window
 from bracing_experiments.sweep import make_spec
 from bracing_experiments.sweep import write_tables as write_sweep_tables
 
@@ -268,6 +269,7 @@ def build_problem(
                 problem.spec({**middle, v.name: bound})
             except ConfigError as exc:
                 raise ConfigError(f"{v.flag}: {bound:g} is refused: {exc}") from None
+    check_window(problem.spec(middle).duration, metrics=[*problem.objectives, *(c.metric for c in problem.constraints)])
     return problem
 
 

@@ -4,6 +4,8 @@
 
 #include <Eigen/Core>
 
+#include <cmath>
+#include <cstdint>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -21,6 +23,15 @@ using Mask = std::vector<bool>;
 struct SingularError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+
+// Sim time: a state's time is its stamp, an integer count of nanoseconds (the simulator node stamps
+// state k with k * step_ns), read in seconds through this one conversion by whatever reads it: the
+// controller node's law (the stamp of the state it answers), the rollout, the Python Simulator. Two
+// roundings of one instant (k * h against k * step_ns * 1e-9) differ by an ulp at a quarter of the
+// 1 ms steps, and a redundant arm's null space grows such an ulp (docs/model.md, Lockstep).
+inline double stamp_seconds(std::int64_t ns) { return static_cast<double>(ns) * 1e-9; }
+// [ns] the stamp increment of a step of `step` seconds.
+inline std::int64_t step_nanoseconds(double step) { return std::llround(step * 1e9); }
 
 // The pinocchio version the engine was compiled against (its headers).
 std::string compiled_pinocchio_version();
@@ -257,6 +268,7 @@ class Simulator {
   const Dynamics& dynamics() const { return *dynamics_; }
   int nv() const { return n_; }
   double step_size() const { return step_; }
+  std::int64_t step_ns() const { return step_nanoseconds(step_); }  // [ns] what each step adds to the stamp
   int substeps() const { return substeps_; }
   const Vector& state() const { return y_; }
   const Mask& active() const { return modes_.held; }

@@ -193,15 +193,15 @@ struct Recording {
   double measured = 0.0;                         // the refusal's speed, temperature or residual
 };
 
-// The closed loop (law + simulator) for `steps` steps from the simulator's state at time t0 +
-// steps_taken * h; the last row is the final state, answered and evaluated without a step. Stops
+// The closed loop (law + simulator) for `steps` steps from the simulator's state stamped t0_ns +
+// steps_taken * step_ns [ns] (its time: stamp_seconds of that, as the controller node reads it); the last row is the final state, answered and evaluated without a step. Stops
 // early where the simulator node would refuse a step (step_status, refusal). `sensors` (may be null: exact and
 // instant): what the law reads of each state and when its commands land. The law's force feedback
 // reads each braced contact's force of the previous step's report, its thermal compensation the
 // previous state's temperatures: what the nodes have when they answer a state in lockstep. `command_limit`
 // (per joint, model order; 0 or empty: none): each applied |command| is saturated to it, as the simulator node
 // saturates a motor_command (the recording keeps the law's command, as the bag does).
-void rollout(Law& law, Simulator& simulator, long steps, double t0, double divergence_speed,
+void rollout(Law& law, Simulator& simulator, long steps, std::int64_t t0_ns, double divergence_speed,
              double divergence_residual, Recording& out, Sensors* sensors = nullptr,
              const Vector& command_limit = Vector());
 
