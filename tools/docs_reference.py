@@ -78,6 +78,7 @@ def recorded_topics_table() -> str:
     rows += [(name, kind, "one per state where published") for name, kind in topics.OPTIONAL_STATE_TOPICS]
     rows += [(name, kind, "as sent") for name, kind in topics.target_topics([contact])]
     rows += [(name, kind, "as the controller judged them") for name, kind in topics.target_verdict_topics([contact])]
+    rows += [(name, kind, "as sent") for name, kind in topics.COMMAND_TOPICS]
     rows.append((topics.PARAMETER_EVENTS_TOPIC, typestore.PARAMETER_EVENT, "the controller's changes"))
     lines = ["| topic | type | in a lockstep bag |", "|---|---|---|"]
     lines += [f"| `{name}` | `{kind}` | {count} |" for name, kind, count in rows]

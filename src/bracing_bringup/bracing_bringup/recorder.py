@@ -70,7 +70,8 @@ from typing import Any, Literal
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus
-from geometry_msgs.msg import PointStamped, PoseStamped, Vector3Stamped, WrenchStamped
+from geometry_msgs.msg import PointStamped, PoseStamped, TwistStamped, Vector3Stamped, WrenchStamped
+from nav_msgs.msg import Odometry
 from nav_msgs.msg import Path as PathMsg
 from rcl_interfaces.msg import ParameterEvent
 from rclpy.node import Node
@@ -89,6 +90,7 @@ from std_msgs.msg import String
 from bracing_analysis import surfaces, truth
 from bracing_bringup.scene import Derived, SceneBuilder
 from bracing_bringup.topics import (
+    COMMAND_TOPICS,
     CONTROLLER_NODE,
     DESCRIPTION_TOPIC,
     OPTIONAL_STATE_TOPICS,
@@ -113,12 +115,14 @@ from bracing_core.typestore import (
     JOINT_STATE,
     MOTOR_COMMAND,
     MOTOR_STATE,
+    ODOMETRY,
     PARAMETER_EVENT,
     PATH,
     POINT_STAMPED,
     POSE_STAMPED,
     RUN_STATUS,
     STRING,
+    TWIST_STAMPED,
     VECTOR3_STAMPED,
     WRENCH_STAMPED,
     bracing_typestore,
@@ -180,6 +184,7 @@ _TARGET_TYPES: dict[str, type] = {
     PATH: PathMsg,
     POSE_STAMPED: PoseStamped,
     DIAGNOSTIC_STATUS: DiagnosticStatus,
+    TWIST_STAMPED: TwistStamped,
 }
 
 
@@ -192,6 +197,7 @@ _RCLPY_TYPES: dict[str, type] = {
     MOTOR_COMMAND: MotorCommand,
     CONTROLLER_STATE: ControllerState,
     VECTOR3_STAMPED: Vector3Stamped,  # an optional per-state topic (hand_orientation_error)
+    ODOMETRY: Odometry,  # an optional per-state topic (odom: a mobile base)
 }
 
 
@@ -330,7 +336,8 @@ class Recorder(Node):
         self.simulator_finished = False  # its FINISHED status came: nothing more from it
         self._targets: dict[Subscription, str] = {}
         self._target_connections: dict[Subscription, Connection] = {}
-        for topic, type_name in [*target_topics(self._contacts), *target_verdict_topics(self._contacts)]:
+        commands = [*target_topics(self._contacts), *target_verdict_topics(self._contacts), *COMMAND_TOPICS]
+        for topic, type_name in commands:
             sub = self.create_subscription(
                 _TARGET_TYPES[type_name], topic, _never_called, PARAMETER_EVENTS_QOS, raw=True
             )

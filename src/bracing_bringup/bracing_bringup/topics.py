@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 from bracing_core.contact_roles import LINK_PENETRATION_TOPIC
+from bracing_core.mobile_base import CMD_VEL_TOPIC, ODOM_TOPIC
 from bracing_core.overrides import CONTROLLER
 from bracing_core.sensing import GROUND_TRUTH
 from bracing_core.targets import ACCEPTED, ORIENTATION_ERROR_TOPIC, POSE_TOPIC, REFUSED, echo_topic
@@ -21,10 +22,12 @@ from bracing_core.typestore import (
     MARKER_ARRAY,
     MOTOR_COMMAND,
     MOTOR_STATE,
+    ODOMETRY,
     PATH,
     POINT_STAMPED,
     POSE_STAMPED,
     TF_MESSAGE,
+    TWIST_STAMPED,
     VECTOR3_STAMPED,
     WRENCH_STAMPED,
 )
@@ -55,11 +58,19 @@ def target_verdict_topics(contacts: Sequence[str]) -> list[tuple[str, str]]:
     return out
 
 
-OPTIONAL_STATE_TOPICS = [(ORIENTATION_ERROR_TOPIC, VECTOR3_STAMPED), (LINK_PENETRATION_TOPIC, CONTACTS)]
+OPTIONAL_STATE_TOPICS = [
+    (ORIENTATION_ERROR_TOPIC, VECTOR3_STAMPED),
+    (LINK_PENETRATION_TOPIC, CONTACTS),
+    (ODOM_TOPIC, ODOMETRY),
+]
 """(relative topic, ROS 2 type name) of what the nodes publish once per state only in some configurations
 (hand_orientation_error: the controller, with an orientation task; link_penetration: the simulator, with
-robot.collision_geometry): recorded from the first message, at its header stamp, one by one or in
-record_batch; a run without it has no such topic (no count expected)."""
+robot.collision_geometry; odom: the simulator, with a mobile base): recorded from the first message, at its
+header stamp, one by one or in record_batch; a run without it has no such topic (no count expected)."""
+
+COMMAND_TOPICS = [(CMD_VEL_TOPIC, TWIST_STAMPED)]
+"""(relative topic, ROS 2 type name) of what a teleop or navigation stack sends the controller at any time
+(cmd_vel: base_command cmd_vel): recorded as they come, as the targets; a run without any has no such topic."""
 
 RECORDER_NODE = "bracing_recorder"
 

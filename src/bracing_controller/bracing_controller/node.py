@@ -13,13 +13,14 @@ from functools import partial
 from typing import Any
 
 import numpy as np
-from geometry_msgs.msg import Vector3Stamped, WrenchStamped
+from geometry_msgs.msg import TwistStamped, Vector3Stamped, WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import ClockType, ROSClock
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.qos import qos_profile_system_default
 from rclpy.subscription import Subscription
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
@@ -31,9 +32,10 @@ from bracing_core.answering import Answer, StateAnswerer
 from bracing_core.controller_config import ControllerConfig
 from bracing_core.kinematics import WORLD_FRAME
 from bracing_core.message_limits import SizeError
+from bracing_core.mobile_base import CMD_VEL_TOPIC
 from bracing_core.step_timing import WorkTimer
 from bracing_core.targets import ORIENTATION_ERROR_TOPIC
-from bracing_core.typestore import MOTOR_STATE, WRENCH_STAMPED
+from bracing_core.typestore import MOTOR_STATE, TWIST_STAMPED, WRENCH_STAMPED
 from bracing_msgs.msg import ControllerState, MotorCommand, MotorState, RunStatus
 from bracing_ros import parameters, wire
 from bracing_ros.ack_window import AckWindow
@@ -98,6 +100,13 @@ class ControllerNode(Node):
         self.core.start()
         self.effort = EffortForward(self, config, self.joint_names, self.log) if self.effort_forward else None
         self.target_topics = TargetTopics(self, self.core.targets, contact_names, self.log)
+        # base_command cmd_vel: what a teleop or navigation stack sends, taken as diff_drive_controller takes it
+        # (TwistStamped, the system default QoS), raw: its size checked before it is decoded
+        self.cmd_vel_sub = (
+            self.create_subscription(TwistStamped, CMD_VEL_TOPIC, self.on_cmd_vel, qos_profile_system_default, raw=True)
+            if config.base_command == "cmd_vel"
+            else None
+        )
         self.status.say(RunStatus.CONFIGURED)
 
     def sync_clock(self) -> None:
@@ -163,6 +172,18 @@ class ControllerNode(Node):
         msg = self.read_measurement(data, "motor_state", MOTOR_STATE, MotorState)
         if msg is not None:
             self.core.take_temperature(wire.stamp_ns(msg.header.stamp), np.asarray(msg.temperature, dtype=float))
+
+    def on_cmd_vel(self, data: bytes) -> None:
+        """A cmd_vel (CDR bytes) to the core, unless it cannot be read."""
+        try:
+            msg = self.read_measurement(data, CMD_VEL_TOPIC, TWIST_STAMPED, TwistStamped)
+            if msg is not None:
+                linear, angular = msg.twist.linear, msg.twist.angular
+                self.core.take_cmd_vel(
+                    wire.stamp_ns(msg.header.stamp), [linear.x, linear.y, linear.z], [angular.x, angular.y, angular.z]
+                )
+        except Exception as exc:  # the last line of defence: no message may stop the controller
+            self.log.limited("error", "internal", f"cmd_vel ignored: {type(exc).__name__}: {exc}")
 
     def read_measurement(self, data: bytes, topic: str, typename: str, msg_type: type) -> Any:
         """A measurement's message from ``topic``, or None after saying why it cannot be read (its size, its bytes)."""
@@ -281,7 +302,8 @@ def spin(node: ControllerNode) -> int:
         state_sub = node.listen()
         # The targets in the same wait: a wait of their own on every state cost ~15 % of the node's time
         # (py-spy, 2026-11-26).
-        waiter = SubscriptionWaiter(node, [state_sub, *targets.subscriptions])
+        commands = [node.cmd_vel_sub] if node.cmd_vel_sub is not None else []
+        waiter = SubscriptionWaiter(node, [state_sub, *targets.subscriptions, *commands])
         node.log.info("answering joint_states")
         node.command_out = work.mark
         node.status.say(RunStatus.STEPPING)
@@ -293,6 +315,8 @@ def spin(node: ControllerNode) -> int:
                     node.on_state(msg)
                     work.end(node.batch.take_written())
                     states += 1
+                elif subscription is node.cmd_vel_sub:
+                    node.on_cmd_vel(msg)
                 else:  # kept, the latest of each topic (states are taken first: followed from the next state on)
                     targets.take(subscription, msg)
             answered += len(taken)  # states and targets alike: a flood of targets spins the executor no more

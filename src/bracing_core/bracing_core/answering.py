@@ -18,15 +18,18 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 
 import bracing_engine as engine
 from bracing_core import schema
 from bracing_core.checks import configuration_warnings, desired_force_warning, frame_reach, null_space_warning
 from bracing_core.controller_config import ControllerConfig
+from bracing_core.dynamics import ConstrainedDynamics, reflected_terms
 from bracing_core.kinematics import WORLD_FRAME
 from bracing_core.law import ControlOutput, DecoupledController
 from bracing_core.measurements import Measurements
 from bracing_core.message_limits import DEFAULT_LIMITS, MessageLimits, SizeError, quote_names
+from bracing_core.mobile_base import BaseDrive, CmdVelRefused, keep_contact_force
 from bracing_core.node_log import NodeLog
 from bracing_core.numbers import all_finite
 from bracing_core.params import ConfigError
@@ -154,6 +157,14 @@ class StateAnswerer:
         self.previous_ns: int | None = None  # the stamp of the last state answered (None: none yet)
         self.null_space_warned = False
         self.answers = 0  # states answered (the null-space watch samples them)
+        self.base_drive: BaseDrive | None = None  # base_command cmd_vel: the base follows cmd_vel
+        if config.base_command == "cmd_vel":
+            wheels = config.shared.wheels if config.shared.base == "diff_drive" else None
+            self.base_drive = BaseDrive(
+                self.joint_names, config.cmd_vel_timeout, config.base_velocity_kd, wheels, config.base_velocity_ki
+            )
+            plant = self.law.plant  # the law's model: J_c and Mc for B = J_c Mc^-1
+            self.braced = ConstrainedDynamics(plant.robot, plant.motors, self.law.contact_set, plant.mode)
 
     @property
     def answered_ns(self) -> int:
@@ -256,12 +267,14 @@ class StateAnswerer:
         t = engine.stamp_seconds(stamp_ns)  # the rollout's conversion: the same law's time, bit for bit
         self.measure(receive)
         self.follow_targets(t)
+        self.carry_paths(t, q, dq)
         start = self.timer()
         try:
             out = self.law.update(t, q, dq)
         except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:  # absurd but finite q, dq
             self.log.limited("error", "law", f"joint_states at t = {t:.6f} s ignored: the law failed on it ({exc})")
             return
+        self.drive_base(stamp_ns, q, dq, out)
         compute_time = self.timer() - start
         outputs = (out.command, out.hand_desired, out.hand_actual, out.desired_normal_force)
         if not all_finite(*outputs, out.brace_desired, out.brace_actual):
@@ -286,6 +299,63 @@ class StateAnswerer:
         turn = self.targets.advance_orientation(t, engine.orientation_reference)
         if turn is not None:
             engine.set_orientation_reference(*turn)
+
+    # -- a mobile base following cmd_vel ----------------------------------------------------
+    def take_cmd_vel(self, stamp_ns: int, linear: Sequence[float], angular: Sequence[float]) -> None:
+        """A cmd_vel (TwistStamped: its stamp, linear and angular), kept unless refused (on the node's clock: the
+        sim time of the last state answered)."""
+        if self.base_drive is None:
+            self.log.limited("warning", "cmd_vel", "cmd_vel ignored: base_command is task (set it to cmd_vel)")
+            return
+        try:
+            self.base_drive.gate.offer(stamp_ns, linear, angular, self.answered_ns)
+        except CmdVelRefused as exc:
+            self.log.limited("warning", exc.kind, f"cmd_vel ignored: {exc}")
+
+    def carry_paths(self, t: float, q: Vector, dq: Vector) -> None:
+        """base_command cmd_vel: each task's configured path (not one a target topic retargets), carried with
+        the base."""
+        drive = self.base_drive
+        if drive is None or self.previous_ns is None:  # the paths start at the first state
+            return
+        engine = self.law.engine
+        tasks = [k for k in range(1 + len(self.config.shared.braced_contacts)) if k not in self.targets.goals]
+        carried = drive.targets(q, dq, [engine.path_sample(k, t) for k in tasks])
+        for task, (position, velocity) in zip(tasks, carried, strict=True):
+            engine.set_reference(task, position, velocity)
+
+    def drive_base(self, stamp_ns: int, q: Vector, dq: Vector, out: ControlOutput) -> None:
+        """base_command cmd_vel: the base actuators' velocity loop added to the law's command on them, the arm
+        taking up what it would lean on the braces (``keep_contact_force``)."""
+        drive = self.base_drive
+        if drive is None:
+            return
+        if self.previous_ns is None:
+            drive.targets(q, dq, [])  # the base's pose at the start: the paths' frame
+        was_braking = drive.gate.braking
+        tau = drive.torques(stamp_ns, q, dq)
+        if drive.gate.braking and not was_braking:
+            self.log.warning(f"cmd_vel timed out at t = {stamp_ns * 1e-9:.6f} s: braking (zero velocity)")
+        joints = drive.actuators
+        if drive.wheels is None:
+            torque = keep_contact_force(self.contact_map(q, dq), out.torque, joints, out.torque[joints] + tau)
+        else:  # the wheels' torque alone: B on the rolling system is the law's (not taken up by the arm here)
+            torque = out.torque.copy()
+            torque[joints] += tau
+        if self.config.shared.input_mode.value == "voltage":  # eq. 41 on the change
+            out.command = out.command + self.law.plant.to_model_order(self.config.voltage_gain) * (torque - out.torque)
+        else:
+            out.command = torque
+        out.torque = torque
+
+    def contact_map(self, q: Vector, dq: Vector) -> Vector:
+        """B = J_c Mc^-1 (p x n) of the law's model at (q, dq) (eq. 36): how joint torques reach the braces'
+        normal accelerations; Mc = M (pinocchio's crba) + the reflected rotor inertia in voltage mode."""
+        robot = self.law.plant.robot
+        mass = pin.crba(robot.model, robot.data, np.asarray(q, dtype=float))
+        mass = np.triu(mass) + np.triu(mass, 1).T
+        mass += np.diag(reflected_terms(robot, self.law.plant.motors, self.law.plant.mode)[0])
+        return np.linalg.solve(mass, self.braced.terms(q, dq).normal_jacobian.T).T
 
     def watch_null_space(self, out: ControlOutput, dq: Vector, t: float) -> None:
         """Every NULL_SPACE_CHECK_EVERY states, until said once: warn of joints running in the null space."""

@@ -23,6 +23,7 @@ from bracing_core.base import (
     TURNING_WHEELS,
     BaseError,
     Wheels,
+    chart_urdf,
     passive_padded,
     wheel_problem,
     wheels_of,
@@ -410,7 +411,13 @@ class Plant:
         it cannot find (``meshes.resolved_description``; robot.package_paths from the URDF's directory)."""
         here = self.config.urdf.parent
         dirs = [here / Path(entry).expanduser() for entry in self.config.package_paths]
-        return resolved_description(self.robot.description(), dirs, here)
+        text = self.robot.description()
+        if self.config.base != "fixed":
+            # A mobile base as joints of the text (the chart's odom root, base_x, base_y, base_yaw): every viewer
+            # that poses links from joint_states (the recorder's /tf, bracing-view, the animation,
+            # robot_state_publisher) then draws the base where odom has it.
+            text = chart_urdf(text, self.config.base, str(self.config.urdf))
+        return resolved_description(text, dirs, here)
 
     @property
     def thermal(self) -> bool:

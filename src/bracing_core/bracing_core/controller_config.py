@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bracing_core import schema
+from bracing_core.base import BASE_JOINTS
 from bracing_core.config import SharedConfig, axes_indices, trajectory_from_values
 from bracing_core.params import ConfigError, Params
 from bracing_core.trajectory import TrajectoryConfig
@@ -82,6 +83,10 @@ class ControllerConfig:
     record_batch: int = 0  # answers per bracing_msgs/RecordBatch to the recorder; 0: off
     gains: str = "stiffness"  # | acceleration: task gains times the task-space inertia (units 1/s^2, 1/s, 1/s^3)
     orientation: OrientationConfig = OrientationConfig()  # hand.orientation.*
+    base_command: str = "task"  # | cmd_vel: the base follows cmd_vel (bracing_core.mobile_base)
+    cmd_vel_timeout: float = 0.5  # [s] node's clock; 0: off
+    base_velocity_kd: float = 100.0  # [N s/m or N m s/rad] the base actuators' velocity loop
+    base_velocity_ki: float = 0.0  # [N/m or N m/rad] its integral gain (0: none)
 
     @property
     def task_dimension(self) -> int:
@@ -136,8 +141,13 @@ class ControllerConfig:
             max_name_length=values["max_name_length"],
             gains=values["gains"],
             orientation=OrientationConfig.from_values(values),
+            base_command=values["base_command"],
+            cmd_vel_timeout=values["cmd_vel_timeout"],
+            base_velocity_kd=values["base_velocity_kd"],
+            base_velocity_ki=values["base_velocity_ki"],
         )
         check_effort_forward(config)
+        check_base_command(config)
         if config.task_dimension > n - p:
             turn = len(config.orientation.axes)
             parts = f"hand {len(axes)}" + (f" + orientation {turn}" if turn else "")
@@ -163,4 +173,20 @@ def check_effort_forward(config: ControllerConfig) -> None:
     if len(set(joints)) != len(joints) or sorted(joints) != sorted(moving):
         raise ConfigError(
             f"effort_command_joints: {list(joints)} must name each moving joint once, in any order ({moving})"
+        )
+
+
+def check_base_command(config: ControllerConfig) -> None:
+    """base_command cmd_vel needs a mobile base: base_x, base_y and base_yaw among the moving joints, or a
+    differential drive whose wheels turn."""
+    if config.base_command != "cmd_vel":
+        return
+    shared = config.shared
+    moving = [j for j in shared.joint_names if j not in shared.locked_joints]
+    missing = [j for j in BASE_JOINTS if j not in moving]
+    rolling = shared.wheels is not None and not set(shared.wheels.names) <= set(shared.locked_joints)
+    if missing and not rolling:  # a differential drive's base joints are the model's, not listed: its wheels turn
+        raise ConfigError(
+            f"base_command: cmd_vel drives a mobile base, but {missing} are not moving joints (set robot.base to "
+            "planar or diff_drive, or base_command to task)"
         )

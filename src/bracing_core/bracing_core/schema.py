@@ -1101,6 +1101,43 @@ CONTROLLER: tuple[Param, ...] = (
         minimum=0.0,
     ),
     Param(
+        "base_command",
+        Kind.STRING,
+        "task",
+        "a mobile base (base_x, base_y, base_yaw among the joints): task: the law moves the base as part of the arm; "
+        "cmd_vel: the base follows cmd_vel (geometry_msgs/TwistStamped, diff_drive_controller's conventions) "
+        "through a velocity loop added on its actuators (the arm taking up what it would lean on the braces), the "
+        "hand and brace paths carried with the base",
+        choices=("task", "cmd_vel"),
+    ),
+    Param(
+        "cmd_vel_timeout",
+        Kind.DOUBLE,
+        0.5,
+        "base_command cmd_vel: a cmd_vel older than this on the node's clock (the sim time answered) is ignored "
+        "when it comes, and the base brakes (zero velocity) once the latest is; 0: off (diff_drive_controller's)",
+        "s",
+        minimum=0.0,
+    ),
+    Param(
+        "base_velocity_kd",
+        Kind.DOUBLE,
+        100.0,
+        "base_command cmd_vel: each base actuator's velocity loop, tau = kd (v_cmd - v) (base_x, base_y: N s/m; "
+        "base_yaw: N m s/rad)",
+        "N s/m or N m s/rad",
+        positive=True,
+    ),
+    Param(
+        "base_velocity_ki",
+        Kind.DOUBLE,
+        0.0,
+        "base_command cmd_vel: the velocity loop's integral gain, on the commanded velocity's integral: tau += ki "
+        "(integral of v_cmd dt - q), so the base holds where cmd_vel puts it against the law's push; 0: none",
+        "N/m or N m/rad",
+        minimum=0.0,
+    ),
+    Param(
         "targets.max_velocity",
         Kind.DOUBLE,
         0.05,

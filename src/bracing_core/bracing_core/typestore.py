@@ -37,6 +37,8 @@ PATH = "nav_msgs/msg/Path"
 DIAGNOSTIC_STATUS = "diagnostic_msgs/msg/DiagnosticStatus"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 VECTOR3_STAMPED = "geometry_msgs/msg/Vector3Stamped"
+ODOMETRY = "nav_msgs/msg/Odometry"
+TWIST_STAMPED = "geometry_msgs/msg/TwistStamped"
 
 
 def bracing_msgs_dir() -> Path:

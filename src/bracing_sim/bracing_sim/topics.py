@@ -9,9 +9,11 @@ from functools import partial
 
 import numpy as np
 from geometry_msgs.msg import WrenchStamped
+from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
@@ -19,6 +21,15 @@ from std_msgs.msg import String
 from bracing_core.config import Plant, SimulatorConfig
 from bracing_core.link_penetration import TOPIC as LINK_PENETRATION_TOPIC
 from bracing_core.link_penetration import LinkDepth
+from bracing_core.mobile_base import (
+    ODOM_FRAME,
+    ODOM_TOPIC,
+    BaseOdometry,
+    base_indices,
+    braked_pose,
+    odometry,
+    root_link,
+)
 from bracing_core.sensing import GROUND_TRUTH
 from bracing_core.stepping import StateOut, StepOut
 from bracing_msgs.msg import Contacts, MotorState, RunStatus
@@ -84,6 +95,15 @@ class SimulatorTopics:
         self.link_pubs: list[Publisher] = []
         if config.shared.collision_geometry:
             self.link_pubs = [publisher(Contacts, LINK_PENETRATION_TOPIC, STREAM_QOS)]
+        # A mobile base (base_x, base_y, base_yaw among the joints): odom, as diff_drive_controller publishes it,
+        # on every state as the other per-state topics (recorded, in record_batch too).
+        self.base = base_indices(joint_names)
+        self.braked = braked_pose(plant.robot.locked_joints, plant.robot.locked_positions)  # a base held in place
+        self.odom_pubs: list[Publisher] = []
+        self.root_link = ""
+        if self.base is not None or (config.shared.base != "fixed" and self.braked is not None):
+            self.root_link = root_link(plant.robot.model)
+            self.odom_pubs = [publisher(Odometry, ODOM_TOPIC, STREAM_QOS)]
         self.joint_command_pubs: list[Publisher] = []  # joint_commands: the ros2_control side's state topic
         if config.command_source == "joint_commands":
             self.joint_command_pubs = [node.create_publisher(JointState, config.joint_states_topic, JOINT_COMMANDS_QOS)]
@@ -94,12 +114,13 @@ class SimulatorTopics:
         self.motor_wire = wire.MotorStateEncoder(joint_names)
         # robot_description too: a short run could otherwise end before the recorder has it.
         self.data_pubs = [self.joint_pub, self.contacts_pub, self.motor_pub, self.clock_pub, *self.wrench_pubs]
-        self.data_pubs += [self.description_pub, *self.truth_pubs, *self.link_pubs]
+        self.data_pubs += [self.description_pub, *self.truth_pubs, *self.link_pubs, *self.odom_pubs]
         self.flow = AckWindow(node, self.data_pubs, STREAM_QOS.depth)
         # record_batch: the per-state messages also reach the recorder in batches (it subscribes to those
         # and robot_description only); otherwise it subscribes to every topic.
         per_state = [self.joint_pub, *self.truth_pubs, self.clock_pub, *self.wrench_pubs, self.contacts_pub]
         per_state += self.link_pubs
+        per_state += self.odom_pubs
         self.batch = RecordBatchPublisher(node, [*per_state, self.motor_pub], config.record_batch)
         batched = self.batch.publisher
         self.recorder_pubs = self.data_pubs if batched is None else [batched, self.description_pub]
@@ -121,6 +142,10 @@ class SimulatorTopics:
         send(self.clock_pub, self.clock_wire.encode(t_ns))
         if state.links is not None and self.link_pubs:
             send(self.link_pubs[0], self.link_message(t_ns, state.links))
+        if self.base is not None:
+            self.publish_odometry(t_ns, odometry(state.position, state.velocity, self.base))
+        elif self.odom_pubs and self.braked is not None:
+            self.publish_odometry(t_ns, self.braked)
         if self.state_out is not None:
             self.state_out()
 
@@ -129,6 +154,20 @@ class SimulatorTopics:
         zero = np.zeros(3)
         reports = [wire.ContactReport(d.active, d.position, d.normal, 0.0, 0.0, zero, d.residual) for d in links]
         return self.contacts_wire.encode(t_ns, reports, [(d.name, d.link) for d in links])
+
+    def publish_odometry(self, t_ns: int, base: BaseOdometry) -> None:
+        """odom (nav_msgs/Odometry: the pose in the plane, the twist in the root link's frame, covariances zero:
+        the simulated pose is exact), at the state's stamp."""
+        msg = Odometry()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(t_ns, 1_000_000_000)
+        msg.header.frame_id, msg.child_frame_id = ODOM_FRAME, self.root_link
+        pose = msg.pose.pose
+        pose.position.x, pose.position.y = base.x, base.y
+        q = pose.orientation
+        q.x, q.y, q.z, q.w = base.quaternion
+        twist = msg.twist.twist
+        twist.linear.x, twist.linear.y, twist.angular.z = base.forward, base.left, base.yaw_rate
+        self.batch.publish(self.odom_pubs[0], serialize_message(msg))
 
     def publish_step(self, step: StepOut) -> None:
         t_ns, d, send = step.t_ns, step.forces, self.batch.publish
