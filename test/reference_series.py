@@ -20,6 +20,7 @@ from bracing_analysis.bag import (
     WRENCH_TOPIC,
     BagReadError,
     by_name,
+    deepest_links,
     read_ground_truth,
     resolve_bag,
     wanted_connections,
@@ -38,6 +39,7 @@ def read_series(bag: str | Path) -> BagSeries:
     streams, events = _read(path)
     series = _series(streams)
     events.apply(series, path)
+    deepest_links(series, recorded=bool(streams.penetration))  # from the series: the same code as bag's
     read_ground_truth(series, path)
     return series
 

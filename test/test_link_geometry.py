@@ -58,9 +58,23 @@ COLLISION = (
 )
 
 
-def paper_with_shapes(tmp_path: Path, links: tuple[str, ...] = ("link1", "link2", "link3", "link4")) -> Path:
-    """The paper's URDF with a collision cylinder per link in ``links``, as drawn (radius as its visual's)."""
+def paper_without_shapes(tmp_path: Path, links: tuple[str, ...]) -> Path:
+    """The paper's URDF with the generated <collision> of each link in ``links`` stripped (the others kept)."""
     text = (CONFIG_DIR / "paper_4link.urdf").read_text(encoding="utf-8")
+    for link in links:
+        pattern = rf'(<link name="{link}">.*?)\s*<collision>.*?</collision>'
+        text, found = re.subn(pattern, r"\1", text, count=1, flags=re.S)
+        assert found == 1, f"{link} has no <collision> in the paper URDF"
+    path = tmp_path / "paper_stripped.urdf"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def paper_with_shapes(tmp_path: Path, links: tuple[str, ...] = ("link1", "link2", "link3", "link4")) -> Path:
+    """The paper's URDF with a collision cylinder on the links in ``links`` only, as drawn (radius as its
+    visual's): the generated URDF's own <collision> shapes (one per link, chain_urdf) are stripped first."""
+    text = (CONFIG_DIR / "paper_4link.urdf").read_text(encoding="utf-8")
+    text = re.sub(r"\s*<collision>.*?</collision>", "", text, flags=re.S)
     for link in links:
         pattern = rf'(<link name="{link}">.*?<cylinder radius="([0-9.]+)" length="0.5"/></geometry>\s*</visual>)'
         text = re.sub(pattern, lambda m: m.group(1) + COLLISION.format(r=m.group(2)), text, count=1, flags=re.S)
@@ -270,14 +284,15 @@ def test_a_link_dropped_on_the_floor_comes_to_rest_on_it(tmp_path: Path) -> None
 
 
 def test_a_collision_link_without_shapes_is_refused_naming_it(tmp_path: Path) -> None:
-    urdf = paper_with_shapes(tmp_path, ("link2",))
+    urdf = paper_without_shapes(tmp_path, ("link3",))
     with pytest.raises(ConfigError, match=r"robot.collision_links: link 'link3' has no <collision> shapes"):
         build_scenario(PAPER_YAML, shared={"robot.urdf": str(urdf), "robot.collision_links": ["link3"]})
 
 
-def test_point_geometry_on_a_link_without_shapes_is_refused_naming_it() -> None:
+def test_point_geometry_on_a_link_without_shapes_is_refused_naming_it(tmp_path: Path) -> None:
+    urdf = paper_without_shapes(tmp_path, ("link2",))  # the elbow frame's link
     with pytest.raises(ConfigError, match=r"contacts.elbow.point: geometry: the link of frame elbow has no collision"):
-        build_scenario(PAPER_YAML, shared={"contacts.elbow.point": "geometry"})
+        build_scenario(PAPER_YAML, shared={"robot.urdf": str(urdf), "contacts.elbow.point": "geometry"})
 
 
 def test_an_unreadable_mesh_is_refused_naming_it(tmp_path: Path) -> None:

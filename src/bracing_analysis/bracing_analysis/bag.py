@@ -304,18 +304,26 @@ def _read_streams(path: Path) -> BagSeries:
         raise BagReadError(msg) from exc
     series = _series(messages, texts, counts)
     events.apply(series, path)
-    _every_link(series)
+    deepest_links(series, recorded=(CONTACTS, LINK_PENETRATION_TOPIC) in messages)
     return series
 
 
-def _every_link(series: BagSeries) -> None:
-    """A run with link_penetration: every moving link's deepest (``link_depths``) where the bag has what it takes
-    (the URDF, the postures, the surfaces) and this machine the meshes; else the topic's (its deepest links)."""
-    if series.link_penetration_max is None or not series.robot_description or not series.surfaces:
+def deepest_links(series: BagSeries, recorded: bool) -> None:
+    """``series.link_penetration_max`` of a run whose bag has link_penetration messages (``recorded``; else it
+    stays None): every moving link's deepest (``link_depths``) where the bag has what it takes (the URDF, the
+    postures, the surfaces) and this machine the meshes; else the topic's (``series.link_penetration``: each
+    surface's deepest link at each state). Both bag readers (this one and the tests' per-message reference)
+    call it on the series they read, after its events (the surfaces)."""
+    if not recorded:
+        return
+    series.link_penetration_max = _topic_depths(series.link_penetration)
+    if not series.robot_description or not series.surfaces:
         return
     try:
         every = every_link_deepest(series.robot_description, series.joint_names, series.joint_position, series.surfaces)
     except ValueError:
+        return
+    if not every:  # the URDF as recorded has no moving link with shapes: the topic's links are all there is
         return
     topic = series.link_penetration_max
     series.link_penetration_max = {link: max(depth, topic.get(link, 0.0)) for link, depth in every.items()}
@@ -355,9 +363,6 @@ def _series(messages: dict[_Kind, _Messages], texts: list[Layout], counts: dict[
     turn = messages.get((VECTOR3_STAMPED, ""))
     if turn is not None and turn.count:
         series.hand_orientation_error = _per_state_row(turn, ctrl, "vector")
-    links = messages.get((CONTACTS, LINK_PENETRATION_TOPIC))
-    if links is not None:
-        series.link_penetration_max = _link_depths(links)
     sim_rows = _per_contact(sim, "contacts", "contacts[{j}].name")
     ctrl_rows = _per_contact(ctrl, "contact_name", "contact_name[{j}]")
     for name in list(sim_rows) + [n for n in ctrl_rows if n not in sim_rows]:
@@ -383,14 +388,14 @@ def _link_penetration(rows: _Rows, sec: _Seconds) -> LinkPenetrationSeries:
     )
 
 
-def _link_depths(links: _Messages) -> dict[str, float]:
-    """Per link named on link_penetration (``<link>@<contact>``): the deepest it was inside a surface [m] (0: never
-    inside) when it was the link deepest into (or nearest) that surface."""
+def _topic_depths(measured: dict[str, LinkPenetrationSeries]) -> dict[str, float]:
+    """Per link the link_penetration topic names (its ``frame``, the link deepest into or nearest a surface at a
+    state): the deepest it was inside a surface [m] at those states (0: never inside)."""
     out: dict[str, float] = {}
-    for name, rows in _per_contact(links, "contacts", "contacts[{j}].name").items():
-        link = name.rsplit("@", 1)[0]
-        depth = max(0.0, -float(np.nanmin(rows.take("contacts[{j}].residual").astype(float), initial=np.inf)))
-        out[link] = max(out.get(link, 0.0), depth)
+    for surface in measured.values():
+        for link, distance in zip(surface.link, surface.distance.tolist(), strict=True):
+            depth = 0.0 if math.isnan(distance) else max(0.0, -distance)
+            out[link] = max(out.get(link, 0.0), depth)
     return out
 
 

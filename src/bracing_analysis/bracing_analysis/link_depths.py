@@ -46,7 +46,8 @@ def every_link_deepest(
         n = len(joint_names)
         zeros = np.zeros(n)
         drive = engine.Drive(False, zeros, zeros, zeros, zeros, zeros, zeros, False, zeros, zeros, 20.0, 0.0)
-        robot = engine.Robot(str(urdf), np.zeros(3), [], [], 1.0, description)
+        # by keyword: the shapes are collision_description's (urdf_xml and a drive's wheels come before it)
+        robot = engine.Robot(str(urdf), np.zeros(3), [], [], 1.0, collision_description=description)
         dynamics = engine.Dynamics(robot, drive, [], 1e-4, 0.0)
     order = [list(joint_names).index(name) for name in dynamics.joint_names]
     links = list(dynamics.measure_links(zeros, surfaces).links)
