@@ -6,15 +6,46 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from bracing_core.contact_roles import kept_out_name
 from bracing_core.contacts import Contact, Plane, Sphere, Surface
 from bracing_core.meshes import resolved_description
 from bracing_core.params import ConfigError
 
-if TYPE_CHECKING:  # the configuration's types only
-    from bracing_core.config import ContactConfig, SharedConfig
+
+class ContactConfig(Protocol):
+    """What these rules read of a ``config.ContactConfig`` (a protocol: config imports this module)."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def frame(self) -> str: ...
+    @property
+    def surface(self) -> Surface: ...
+    @property
+    def friction(self) -> float: ...
+    @property
+    def friction_model(self) -> str: ...
+    @property
+    def point(self) -> str: ...
+
+
+class SharedConfig(Protocol):
+    """What these rules read of a ``config.SharedConfig``."""
+
+    @property
+    def urdf(self) -> Path: ...
+    @property
+    def package_paths(self) -> tuple[str, ...]: ...
+    @property
+    def contacts(self) -> Sequence[ContactConfig]: ...
+    @property
+    def collision_frames(self) -> tuple[str, ...]: ...
+    @property
+    def collision_links(self) -> tuple[str, ...]: ...
+    @property
+    def collision_geometry(self) -> bool: ...
 
 
 def kept_out_contacts(

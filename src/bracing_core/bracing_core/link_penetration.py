@@ -8,13 +8,18 @@ deepest each link went, and one warning per link deeper than ``robot.penetration
 
 from __future__ import annotations
 
+import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import NDArray
 
 import bracing_engine as engine
 from bracing_core.contact_roles import LINK_PENETRATION_TOPIC
+from bracing_core.contacts import Surface
 from bracing_core.dynamics import engine_surface
 from bracing_core.types import Vector
 
@@ -99,3 +104,29 @@ class LinkPenetration:
                 s = distance[k::count].index(-depth)
                 warnings.append(penetration_warning(self.links[k], self.contacts[s], depth, t, self.tolerance))
         return reports, warnings
+
+
+def deepest_over_postures(
+    description: str, joint_names: Sequence[str], positions: NDArray[np.float64], surfaces: Sequence[Surface]
+) -> dict[str, float]:
+    """{link: the deepest it went inside any of ``surfaces`` [m] (0: never)} over ``positions`` (rows: postures,
+    columns: ``joint_names``), every moving link of the URDF ``description`` (meshes as file:// paths) with
+    collision shapes, measured by the engine as the simulator measures them. ValueError if it cannot load them."""
+    if not surfaces or not len(positions):
+        return {}
+    with tempfile.TemporaryDirectory(prefix="bracing-links-") as folder:
+        urdf = Path(folder) / "robot.urdf"
+        urdf.write_text(description, encoding="utf-8")
+        zeros = np.zeros(len(joint_names))
+        drive = engine.Drive(False, zeros, zeros, zeros, zeros, zeros, zeros, False, zeros, zeros, 20.0, 0.0)
+        # by keyword: the shapes are collision_description's (urdf_xml and a drive's wheels come before it)
+        robot = engine.Robot(str(urdf), np.zeros(3), [], [], 1.0, collision_description=description)
+        dynamics = engine.Dynamics(robot, drive, [], 1e-4, 0.0)
+    measured = [engine_surface(surface) for surface in surfaces]
+    order = [list(joint_names).index(name) for name in dynamics.joint_names]
+    links = list(dynamics.measure_links(np.zeros(len(joint_names)), measured).links)
+    deepest = np.zeros(len(links))
+    for q in np.asarray(positions, dtype=float)[:, order]:
+        distance = dynamics.measure_links(q, measured).distance.reshape(len(measured), len(links))
+        np.maximum(deepest, -distance.min(axis=0), out=deepest)
+    return dict(zip(links, deepest.tolist(), strict=True))
