@@ -135,10 +135,9 @@ def test_the_drawn_base_is_where_odom_has_it() -> None:
     assert 'joint name="base_x"' in build_scenario(TIAGO, with_controller=False).plant.description()[0]
 
 
-def test_on_its_wheels_cmd_vel_turns_the_wheels_by_diff_drive_controller_s_kinematics() -> None:
-    """robot.base: diff_drive with the wheels turning (torque input), cmd_vel 0.1 m/s forward and 0.2 rad/s from
-    0.5 s to 1.4 s: each wheel's loop (kd 10 N m s/rad, ki 100 N m/rad) follows w = (v -/+ omega s / 2) / r, so
-    the base runs the unicycle's arc, 1.4 s of it (the last command followed until it is 0.5 s old)."""
+def wheeled_tiago() -> Any:
+    """TIAGo on its turning wheels (torque input), base_command cmd_vel, kd 10 N m s/rad, ki 100 N m/rad per
+    wheel."""
     n = 2 + len(ARM)
     locked = [name for name in build_scenario(TIAGO, with_controller=False).plant.robot.locked_joints]
     shared: dict[str, Any] = {
@@ -156,7 +155,36 @@ def test_on_its_wheels_cmd_vel_turns_the_wheels_by_diff_drive_controller_s_kinem
         "base_velocity_kd": 10.0,
         "base_velocity_ki": 100.0,
     }
-    scenario = build_scenario(TIAGO, shared=shared, sim=sim, ctl=ctl)
+    return build_scenario(TIAGO, shared=shared, sim=sim, ctl=ctl)
+
+
+def test_the_law_s_motion_map_is_the_plant_s_rolling_rows_null_space() -> None:
+    """Law.motion_map(q): T = [0 S_b; 0 I], every velocity T u rolls without slipping in the simulator's
+    rolling rows (one implementation: the engine's), at a turned, moved state."""
+    scenario = wheeled_tiago()
+    assert scenario.controller is not None
+    core = StateAnswerer(scenario.controller.config, Log(), Clock())
+    q = np.array(scenario.sim.position)
+    q[:3] = [0.3, -0.2, 0.7]
+    motion = np.asarray(core.law.engine.motion_map(q))
+    n = q.size
+    assert motion.shape == (n, n) and not motion[:, :3].any() and (motion[3:, 3:] == np.eye(n - 3)).all()
+    names = list(scenario.plant.joint_names)
+    wheels = [names.index("wheel_left_joint"), names.index("wheel_right_joint")]
+    assert np.abs(motion[:3, wheels]).min() > 0.01  # the wheels move the base (x, y and yaw)
+    assert not np.delete(motion[:3], [*range(3), *wheels], axis=1).any()  # the arm does not
+    rng = np.random.default_rng(4)
+    for _ in range(3):
+        velocity = motion @ rng.uniform(-1.0, 1.0, n)
+        rolling = scenario.sim.dynamics.engine.terms(q, velocity).rolling_velocity
+        assert np.abs(rolling).max() < 1e-15 * max(1.0, np.abs(velocity).max())
+
+
+def test_on_its_wheels_cmd_vel_turns_the_wheels_by_diff_drive_controller_s_kinematics() -> None:
+    """robot.base: diff_drive with the wheels turning (torque input), cmd_vel 0.1 m/s forward and 0.2 rad/s from
+    0.5 s to 1.4 s: each wheel's loop (kd 10 N m s/rad, ki 100 N m/rad) follows w = (v -/+ omega s / 2) / r, so
+    the base runs the unicycle's arc, 1.4 s of it (the last command followed until it is 0.5 s old)."""
+    scenario = wheeled_tiago()
     assert scenario.controller is not None
     names = list(scenario.plant.joint_names)
     indices = base_indices(names)
