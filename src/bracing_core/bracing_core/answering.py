@@ -337,11 +337,7 @@ class StateAnswerer:
         if drive.gate.braking and not was_braking:
             self.log.warning(f"cmd_vel timed out at t = {stamp_ns * 1e-9:.6f} s: braking (zero velocity)")
         joints = drive.actuators
-        if drive.wheels is None:
-            torque = keep_contact_force(self.contact_map(q, dq), out.torque, joints, out.torque[joints] + tau)
-        else:  # the wheels' torque alone: B on the rolling system is the law's (not taken up by the arm here)
-            torque = out.torque.copy()
-            torque[joints] += tau
+        torque = keep_contact_force(self.contact_map(q, dq), out.torque, joints, out.torque[joints] + tau)
         if self.config.shared.input_mode.value == "voltage":  # eq. 41 on the change
             out.command = out.command + self.law.plant.to_model_order(self.config.voltage_gain) * (torque - out.torque)
         else:
@@ -350,12 +346,22 @@ class StateAnswerer:
 
     def contact_map(self, q: Vector, dq: Vector) -> Vector:
         """B = J_c Mc^-1 (p x n) of the law's model at (q, dq) (eq. 36): how joint torques reach the braces'
-        normal accelerations; Mc = M (pinocchio's crba) + the reflected rotor inertia in voltage mode."""
+        normal accelerations; Mc = M (pinocchio's crba) + the reflected rotor inertia in voltage mode. On a
+        differential drive, B of the rolling system: J_c T (T^T Mc T)^-1 (T^T tau = tau off the base, whose
+        joints have no torque), T the law's map from the admissible motions (``motion_map``: the engine's rolling
+        rows), the base's block of T^T Mc T set to I as the law sets it (its columns of B are zero)."""
         robot = self.law.plant.robot
-        mass = pin.crba(robot.model, robot.data, np.asarray(q, dtype=float))
+        position = np.asarray(q, dtype=float)
+        mass = pin.crba(robot.model, robot.data, position)
         mass = np.triu(mass) + np.triu(mass, 1).T
         mass += np.diag(reflected_terms(robot, self.law.plant.motors, self.law.plant.mode)[0])
-        return np.linalg.solve(mass, self.braced.terms(q, dq).normal_jacobian.T).T
+        normal = self.braced.terms(q, dq).normal_jacobian
+        if self.base_drive is None or self.base_drive.wheels is None:
+            return np.linalg.solve(mass, normal.T).T
+        motion = np.asarray(self.law.engine.motion_map(position))
+        reduced = motion.T @ mass @ motion
+        reduced[:3, :3] += np.eye(3)  # the base's block: no motor, decoupled
+        return np.linalg.solve(reduced, (normal @ motion).T).T
 
     def watch_null_space(self, out: ControlOutput, dq: Vector, t: float) -> None:
         """Every NULL_SPACE_CHECK_EVERY states, until said once: warn of joints running in the null space."""

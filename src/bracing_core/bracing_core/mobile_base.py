@@ -265,9 +265,10 @@ class BaseDrive:
 def keep_contact_force(b: Vector, torque: Vector, base: Sequence[int], base_torque: Vector) -> Vector:
     """``torque`` (the law's, eq. 38) with ``base_torque`` on the joints ``base`` (the law's own plus the base's
     velocity loop), and the other joints' torques changed by the least that keeps B tau as the law set it:
-    delta_arm = -B_arm^+ B_base delta_base, B = J_c Mc^-1 (p x n, eq. 36). Eq. 40 (A f_n = B tau - a) then
-    gives the normal forces the law chose (f_nd with torque input): the base's loop accelerating the robot
-    does not lean on the braces."""
+    delta_arm = -B_arm^+ B_base delta_base, B = J_c Mc^-1 (p x n, eq. 36; on a differential drive the rolling
+    system's, J_c T (T^T Mc T)^-1, its base columns zero: ``StateAnswerer.contact_map``). Eq. 40
+    (A f_n = B tau - a) then gives the normal forces the law chose (f_nd with torque input): the base's loop
+    accelerating the robot does not lean on the braces."""
     out = np.array(torque, dtype=float)
     b = np.asarray(b, dtype=float)
     base = list(base)

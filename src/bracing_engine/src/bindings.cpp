@@ -440,6 +440,9 @@ void bind_law(nb::module_& m) {
            "the windings' measured temperatures [degC] (thermal compensation)")
       .def_prop_ro("uses_force_feedback", &Law::uses_force_feedback)
       .def_prop_ro("uses_temperature", &Law::uses_temperature)
+      .def("motion_map", &Law::motion_map, "q"_a,
+           "T (n x n) at q: dq = T dq over the motions a differential drive's rolling allows ([0 S_b; 0 I], the "
+           "base's velocities those the wheels give), else the identity")
       .def("task_positions", &Law::task_positions, "q"_a, "the hand's and each brace point's positions at q")
       .def("null_space_speed", &Law::null_space_speed, "dq"_a,
            "max |(I - J^+ J) dq| [rad/s or m/s], J the task rows at the last update's q")

@@ -58,6 +58,15 @@ double null_space_speed(const Eigen::MatrixXd& rows, const Vector& dq) {
   return (dq - seen).cwiseAbs().maxCoeff();
 }
 
+// A differential drive's admissible motions: T = [0 S_b; 0 I] (n x n) from the rolling rows A = [A_b A_a]
+// (`base` A_b's factor), S_b = -A_b^-1 A_a the base's velocities the actuated ones give (A T = 0).
+void embed_rolling(const RowMatrix& rolling, const Eigen::PartialPivLU<Eigen::Matrix3d>& base, Eigen::MatrixXd& out) {
+  const Eigen::Index n = rolling.cols(), m = n - 3;
+  out.setZero(n, n);
+  out.topRightCorner(3, m) = -base.solve(Eigen::MatrixXd(rolling.rightCols(m)));
+  out.bottomRightCorner(m, m).setIdentity();
+}
+
 }  // namespace
 
 // The braced contacts' rows at the law's state, per brace j: J_c, the row its force acts through,
@@ -796,19 +805,32 @@ Vector Law::Impl::mass_solve(Vector x) const {
 }
 
 void Law::Impl::reduce(const Vector& dq, bool mass) {
-  const int n = model.nv, m = n - 3;
   if (!mass) {
     rolling_rows(model, data, wheels, dq, rolling, rolling_drift, frame_jacobian);
     const Eigen::PartialPivLU<Eigen::Matrix3d> base(Eigen::Matrix3d(rolling.leftCols<3>()));
-    embed.setZero(n, n);
-    embed.topRightCorner(3, m) = -base.solve(Eigen::MatrixXd(rolling.rightCols(m)));
-    embed.bottomRightCorner(m, m).setIdentity();
+    embed_rolling(rolling, base, embed);
     base_acceleration = -base.solve(Eigen::Vector3d(rolling_drift));
     return;
   }
   Eigen::MatrixXd reduced = embed.transpose() * Eigen::MatrixXd(data.M.selfadjointView<Eigen::Upper>()) * embed;
   reduced.topLeftCorner<3, 3>() += Eigen::Matrix3d::Identity();  // the base's block: no motor, decoupled
   reduced_mass.compute(reduced);
+}
+
+Eigen::MatrixXd Law::motion_map(const Vector& q) const {
+  const Impl& m = *impl_;
+  const int n = m.model.nv;
+  if (!m.wheels) return Eigen::MatrixXd::Identity(n, n);
+  pin::Data data(m.model);  // the law's own data keeps the last update's terms
+  const Vector zero = Vector::Zero(n);
+  rigid_body_terms(m.model, data, q, zero);
+  RowMatrix rolling;
+  Vector drift;
+  pin::Data::Matrix6x work = pin::Data::Matrix6x::Zero(6, n);
+  rolling_rows(m.model, data, m.wheels, zero, rolling, drift, work);
+  Eigen::MatrixXd out;
+  embed_rolling(rolling, Eigen::PartialPivLU<Eigen::Matrix3d>(Eigen::Matrix3d(rolling.leftCols<3>())), out);
+  return out;
 }
 
 Vector Law::Impl::task_space_torque(const Eigen::MatrixXd& task_rows, const Vector& accelerations,

@@ -140,6 +140,9 @@ class Law {
   // max |(I - J^+ J) dq| over the joints [rad/s or m/s], J the task rows at the last update's q: joint motion
   // that no task sees (the controller asks now and then, not every update: 1 us each).
   double null_space_speed(const Vector& dq);
+  // The admissible motions' map T at q (n x n, dq = T dq; docs/model.md, Control law on a differential drive):
+  // [0 S_b; 0 I] from the law's rolling rows with a differential drive, else the identity.
+  Eigen::MatrixXd motion_map(const Vector& q) const;
   // The hand's and each brace point's positions at q (the law's kinematics): b + 1 rows.
   RowMatrix task_positions(const Vector& q);
   // The tunable values: task gains (per world axis), f_nd and K_V. An integral gain set to zero clears its
