@@ -4,7 +4,8 @@ The simulator's ``link_penetration`` topic carries, per surface, only the link d
 summary has every moving link with collision shapes. It measures them again from the bag: the URDF as simulated
 (``robot_description``, meshes as file:// paths), every recorded posture (``joint_states``) and the surfaces (the
 bag's metadata), by the engine's own measurement (coal, through
-``bracing_core.link_penetration.deepest_over_postures``), the one the simulator ran. No rclpy; the engine is imported only when a run has the topic.
+``bracing_core.link_penetration.deepest_over_postures``), the one the simulator ran. No rclpy; the engine is
+imported only when a run has the topic.
 """
 
 from __future__ import annotations
