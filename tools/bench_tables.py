@@ -104,8 +104,33 @@ def breakdown_table(bench: dict[str, Any]) -> str:
     return markdown_table(["part of a 1 ms step", "us"], rows)
 
 
+SWEEP_EXECUTORS = {
+    "local_1": "1 local worker process",
+    "local_2": "2 local worker processes",
+    "dask_local_2": "Dask LocalCluster, 2 single-threaded workers",
+}
+"""bench/sweep_bench.py's executors, as the page names them."""
+
+
+def sweep_table(bench: dict[str, Any]) -> str:
+    """The sweep's throughput per executor (``sweep``: medians of its repeats), its start-up apart, then the
+    parallel efficiency of 2 local workers."""
+    sweep = bench["sweep"]
+    runs = sweep["runs"]
+    sim = _n(sweep["run_sim_time_s"])
+    rows = [
+        (name, _n(sweep["runs_per_min"][key]), f"{_n(sweep['mean_run_s'][key])} s", f"{_n(sweep['startup_s'][key])} s")
+        for key, name in SWEEP_EXECUTORS.items()
+        if key in sweep["runs_per_min"]
+    ]
+    rows.append(("**parallel efficiency, 2 local workers**", f"**{_n(sweep['parallel_efficiency'])}**", "", ""))
+    header = [f"executor ({runs} runs of {sim} s)", "runs/min", "mean wall time of one run", "start-up"]
+    return markdown_table(header, rows)
+
+
 TABLES: dict[str, Callable[[dict[str, Any]], str]] = {
     "headline": headline_table,
     "targets": targets_table,
     "breakdown": breakdown_table,
+    "sweep": sweep_table,
 }
