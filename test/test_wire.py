@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import WrenchStamped
+from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -494,3 +495,19 @@ def test_template_specs_are_checked(sample_store: Typestore) -> None:
             wire.derive_template(name, spec, sample_store)
     with pytest.raises(TypeError):
         wire.derive_template(typename, {"label": 5}, sample_store)
+
+
+def test_odometry_template_is_rclpys_message_byte_for_byte() -> None:
+    """The odom template equals the message rclpy serialises, every field set as the simulator sets it."""
+    stamp, yaw = 12_345_678_901, 0.7
+    quaternion = (0.0, 0.0, float(np.sin(0.5 * yaw)), float(np.cos(0.5 * yaw)))
+    raw = wire.OdometryEncoder("odom", "base_footprint").encode(stamp, (1.25, -0.5), quaternion, (0.3, -0.01), 0.2)
+    msg = Odometry()
+    msg.header.stamp = Time(sec=12, nanosec=345_678_901)
+    msg.header.frame_id, msg.child_frame_id = "odom", "base_footprint"
+    msg.pose.pose.position.x, msg.pose.pose.position.y = 1.25, -0.5
+    orientation = msg.pose.pose.orientation
+    orientation.x, orientation.y, orientation.z, orientation.w = quaternion
+    twist = msg.twist.twist
+    twist.linear.x, twist.linear.y, twist.angular.z = 0.3, -0.01, 0.2
+    assert raw == serialize_message(msg)

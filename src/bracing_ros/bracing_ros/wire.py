@@ -79,6 +79,7 @@ from bracing_core.typestore import (
     JOINT_STATE,
     MOTOR_COMMAND,
     MOTOR_STATE,
+    ODOMETRY,
     RECORD_BATCH,
     VECTOR3_STAMPED,
     WRENCH_STAMPED,
@@ -518,6 +519,34 @@ class Vector3StampedEncoder:
 
     def encode(self, stamp_ns: int, vector: Vector) -> bytes:
         return self._template.fill(divmod(stamp_ns, 1_000_000_000), vector.tolist())
+
+
+class OdometryEncoder:
+    """nav_msgs/Odometry of a base in the plane (a byte template: the stamp, the pose and the twist per message;
+    the frames fixed, the covariances zero)."""
+
+    def __init__(self, frame_id: str, child_frame_id: str) -> None:
+        spec = {
+            "header": {"stamp": PER_MESSAGE, "frame_id": frame_id},
+            "child_frame_id": child_frame_id,
+            "pose": {"pose": {"position": PER_MESSAGE, "orientation": PER_MESSAGE}},
+            "twist": {"twist": {"linear": PER_MESSAGE, "angular": PER_MESSAGE}},
+        }
+        self._template = derive_template(ODOMETRY, spec)
+
+    def encode(
+        self,
+        stamp_ns: int,
+        xy: tuple[float, float],
+        quaternion: tuple[float, float, float, float],
+        linear_xy: tuple[float, float],
+        yaw_rate: float,
+    ) -> bytes:
+        """Pose (x, y [m], heading as quaternion x, y, z, w) and twist (linear x, y [m/s] in the child frame,
+        angular z [rad/s])."""
+        return self._template.fill(
+            divmod(stamp_ns, 1_000_000_000), (*xy, 0.0), quaternion, (*linear_xy, 0.0), (0.0, 0.0, yaw_rate)
+        )
 
 
 @dataclass(frozen=True)

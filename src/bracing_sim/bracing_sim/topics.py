@@ -13,7 +13,6 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
@@ -104,6 +103,7 @@ class SimulatorTopics:
         if self.base is not None or (config.shared.base != "fixed" and self.braked is not None):
             self.root_link = root_link(plant.robot.model)
             self.odom_pubs = [publisher(Odometry, ODOM_TOPIC, STREAM_QOS)]
+            self.odom_wire = wire.OdometryEncoder(ODOM_FRAME, self.root_link)
         self.joint_command_pubs: list[Publisher] = []  # joint_commands: the ros2_control side's state topic
         if config.command_source == "joint_commands":
             self.joint_command_pubs = [node.create_publisher(JointState, config.joint_states_topic, JOINT_COMMANDS_QOS)]
@@ -158,16 +158,8 @@ class SimulatorTopics:
     def publish_odometry(self, t_ns: int, base: BaseOdometry) -> None:
         """odom (nav_msgs/Odometry: the pose in the plane, the twist in the root link's frame, covariances zero:
         the simulated pose is exact), at the state's stamp."""
-        msg = Odometry()
-        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(t_ns, 1_000_000_000)
-        msg.header.frame_id, msg.child_frame_id = ODOM_FRAME, self.root_link
-        pose = msg.pose.pose
-        pose.position.x, pose.position.y = base.x, base.y
-        q = pose.orientation
-        q.x, q.y, q.z, q.w = base.quaternion
-        twist = msg.twist.twist
-        twist.linear.x, twist.linear.y, twist.angular.z = base.forward, base.left, base.yaw_rate
-        self.batch.publish(self.odom_pubs[0], serialize_message(msg))
+        data = self.odom_wire.encode(t_ns, (base.x, base.y), base.quaternion, (base.forward, base.left), base.yaw_rate)
+        self.batch.publish(self.odom_pubs[0], data)
 
     def publish_step(self, step: StepOut) -> None:
         t_ns, d, send = step.t_ns, step.forces, self.batch.publish
