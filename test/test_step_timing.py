@@ -22,13 +22,13 @@ def test_the_mark_splits_the_work_at_the_answer_out(monkeypatch: pytest.MonkeyPa
     timer.end(written_s=8e-6)
     line = timer.line()
     assert line == (
-        "per-step work [us]: mean 50.0, p50 50.0, p99 50.0 over 1 steps; until the answer is out: mean 12.0, p50 12.0"
-        "; DDS writes: mean 8.0, p50 8.0"
+        "per-step work [us]: mean 50.0, p50 50.0, p99 50.0, p99.9 50.0, max 50.0 over 1 steps; until the answer is"
+        " out: mean 12.0, p50 12.0; DDS writes: mean 8.0, p50 8.0"
     )
     work = read_work_line(line)
     assert work == {
-        "mean": 50.0, "p50": 50.0, "p99": 50.0, "steps": 1.0, "out_mean": 12.0, "out_p50": 12.0,
-        "writes_mean": 8.0, "writes_p50": 8.0,
+        "mean": 50.0, "p50": 50.0, "p99": 50.0, "p99_9": 50.0, "max": 50.0, "steps": 1.0, "out_mean": 12.0,
+        "out_p50": 12.0, "writes_mean": 8.0, "writes_p50": 8.0,
     }  # fmt: skip
 
 
@@ -46,7 +46,12 @@ def test_the_wait_for_the_peer_is_not_work_and_the_line_reads_back(monkeypatch: 
     timer.begin()
     timer.end()
     line = timer.line()
-    assert line == "per-step work [us]: mean 20.0, p50 20.0, p99 29.8 over 2 steps"
+    # the tail: p99.9 between the two steps (numpy's linear interpolation), the maximum the slower step
+    assert line == "per-step work [us]: mean 20.0, p50 20.0, p99 29.8, p99.9 30.0, max 30.0 over 2 steps"
     log = f"[INFO] [1.0] [bracing_simulator]: {line}\n[INFO] [1.1] [bracing_simulator]: finished at t = 1.0 s\n"
-    assert read_work_line(log) == {"mean": 20.0, "p50": 20.0, "p99": 29.8, "steps": 2.0}
+    assert read_work_line(log) == {"mean": 20.0, "p50": 20.0, "p99": 29.8, "p99_9": 30.0, "max": 30.0, "steps": 2.0}
+    # a line without the tail (a log written before it was logged) still reads
+    assert read_work_line("per-step work [us]: mean 20.0, p50 20.0, p99 29.8 over 2 steps") == {
+        "mean": 20.0, "p50": 20.0, "p99": 29.8, "steps": 2.0,
+    }  # fmt: skip
     assert read_work_line("finished at t = 1.0 s") is None

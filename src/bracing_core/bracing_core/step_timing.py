@@ -12,7 +12,7 @@ import numpy as np
 WORK_LINE = "per-step work [us]"
 _PATTERN = re.compile(
     re.escape(WORK_LINE)
-    + r": mean ([0-9.]+), p50 ([0-9.]+), p99 ([0-9.]+) over ([0-9]+) steps"
+    + r": mean ([0-9.]+), p50 ([0-9.]+), p99 ([0-9.]+)(?:, p99.9 ([0-9.]+), max ([0-9.]+))? over ([0-9]+) steps"
     + r"(?:; until the answer is out: mean ([0-9.]+), p50 ([0-9.]+))?"
     + r"(?:; DDS writes: mean ([0-9.]+), p50 ([0-9.]+))?"
 )
@@ -54,13 +54,16 @@ class WorkTimer:
             self._to_mark.append(self._marked_at - self._start - self._waited)
 
     def line(self) -> str | None:
-        """The log line (None before any step): mean, p50 and p99 [us] and the count; with marks, the
-        mean and p50 up to the mark; with writes, their mean and p50."""
+        """The log line (None before any step): mean, p50, p99, p99.9 and the maximum [us] and the count;
+        with marks, the mean and p50 up to the mark; with writes, their mean and p50."""
         if not self._samples:
             return None
         us = np.asarray(self._samples) * 1e6
-        mean, p50, p99 = float(us.mean()), float(np.percentile(us, 50)), float(np.percentile(us, 99))
-        line = f"{WORK_LINE}: mean {mean:.1f}, p50 {p50:.1f}, p99 {p99:.1f} over {len(us)} steps"
+        mean, (p50, p99, p999) = float(us.mean()), np.percentile(us, [50, 99, 99.9])
+        line = (
+            f"{WORK_LINE}: mean {mean:.1f}, p50 {p50:.1f}, p99 {p99:.1f}, p99.9 {p999:.1f}, max {us.max():.1f} "
+            f"over {len(us)} steps"
+        )
         if self._to_mark:
             marked = np.asarray(self._to_mark) * 1e6
             line += f"; until the answer is out: mean {marked.mean():.1f}, p50 {np.percentile(marked, 50):.1f}"
@@ -71,13 +74,16 @@ class WorkTimer:
 
 
 def read_work_line(log: str) -> dict[str, float] | None:
-    """The last per-step work line of a node's log as {mean, p50, p99 [us], steps} and, with marks,
-    {out_mean, out_p50} and, with writes, {writes_mean, writes_p50}; None if absent."""
+    """The last per-step work line of a node's log as {mean, p50, p99 [us], steps} and, where the line has
+    them, {p99_9, max}, with marks {out_mean, out_p50} and with writes {writes_mean, writes_p50}; None if
+    absent."""
     found = _PATTERN.findall(log)
     if not found:
         return None
-    mean, p50, p99, steps, out_mean, out_p50, writes_mean, writes_p50 = found[-1]
+    mean, p50, p99, p999, most, steps, out_mean, out_p50, writes_mean, writes_p50 = found[-1]
     work = {"mean": float(mean), "p50": float(p50), "p99": float(p99), "steps": float(steps)}
+    if p999:
+        work.update(p99_9=float(p999), max=float(most))
     if out_mean:
         work.update(out_mean=float(out_mean), out_p50=float(out_p50))
     if writes_mean:
