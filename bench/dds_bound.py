@@ -9,10 +9,13 @@ The transport is the nodes' own: their QoS (bracing_ros.qos STREAM_QOS /
 SUBSCRIBE_QOS), their wait (SubscriptionWaiter) and,
 with ``--wire cdr``, their CDR bytes (bracing_ros.wire); ``--wire objects`` sends rclpy
 message objects instead, for comparison. No computation besides the messages.
+``--wire rcl`` is the bound without Python: both sides are src/bracing_rcl_bench's ``rcl_pingpong`` (C++ on
+rcl's C API, built by ``make setup``), the same messages on the same topics with the same QoS, each side
+checking every field it receives.
 
 Process layout (the parent never imports rclpy):
-    parent --spawns--> ``python bench/dds_bound.py pong --wire W``
-           --runs----> ``python bench/dds_bound.py ping --wire W --n N ...``
+    parent --spawns--> ``python bench/dds_bound.py pong --wire W`` (rcl: ``rcl_pingpong pong``)
+           --runs----> ``python bench/dds_bound.py ping --wire W --n N ...`` (rcl: ``rcl_pingpong ping ...``)
                        (prints one JSON line with the per-repeat round trips/s)
 Both children get ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a ROS_DOMAIN_ID that the
 parent holds while they live (bracing_bringup.domains). Needs the workspace environment
@@ -29,13 +32,16 @@ import subprocess
 import sys
 import tempfile
 import time
+from pathlib import Path
 
 from bracing_bringup.domains import hold_domain
 
 JOINTS = ["joint1", "joint2", "joint3", "joint4"]
 PING_TOPIC = "ping"
 PONG_TOPIC = "pong"
-WIRES = ("cdr", "objects")
+PYTHON_WIRES = ("cdr", "objects")
+WIRES = (*PYTHON_WIRES, "rcl")
+RCL_PACKAGE = "bracing_rcl_bench"
 
 
 class _Side:
@@ -171,6 +177,26 @@ def _ping_main(wire_kind: str, n: int, repeats: int, warmup: int, discovery_time
 # --------------------------------------------------------------------------- parent
 
 
+def rcl_program() -> Path:
+    """The C++ side (``rcl_pingpong`` of src/bracing_rcl_bench, installed by ``make setup``)."""
+    from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+
+    try:
+        program = Path(get_package_prefix(RCL_PACKAGE)) / "lib" / RCL_PACKAGE / "rcl_pingpong"
+    except PackageNotFoundError:
+        raise RuntimeError(f"{RCL_PACKAGE} is not built: run make setup, then source env.sh") from None
+    if not program.is_file():
+        raise RuntimeError(f"{program} is missing: run make setup (its colcon build installs it)")
+    return program
+
+
+def side_argv(role: str, wire: str, options: list[str]) -> list[str]:
+    """The command line of one side (``role`` ping or pong) over ``wire``, with ``options`` (--name=value)."""
+    if wire == "rcl":
+        return [str(rcl_program()), role, *options]
+    return [sys.executable, os.path.abspath(__file__), role, f"--wire={wire}", *options]
+
+
 def _child_env(domain_id: int) -> dict[str, str]:
     env = dict(os.environ)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -196,22 +222,28 @@ def dds_round_trips_per_s(
     warmup: int = 200,
     timeout_s: float = 120.0,
     wire: str = "cdr",
+    pong_wire: str | None = None,
 ) -> dict:
-    """Median (and samples) of lockstep round trips/s between two rclpy processes.
+    """Median (and samples) of lockstep round trips/s between two processes: rclpy's (``wire`` cdr or
+    objects) or rcl_pingpong's (rcl, no Python).
 
     One round trip = publish a 4-joint JointState, receive the 4-value MotorCommand
     answering it (matched by stamp). Runs the pong and the ping side as subprocesses
-    on a private localhost-only DDS domain; both are always cleaned up.
+    on a private localhost-only DDS domain; both are always cleaned up. ``pong_wire``: the pong
+    side's wire if not ``wire`` (a C++ side against a Python one: the same bytes on the wire).
     """
+    sides = (wire, wire if pong_wire is None else pong_wire)
     with hold_domain() as domain:  # held while the two processes live (bracing_bringup.domains)
-        return _round_trips(_child_env(domain.domain_id), n, repeats, warmup, timeout_s, wire)
+        return _round_trips(_child_env(domain.domain_id), n, repeats, warmup, timeout_s, sides)
 
 
-def _round_trips(env: dict[str, str], n: int, repeats: int, warmup: int, timeout_s: float, wire: str) -> dict:
-    script = os.path.abspath(__file__)
+def _round_trips(
+    env: dict[str, str], n: int, repeats: int, warmup: int, timeout_s: float, sides: tuple[str, str]
+) -> dict:
+    wire, pong_wire = sides
     with tempfile.TemporaryFile() as pong_err:
         pong = subprocess.Popen(
-            [sys.executable, script, "pong", f"--wire={wire}"],
+            side_argv("pong", pong_wire, []),
             env=env,
             stdin=subprocess.DEVNULL,
             stdout=subprocess.DEVNULL,
@@ -220,15 +252,7 @@ def _round_trips(env: dict[str, str], n: int, repeats: int, warmup: int, timeout
         ping = None
         try:
             ping = subprocess.Popen(
-                [
-                    sys.executable,
-                    script,
-                    "ping",
-                    f"--wire={wire}",
-                    f"--n={n}",
-                    f"--repeats={repeats}",
-                    f"--warmup={warmup}",
-                ],
+                side_argv("ping", wire, [f"--n={n}", f"--repeats={repeats}", f"--warmup={warmup}"]),
                 env=env,
                 stdin=subprocess.DEVNULL,
                 stdout=subprocess.PIPE,
@@ -246,7 +270,10 @@ def _round_trips(env: dict[str, str], n: int, repeats: int, warmup: int, timeout
                     f"pong stderr: {pong_err.read().decode(errors='replace')[-2000:]}"
                 )
             lines = [ln for ln in out.splitlines() if ln.startswith("{")]
-            samples = json.loads(lines[-1])["samples"]
+            if not lines:
+                raise RuntimeError(f"ping side printed no result: {out.strip()[-2000:]} {err.strip()[-2000:]}")
+            printed = json.loads(lines[-1])
+            samples = printed["samples"]
         finally:
             if ping is not None:
                 _stop(ping)
@@ -259,8 +286,10 @@ def _round_trips(env: dict[str, str], n: int, repeats: int, warmup: int, timeout
         "repeats": repeats,
         "warmup": warmup,
         "wire": wire,
-        "qos": "the nodes' (ros_common STREAM_QOS publishers, SUBSCRIBE_QOS subscriptions)",
-        "wait": "ros_common.SubscriptionWaiter",
+        "pong_wire": pong_wire,
+        "qos": "the nodes' (bracing_ros.qos STREAM_QOS publishers, SUBSCRIBE_QOS subscriptions)",
+        "wait": "rcl_wait on the subscription" if wire == "rcl" else "bracing_ros.waiter.SubscriptionWaiter",
+        "checked": printed.get("checked"),  # rcl_pingpong's ping: answers received, every field as sent
         "domain_id": int(env["ROS_DOMAIN_ID"]),
     }
 
@@ -274,6 +303,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--discovery-timeout", type=float, default=15.0)
     parser.add_argument("--wire", choices=WIRES, default="cdr")
     args = parser.parse_args(argv)
+    if args.role != "bench" and args.wire not in PYTHON_WIRES:
+        parser.error(
+            f"this script's sides are Python's ({', '.join(PYTHON_WIRES)}); rcl's: {RCL_PACKAGE}'s rcl_pingpong"
+        )
     if args.role == "pong":
         return _pong_main(args.wire)
     if args.role == "ping":
