@@ -12,12 +12,15 @@ rendered from (tools/docs_reference.py; bracing_experiments.recorded: its date, 
   distance queries take on ur5_table (robot.collision_geometry, the wrist at its link's surface);
 - the ROS pair vs the DDS bound: bracing-pair in lockstep for 10 s of sim time, against the
   round trips/s of two rclpy processes ping-ponging messages of the same size over the
-  nodes' own transport, times the step, measured before and after the pair (bench/dds_bound.py);
+  nodes' own transport, times the step, measured before and after the pair (bench/dds_bound.py); and
+  against the bound without Python: the same ping-pong between two C++ processes on rcl's C API
+  (src/bracing_rcl_bench's rcl_pingpong);
   and the two nodes alone (no recorder), alternately with the pair: the recorder's share of a step;
 - turnaround: the timeline of those pair runs (startup_s, stepping_s, shutdown_s, report_s,
   whole_run_s: see bracing_bringup.timeline), a `bracing-pair --duration 0.01` from command to
   exit, and `make run` against its runs' stepping time (the runs of bracing_bringup.paper_run);
-- controller update latency (p50, p99);
+- controller update latency (p50, p99); the controller node's whole callback on a state in the pair
+  (p50, p99, p99.9, the maximum: its per-step work line);
 - engine steps/s for generated chains of n links with p = 1 and 2 contacts, and the
   fitted growth exponent of cost with n.
 - sweep throughput: in-process runs per minute with 1 and 2 local worker processes and a
@@ -366,12 +369,14 @@ def pair_without_recorder(duration: float = 10.0) -> dict[str, Any]:
     return {"real_time_factor": duration / (simulator["finished"] - simulator["stepping"]), "work": work}
 
 
-def _callback_p50_p99(bare_runs: list[dict[str, Any]]) -> str:
-    """The controller node's per-state work in the bare pair (step_timing: decoding, checks, the law, the two
-    messages out), the medians over the runs of its p50 and p99, and of its p50 until the command is out."""
+def controller_callback_us(bare_runs: list[dict[str, Any]]) -> dict[str, float]:
+    """The controller node's per-state work in the bare pair [us] (step_timing: decoding, checks, the law, the
+    two messages out): the medians over the runs of its p50, p99 and p99.9 and of its p50 until the command
+    is out (out_p50); max, the longest of every run."""
     works = [run["work"]["controller"] for run in bare_runs]
-    p50, p99 = (statistics.median(w[key] for w in works) for key in ("p50", "p99"))
-    return f"{p50:.1f} / {p99:.1f}; to the command out {statistics.median(w['out_p50'] for w in works):.1f}"
+    callback = {key: statistics.median(w[key] for w in works) for key in ("p50", "p99", "p99_9", "out_p50")}
+    callback["max"] = max(w["max"] for w in works)
+    return callback
 
 
 def step_breakdown_us(
@@ -580,12 +585,14 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
     step = 0.001
     bound_runs: list[dict[str, Any]] = []
     objects_runs: list[dict[str, Any]] = []
+    rcl_runs: list[dict[str, Any]] = []
     dds = {"n": 200, "repeats": 1, "warmup": 50} if quick else {"n": 2000, "repeats": 3}
 
     def measure_bounds(label: str) -> None:
         print(label, flush=True)
         bound_runs.append(dds_round_trips_per_s(**dds, wire="cdr"))
         objects_runs.append(dds_round_trips_per_s(**dds, wire="objects"))
+        rcl_runs.append(dds_round_trips_per_s(**dds, wire="rcl"))
 
     measure_bounds("dds bound ...")
     duration = TINY_RUN_S if quick else 10.0
@@ -617,6 +624,8 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
     optimize_rate = optimize_trials_per_min(4, 2.01) if quick else optimize_trials_per_min()
     bound = statistics.mean(run["round_trips_per_s"] for run in bound_runs) * step
     bound_objects = statistics.mean(run["round_trips_per_s"] for run in objects_runs) * step
+    bound_rcl = statistics.mean(run["round_trips_per_s"] for run in rcl_runs) * step
+    callback = controller_callback_us(bare_runs)
     breakdown = step_breakdown_us(pair["stepping"], bare_runs, 1e6 / engine, latency["mean"], 1e3 / bound)
     result = {
         "quick": quick,
@@ -662,8 +671,16 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
         "dds_bound_objects_real_time_factor": bound_objects,
         "pair_vs_objects_bound": pair["stepping"] / bound_objects,
         "dds_bound_objects_before_after": [run["round_trips_per_s"] * step for run in objects_runs],
+        "dds_bound_rcl_real_time_factor": bound_rcl,
+        "dds_rcl_round_trip_us": 1e3 / bound_rcl,
+        "dds_bound_rcl_before_after": [run["round_trips_per_s"] * step for run in rcl_runs],
+        "pair_vs_rcl_bound": pair["stepping"] / bound_rcl,
         "controller_update_us_p50": latency["p50"],
         "controller_update_us_p99": latency["p99"],
+        "controller_callback_us_p50": callback["p50"],
+        "controller_callback_us_p99": callback["p99"],
+        "controller_callback_us_p99_9": callback["p99_9"],
+        "controller_callback_us_max": callback["max"],
         "pair_step_breakdown_us": breakdown,
         "node_work_us": [run["work"] for run in bare_runs],
         "scaling": scale,
@@ -705,8 +722,15 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
         ("DDS bound real-time factor (round trips/s x 1 ms, CDR bytes)", f"{bound:.2f}"),
         ("pair / bound", f"{result['pair_vs_bound']:.3f}"),
         ("DDS bound with rclpy message objects (for comparison)", f"{bound_objects:.2f}"),
+        ("DDS bound without Python (C++ on rcl's C API), real-time factor", f"{bound_rcl:.2f}"),
+        ("pair / rcl bound", f"{result['pair_vs_rcl_bound']:.3f}"),
+        ("round trip [us]: rclpy, CDR bytes / C++ on rcl", f"{1e3 / bound:.1f} / {1e3 / bound_rcl:.1f}"),
         ("controller update p50 / p99 [us]", f"{latency['p50']:.1f} / {latency['p99']:.1f}"),
-        ("controller node, its whole callback on a state in the pair, p50 / p99 [us]", _callback_p50_p99(bare_runs)),
+        (
+            "controller node, its whole callback on a state in the pair, p50 / p99 / p99.9 / max [us]",
+            " / ".join(f"{callback[key]:.1f}" for key in ("p50", "p99", "p99_9", "max"))
+            + f"; to the command out p50 {callback['out_p50']:.1f}",
+        ),
         ("a lockstep step [us per 1 ms step], where it goes:", f"{breakdown['step']:.0f}"),
         *((f"  {part.replace('_', ' ')}", f"{us:.1f}") for part, us in breakdown.items() if part != "step"),
     ]

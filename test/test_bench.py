@@ -25,7 +25,7 @@ from bracing_bringup.paper_run import RUNS
 REPO_ROOT = Path(__file__).resolve().parents[1]
 BENCH = REPO_ROOT / "bench" / "run.py"
 
-# The keys SPEC.md documents (sections 5 and 6).
+# The keys SPEC.md documents (sections 5, 6 and 8).
 SPEC_KEYS = (
     "engine_steps_per_s",
     "mujoco_steps_per_s",
@@ -51,6 +51,8 @@ SPEC_KEYS = (
     "optimize_trials_per_min",
     "pair_step_breakdown_us",
     "collision_share_of_step",
+    "dds_bound_rcl_real_time_factor",
+    "pair_vs_rcl_bound",
 )
 # What the bench's table and the docs' Performance page (docs/results/performance.md) report besides.
 REPORTED_KEYS = (
@@ -64,6 +66,10 @@ REPORTED_KEYS = (
     "dds_bound_objects_real_time_factor",
     "bare_import_s",
     "targets",
+    "controller_callback_us_p50",
+    "controller_callback_us_p99",
+    "controller_callback_us_p99_9",
+    "controller_callback_us_max",
 )
 MUJOCO_KEYS = ("mujoco_steps_per_s", "mujoco_samples", "engine_vs_mujoco")
 
@@ -142,6 +148,9 @@ def test_quick_bench_produces_every_key(tmp_path: Path) -> None:
     beside += ("simulator_dds_writes", "controller_dds_writes")
     assert set(parts) == {"step", *beside, *named}
     assert math.isclose(sum(parts[name] for name in named), parts["step"], rel_tol=1e-9)
+    callback = [result[f"controller_callback_us_{key}"] for key in ("p50", "p99", "p99_9", "max")]
+    assert 0 < callback[0] <= callback[1] <= callback[2] <= callback[3]  # the tail, in order
+    assert result["pair_vs_rcl_bound"] == result["pair_real_time_factor"] / result["dds_bound_rcl_real_time_factor"]
     for work in result["node_work_us"]:
         for node in ("simulator", "controller"):
             assert work[node]["steps"] >= 1 and 0 < work[node]["p50"] <= work[node]["p99"]

@@ -65,6 +65,11 @@ def headline_table(bench: dict[str, Any]) -> str:
         ),
         ("DDS bound (two processes ping-ponging the nodes' messages) x 1 ms", _n(b["dds_bound_real_time_factor"]), ""),
         (
+            "DDS bound without Python (the same, two C++ processes on rcl's C API) x 1 ms; pair / it",
+            f"{_n(b.get('dds_bound_rcl_real_time_factor'))}; {_n(b.get('pair_vs_rcl_bound'))}",
+            "",
+        ),
+        (
             f"{b['pair_sim_time_s']:g} s paper run: command to first step; last step to last file",
             f"{_n(b['startup_s'])} s; {_n(b['last_step_to_last_file_s'])} s",
             "< 1.5 s; < 1.0 s",
