@@ -157,14 +157,38 @@ class StateAnswerer:
         self.previous_ns: int | None = None  # the stamp of the last state answered (None: none yet)
         self.null_space_warned = False
         self.answers = 0  # states answered (the null-space watch samples them)
-        self.base_drive: BaseDrive | None = None  # base_command cmd_vel: the base follows cmd_vel
-        if config.base_command == "cmd_vel":
-            wheels = config.shared.wheels if config.shared.base == "diff_drive" else None
-            self.base_drive = BaseDrive(
-                self.joint_names, config.cmd_vel_timeout, config.base_velocity_kd, wheels, config.base_velocity_ki
-            )
+        self.base_drive = self.new_base_drive()  # base_command cmd_vel: the base follows cmd_vel (None: not)
+        if self.base_drive is not None:
             plant = self.law.plant  # the law's model: J_c and Mc for B = J_c Mc^-1
             self.braced = ConstrainedDynamics(plant.robot, plant.motors, self.law.contact_set, plant.mode)
+
+    def new_base_drive(self) -> BaseDrive | None:
+        """base_command cmd_vel: the base's velocity loop as at a run's start (None: the law moves the base)."""
+        config = self.config
+        if config.base_command != "cmd_vel":
+            return None
+        wheels = config.shared.wheels if config.shared.base == "diff_drive" else None
+        return BaseDrive(
+            self.joint_names, config.cmd_vel_timeout, config.base_velocity_kd, wheels, config.base_velocity_ki
+        )
+
+    def restart(self, stamp_ns: int) -> None:
+        """A state stamped before the last one answered: the simulator went back in time (its reset_simulation),
+        so a new run starts at this state, with the parameters as they are now. The law forgets its first
+        measured targets and its integrals; each task's reference starts again from its configured path (a goal
+        that came by topic is kept, followed again from this state); the run before's measurements, cmd_vel and
+        warnings are forgotten."""
+        self.log.info(
+            f"joint_states went back in time, from t = {engine.stamp_seconds(self.answered_ns):.6f} s to "
+            f"{engine.stamp_seconds(stamp_ns):.6f} s: a new run (the law's integrals and first targets reset)"
+        )
+        self.law.reset()
+        self.targets.restart()
+        self.measurements = Measurements.for_law(self.law)
+        self.base_drive = self.new_base_drive()
+        self.previous_ns = None
+        self.null_space_warned = False
+        self.answers = 0
 
     @property
     def answered_ns(self) -> int:
@@ -258,6 +282,8 @@ class StateAnswerer:
     ) -> None:
         """The law's answer to the state (q, dq) stamped ``stamp_ns``, to ``send`` (the node's publishers),
         unless the law fails on it or its output is not finite (then nothing is sent)."""
+        if self.previous_ns is not None and stamp_ns < self.previous_ns:
+            self.restart(stamp_ns)
         if self.retuned is not None:
             self.law.retune(self.retuned)
             target = self.retuned.orientation.target

@@ -8,6 +8,8 @@ takes back (``Simulator.restore``) a step it refuses; with no acceptable command
 Real time (``real_time``, ``free_run``): each ``tick`` steps with the latest command, zero once it is
 older than ``command_timeout``. Each step's state and reports go out through a ``StepOutlet`` (the
 node's publishers), each word about the run through a ``NodeLog``; the wall clock is injected.
+``reset`` (the node's reset_simulation service) takes the run back to its initial state, with the
+parameters as they are.
 """
 
 from __future__ import annotations
@@ -144,13 +146,21 @@ class SimulatorStepper:
         self.limit = plant.command_limit  # per joint, model order (0: none)
         self.step_ns = sim.step_ns
         self.total_steps = round(config.duration / config.step) if config.duration > 0 else None
+        self.initial = sim.checkpoint()  # where reset_simulation goes back to
+        self.state_out_yet = False  # whether a state has gone out (a reset then sends the initial one)
+        self.abandoned_ns: int | None = None  # the stamp a reset stopped waiting for (its answer dropped quietly)
+        self._begin_run()
+        # joint_commands: the limit each joint's efforts are saturated to (0: none; the drive: its voltage limit)
+        self.effort_limit: Vector = plant.motors.torque_limit if self.drive is None else np.zeros(sim.n)
+        self.wrench_count = len(config.shared.contacts)  # the configured contacts, first in the contact set
+
+    def _begin_run(self) -> None:
+        """Everything that a run changes, as it is at the run's start (``__init__``, ``reset``)."""
+        config, plant, sim, clock = self.config, self.plant, self.sim, self.clock
         # What the controller receives, as a real arm measures it (sensors.*); None: exact.
         sensing = config.sensors
         self.sensors = None if sensing.exact else sensing.engine(config.step, plant.robot.prismatic.tolist())
         self.drive = joint_command_drive(config, plant)
-        # joint_commands: the limit each joint's efforts are saturated to (0: none; the drive: its voltage limit)
-        self.effort_limit: Vector = plant.motors.torque_limit if self.drive is None else np.zeros(sim.n)
-        self.wrench_count = len(config.shared.contacts)  # the configured contacts, first in the contact set
         self.command = np.zeros(sim.n)  # last applied (held) command
         self.pending: dict[int, Vector] = {}  # lockstep: valid commands by stamp [ns]
         self.latest_command: tuple[float, Vector] | None = None  # real-time: (wall time, command)
@@ -185,6 +195,21 @@ class SimulatorStepper:
             lines.append(f"initial position projected onto the contacts: {projected} (moved {moved:.3g} at most)")
         return lines
 
+    def reset(self) -> None:
+        """Back to the run's initial state (reset_simulation), with the parameters as they are: the engine's
+        state (q, dq, the windings' currents and temperatures, the energy integrals), its contact modes and
+        events, the step count (the sim clock: the next state is stamped as the first was), the held and
+        pending commands, the sensors' filters and noise, the current loop and the run's watch. A state already
+        out is sent again from the start (the controller sees its time go back); the answer to the state
+        waited for is dropped without a word. Real time: the pace starts again now."""
+        self.abandoned_ns = self.now_ns
+        self.sim.restore(self.initial)
+        self._begin_run()
+        self._started = self.clock()
+        self.log.info(f"reset_simulation: back to the initial state at t = {self.sim.time:.6f} s")
+        if self.state_out_yet:
+            self.send_state()
+
     def done(self) -> bool:
         return self.total_steps is not None and self.sim.steps_taken >= self.total_steps
 
@@ -198,6 +223,7 @@ class SimulatorStepper:
 
     def send_state(self) -> None:
         """The current state under the held command (the run's first)."""
+        self.state_out_yet = True
         self.outlet.publish_state(self.state_out(self.state_effort()))
 
     def finish(self, command: Vector | None = None) -> None:
@@ -260,6 +286,8 @@ class SimulatorStepper:
         """A valid motor_command (joint order, saturated to ``limit``): lockstep keeps it for the state
         it answers and refuses any other stamp; real time keeps the latest."""
         now_ns = self.now_ns
+        if stamp_ns == self.abandoned_ns and stamp_ns != now_ns:
+            return  # the answer to the state a reset stopped waiting for
         if self.config.stepping == "lockstep" and stamp_ns != now_ns:
             age = "stale" if stamp_ns < now_ns else "from the future"
             self.log.limited(

@@ -335,6 +335,12 @@ class TaskTargets:
         turned = self.turn_to_rotation(rotation)
         return self.goals[0] if moved is not None or turned else None
 
+    def restart(self) -> None:
+        """A new run (the states went back in time): every goal kept, each reference to start again at the next
+        update from the task's configured path (the orientation's from the law's R_d), as after a first goal."""
+        self.references.clear()
+        self.orientation_reference = None
+
     def turn_to(self, quaternion: Sequence[float]) -> bool:
         """The orientation task's goal from now on, a quaternion [x, y, z, w] (hand.orientation.target set while
         running: checked by the configuration); whether it changed."""

@@ -7,6 +7,8 @@ through ``bracing_sim.topics``.
 Lockstep (default): publish state k, wait for the command stamped with state k's stamp, step with it
 held. Real-time: a wall-clock timer steps with the latest command.
 With ``use_sim_time`` it follows its own /clock, each message checked first (``bracing_ros.sim_clock``).
+Service ``reset_simulation`` (std_srvs/srv/Empty, as gazebo_ros names it): back to the initial state
+(``SimulatorStepper.reset``), answered between steps.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
+from std_srvs.srv import Empty
 
 from bracing_core import schema
 from bracing_core.config import SimulatorConfig, build_simulator
@@ -85,7 +88,12 @@ class SimulatorNode(Node):
         for line in self.core.start_lines():
             self.log.info(line)
         self.core.say(([missing_warning(missing_meshes)] if missing_meshes else []) + self.core.watch.start())
+        self.create_service(Empty, "reset_simulation", self.on_reset_simulation)
         self.status.say(RunStatus.CONFIGURED, self.sim.time)
+
+    def on_reset_simulation(self, _request: Empty.Request, response: Empty.Response) -> Empty.Response:
+        self.core.reset()
+        return response
 
     # -- messages in ----------------------------------------------------------------
     def on_joint_command(self, data: bytes) -> None:
