@@ -355,7 +355,7 @@ class SimulatorConfig:
     @classmethod
     def from_values(cls, values: Values, search_dirs: Sequence[Path] = ()) -> SimulatorConfig:
         given = values.params
-        own = schema.fields_of(given, [p.name for p in schema.SIMULATOR if "." not in p.name])
+        own = schema.node_fields(values)
         if given.command_source == "joint_commands" and given.stepping == "lockstep":
             raise ConfigError(
                 "command_source: joint_commands does not lockstep (a ros2_control loop never waits for a simulator): "

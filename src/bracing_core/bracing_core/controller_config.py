@@ -107,39 +107,22 @@ class ControllerConfig:
         voltage_gain = given.voltage_gain
         if any(k <= 0.0 for k in voltage_gain):
             raise ConfigError(f"voltage_gain: K_V must be positive definite, got {list(voltage_gain)}")
+        own = schema.node_fields(values)  # every top-level parameter is the field of its name
         config = cls(
             shared=shared,
             hand=hand,
-            voltage_gain=voltage_gain,
-            gravity_compensation=given.gravity_compensation,
-            damping_lambda=given.damping_lambda,
-            null_space=given.null_space,
-            wait_for_recorder=given.wait_for_recorder,
-            log_throttle_period=given.log_throttle_period,
             thermal_compensation=given.voltage_law.thermal_compensation,
             back_emf_compensation=given.voltage_law.back_emf_compensation,
             posture_kp=given.null_space_posture.kp,
             posture_kd=given.null_space_posture.kd,
             posture_rest=given.null_space_posture.rest,
-            command_output=given.command_output,
-            effort_command_topic=given.effort_command_topic,
-            effort_command_joints=tuple(given.effort_command_joints),
-            control_rate=given.control_rate,
-            state_timeout=given.state_timeout,
             target_max_velocity=given.targets.max_velocity,
             target_max_acceleration=given.targets.max_acceleration,
             target_max_angular_velocity=given.targets.max_angular_velocity,
             target_max_angular_acceleration=given.targets.max_angular_acceleration,
             target_max_horizon=given.targets.max_horizon,
-            record_batch=given.record_batch,
-            max_message_elements=given.max_message_elements,
-            max_name_length=given.max_name_length,
-            gains=given.gains,
             orientation=OrientationConfig.from_values(values),
-            base_command=given.base_command,
-            cmd_vel_timeout=given.cmd_vel_timeout,
-            base_velocity_kd=given.base_velocity_kd,
-            base_velocity_ki=given.base_velocity_ki,
+            **own | {"effort_command_joints": tuple(given.effort_command_joints)},
         )
         check_effort_forward(config)
         check_base_command(config)

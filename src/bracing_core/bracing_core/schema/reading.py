@@ -14,7 +14,7 @@ from bracing_core.schema.controller import CONTROLLER
 from bracing_core.schema.param import ABSENT, REQUIRED, Kind, Param, PerJoint
 from bracing_core.schema.shared import SHARED
 from bracing_core.schema.simulator import SIMULATOR
-from bracing_core.schema.typed import Section, build, lookup, section_class
+from bracing_core.schema.typed import Section, build, fields_of, lookup, section_class
 
 NODE_PARAMETERS: dict[str, tuple[Param, ...]] = {"simulator": SIMULATOR, "controller": CONTROLLER}
 
@@ -236,6 +236,12 @@ class Values:
         for contact, own in self.contacts.items():
             out += [(contact_name(contact, p.name), p, lookup(own, p.name)) for p in contact_fields(self.node)]
         return out
+
+
+def node_fields(values: Values) -> dict[str, Any]:
+    """The node's own top-level parameters (not the shared ones, no dotted group) by name: the fields of its
+    configuration class that are named as the parameters are (``SimulatorConfig``, ``ControllerConfig``)."""
+    return fields_of(values.params, [p.name for p in NODE_PARAMETERS[values.node] if "." not in p.name])
 
 
 def contact_values(own: Mapping[str, Any]) -> Section:
