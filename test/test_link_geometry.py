@@ -17,6 +17,7 @@ from ros_helpers import pair_argv, run
 from rosbags.highlevel import AnyReader
 
 from bracing_analysis.surfaces import shape_from_values
+from bracing_core import schema
 from bracing_core.collision_shapes import collision_description
 from bracing_core.link_penetration import LinkPenetration
 from bracing_core.params import ConfigError
@@ -367,7 +368,7 @@ def test_the_recorder_reads_a_plane_contact_at_its_links_shapes() -> None:
     """contacts.<name>.point: geometry is a word where a cylinder has its axis point: the bag's surfaces (the
     recorder's metadata, the markers, the animation) still read the plane (it left them all out: no surfaces)."""
     values = {"surface": "plane", "normal": [0.0, 0.0, 1.0], "offset": 0.19, "point": "geometry"}
-    shape = shape_from_values(values)
+    shape = shape_from_values(schema.contact_values(values))
     assert shape.kind == "plane" and shape.offset == 0.19 and shape.point == (0.0, 0.0, 0.0)
 
 

@@ -4,6 +4,7 @@ from it, and the parameter services a running node offers (what ``ros2 param`` c
 from __future__ import annotations
 
 import ast
+import dataclasses
 import functools
 import subprocess
 import sys
@@ -30,9 +31,9 @@ NODE_PACKAGES = ("bracing_sim", "bracing_controller", "bracing_bringup")
 
 
 def imported_packages(package: str) -> set[str]:
-    """Top-level names every module of ``package`` imports (anywhere in the module)."""
+    """Top-level names every module of ``package`` imports (anywhere in the module, its sub-packages too)."""
     found: set[str] = set()
-    for path in (SRC / package / package).glob("*.py"):
+    for path in (SRC / package / package).rglob("*.py"):
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.Import):
                 found |= {alias.name.split(".")[0] for alias in node.names}
@@ -44,7 +45,9 @@ def imported_packages(package: str) -> set[str]:
 def test_the_core_never_imports_ros() -> None:
     ros = {"rclpy", "rcl_interfaces", "rosidl_runtime_py", "bracing_msgs", "bracing_ros", *NODE_PACKAGES}
     assert not imported_packages("bracing_core") & ros
-    modules = [f"bracing_core.{p.stem}" for p in (SRC / "bracing_core" / "bracing_core").glob("*.py")]
+    core = SRC / "bracing_core"
+    modules = [".".join(p.relative_to(core).with_suffix("").parts) for p in (core / "bracing_core").rglob("*.py")]
+    modules = [m.removesuffix(".__init__") for m in modules]
     code = f"import sys; import {', '.join(modules)}; print(sorted(m for m in sys.modules if m.startswith('rcl')))"
     loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert loaded.strip() == "[]"
@@ -109,6 +112,61 @@ def test_each_default_is_the_one_the_configuration_uses() -> None:
         if param.default is not schema.REQUIRED and not isinstance(param.default, schema.PerJoint):
             # a dotted name is a field of a section's own record (plant_error.mass_scale: config.plant_error.mass_scale)
             assert functools.reduce(getattr, param.name.split("."), config) == param.default, param.name
+
+
+def conforms(value: Any, param: schema.Param) -> bool:
+    """Whether a read value is of its parameter's type (``schema.value_type``: None only where it may be)."""
+    if value is None:
+        return param.default is schema.ABSENT or param.required_if is not None
+    if param.words and isinstance(value, str):
+        return value in param.words
+    one = {
+        schema.Kind.DOUBLE: float,
+        schema.Kind.INTEGER: int,
+        schema.Kind.BOOL: bool,
+        schema.Kind.STRING: str,
+        schema.Kind.DOUBLE_ARRAY: float,
+        schema.Kind.STRING_ARRAY: str,
+    }[param.kind]
+    if param.kind in (schema.Kind.DOUBLE_ARRAY, schema.Kind.STRING_ARRAY):
+        return isinstance(value, tuple) and all(type(v) is one for v in value)
+    return type(value) is one
+
+
+@pytest.mark.parametrize("node", ["simulator", "controller"])
+def test_every_parameter_is_one_typed_field_and_every_field_a_parameter(node: str) -> None:
+    """The typed values are derived from the schema (``schema.NODE_VALUES``, ``schema.CONTACT_VALUES``): one
+    field per entry, dotted names nested, no field without an entry; each read value of its entry's type."""
+    fields = schema.flat_names(schema.NODE_VALUES[node])
+    assert sorted(fields) == sorted(p.name for p in schema.node_schema(node)) and len(set(fields)) == len(fields)
+    assert sorted(schema.flat_names(schema.CONTACT_VALUES)) == sorted(p.name for p in schema.CONTACT)
+    values = schema.read(node, node_params(f"bracing_{node}"))
+    assert type(values.params) is schema.NODE_VALUES[node]
+    assert values.params.robot.joint_names == ("joint1", "joint2", "joint3", "joint4")
+    assert values.contacts["elbow"].trajectory.type == "hold"
+    declared = values.flat()
+    assert [name for name, _, _ in declared] == schema.all_names(node, ["elbow"])
+    wrong = [(name, value) for name, param, value in declared if not conforms(value, param)]
+    assert not wrong, f"read values not of their parameter's type: {wrong}"
+
+
+def test_adding_a_parameter_is_one_entry() -> None:
+    """A new entry, dotted or not, is a typed field of the derived class, with nothing else written."""
+    added = (
+        schema.Param("hand.grip.width", schema.Kind.DOUBLE, 0.05, "a new nested parameter", "m"),
+        schema.Param("grip_topic", schema.Kind.STRING, "grip", "a new top-level parameter"),
+    )
+    entries = (*schema.node_schema("controller"), *added)
+    kind = schema.section_class("Extended", entries)
+    assert sorted(schema.flat_names(kind)) == sorted(p.name for p in entries)
+    grip = kind.sections["hand"].sections["grip"]
+    assert [(f.name, f.type) for f in dataclasses.fields(grip)] == [("width", float)]
+    params = {**node_params("bracing_controller"), "hand.grip.width": 0.07}
+    flat = {name: value for name, _, value in schema.read("controller", node_params("bracing_controller")).flat()}
+    flat |= {p.name: schema.read_value(p, p.name, params, flat) for p in added}
+    values = schema.build(kind, flat)
+    assert values.hand.grip.width == 0.07 and values.grip_topic == "grip"
+    assert values.hand.frame == flat["hand.frame"]
 
 
 def test_retune_applies_gains_forces_and_voltage_gain_from_the_next_update() -> None:

@@ -22,7 +22,8 @@ from conftest import REPO_ROOT, build_scenario
 from test_surfaces import point_robot_urdf
 
 import bracing_engine as engine
-from bracing_core.config import ContactConfig
+from bracing_core import schema
+from bracing_core.contact_config import ContactConfig
 from bracing_core.contacts import Contact, ContactSet, Plane
 from bracing_core.dynamics import ConstrainedDynamics, InputMode
 from bracing_core.measurements import Measurements
@@ -279,8 +280,9 @@ def test_bad_knobs_are_refused_naming_them(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match=r"sensors\.command_latency_steps"):
         build_scenario(sim={"sensors.command_latency_steps": -2})
     with pytest.raises(ConfigError, match=r"contacts\.knee\.force_feedback"):  # an obstacle has no force to feed back
-        ContactConfig.from_values("knee", {"frame": "link2", "force_feedback.ki": 10.0})
-    passive = ContactConfig.from_values("knee", {"frame": "link2", "force_feedback.ki": 10.0}, bracing=False)
+        ContactConfig.from_values("knee", schema.contact_values({"frame": "link2", "force_feedback.ki": 10.0}))
+    knee = schema.contact_values({"frame": "link2", "force_feedback.ki": 10.0})
+    passive = ContactConfig.from_values("knee", knee, bracing=False)
     assert passive.feedback_ki == 0.0  # --no-bracing: no force, so nothing fed back (as brace_axes are dropped)
 
 

@@ -61,7 +61,7 @@ def parameters_page() -> str:
     return (
         "# Parameters\n\n"
         + GENERATED
-        + "Every parameter of a scenario file, from `bracing_core/schema.py` (name, type, default, unit,\n"
+        + "Every parameter of a scenario file, from `bracing_core/schema/` (name, type, default, unit,\n"
         "bounds, whether `ros2 param set` may change it while the controller runs). How the files are\n"
         "read: [Configuration](../guides/configuration.md).\n\n" + escape_tags(reference_markdown())
     )

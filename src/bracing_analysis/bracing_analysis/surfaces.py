@@ -61,19 +61,17 @@ def _xyz(values: Sequence[float] | None) -> tuple[float, float, float]:
     return (float(x), float(y), float(z))
 
 
-def shape_from_values(values: Mapping[str, Any]) -> Shape:
-    """The shape of one contact from its schema values (``schema.read``'s ``contacts[name]``)."""
+def shape_from_values(own: schema.Section) -> Shape:
+    """The shape of one contact from its typed schema values (``schema.read``'s ``contacts[name]``)."""
     return Shape(
-        kind=str(values.get("surface") or "plane"),
-        normal=_unit(values.get("normal"), (0.0, 0.0, 1.0)),
-        offset=float(values.get("offset") or 0.0),
-        center=_xyz(values.get("center")),
-        point=_xyz(
-            None if isinstance(values.get("point"), str) else values.get("point")
-        ),  # a word: a plane's or sphere's
-        axis=_unit(values.get("axis"), (0.0, 0.0, 1.0)),
-        radius=float(values.get("radius") or 0.0),
-        inside=bool(values.get("inside")),
+        kind=str(own.surface or "plane"),
+        normal=_unit(own.normal, (0.0, 0.0, 1.0)),
+        offset=float(own.offset or 0.0),
+        center=_xyz(own.center),
+        point=_xyz(None if isinstance(own.point, str) else own.point),  # a word: a plane's or sphere's
+        axis=_unit(own.axis, (0.0, 0.0, 1.0)),
+        radius=float(own.radius or 0.0),
+        inside=bool(own.inside),
     )
 
 

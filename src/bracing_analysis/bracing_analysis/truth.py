@@ -49,15 +49,16 @@ def read_task_notes(files: Sequence[str | Path], ground_truth: bool) -> dict[str
     for file in files:
         params.update(load_params_file(file, CONTROLLER))
     values = schema.read("controller", params)
-    braced = {name: own for name, own in values.contacts.items() if own.get("desired_normal_force") is not None}
-    frames = {HAND: values["hand.frame"], "braces": {name: own["frame"] for name, own in braced.items()}}
+    given = values.params
+    braced = {name: own for name, own in values.contacts.items() if own.desired_normal_force is not None}
+    frames = {HAND: given.hand.frame, "braces": {name: own.frame for name, own in braced.items()}}
     axes = {
-        HAND: list(values["hand.axes"]),
-        "braces": {name: list(own.get("brace_axes") or ()) for name, own in braced.items()},
+        HAND: list(given.hand.axes),
+        "braces": {name: list(own.brace_axes or ()) for name, own in braced.items()},
     }
     notes = {TASK_FRAMES_KEY: json.dumps(frames, sort_keys=True)} if ground_truth else {}
     notes[TASK_AXES_KEY] = json.dumps(axes, sort_keys=True)
-    notes[INPUT_MODE_KEY] = str(values["input_mode"])
+    notes[INPUT_MODE_KEY] = str(given.input_mode)
     return notes
 
 
@@ -68,12 +69,12 @@ def read_command_limits(files: Sequence[str | Path]) -> dict[str, float]:
     params: dict[str, Any] = {}
     for file in files:
         params.update(load_params_file(file, SIMULATOR))
-    values = schema.read("simulator", params)
-    names = list(values["robot.joint_names"])
-    if values["input_mode"] == "voltage":
-        return dict.fromkeys(names, float(values["motors.voltage_limit"]))
-    if values["motors.torque_limit_from_urdf"]:
-        urdf = resolve_file(values["robot.urdf"], "robot.urdf", [Path(f).resolve().parent for f in files])
+    given = schema.read("simulator", params).params
+    names = list(given.robot.joint_names)
+    if given.input_mode == "voltage":
+        return dict.fromkeys(names, float(given.motors.voltage_limit))
+    if given.motors.torque_limit_from_urdf:
+        urdf = resolve_file(given.robot.urdf, "robot.urdf", [Path(f).resolve().parent for f in files])
         try:
             joints = list(ET.parse(urdf).getroot().iter("joint"))
             efforts = {
@@ -84,8 +85,8 @@ def read_command_limits(files: Sequence[str | Path]) -> dict[str, float]:
         except (ET.ParseError, ValueError) as exc:
             raise ConfigError(f"robot.urdf: no <limit effort> to read from {urdf}: {exc}") from None
         return {name: max(efforts.get(name, 0.0), 0.0) for name in names}
-    given = list(values["motors.torque_limit"])
-    return dict(zip(names, given * len(names) if len(given) == 1 else given, strict=False))
+    limits = list(given.motors.torque_limit)
+    return dict(zip(names, limits * len(names) if len(limits) == 1 else limits, strict=False))
 
 
 def command_limits_from_json(text: str) -> dict[str, float]:

@@ -52,13 +52,13 @@ class RunOptions:
 
 def command_line(options: RunOptions) -> dict[str, Any]:
     """What the command line sets, as flat parameter names: ``--set``, then the flags (they win)."""
-    values = dict(options.parameters)
+    given = dict(options.parameters)
     if options.mode is not None:
-        values["input_mode"] = options.mode
-    values.update(variant_overrides(options.bracing, options.free_space))
+        given["input_mode"] = options.mode
+    given.update(variant_overrides(options.bracing, options.free_space))
     if options.engine == MUJOCO:
-        values.update(MUJOCO_NEEDS)
-    return values
+        given.update(MUJOCO_NEEDS)
+    return given
 
 
 def pair_needs(options: RunOptions, urdf: Path, record_batch: int) -> dict[str, Any]:
@@ -175,10 +175,11 @@ def plan_run(options: RunOptions) -> RunPlan:
     given = node_params(options.config, command_line(options))
     sim_values = schema.read("simulator", given[SIMULATOR])
     schema.read("controller", given[CONTROLLER])  # refused here, before any process starts
-    urdf = resolve_file(sim_values["robot.urdf"], "robot.urdf", search)
-    duration = options.duration if options.duration is not None else float(sim_values["duration"])
-    step = float(sim_values["step"])
-    lockstep = sim_values["stepping"] == "lockstep" and not options.real_time and duration > 0
+    sim = sim_values.params
+    urdf = resolve_file(sim.robot.urdf, "robot.urdf", search)
+    duration = options.duration if options.duration is not None else float(sim.duration)
+    step = float(sim.step)
+    lockstep = sim.stepping == "lockstep" and not options.real_time and duration > 0
     lockstep = lockstep and options.engine != MUJOCO  # MuJoCo's robot promises no message count
     expected_states = round(duration / step) + 1 if lockstep else 0
     # Only --set changes it (a scenario file's record_batch is for its nodes started by hand, as its

@@ -206,17 +206,17 @@ class StateAnswerer:
             self.log.warning(warning)
 
     # -- parameters -------------------------------------------------------------------
-    def retune(self, values: dict[str, Any], changes: Sequence[tuple[str, Any]]) -> str | None:
-        """Tunable parameters changed (``values``: all of them as they are; ``changes``: (name, value)):
-        validated as a whole configuration, applied from the next update, logged. Why not, if refused."""
+    def retune(self, params: dict[str, Any], changes: Sequence[tuple[str, Any]]) -> str | None:
+        """Tunable parameters changed (``params``: all of them as they are, by flat name; ``changes``: (name,
+        value)): validated as a whole configuration, applied from the next update, logged. Why not, if refused."""
         for name, value in changes:
             param = schema.find("controller", name)
             if param is None or not param.tunable:
                 return f"{name}: cannot change while running"
-            values[name] = value
-        values["robot.urdf"] = str(self.config.shared.urdf)
+            params[name] = value
+        params["robot.urdf"] = str(self.config.shared.urdf)  # as the node resolved it
         try:
-            config = ControllerConfig.from_params(values)
+            config = ControllerConfig.from_params(params)
         except ConfigError as exc:
             return str(exc)
         refused = orientation_retune_refusal(self.config, config)

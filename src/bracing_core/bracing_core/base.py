@@ -24,15 +24,18 @@ so every fixed-base robot is loaded exactly as before.
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
 from bracing_core.motors import FIELDS, MotorParams
+
+if TYPE_CHECKING:
+    from bracing_core.schema import Section
 
 BASES = ("fixed", "planar", "diff_drive")
 BASE_JOINTS = ("base_x", "base_y", "base_yaw")
@@ -213,21 +216,22 @@ def passive_padded(motors: MotorParams) -> MotorParams:
 _ZERO_FOR_PASSIVE = ("rotor_inertia", "gear_damping", "transmission_radius")
 
 
-def wheels_of(values: Mapping[str, Any]) -> Wheels | None:
-    """robot.base: diff_drive's wheels from the schema's values; BaseError names a missing or bad one."""
-    if values["robot.base"] != "diff_drive":
+def wheels_of(robot: Section) -> Wheels | None:
+    """robot.base: diff_drive's wheels from the schema's typed ``robot`` values; BaseError names a missing or bad
+    one."""
+    if robot.base != "diff_drive":
         return None
-    for key in ("robot.left_wheel_names", "robot.right_wheel_names"):
-        if not values[key]:
-            raise BaseError(f"{key}: robot.base: diff_drive needs the wheel's joint (one per side), got none")
-    for key in ("robot.wheel_radius", "robot.wheel_separation"):
-        if not values[key] > 0.0:
-            raise BaseError(f"{key}: robot.base: diff_drive needs it > 0 [m], got {values[key]!r}")
+    for key, names in (("left_wheel_names", robot.left_wheel_names), ("right_wheel_names", robot.right_wheel_names)):
+        if not names:
+            raise BaseError(f"robot.{key}: robot.base: diff_drive needs the wheel's joint (one per side), got none")
+    for key, length in (("wheel_radius", robot.wheel_radius), ("wheel_separation", robot.wheel_separation)):
+        if not length > 0.0:
+            raise BaseError(f"robot.{key}: robot.base: diff_drive needs it > 0 [m], got {length!r}")
     return Wheels(
-        tuple(values["robot.left_wheel_names"]),
-        tuple(values["robot.right_wheel_names"]),
-        values["robot.wheel_radius"],
-        values["robot.wheel_separation"],
+        tuple(robot.left_wheel_names),
+        tuple(robot.right_wheel_names),
+        robot.wheel_radius,
+        robot.wheel_separation,
     )
 
 

@@ -15,7 +15,7 @@ from bracing_core.params import ConfigError
 
 
 class ContactConfig(Protocol):
-    """What these rules read of a ``config.ContactConfig`` (a protocol: config imports this module)."""
+    """What these rules read of a ``contact_config.ContactConfig`` (a protocol: config imports this module)."""
 
     @property
     def name(self) -> str: ...

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,163 +29,24 @@ from bracing_core.base import (
     wheels_of,
 )
 from bracing_core.collision_shapes import check_measurable, collision_description, kept_out_contacts, shape_error
-from bracing_core.contacts import Contact, ContactSet, Cylinder, Plane, Sphere, Surface
+from bracing_core.contact_config import ContactConfig
+from bracing_core.contacts import ContactSet, Surface
 from bracing_core.dynamics import ConstrainedDynamics, InputMode, thermal_applies
 from bracing_core.meshes import resolved_description
 from bracing_core.model import ModelError, RobotModel
 from bracing_core.motors import FIELDS as MOTOR_FIELDS
 from bracing_core.motors import MotorParams
 from bracing_core.params import ConfigError, Params, resolve_file
-from bracing_core.schema import Values
-from bracing_core.sensing import PlantError, SensorConfig, prefixed
+from bracing_core.schema import Section, Values
+from bracing_core.sensing import PlantError, SensorConfig
 from bracing_core.simulator import Simulator
-from bracing_core.trajectory import TrajectoryConfig
 from bracing_core.types import Vector
-
-AXES = ("x", "y", "z")
-
-
-def axes_indices(name: str, axes: Sequence[str]) -> tuple[int, ...]:
-    for axis in axes:
-        if axis not in AXES:
-            raise ConfigError(f"{name}: axes must be among x, y, z, got {list(axes)}")
-    if len(set(axes)) != len(axes):
-        raise ConfigError(f"{name}: duplicate axes in {list(axes)}")
-    return tuple(AXES.index(a) for a in axes)
-
-
-def trajectory_from_values(prefix: str, values: Mapping[str, Any], point: Sequence[float] | None) -> TrajectoryConfig:
-    """A task's path from the schema's values of ``schema.trajectory_params(prefix, ...)``;
-    ``point``: the held point (hold), or None for the first measured position."""
-    plane = axes_indices(prefix + "plane", values[prefix + "plane"])
-    direction = values[prefix + "direction"]
-    kind = values[prefix + "type"]
-    if kind == "circle" and direction not in (-1.0, 1.0):
-        raise ConfigError(f"{prefix}direction: expected +1 or -1, got {direction}")
-    flat = values[prefix + "waypoints"] or ()
-    if kind == "waypoints" and len(flat) % 3:
-        raise ConfigError(f"{prefix}waypoints: expected x, y, z per waypoint (a multiple of 3 values), got {len(flat)}")
-    center = values[prefix + "center"] or (0.0, 0.0, 0.0)
-    return TrajectoryConfig(
-        kind=kind,
-        center=(center[0], center[1], center[2]),
-        radius=values[prefix + "radius"] or 0.0,
-        period=values[prefix + "period"],
-        direction=direction,
-        phase=values[prefix + "phase"],
-        plane=(plane[0], plane[1]),
-        point=(point[0], point[1], point[2]) if point else None,
-        waypoints=tuple((flat[k], flat[k + 1], flat[k + 2]) for k in range(0, len(flat) - 2, 3)),
-        segment_time=values[prefix + "segment_time"],
-        start_ramp=values[prefix + "start_ramp"],
-    )
-
-
-def surface_from_values(key: str, values: Mapping[str, Any]) -> Surface:
-    """contacts.<name>: its surface (plane, sphere or cylinder), checked; errors name the parameter."""
-    kind = values["surface"]
-    if kind != "plane" and not values["radius"] > 0.0:
-        raise ConfigError(f"{key}radius: a {kind} needs a radius > 0 m, got {values['radius']}")
-    for name in ("normal", "axis"):
-        if float(np.linalg.norm(values[name])) < 1e-9:
-            raise ConfigError(f"{key}{name}: must be a non-zero vector, got {list(values[name])}")
-    if kind == "sphere":
-        return Sphere(np.array(values["center"]), values["radius"], values["inside"])
-    if kind == "cylinder":
-        if isinstance(values["point"], str):
-            raise ConfigError(
-                f"{key}point: a cylinder surface's point is a point on its axis (3 numbers); point: "
-                f"{values['point']} is for a plane or a sphere (coal measures no link shape against a cylinder surface)"
-            )
-        return Cylinder(np.array(values["point"]), np.array(values["axis"]), values["radius"], values["inside"])
-    return Plane(np.array(values["normal"]), values["offset"])
 
 
 def surface_key(surface: Surface) -> tuple[Any, ...]:
     """Equal for the same surface described twice (two contacts on one floor)."""
     numbers = [float(x) for name, value in vars(surface).items() if not name.startswith("_") for x in np.ravel(value)]
     return (surface.kind, *(round(x, 12) for x in numbers))
-
-
-@dataclass(frozen=True)
-class ContactConfig:
-    """contacts.<name>: the surface, and for a braced contact the controller's force and brace task.
-
-    A contact without a desired normal force is an obstacle: unilateral, it only pushes.
-    """
-
-    name: str
-    frame: str
-    surface: Surface
-    friction: float  # mu
-    friction_model: str  # coulomb | regularized
-    desired_normal_force: float | None  # f_nd [N]; None: an obstacle
-    brace_axes: tuple[int, ...]  # world axis indices of the brace task
-    kp: tuple[float, ...]  # one per brace axis
-    kd: tuple[float, ...]
-    target: tuple[float, float, float] | None  # None: the brace point's initial position
-    trajectory: TrajectoryConfig  # the brace point's path (hold: target)
-    unilateral: bool = False  # the surface only pushes: release and touchdown (bilateral: the paper)
-    feedback_kp: float = 0.0  # force_feedback.kp (dimensionless); 0 0: the paper's feed-forward law
-    feedback_ki: float = 0.0  # force_feedback.ki [1/s]
-    feedback_topic: str = ""  # force_feedback.topic: a WrenchStamped in world axes; empty = contact_wrench/<name>
-    ki: tuple[float, ...] = ()  # one per brace axis; empty: no integral action
-    point: str = "frame"  # frame: the frame's origin; geometry: its link's shapes' point nearest the surface
-
-    @property
-    def braced(self) -> bool:
-        return self.desired_normal_force is not None
-
-    @classmethod
-    def from_values(cls, name: str, values: dict[str, Any], bracing: bool = True) -> ContactConfig:
-        """From the schema's values of contacts.<name> (``schema.read``); controller-only fields may be
-        absent. ``bracing`` False: an obstacle whatever the file says (no force, no brace task)."""
-        key = f"contacts.{name}."
-        # The simulator does not read the controller's fields: they take the schema's defaults.
-        defaults = {
-            p.name: None if p.default in (schema.REQUIRED, schema.ABSENT) else p.default for p in schema.CONTACT
-        }
-        values = {**defaults, **values}
-        desired = values["desired_normal_force"] if bracing else None
-        brace_axes = axes_indices(key + "brace_axes", values["brace_axes"]) if desired is not None else ()
-        if desired is None and bracing and values["brace_axes"]:
-            raise ConfigError(
-                f"{key}brace_axes: contact {name!r} has no desired_normal_force, so it is an obstacle with no brace "
-                "task; give it a desired_normal_force or remove its brace_axes"
-            )
-        target = values["target"]
-        feedback = (values["force_feedback.kp"] or 0.0, values["force_feedback.ki"] or 0.0)
-        if desired is None and bracing and any(feedback):
-            raise ConfigError(
-                f"{key}force_feedback: contact {name!r} has no desired_normal_force, so no force to feed back; "
-                "give it a desired_normal_force or set its force_feedback gains to 0"
-            )
-        return cls(
-            name=name,
-            frame=values["frame"],
-            surface=surface_from_values(key, values),
-            friction=values["friction"],
-            friction_model=values["friction_model"],
-            desired_normal_force=desired,
-            brace_axes=brace_axes,
-            kp=tuple(values["kp"]) if desired is not None else (),
-            kd=tuple(values["kd"]) if desired is not None else (),
-            target=(target[0], target[1], target[2]) if target else None,
-            trajectory=trajectory_from_values("trajectory.", values, target),
-            unilateral=values["unilateral"] or desired is None,
-            feedback_kp=feedback[0] if desired is not None else 0.0,
-            feedback_ki=feedback[1] if desired is not None else 0.0,
-            feedback_topic=values["force_feedback.topic"] or f"contact_wrench/{name}",
-            ki=tuple(values["ki"] or ()) if desired is not None else (),
-            point=values["point"] if isinstance(values["point"], str) else "frame",
-        )
-
-    def contact(self, enforced: bool = True) -> Contact:
-        """The core's contact; not ``enforced``: only watched (free space)."""
-        unilateral = self.unilateral or not enforced
-        return Contact(
-            self.name, self.frame, self.surface, self.friction, unilateral, enforced, self.friction_model, self.point
-        )
 
 
 @dataclass(frozen=True)
@@ -226,25 +87,26 @@ class SharedConfig:
 
     @classmethod
     def from_values(cls, values: Values, search_dirs: Sequence[Path] = ()) -> SharedConfig:
-        urdf = resolve_file(values["robot.urdf"], "robot.urdf", search_dirs)
-        gravity = values["robot.gravity"]
+        given, robot, given_motors = values.params, values.params.robot, values.params.motors
+        urdf = resolve_file(robot.urdf, "robot.urdf", search_dirs)
+        gravity = robot.gravity
         try:
             motors = MotorParams(
-                **{f: np.array(values[f"motors.{f}"]) for f in MOTOR_FIELDS},
-                voltage_limit=values["motors.voltage_limit"],
-                torque_limit=np.array(values["motors.torque_limit"], dtype=float),
-                thermal=values["motors.thermal"],
-                ambient_temperature=values["motors.ambient_temperature"],
-                temperature_coefficient=values["motors.temperature_coefficient"],
+                **{f: np.array(getattr(given_motors, f)) for f in MOTOR_FIELDS},
+                voltage_limit=given_motors.voltage_limit,
+                torque_limit=np.array(given_motors.torque_limit, dtype=float),
+                thermal=given_motors.thermal,
+                ambient_temperature=given_motors.ambient_temperature,
+                temperature_coefficient=given_motors.temperature_coefficient,
             )
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
-        bracing = values["bracing"] and not values["free_space"]
+        bracing = given.bracing and not given.free_space
         try:
             contacts = tuple(ContactConfig.from_values(name, own, bracing) for name, own in values.contacts.items())
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
-        joint_names = values["robot.joint_names"]
+        joint_names = robot.joint_names
         # A locked joint may be listed in robot.joint_names (its entry in every per-joint list then stays,
         # unused) or not (a joint the configuration never drives, such as a gripper's finger: no entry
         # anywhere); whether it is a joint of the model at all, the model says (Plant).
@@ -252,27 +114,27 @@ class SharedConfig:
             urdf,
             joint_names,
             (gravity[0], gravity[1], gravity[2]),
-            InputMode(values["input_mode"]),
+            InputMode(given.input_mode),
             motors,
             contacts,
-            tuple(values["robot.locked_joints"]),
-            tuple(values["robot.locked_positions"]),
-            tuple(values["robot.collision_frames"]),
-            values["bracing"],
-            values["free_space"],
-            package_paths=tuple(values["robot.package_paths"]),
-            torque_limit_from_urdf=values["motors.torque_limit_from_urdf"],
-            collision_links=tuple(values["robot.collision_links"]),
-            collision_geometry=values["robot.collision_geometry"],
-            penetration_tolerance=values["robot.penetration_tolerance"],
-            base=values["robot.base"],
-            wheels=_wheels(values),
+            tuple(robot.locked_joints),
+            tuple(robot.locked_positions),
+            tuple(robot.collision_frames),
+            given.bracing,
+            given.free_space,
+            package_paths=tuple(robot.package_paths),
+            torque_limit_from_urdf=given_motors.torque_limit_from_urdf,
+            collision_links=tuple(robot.collision_links),
+            collision_geometry=robot.collision_geometry,
+            penetration_tolerance=robot.penetration_tolerance,
+            base=robot.base,
+            wheels=_wheels(robot),
         )
 
 
-def _wheels(values: Values) -> Wheels | None:
+def _wheels(robot: Section) -> Wheels | None:
     try:
-        return wheels_of(values.values)
+        return wheels_of(robot)
     except BaseError as exc:
         raise ConfigError(str(exc)) from None
 
@@ -492,23 +354,21 @@ class SimulatorConfig:
 
     @classmethod
     def from_values(cls, values: Values, search_dirs: Sequence[Path] = ()) -> SimulatorConfig:
-        nested = {p.name for p in (*schema.PLANT_ERROR, *schema.SENSORS)}
-        own = {p.name: values[p.name] for p in schema.SIMULATOR if p.name not in nested and "." not in p.name}
-        if own["command_source"] == "joint_commands" and own["stepping"] == "lockstep":
+        given = values.params
+        own = schema.node_fields(values)
+        if given.command_source == "joint_commands" and given.stepping == "lockstep":
             raise ConfigError(
                 "command_source: joint_commands does not lockstep (a ros2_control loop never waits for a simulator): "
                 "set stepping to real_time or free_run"
             )
-        error = prefixed(values, schema.PLANT_ERROR, "plant_error.")
-        if error["urdf"]:
-            error["urdf"] = str(resolve_file(error["urdf"], "plant_error.urdf", search_dirs))
+        error = given.plant_error
+        urdf = str(resolve_file(error.urdf, "plant_error.urdf", search_dirs)) if error.urdf else error.urdf
+        drive = given.motor_drive
         return cls(
             shared=SharedConfig.from_values(values, search_dirs),
-            plant_error=PlantError(**error),
+            plant_error=PlantError(**schema.fields_of(error) | {"urdf": urdf}),
             sensors=SensorConfig.from_values(values),
-            motor_drive=DriveConfig(
-                values["motor_drive.bandwidth"], list(values["motor_drive.kp"]), list(values["motor_drive.ki"])
-            ),
+            motor_drive=DriveConfig(drive.bandwidth, list(drive.kp), list(drive.ki)),
             **own,
         )
 

@@ -9,7 +9,8 @@ from pathlib import Path
 
 from bracing_core import schema
 from bracing_core.base import BASE_JOINTS
-from bracing_core.config import SharedConfig, axes_indices, trajectory_from_values
+from bracing_core.config import SharedConfig
+from bracing_core.contact_config import axes_indices, trajectory_from_values
 from bracing_core.params import ConfigError, Params
 from bracing_core.trajectory import TrajectoryConfig
 
@@ -36,21 +37,16 @@ class OrientationConfig:
 
     @classmethod
     def from_values(cls, values: schema.Values) -> OrientationConfig:
-        axes = axes_indices("hand.orientation.axes", values["hand.orientation.axes"])
-        target = values["hand.orientation.target"]
+        given = values.params.hand.orientation
+        axes = axes_indices("hand.orientation.axes", given.axes)
+        target = given.target
         quaternion = None
         if target:
             norm = math.sqrt(sum(v * v for v in target))
             if not norm > 1e-9:
                 raise ConfigError(f"hand.orientation.target: a quaternion [x, y, z, w] of norm > 0, got {list(target)}")
             quaternion = (target[0] / norm, target[1] / norm, target[2] / norm, target[3] / norm)
-        return cls(
-            axes,
-            tuple(values["hand.orientation.kp"]),
-            tuple(values["hand.orientation.kd"]),
-            tuple(values["hand.orientation.ki"]),
-            quaternion,
-        )
+        return cls(axes, tuple(given.kp), tuple(given.kd), tuple(given.ki), quaternion)
 
 
 @dataclass(frozen=True)
@@ -104,47 +100,29 @@ class ControllerConfig:
         shared = SharedConfig.from_values(values, search_dirs)
         n = len([name for name in shared.joint_names if name not in shared.locked_joints])  # the moving ones
         p = len(shared.braced_contacts)
-        axes = axes_indices("hand.axes", values["hand.axes"])
-        trajectory = trajectory_from_values("hand.trajectory.", values.values, values["hand.trajectory.point"])
-        hand = HandTaskConfig(
-            values["hand.frame"], axes, values["hand.kp"], values["hand.kd"], trajectory, tuple(values["hand.ki"])
-        )
-        voltage_gain = values["voltage_gain"]
+        given = values.params
+        axes = axes_indices("hand.axes", given.hand.axes)
+        trajectory = trajectory_from_values("hand.trajectory.", given.hand.trajectory, given.hand.trajectory.point)
+        hand = HandTaskConfig(given.hand.frame, axes, given.hand.kp, given.hand.kd, trajectory, tuple(given.hand.ki))
+        voltage_gain = given.voltage_gain
         if any(k <= 0.0 for k in voltage_gain):
             raise ConfigError(f"voltage_gain: K_V must be positive definite, got {list(voltage_gain)}")
+        own = schema.node_fields(values)  # every top-level parameter is the field of its name
         config = cls(
             shared=shared,
             hand=hand,
-            voltage_gain=voltage_gain,
-            gravity_compensation=values["gravity_compensation"],
-            damping_lambda=values["damping_lambda"],
-            null_space=values["null_space"],
-            wait_for_recorder=values["wait_for_recorder"],
-            log_throttle_period=values["log_throttle_period"],
-            thermal_compensation=values["voltage_law.thermal_compensation"],
-            back_emf_compensation=values["voltage_law.back_emf_compensation"],
-            posture_kp=values["null_space_posture.kp"],
-            posture_kd=values["null_space_posture.kd"],
-            posture_rest=values["null_space_posture.rest"],
-            command_output=values["command_output"],
-            effort_command_topic=values["effort_command_topic"],
-            effort_command_joints=tuple(values["effort_command_joints"]),
-            control_rate=values["control_rate"],
-            state_timeout=values["state_timeout"],
-            target_max_velocity=values["targets.max_velocity"],
-            target_max_acceleration=values["targets.max_acceleration"],
-            target_max_angular_velocity=values["targets.max_angular_velocity"],
-            target_max_angular_acceleration=values["targets.max_angular_acceleration"],
-            target_max_horizon=values["targets.max_horizon"],
-            record_batch=values["record_batch"],
-            max_message_elements=values["max_message_elements"],
-            max_name_length=values["max_name_length"],
-            gains=values["gains"],
+            thermal_compensation=given.voltage_law.thermal_compensation,
+            back_emf_compensation=given.voltage_law.back_emf_compensation,
+            posture_kp=given.null_space_posture.kp,
+            posture_kd=given.null_space_posture.kd,
+            posture_rest=given.null_space_posture.rest,
+            target_max_velocity=given.targets.max_velocity,
+            target_max_acceleration=given.targets.max_acceleration,
+            target_max_angular_velocity=given.targets.max_angular_velocity,
+            target_max_angular_acceleration=given.targets.max_angular_acceleration,
+            target_max_horizon=given.targets.max_horizon,
             orientation=OrientationConfig.from_values(values),
-            base_command=values["base_command"],
-            cmd_vel_timeout=values["cmd_vel_timeout"],
-            base_velocity_kd=values["base_velocity_kd"],
-            base_velocity_ki=values["base_velocity_ki"],
+            **own | {"effort_command_joints": tuple(given.effort_command_joints)},
         )
         check_effort_forward(config)
         check_base_command(config)

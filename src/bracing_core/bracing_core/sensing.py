@@ -8,7 +8,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from bracing_core import schema
 from bracing_core.schema import Values
@@ -58,7 +58,7 @@ class SensorConfig:
     @classmethod
     def from_values(cls, values: Values) -> SensorConfig:
         """From the simulator's schema values (``schema.read``)."""
-        return cls(**prefixed(values, schema.SENSORS, "sensors."))
+        return cls(**schema.fields_of(values.params.sensors))
 
     @property
     def exact(self) -> bool:
@@ -83,7 +83,3 @@ class SensorConfig:
             current_noise=self.current_noise_a,
             command_latency_steps=self.command_latency_steps,
         )
-
-
-def prefixed(values: Values, params: Sequence[schema.Param], prefix: str) -> dict[str, Any]:
-    return {p.name[len(prefix) :]: values[p.name] for p in params}

@@ -305,13 +305,13 @@ def build_robustness(
     braced = [c for c in shared.contacts if c.brace_axes and c.desired_normal_force]
     if not braced:
         raise ConfigError("contacts.names: the study needs a bracing contact (one with brace_axes and a desired force)")
-    step = float(schema.read("simulator", params[SIMULATOR])["step"])
+    step = float(schema.read("simulator", params[SIMULATOR]).params.step)
     factors = paper_factors(step, braced[0].friction)
     if levels_per_factor is not None:
         if levels_per_factor < 1:
             raise ConfigError("levels_per_factor must be >= 1")
         factors = tuple(replace(f, levels=f.levels[-levels_per_factor:]) for f in factors)
-    mode = str(ctl["input_mode"])
+    mode = str(ctl.params.input_mode)
     study = Robustness(config, duration, factors, mode, [c.name for c in braced], base=base)
     study.replicas = Replicas(seed_list(NOISE_SEED, seeds))
 

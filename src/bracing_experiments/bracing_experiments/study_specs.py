@@ -12,7 +12,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from bracing_core import schema
-from bracing_core.config import ContactConfig, SharedConfig
+from bracing_core.config import SharedConfig
+from bracing_core.contact_config import ContactConfig
 from bracing_core.numbers import number
 from bracing_core.overrides import CONTROLLER, SIMULATOR, NodeOverrides, node_params, route
 from bracing_core.params import ConfigError
@@ -22,7 +23,7 @@ from bracing_experiments.executors import Executor
 from bracing_experiments.experiment import RunSpec
 from bracing_experiments.optimize import Optimum, Problem, build_problem, optimize
 from bracing_experiments.reporting import is_ok as _ok
-from bracing_experiments.study_runs import SEED_KEY, Replicas, seed_label, seed_list
+from bracing_experiments.study_runs import Replicas, seed_label, seed_list
 from bracing_experiments.sweep import make_spec
 
 if TYPE_CHECKING:
@@ -190,7 +191,7 @@ def build_study(
     routed = route(base)
     params = node_params(config, routed)
     ctl = params[CONTROLLER]
-    first_seed = int(schema.read("simulator", params[SIMULATOR])[SEED_KEY])
+    first_seed = int(schema.read("simulator", params[SIMULATOR]).params.sensors.noise_seed)
     replicas = Replicas(seed_list(first_seed, seeds))
     shared = SharedConfig.from_values(schema.read("controller", ctl), [config.resolve().parent])
     braced = [c for c in shared.contacts if c.brace_axes and c.desired_normal_force]
@@ -231,7 +232,7 @@ def build_study(
         forces,
         passive=passive,
         base=base,
-        setting=(str(values["input_mode"]), bool(values["gravity_compensation"])),
+        setting=(str(values.params.input_mode), bool(values.params.gravity_compensation)),
         origin=float(origin[axis]),
         desired=float(desired),
         span=float(span) if positions > 1 else 0.0,

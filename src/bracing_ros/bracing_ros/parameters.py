@@ -71,10 +71,8 @@ def plain(value: Any) -> Any:
 def declare(node: Node, kind: str, values: schema.Values) -> None:
     """Declare every parameter of ``kind``'s schema ("simulator" or "controller") on ``node``,
     typed, described and with its validated value (``schema.read`` of what the node was given)."""
-    declared: list[tuple[str, Param, Any]] = [(p.name, p, values[p.name]) for p in schema.node_schema(kind)]
-    for contact, fields in values.contacts.items():
-        declared += [(schema.contact_name(contact, p.name), p, fields[p.name]) for p in schema.contact_fields(kind)]
-    for name, param, value in declared:
+    assert values.node == kind, f"{kind}'s parameters read as {values.node}'s"
+    for name, param, value in values.flat():
         # Unset (required only in another mode) or an empty list: declared typed, without a value
         # (rclpy would type an empty list as a byte array).
         default = _TYPES[param.kind] if value is None or value == () else _ros_value(value)

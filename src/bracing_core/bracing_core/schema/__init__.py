@@ -1,0 +1,116 @@
+"""Every parameter of both nodes, described once, as data.
+
+A :class:`Param` is a name, a type, a default, a unit, a description and its bounds (or
+choices, or length). From these tables everything else is derived: the nodes declare typed
+ROS parameters with a ``ParameterDescriptor`` (``bracing_ros.parameters``), :func:`read`
+validates a flat parameter dict into typed values for the configuration classes
+(``bracing_core.config``), and ``tools/docs_reference.py`` writes the docs site's reference.
+
+Scenario files have a ``/**`` section read by both nodes (:data:`SHARED`, and the per-contact
+fields :data:`CONTACT` under ``contacts.<name>.``) and one section per node
+(:data:`SIMULATOR`, :data:`CONTROLLER`). ``tunable`` parameters can be set while the
+controller runs; every other parameter is read-only once a node has started.
+"""
+
+from bracing_core.schema.contact import CONTACT
+from bracing_core.schema.controller import CONTROLLER
+from bracing_core.schema.param import ABSENT, REQUIRED, Kind, Param, PerJoint, trajectory_params
+from bracing_core.schema.reading import (
+    CONTACT_VALUES,
+    NODE_PARAMETERS,
+    NODE_VALUES,
+    Values,
+    all_names,
+    check_known,
+    contact_fields,
+    contact_name,
+    contact_values,
+    default,
+    find,
+    get_bool,
+    get_float,
+    get_floats,
+    get_int,
+    get_str,
+    get_strs,
+    node_fields,
+    node_schema,
+    read,
+    read_value,
+)
+from bracing_core.schema.shared import LOG_THROTTLE_PERIOD, MAX_MESSAGE_ELEMENTS, MAX_NAME_LENGTH, SHARED
+from bracing_core.schema.simulator import PLANT_ERROR, SENSORS, SIMULATOR
+from bracing_core.schema.typed import Section, build, fields_of, flat_names, lookup, section_class, value_type
+
+__all__ = [
+    "ABSENT",
+    "CONTACT",
+    "CONTACT_VALUES",
+    "CONTROLLER",
+    "LOG_THROTTLE_PERIOD",
+    "MAX_MESSAGE_ELEMENTS",
+    "MAX_NAME_LENGTH",
+    "NODE_PARAMETERS",
+    "NODE_VALUES",
+    "PLANT_ERROR",
+    "REQUIRED",
+    "SENSORS",
+    "SHARED",
+    "SIMULATOR",
+    "Kind",
+    "Param",
+    "PerJoint",
+    "Section",
+    "Values",
+    "all_names",
+    "build",
+    "check_known",
+    "contact_fields",
+    "contact_name",
+    "contact_values",
+    "default",
+    "fields_of",
+    "find",
+    "flat_names",
+    "get_bool",
+    "get_float",
+    "get_floats",
+    "get_int",
+    "get_str",
+    "get_strs",
+    "lookup",
+    "node_fields",
+    "node_schema",
+    "read",
+    "read_value",
+    "reference_markdown",
+    "section_class",
+    "trajectory_params",
+    "value_type",
+]
+
+
+def reference_markdown() -> str:
+    """The parameter reference (``tools/docs_reference.py`` writes it to docs/reference/parameters.md)."""
+    sections = (
+        ("`/**` (both nodes)", SHARED),
+        ("`/**`, per contact: `contacts.<name>.`", CONTACT),
+        ("`bracing_simulator`", SIMULATOR),
+        ("`bracing_controller`", CONTROLLER),
+    )
+    out: list[str] = []
+    for title, params in sections:
+        out += [
+            f"**{title}**",
+            "",
+            "| parameter | type | default | unit | bounds | tunable | meaning |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for p in params:
+            who = "" if p.nodes == ("simulator", "controller") else f" ({', '.join(p.nodes)})"
+            tunable = "yes" if p.tunable else ""
+            meaning = p.description.replace("|", "\\|") + who
+            row = [f"`{p.name}`", p.kind.value, p.default_text(), p.unit, p.bounds_text().replace("|", "\\|"), tunable]
+            out.append("| " + " | ".join([*row, meaning]) + " |")
+        out.append("")
+    return "\n".join(out)
