@@ -16,7 +16,7 @@ import pytest
 rr = pytest.importorskip("rerun")
 
 from bracing_analysis.bag import read_series  # noqa: E402
-from bracing_bringup import view  # noqa: E402
+from bracing_view import view  # noqa: E402
 
 REQUIRE_BROWSER = "BRACING_REQUIRE_BROWSER"
 INSTALL_HINT = "install Debian's chromium (apt-get install chromium) and the pinned playwright (make setup)"
@@ -175,7 +175,7 @@ def test_served_page_draws_in_a_real_browser(runs: dict[str, Path], tmp_path: Pa
     except ImportError:
         _skip_or_fail("playwright is not installed")
     web, grpc = _free_port(), _free_port()
-    argv = [sys.executable, "-m", "bracing_bringup.view", str(runs["braced"] / "bag")]
+    argv = [sys.executable, "-m", "bracing_view.view", str(runs["braced"] / "bag")]
     argv += ["--web-port", str(web), "--grpc-port", str(grpc), "--exit-after", "240"]
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
