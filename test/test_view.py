@@ -131,6 +131,22 @@ def test_recording_reads_back(runs: dict[str, Path], tmp_path: Path) -> None:
     assert {"/world/skeleton", "/plots/hand_error/y", "/plots/energy/consumed"} <= paths
 
 
+def test_replay_opens_the_bag_once(runs: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The replay reads the bag through bracing_analysis.bag, one open for its series and its messages."""
+    from rosbags.highlevel import AnyReader
+
+    opened: list[object] = []
+    real_open = AnyReader.open
+
+    def counted_open(reader: AnyReader) -> None:
+        opened.append(reader)
+        real_open(reader)
+
+    monkeypatch.setattr(AnyReader, "open", counted_open)
+    counts = view.write_rrd(runs["braced"] / "bag", tmp_path / "run.rrd", period_s=0.1)
+    assert len(opened) == 1 and counts["world/skeleton"] >= 3
+
+
 def test_period_thins_states(runs: dict[str, Path], tmp_path: Path) -> None:
     bag = runs["braced"] / "bag"
     every = view.write_rrd(bag, tmp_path / "a.rrd", period_s=0.0)
