@@ -1,7 +1,7 @@
 # Source this at the repository root: `source env.sh`.
-# Gives a shell with the project's venv, the built ROS 2 workspace (bracing_msgs,
-# bracing_sim, bracing_controller, bracing_analysis, bracing_experiments, bracing_bringup) and the
-# bracing-* commands on PATH.
+# Gives a shell with the project's venv, the built ROS 2 workspace (bracing_msgs, bracing_sim,
+# bracing_controller, bracing_analysis, bracing_experiments, bracing_recorder, bracing_view,
+# bracing_mujoco, bracing_bringup) and the bracing-* commands on PATH.
 _bracing_root=$(cd "$(dirname "${BASH_SOURCE[0]:-$0}")" && pwd)
 if [ ! -f "$_bracing_root/install/setup.bash" ]; then
   echo "env.sh: workspace not built yet; run 'make setup' first" >&2

@@ -29,7 +29,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from bracing_analysis.bag_events import custom_data
 from bracing_analysis.bag_recovery import cut_files, recover_bag
-from bracing_bringup.recorder import LATCHED  # the QoS offer of a latched topic, as the recorder writes it
+from bracing_recorder.recorder import LATCHED  # the QoS offer of a latched topic, as the recorder writes it
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 String = STORE.types["std_msgs/msg/String"]
@@ -208,7 +208,7 @@ def _pair_run_killing(output: Path, module: str) -> tuple[int, str]:
 def test_pair_recovers_the_bag_of_a_killed_recorder(tmp_path: Path, full_run: Path) -> None:
     """Before: exit 1 "the recorder exited with code -9", bag.mcap without its end, nothing could read it."""
     output = tmp_path / "killed"
-    code, out = _pair_run_killing(output, "bracing_bringup.recorder")
+    code, out = _pair_run_killing(output, "bracing_recorder.command")
     assert code == 1, out
     said = re.search(
         r"the recorder died \(signal 9, SIGKILL\) at t >= ([\d.]+) s; the bag was recovered up to "

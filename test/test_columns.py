@@ -23,8 +23,8 @@ from rosbags.typesys.store import Typestore
 from bracing_analysis.bag import BagReadError, read_series
 from bracing_analysis.columns import MAX_PROBES, Layout, decode
 from bracing_analysis.summary import compute_summary
-from bracing_bringup.recorder import BAG_VERSION
 from bracing_core.typestore import bracing_typestore
+from bracing_recorder.recorder import BAG_VERSION
 
 OUR_TYPES = (
     "sensor_msgs/msg/JointState",

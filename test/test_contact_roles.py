@@ -27,7 +27,7 @@ from bracing_core.contact_roles import BRACED, KEPT_OUT, by_role, kept_out_name,
 
 rr = pytest.importorskip("rerun")
 
-from bracing_bringup import view  # noqa: E402
+from bracing_view import view  # noqa: E402
 
 CONFIG = Path(__file__).resolve().parent.parent / "config"
 JOINTS = ["joint1", "joint2", "joint3", "joint4"]
@@ -163,8 +163,8 @@ def test_the_animation_draws_the_floor_once_and_marks_the_link_inside_it(bag: Pa
 def test_the_recorded_markers_draw_the_floor_once(tmp_path: Path) -> None:
     """contact_markers (RViz, Foxglove): the elbow's surface patch, point and force; a kept-out frame's point
     only (its surface is the elbow's, drawn with it)."""
-    from bracing_bringup.scene import SURFACE_ID, SceneBuilder
     from bracing_core.typestore import bracing_typestore
+    from bracing_recorder.scene import SURFACE_ID, SceneBuilder
 
     store = bracing_typestore()
     scene = SceneBuilder(store, ["elbow"], {})

@@ -22,8 +22,8 @@ from rosbags.highlevel import AnyReader
 from bracing_analysis.animation import ArmAnimation
 from bracing_analysis.bag import read_series
 from bracing_analysis.surfaces import Shape
-from bracing_bringup.scene import SceneBuilder
 from bracing_core.typestore import bracing_typestore
+from bracing_recorder.scene import SceneBuilder
 
 PAPER_URDF = PAPER_YAML.parent / "paper_4link.urdf"
 Q0 = np.array([-0.2, -0.6, 0.8, -0.4]) * np.pi

@@ -190,7 +190,7 @@ def test_mujoco_robot_and_effort_forward_controller_survive_hostile_clocks(tmp_p
     env = isolated_env()
     robot_params = {"duration": 0.5, "wait_for_recorder": False, **WAITING}
     robot = start(
-        node_argv("bracing_bringup.mujoco_robot", params_file(tmp_path, "bracing_simulator", robot_params)), env
+        node_argv("bracing_mujoco.mujoco_robot", params_file(tmp_path, "bracing_simulator", robot_params)), env
     )
     ctl_params = {"input_mode": "torque", "command_output": "effort_forward", "use_sim_time": True}
     ctl = start(node_argv("bracing_controller.node", params_file(tmp_path, "bracing_controller", ctl_params)), env)

@@ -449,7 +449,7 @@ def test_the_mujoco_robot_refuses_huge_commands_by_their_size(tmp_path: Path) ->
     from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
     alone = {"min_subscribers": 0, "min_status_subscribers": 0, "duration": 0.0, "log_throttle_period": 0.0}
-    argv = node_argv("bracing_bringup.mujoco_robot", params_file(tmp_path, "bracing_simulator", alone))
+    argv = node_argv("bracing_mujoco.mujoco_robot", params_file(tmp_path, "bracing_simulator", alone))
     topic = "effort_controller/commands"
     robot = _harness(isolated_env(), argv, (topic, Float64MultiArray, FLOOD_QOS), ("joint_states", STREAM_QOS))
     try:

@@ -22,10 +22,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from bracing_bringup.mujoco_plant import SHAPE_BIT, MujocoRobot, bare_urdf
 from bracing_core import chain_urdf
 from bracing_core.chain_urdf import JointSpec, LinkSpec, serial_chain_urdf
 from bracing_core.rollout import build_scenario
+from bracing_mujoco.mujoco_plant import SHAPE_BIT, MujocoRobot, bare_urdf
 
 CONFIG = Path(__file__).resolve().parent.parent / "config"
 GENERATED = sorted({name for name, make in chain_urdf.SCENARIOS.items() if make.__name__ == f"{name}_urdf"})
@@ -197,8 +197,8 @@ def test_a_collision_mesh_mujoco_cannot_read_is_refused_naming_it(tmp_path: Path
     kept, MujocoRobot.build refuses the scenario before any step, naming the file and what to set."""
     from test_meshes import DAE
 
-    from bracing_bringup.mujoco_plant import MujocoModelError
     from bracing_core.params import ConfigError
+    from bracing_mujoco.mujoco_plant import MujocoModelError
 
     path = _pendulum(tmp_path, True, ["link1"])
     (tmp_path / "link.dae").write_text(DAE)

@@ -23,7 +23,7 @@ rr = pytest.importorskip("rerun")
 
 from rerun.chunk import RrdReader  # noqa: E402
 
-from bracing_bringup import view  # noqa: E402
+from bracing_view import view  # noqa: E402
 
 PACKAGE = "bracing_test_arm"
 STL_URI = f"package://{PACKAGE}/meshes/link.stl"

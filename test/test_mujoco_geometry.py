@@ -37,9 +37,9 @@ import pytest
 from conftest import PAPER_YAML
 from test_link_shapes import THETA_SHAPE, _pendulum
 
-from bracing_bringup.mujoco_plant import MujocoRobot
 from bracing_core.link_penetration import LinkPenetration
 from bracing_core.rollout import build_scenario
+from bracing_mujoco.mujoco_plant import MujocoRobot
 
 F_ND = 10.0  # [N] config/paper_4link.yaml's desired normal force
 STEPS = 1000  # 1 s at its 1 ms step

@@ -1,6 +1,6 @@
 """bracing-pair --engine mujoco: our controller, unchanged (effort_forward), braces the paper arm in MuJoCo.
 
-The MuJoCo node (bracing_bringup.mujoco_robot) has a mujoco_ros2_control robot's topic face; the run is
+The MuJoCo node (bracing_mujoco.mujoco_robot) has a mujoco_ros2_control robot's topic face; the run is
 compared with our engine's on the same scenario, torque input, 2 s. Tolerances, with what was measured:
 - Penetration <= 1.5 mm (measured 0.85 mm). MuJoCo's contacts are soft: at its default solref (0.02 s
   time constant, damping ratio 1) and solimp (0.9-0.95) the elbow sphere sinks until the constraint's
@@ -92,7 +92,7 @@ def test_mujoco_robot_refuses_a_wrong_length_and_a_non_finite_command(tmp_path: 
     """One error per kind (rate-limited), naming what was wrong; the held (zero) command stays."""
     alone = {"wait_for_recorder": False, "min_subscribers": 0, "min_status_subscribers": 0, "duration": 0.02}
     env = isolated_env()
-    node = start(node_argv("bracing_bringup.mujoco_robot", params_file(tmp_path, "bracing_simulator", alone)), env)
+    node = start(node_argv("bracing_mujoco.mujoco_robot", params_file(tmp_path, "bracing_simulator", alone)), env)
     try:
         peer = subprocess.run([sys.executable, "-c", PEER], env=env, capture_output=True, text=True, timeout=60)
         assert peer.returncode == 0, peer.stderr

@@ -27,7 +27,7 @@ SRC = REPO_ROOT / "src"
 sys.path.insert(0, str(REPO_ROOT / "tools"))
 import docs_reference  # noqa: E402  (tools/ is no package)
 
-NODE_PACKAGES = ("bracing_sim", "bracing_controller", "bracing_bringup")
+NODE_PACKAGES = ("bracing_sim", "bracing_controller", "bracing_mujoco", "bracing_recorder")
 
 
 def imported_packages(package: str) -> set[str]:

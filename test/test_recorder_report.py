@@ -27,11 +27,11 @@ import pytest
 from ros_helpers import hold_test_domain
 
 ROOT = Path(__file__).resolve().parents[1]
-BRINGUP_SRC = ROOT / "src" / "bracing_bringup"
+RECORDER_SRC = ROOT / "src" / "bracing_recorder"
 try:
-    import bracing_bringup  # noqa: F401
+    import bracing_recorder  # noqa: F401
 except ImportError:  # not built into the workspace yet: use the source tree
-    sys.path.insert(0, str(BRINGUP_SRC))
+    sys.path.insert(0, str(RECORDER_SRC))
 
 from rosbags.highlevel import AnyReader  # noqa: E402
 
@@ -166,7 +166,8 @@ def write_bag_directly(path: Path, n: int, contacts: tuple[str, ...]) -> None:
     from rclpy.serialization import serialize_message
     from rosbags.rosbag2 import StoragePlugin, Writer
 
-    from bracing_bringup.recorder import BAG_VERSION, bracing_typestore, topic_table
+    from bracing_core.typestore import bracing_typestore
+    from bracing_recorder.recorder import BAG_VERSION, topic_table
 
     store = bracing_typestore()
     writer = Writer(path, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
@@ -295,7 +296,7 @@ def ros_env() -> dict[str, str]:
     env["ROS_DOMAIN_ID"] = str(hold_test_domain())  # held until the test ends
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env["PYTHONPATH"] = os.pathsep.join(
-        [str(BRINGUP_SRC), str(Path(__file__).resolve().parent), env.get("PYTHONPATH", "")]
+        [str(RECORDER_SRC), str(Path(__file__).resolve().parent), env.get("PYTHONPATH", "")]
     )
     env["PYTHONUNBUFFERED"] = "1"
     return env
@@ -362,7 +363,7 @@ def procs() -> Iterator[list[Proc]]:
 def start_recorder(
     procs: list[Proc], env: dict[str, str], bag: Path, namespace: str, contacts: tuple[str, ...], *extra: str
 ) -> Proc:
-    args = [sys.executable, "-m", "bracing_bringup.recorder", "--output", str(bag), "--contacts", ",".join(contacts)]
+    args = [sys.executable, "-m", "bracing_recorder.command", "--output", str(bag), "--contacts", ",".join(contacts)]
     args += extra
     if namespace:
         args += ["--namespace", namespace]
@@ -593,7 +594,7 @@ def test_recorder_refuses_existing_output(tmp_path: Path) -> None:
     bag = tmp_path / "bag"
     bag.mkdir()
     res = subprocess.run(
-        [sys.executable, "-m", "bracing_bringup.recorder", "--output", str(bag)],
+        [sys.executable, "-m", "bracing_recorder.command", "--output", str(bag)],
         env=ros_env(),
         capture_output=True,
         text=True,
@@ -732,7 +733,8 @@ def test_missing_messages_names_every_short_topic(tmp_path: Path) -> None:
     (and of /tf and contact_markers), robot_description and /tf_static once."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
-    from bracing_bringup.recorder import BAG_VERSION, bracing_typestore, expected_counts, missing_messages
+    from bracing_core.typestore import bracing_typestore
+    from bracing_recorder.recorder import BAG_VERSION, expected_counts, missing_messages
 
     store, expected = bracing_typestore(), 5
     counts = expected_counts(["elbow"], expected)

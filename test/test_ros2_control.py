@@ -250,7 +250,7 @@ def test_hand_target_mid_run_moves_the_hand_there(tmp_path: Path) -> None:
 
 
 def _start_recorder(bag: Path, env: dict[str, str]) -> subprocess.Popen[str]:
-    argv = [sys.executable, "-m", "bracing_bringup.recorder", "--output", str(bag), "--contacts", "elbow", "--no-scene"]
+    argv = [sys.executable, "-m", "bracing_recorder.command", "--output", str(bag), "--contacts", "elbow", "--no-scene"]
     recorder = start(argv, env)
     assert recorder.stdout is not None
     for line in recorder.stdout:  # prints it once every subscription exists
@@ -270,8 +270,8 @@ def test_hand_path_and_brace_target_mid_run_recorded_and_drawn(tmp_path: Path) -
     controller's echo of each (accepted); the hand figure marks the path's poses at their stamps."""
     from bracing_analysis.bag import read_series
     from bracing_analysis.figures import plot_figure
-    from bracing_bringup.view import write_rrd
     from bracing_core.targets import path_goal
+    from bracing_view.view import write_rrd
 
     poses = [[1.5, 0.0, 1.0, 0.7], [2.5, 0.0, 1.05, 0.72]]
     t_pub, dy, duration = 0.5, 0.02, 3.5

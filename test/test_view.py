@@ -16,7 +16,7 @@ import pytest
 rr = pytest.importorskip("rerun")
 
 from bracing_analysis.bag import read_series  # noqa: E402
-from bracing_bringup import view  # noqa: E402
+from bracing_view import view  # noqa: E402
 
 REQUIRE_BROWSER = "BRACING_REQUIRE_BROWSER"
 INSTALL_HINT = "install Debian's chromium (apt-get install chromium) and the pinned playwright (make setup)"
@@ -131,6 +131,22 @@ def test_recording_reads_back(runs: dict[str, Path], tmp_path: Path) -> None:
     assert {"/world/skeleton", "/plots/hand_error/y", "/plots/energy/consumed"} <= paths
 
 
+def test_replay_opens_the_bag_once(runs: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The replay reads the bag through bracing_analysis.bag, one open for its series and its messages."""
+    from rosbags.highlevel import AnyReader
+
+    opened: list[object] = []
+    real_open = AnyReader.open
+
+    def counted_open(reader: AnyReader) -> None:
+        opened.append(reader)
+        real_open(reader)
+
+    monkeypatch.setattr(AnyReader, "open", counted_open)
+    counts = view.write_rrd(runs["braced"] / "bag", tmp_path / "run.rrd", period_s=0.1)
+    assert len(opened) == 1 and counts["world/skeleton"] >= 3
+
+
 def test_period_thins_states(runs: dict[str, Path], tmp_path: Path) -> None:
     bag = runs["braced"] / "bag"
     every = view.write_rrd(bag, tmp_path / "a.rrd", period_s=0.0)
@@ -175,7 +191,7 @@ def test_served_page_draws_in_a_real_browser(runs: dict[str, Path], tmp_path: Pa
     except ImportError:
         _skip_or_fail("playwright is not installed")
     web, grpc = _free_port(), _free_port()
-    argv = [sys.executable, "-m", "bracing_bringup.view", str(runs["braced"] / "bag")]
+    argv = [sys.executable, "-m", "bracing_view.view", str(runs["braced"] / "bag")]
     argv += ["--web-port", str(web), "--grpc-port", str(grpc), "--exit-after", "240"]
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:

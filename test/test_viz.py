@@ -24,7 +24,7 @@ from conftest import SHORT_RUN_S
 from ros_helpers import PAPER_YAML, isolated_env, node_argv, start
 from rosbags.highlevel import AnyReader
 
-import bracing_bringup.scene as scene_module
+import bracing_recorder.scene as scene_module
 from bracing_analysis.animation import (
     FORCE_COLOR,
     LINK_COLOR,
@@ -41,9 +41,10 @@ from bracing_analysis.bag import read_series
 from bracing_analysis.compare import write_comparison
 from bracing_analysis.report import main as report_main
 from bracing_analysis.report import write_report
-from bracing_bringup.recorder import bracing_typestore, missing_messages
-from bracing_bringup.scene import FORCE_ARROW_M_PER_N, SceneBuilder
 from bracing_core.kinematics import DescriptionError
+from bracing_core.typestore import bracing_typestore
+from bracing_recorder.recorder import missing_messages
+from bracing_recorder.scene import FORCE_ARROW_M_PER_N, SceneBuilder
 from bracing_ros import wire
 
 DURATION = SHORT_RUN_S  # the `runs` fixture's (conftest)

@@ -234,10 +234,10 @@ def test_layout_decoders_agree_with_the_general_ones() -> None:
 
 
 def test_typestore_is_built_once_and_shared_with_the_recorder() -> None:
-    from bracing_bringup import recorder
+    from bracing_recorder import command
 
     store = bracing_typestore()
-    assert store is bracing_typestore() is recorder.bracing_typestore()
+    assert store is bracing_typestore() is command.bracing_typestore()
     assert "bracing_msgs/msg/MotorCommand" in store.fielddefs and "sensor_msgs/msg/JointState" in store.fielddefs
 
 

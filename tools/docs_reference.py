@@ -4,7 +4,7 @@ python tools/docs_reference.py          # rewrite every generated page
 python tools/docs_reference.py --check  # exit 1, naming the stale pages, if one differs
 
 - parameters.md: every parameter from the schema (bracing_core.schema.reference_markdown);
-- messages.md: the topics a run records (bracing_bringup.topics) and every definition of src/bracing_msgs/msg;
+- messages.md: the topics a run records (bracing_recorder.topics) and every definition of src/bracing_msgs/msg;
 - commands.md: each bracing-* command's --help (the console scripts of src/*/setup.py);
 - outputs.md: summary.json's keys (bracing_analysis.summary) and bench/latest.json's (bench/run.py);
 - docs/results/*.md: each block between ``<!-- results: FILE TABLE -->`` and ``<!-- end results -->``, from
@@ -26,10 +26,10 @@ from collections.abc import Callable
 from pathlib import Path
 
 from bracing_analysis import summary
-from bracing_bringup import topics
 from bracing_core import typestore
 from bracing_core.schema import reference_markdown
 from bracing_experiments.recorded import RECORDED_KEY, provenance_line, render_table
+from bracing_recorder import topics
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_tables
@@ -68,7 +68,7 @@ def parameters_page() -> str:
 
 
 def recorded_topics_table() -> str:
-    """What a run's bag holds, per topic (bracing_bringup.topics: what the recorder subscribes to and
+    """What a run's bag holds, per topic (bracing_recorder.topics: what the recorder subscribes to and
     derives, and what the pair checks a lockstep bag for), for one contact ``<contact>``."""
     contact = "<contact>"
     once = {topics.DESCRIPTION_TOPIC, topics.SCENE_TOPICS["tf_static"][0]}
@@ -88,7 +88,7 @@ def recorded_topics_table() -> str:
 def messages_page() -> str:
     out = [
         "# Messages\n\n" + GENERATED + "## The topics a run records\n\n"
-        "From `bracing_bringup/topics.py` (what the recorder subscribes to and derives; `ground_truth/*` only\n"
+        "From `bracing_recorder/topics.py` (what the recorder subscribes to and derives; `ground_truth/*` only\n"
         "with `sensors.*` set; `run_status` warnings are kept too). Who publishes each, and why:\n"
         "[Topics](topics.md).\n\n" + recorded_topics_table() + "\n## The message definitions\n\n"
         "The `bracing_msgs` definitions (`src/bracing_msgs/msg/`), comments and all.\n"

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bracing_bringup.recorder import topic_table
+from bracing_recorder.recorder import topic_table
 
 # Variants taken in turn by the runs of a round (a user running braced, free and torque side by side).
 VARIANTS: list[tuple[str, list[str]]] = [

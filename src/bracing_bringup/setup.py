@@ -18,18 +18,13 @@ setup(
     zip_safe=True,
     maintainer="Bracing maintainers",
     maintainer_email="maintainers@bracing-robotics.org",
-    description="Runs the simulator and controller as a pair and records a rosbag2 bag (bracing-pair, the recorder, "
-    "launch/pair.launch.py), shows it live (bracing-view), and make run's paper runs; the scenario files.",
+    description="Starts and supervises a run: the simulator, the controller and the recorder as a pair (bracing-pair, "
+    "launch/pair.launch.py), the viewer beside them, and make run's paper runs; the scenario files.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
             "pair=bracing_bringup.pair:main",
-            "recorder=bracing_bringup.recorder:main",
-            "bracing-recorder=bracing_bringup.recorder:main",
             "bracing-pair=bracing_bringup.pair:main",
-            "bracing-mujoco-robot=bracing_bringup.mujoco_robot:main",
-            "view=bracing_bringup.view:main",
-            "bracing-view=bracing_bringup.view:main",
         ],
     },
 )

@@ -12,7 +12,8 @@ test/reference_series.py keeps the per-message reading as the reference the test
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -67,20 +68,49 @@ def resolve_bag(path: Path) -> Path:
     return path
 
 
-def read_series(bag: str | Path) -> BagSeries:
+def read_series(bag: str | Path, then: Callable[[BagSeries, AnyReader], None] | None = None) -> BagSeries:
     """Read a recorded run into time series. Raises BagReadError if unreadable.
 
     A robot that publishes no ``contacts`` (a ros2_control robot's, ``--engine mujoco``) gets each
-    contact's series from its wrench (``wrench_contacts``)."""
+    contact's series from its wrench (``wrench_contacts``). ``then(series, reader)``, if given, is called
+    with the series and the bag still open: a reader of every message (bracing-view's replay) opens the
+    bag once; what it raises is its own (not a BagReadError)."""
     path = resolve_bag(Path(bag))
-    series = _read_streams(path)
-    read_ground_truth(series, path)
-    contacts_from_wrenches(series)
+    with _opened(path) as reader:
+        series = _read_streams(path, reader)
+        read_ground_truth(series, path, reader)
+        contacts_from_wrenches(series)
+        if then is not None:
+            then(series, reader)
     return series
 
 
-def read_ground_truth(series: BagSeries, path: Path) -> None:
-    """With sensors (truth.py): the task positions from ground_truth/joint_states, the controller's beside them."""
+def topic_counts(bag: str | Path) -> dict[str, int]:
+    """Every topic's message count, from the bag's metadata (no message read). Raises BagReadError."""
+    counts: dict[str, int] = {}
+    with _opened(resolve_bag(Path(bag))) as reader:
+        _count(reader, counts)
+    return counts
+
+
+@contextmanager
+def _opened(path: Path) -> Iterator[AnyReader]:
+    """The bag open for reading (rosbags' AnyReader: the definitions embedded in it); BagReadError if it
+    cannot be opened."""
+    try:
+        reader = AnyReader([path])
+        reader.open()
+    except Exception as exc:  # rosbags raises many kinds on a damaged bag
+        raise BagReadError(f"cannot read bag {path}: {exc}") from exc
+    try:
+        yield reader
+    finally:
+        reader.close()
+
+
+def read_ground_truth(series: BagSeries, path: Path, reader: AnyReader | None = None) -> None:
+    """With sensors (truth.py): the task positions from ground_truth/joint_states, the controller's beside them
+    (read with ``reader``, the bag open already, or opening it)."""
     if not any(is_ground_truth(topic) and topic.endswith("/joint_states") for topic in series.topic_counts):
         return
     frames = task_frames_from_json(custom_data(path).get(TASK_FRAMES_KEY, ""))
@@ -89,14 +119,17 @@ def read_ground_truth(series: BagSeries, path: Path) -> None:
     stamps: list[int] = []
     rows: list[list[float]] = []
     names: list[str] = []
+    if reader is None:
+        with _opened(path) as opened:
+            read_ground_truth(series, path, opened)
+        return
     try:
-        with AnyReader([path]) as reader:
-            wanted = [c for c in reader.connections if is_ground_truth(c.topic) and c.msgtype == JOINT_STATE]
-            for conn, _, raw in reader.messages(connections=wanted):
-                msg: Any = reader.deserialize(raw, conn.msgtype)
-                names = names or list(msg.name)
-                stamps.append(stamp_ns(msg))
-                rows.append(by_name(msg, names))
+        wanted = [c for c in reader.connections if is_ground_truth(c.topic) and c.msgtype == JOINT_STATE]
+        for conn, _, raw in reader.messages(connections=wanted):
+            msg: Any = reader.deserialize(raw, conn.msgtype)
+            names = names or list(msg.name)
+            stamps.append(stamp_ns(msg))
+            rows.append(by_name(msg, names))
     except Exception as exc:  # rosbags raises many kinds on a damaged bag
         raise BagReadError(f"cannot read bag {path}: {exc}") from exc
     task = [frames[HAND], *frames["braces"].values()]
@@ -131,8 +164,7 @@ def _replaced(values: np.ndarray, stamps: np.ndarray, truth: Mapping[int, np.nda
 
 def wanted_connections(reader: AnyReader, counts: dict[str, int]) -> list[Any]:
     """The connections read_series decodes (and every topic's message count into ``counts``)."""
-    for conn in reader.connections:
-        counts[conn.topic] = counts.get(conn.topic, 0) + conn.msgcount
+    _count(reader, counts)
     return [
         c
         for c in reader.connections
@@ -144,6 +176,12 @@ def wanted_connections(reader: AnyReader, counts: dict[str, int]) -> list[Any]:
             or (c.msgtype == VECTOR3_STAMPED and c.topic.endswith("/" + ORIENTATION_ERROR_TOPIC))
         )
     ]
+
+
+def _count(reader: AnyReader, counts: dict[str, int]) -> None:
+    """Every topic's message count (the bag's metadata) added into ``counts``."""
+    for conn in reader.connections:
+        counts[conn.topic] = counts.get(conn.topic, 0) + conn.msgcount
 
 
 def _kind(conn: Any) -> tuple[str, str]:
@@ -283,20 +321,19 @@ def _match(rows: _Rows, crow: _Rows) -> tuple[NDArray[np.int64], FloatArray]:
     return rows.stamp[hit], rows.take("contacts[{j}].normal_force").astype(float)[hit] - desired[last][at[hit]]
 
 
-def _read_streams(path: Path) -> BagSeries:
+def _read_streams(path: Path, reader: AnyReader) -> BagSeries:
     """The bag's streams (each kind of message decoded column-wise, ``columns.decode``) and events."""
     counts: dict[str, int] = {}
     kinds = (JOINT_STATE, CONTROLLER_STATE, CONTACTS, MOTOR_STATE, MOTOR_COMMAND)
     raws: dict[_Kind, list[bytes]] = {(t, ""): [] for t in kinds}
     try:
-        with AnyReader([path]) as reader:
-            wanted = wanted_connections(reader, counts)
-            events = read_events(reader)
-            for conn, _, raw in reader.messages(connections=wanted):
-                raws.setdefault(_kind(conn), []).append(raw)
-            store = reader.typestore
-            texts = decode(store, STRING, raws.pop((STRING, ""), []))
-            messages = {kind: _messages(store, kind[0], lst) for kind, lst in raws.items()}
+        wanted = wanted_connections(reader, counts)
+        events = read_events(reader)
+        for conn, _, raw in reader.messages(connections=wanted):
+            raws.setdefault(_kind(conn), []).append(raw)
+        store = reader.typestore
+        texts = decode(store, STRING, raws.pop((STRING, ""), []))
+        messages = {kind: _messages(store, kind[0], lst) for kind, lst in raws.items()}
     except BagReadError:
         raise
     except Exception as exc:  # rosbags raises many kinds on a damaged bag

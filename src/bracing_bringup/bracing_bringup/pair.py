@@ -14,7 +14,7 @@ short: the bag is recovered (``bracing_analysis.bag_recovery``), the report draw
 run says so (output and summary.json's warnings) and exits 1. A run that fails (or is stopped)
 before its first step keeps only its logs, so the same --output works again.
 
-``--engine mujoco``: the robot is MuJoCo's (``bracing_bringup.mujoco_robot``, a mujoco_ros2_control
+``--engine mujoco``: the robot is MuJoCo's (``bracing_mujoco.mujoco_robot``, a mujoco_ros2_control
 robot's topic face) and the controller runs unchanged with ``command_output: effort_forward``,
 ``input_mode: torque`` and ``use_sim_time`` (it follows the robot's /clock); the same bag, summary and
 report, with n/a where a metric needs a topic only our simulator has (``contacts``, ``motor_state``).
@@ -144,7 +144,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(format_summary(result.summary or {}))
     print(f"bag: {result.output / 'bag'}  report and summary.json: {result.output}")
     if options.rrd:
-        from bracing_bringup.view import write_rrd
+        from bracing_view.view import write_rrd
 
         write_rrd(result.output / "bag", result.output / "run.rrd")
         print(f"rerun recording: {result.output / 'run.rrd'}  (bracing-view {result.output / 'bag'} to watch it)")

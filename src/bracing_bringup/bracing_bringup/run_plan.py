@@ -150,10 +150,10 @@ class RunPlan:
         nodes = ("--params-file", params_file)
         if self.options.engine == MUJOCO:
             controller = (*nodes, "-p", "use_sim_time:=true")  # it follows MuJoCo's /clock
-            mujoco_robot = ("bracing_bringup", "bracing-mujoco-robot", "bracing_bringup.mujoco_robot", (), nodes)
+            mujoco_robot = ("bracing_mujoco", "bracing-mujoco-robot", "bracing_mujoco.mujoco_robot", (), nodes)
             return [
                 RunProcess(
-                    "recorder", "bracing_bringup", "bracing-recorder", "bracing_bringup.recorder", tuple(recorder)
+                    "recorder", "bracing_recorder", "bracing-recorder", "bracing_recorder.command", tuple(recorder)
                 ),
                 RunProcess(
                     "controller", "bracing_controller", "bracing-controller", "bracing_controller.node", (), controller
@@ -161,7 +161,7 @@ class RunPlan:
                 RunProcess("simulator", *mujoco_robot),
             ]
         return [
-            RunProcess("recorder", "bracing_bringup", "bracing-recorder", "bracing_bringup.recorder", tuple(recorder)),
+            RunProcess("recorder", "bracing_recorder", "bracing-recorder", "bracing_recorder.command", tuple(recorder)),
             RunProcess("controller", "bracing_controller", "bracing-controller", "bracing_controller.node", (), nodes),
             RunProcess("simulator", "bracing_sim", "bracing-simulator", "bracing_sim.node", (), nodes),
         ]

@@ -22,11 +22,11 @@ from bracing_bringup.domains import hold_domain
 from bracing_bringup.processes import Interrupted, Pair, environment
 from bracing_bringup.run_plan import PARAMS_FILE, RunOptions, RunPlan, check_configs, plan_run, write_params
 from bracing_bringup.timeline import BAG_CLOSED, FIRST_STEP, LAST_FILE, LAST_STEP, TIMELINE_FILE, Timeline
-from bracing_bringup.topics import missing_from_counts
-from bracing_bringup.viewurl import free_ports, view_url, wait_for_port
 from bracing_core.failures import DIVERGED, EXIT_DIVERGED
 from bracing_core.overrides import CONTROLLER, SIMULATOR
 from bracing_core.params import ConfigError
+from bracing_recorder.topics import missing_from_counts
+from bracing_view.viewurl import free_ports, view_url, wait_for_port
 
 if TYPE_CHECKING:
     from bracing_core.failures import Failure
@@ -199,7 +199,7 @@ def _start_viewer(pair: Pair, plan: RunPlan, env: dict[str, str]) -> None:
     out = plan.options.output
     web_port, grpc_port = free_ports(2)
     ports = ["--web-port", str(web_port), "--grpc-port", str(grpc_port)]
-    viewer = [sys.executable, "-m", "bracing_bringup.view", *ports, "--params-file", str(out / PARAMS_FILE)]
+    viewer = [sys.executable, "-m", "bracing_view.view", *ports, "--params-file", str(out / PARAMS_FILE)]
     viewer += ["--after-stepping"]  # not counted as the recorder by the nodes' wait (see view.Live)
     viewer += ["--ros-args", "-p", f"contacts:={plan.contacts!r}"]
     pair.start("viewer", viewer, env)
@@ -328,7 +328,7 @@ def _recover_recording(
     out = plan.options.output
     if pair.timeline.at("simulator stepping") is None or not cut_files(out / "bag"):
         return None
-    from bracing_bringup.recorder import bag_notes  # rclpy: loaded already (the status watcher)
+    from bracing_recorder.bag_notes import bag_notes
 
     said = f"the recorder {_recorder_end(pair.exit_code('recorder'))}"
     if outcome.failed == "recorder":  # said here, with what became of the bag

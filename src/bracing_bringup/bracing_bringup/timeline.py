@@ -24,8 +24,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bracing_bringup.topics import RECORDER_NODE
 from bracing_core.overrides import CONTROLLER, SIMULATOR
+from bracing_recorder.topics import RECORDER_NODE
 
 TIMELINE_FILE = "timeline.json"
 PHASES = ("startup_s", "stepping_s", "shutdown_s", "report_s", "whole_run_s")

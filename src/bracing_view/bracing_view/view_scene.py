@@ -16,9 +16,9 @@ import numpy as np
 import rerun as rr
 
 from bracing_analysis.surfaces import Shape, shape_of
-from bracing_bringup.scene import SURFACE_PATCH_M
 from bracing_core.contact_roles import surface_owner
 from bracing_core.kinematics import z_to
+from bracing_recorder.scene import SURFACE_PATCH_M
 
 SURFACE_COLOR = [120, 120, 120, 90]  # grey, see-through: the arm stays visible behind a surface
 INSIDE_COLOR = [230, 0, 0]  # a link inside a surface: red, as a contact point that holds

@@ -24,10 +24,9 @@ import struct
 import subprocess
 import sys
 import time
-import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 os.environ["RERUN_ANALYTICS"] = "0"  # before rerun's import: no usage data sent anywhere
 
@@ -36,12 +35,8 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from bracing_analysis.surfaces import Shape, read_scenario
-from bracing_bringup.view_scene import SurfaceSet, penetration_items
-from bracing_bringup.viewurl import GRPC_PORT, WEB_PORT, view_url, wait_for_port
 from bracing_core.contact_roles import KEPT_OUT, LINK_PENETRATION_TOPIC, role
 from bracing_core.kinematics import LinkPoses
-from bracing_core.meshes import missing_warning, read_mesh
-from bracing_core.meshes import resolve as resolve_mesh
 from bracing_core.overrides import SIMULATOR
 from bracing_core.params import ConfigError
 from bracing_core.targets import ACCEPTED
@@ -57,6 +52,14 @@ from bracing_core.typestore import (
     VECTOR3_STAMPED,
     WRENCH_STAMPED,
 )
+from bracing_view.view_scene import SurfaceSet, penetration_items
+from bracing_view.viewurl import GRPC_PORT, WEB_PORT, view_url, wait_for_port
+from bracing_view.visuals import Visuals
+
+if TYPE_CHECKING:
+    from rosbags.highlevel import AnyReader
+
+    from bracing_analysis.series import BagSeries
 
 DEFAULT_PERIOD_S = 1.0 / 30.0  # [s] of sim time between drawn states: a browser's frame at real time
 FORCE_M_PER_N = 0.01  # arrow length per newton [m/N], as the recorder's markers
@@ -295,131 +298,21 @@ class Feed:
         self._log("world/hand/actual_path", rr.LineStrips3D([actual], radii=0.003, colors=[200, 0, 200]), True)
 
 
-VISUAL_COLOR = [150, 170, 210]
-ASSET_SUFFIXES = (".stl", ".obj", ".glb", ".gltf")
-"""The mesh files rerun's Asset3D draws as they are; others (Collada .dae, ...) are read by coal (assimp)
-into a Mesh3D."""
-
-
-class Visuals:
-    """A URDF's visuals as rerun shapes: per link, (shape, origin (xyz, quaternion xyzw), scale or None).
-    Boxes, cylinders and spheres; meshes found (``bracing_core.meshes.resolve``: file://, package:// through
-    the ament index and ROS_PACKAGE_PATH) as an Asset3D, or a Mesh3D where rerun cannot read the file. A
-    link whose mesh is not found, or cannot be read, is drawn as the skeleton's capsule alone."""
-
-    def __init__(self, urdf: str) -> None:
-        self.links: dict[str, list[tuple[Any, list[float], list[float] | None]]] = {}
-        self.missing: list[str] = []  # mesh filenames not found
-        self.unread: list[str] = []  # mesh files found that nothing here reads
-        root = ET.fromstring(urdf)
-        self.materials = {m.get("name", ""): _rgba(m) for m in root.findall("material")}
-        for link in root.iter("link"):
-            for visual in link.iter("visual"):
-                geometry = visual.find("geometry")
-                if geometry is None:
-                    continue
-                origin = visual.find("origin")
-                xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
-                rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
-                shape, scale = self._shape(geometry, visual.find("material"))
-                if shape is not None:
-                    self.links.setdefault(link.get("name", ""), []).append((shape, [*xyz, *_quat(rpy)], scale))
-
-    def _shape(self, geometry: ET.Element, material: ET.Element | None) -> tuple[Any, list[float] | None]:
-        mesh = geometry.find("mesh")
-        if mesh is None:
-            return _shape(geometry), None
-        uri = mesh.get("filename", "")
-        path = resolve_mesh(uri)
-        if path is None:
-            self.missing.append(uri)
-            return None, None
-        color = self._color(material)
-        shape = _mesh_shape(path, color)
-        if shape is None:
-            self.unread.append(uri)
-            return None, None
-        return shape, [float(v) for v in mesh.get("scale", "1 1 1").split()]
-
-    def _color(self, material: ET.Element | None) -> list[int] | None:
-        """The visual's colour (its own, or the robot's named material), 0-255 RGBA; None if it has none."""
-        if material is None:
-            return None
-        return _rgba(material) or self.materials.get(material.get("name", ""))
-
-    def warnings(self) -> list[str]:
-        out = [missing_warning(self.missing)] if self.missing else []
-        if self.unread:
-            out.append(f"mesh file(s) not drawn (no reader for them here), drawn as capsules: {', '.join(self.unread)}")
-        return out
-
-
-def _rgba(material: ET.Element) -> list[int] | None:
-    color = material.find("color")
-    if color is None:
-        return None
-    values = [float(v) for v in color.get("rgba", "").split()]
-    return [round(255 * min(max(v, 0.0), 1.0)) for v in values] if len(values) == 4 else None
-
-
-def _mesh_shape(path: Path, color: list[int] | None) -> Any:
-    """A mesh file as rerun draws it: STL, OBJ, glTF as an Asset3D (its bytes), any other format coal's
-    assimp reads (Collada .dae, ...) as a Mesh3D of its triangles; None if it cannot be read."""
-    if path.suffix.lower() in ASSET_SUFFIXES:
-        plain = path.suffix.lower() == ".stl"  # no material of its own: the URDF's colour, else the capsules'
-        return rr.Asset3D(path=path, albedo_factor=color or (VISUAL_COLOR if plain else None))
-    read = read_mesh(path)
-    if read is None:
-        return None
-    vertices, triangles = read
-    return rr.Mesh3D(
-        vertex_positions=vertices.astype(np.float32), triangle_indices=triangles, albedo_factor=color or VISUAL_COLOR
-    )
-
-
-def _shape(geometry: ET.Element) -> Any:
-    color = VISUAL_COLOR
-    box, cylinder, sphere = geometry.find("box"), geometry.find("cylinder"), geometry.find("sphere")
-    if box is not None:
-        size = [float(v) / 2 for v in box.get("size", "0 0 0").split()]
-        return rr.Boxes3D(half_sizes=[size], colors=[color])
-    if cylinder is not None:
-        return rr.Cylinders3D(
-            lengths=[float(cylinder.get("length", 0))], radii=[float(cylinder.get("radius", 0))], colors=[color]
-        )
-    if sphere is not None:
-        return rr.Ellipsoids3D(half_sizes=[[float(sphere.get("radius", 0))] * 3], colors=[color], fill_mode="solid")
-    return None
-
-
-def _quat(rpy: Sequence[float]) -> list[float]:
-    """URDF roll-pitch-yaw as a quaternion x, y, z, w."""
-    r, p, y = (v / 2 for v in rpy)
-    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
-    return [
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-        cr * cp * cy + sr * sp * sy,
-    ]
-
-
 def new_recording(name: str = "bracing") -> rr.RecordingStream:
     recording = rr.RecordingStream(name, make_default=False, make_thread_default=False)
     return recording
 
 
 def replay_bag(bag: Path, recording: rr.RecordingStream, period_s: float = DEFAULT_PERIOD_S) -> Feed:
-    """Every message of a recorded run through a ``Feed`` (the project's typestore; robot first)."""
-    from rosbags.highlevel import AnyReader  # rosbags ~100 ms, bag replay only, where used
+    """Every message of a recorded run through a ``Feed`` (the project's typestore; robot first), the bag
+    opened once by ``bracing_analysis.bag`` for its series (surfaces, targets, hand paths) and its messages."""
+    from bracing_analysis.bag import read_series  # rosbags ~100 ms, bag replay only, where used
 
-    from bracing_analysis.bag import read_series, resolve_bag  # rosbags ~100 ms, bag replay only, where used
+    feeds: list[Feed] = []
 
-    path = resolve_bag(Path(bag))
-    series = read_series(path)
-    feed = Feed(recording, period_s, series.surfaces)
-    recording.send_blueprint(blueprint())
-    with AnyReader([path]) as reader:
+    def replay(series: BagSeries, reader: AnyReader) -> None:
+        feed = Feed(recording, period_s, series.surfaces)
+        recording.send_blueprint(blueprint())
         wanted = [c for c in reader.connections if c.msgtype in (*_TYPES.values(), WRENCH_STAMPED)]
         if any(c.topic.endswith(_ACCEPTED) for c in reader.connections) or series.targets_refused:
             wanted = [c for c in wanted if not _sent_target(c.topic)]  # the accepted ones are drawn instead
@@ -428,6 +321,10 @@ def replay_bag(bag: Path, recording: rr.RecordingStream, period_s: float = DEFAU
             feed.message(conn.topic, reader.deserialize(raw, conn.msgtype))
         for conn, _, raw in reader.messages(connections=[c for c in wanted if c not in described]):
             feed.message(conn.topic, reader.deserialize(raw, conn.msgtype))
+        feeds.append(feed)
+
+    series = read_series(bag, then=replay)
+    feed = feeds[0]
     if len(series.hand_desired):
         feed.paths(series.hand_desired, series.hand_actual)
     return feed

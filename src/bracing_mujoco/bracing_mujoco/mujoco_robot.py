@@ -34,12 +34,12 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
 
-from bracing_bringup.mujoco_plant import MujocoRobot
 from bracing_core import schema
 from bracing_core.config import SimulatorConfig
 from bracing_core.message_limits import MessageLimits, SizeError
 from bracing_core.stepping import PROGRESS_PERIOD_S, HeldEffort, Periodic
 from bracing_msgs.msg import RunStatus
+from bracing_mujoco.mujoco_plant import MujocoRobot
 from bracing_ros import parameters, wire
 from bracing_ros.ack_window import AckWindow
 from bracing_ros.matching import create_waking_publisher, wait_until
