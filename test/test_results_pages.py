@@ -119,6 +119,7 @@ def test_a_recording_names_its_commit_and_whether_the_code_differed(tmp_path: Pa
     [
         ("optimize_paper_4link.json", "optimum-2"),  # bracing-optimize's tables.json
         ("ur5_table.json", "runs"),  # bracing-sweep --record
+        ("tiago_table.json", "runs"),  # bracing-sweep --record, the three variants zipped
         ("engine_comparison.json", "engine-comparison"),  # tools/engine_comparison.py --record
     ],
 )
