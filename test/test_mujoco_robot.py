@@ -27,13 +27,16 @@ from ros_helpers import REPO_ROOT, isolated_env, node_argv, pair_argv, params_fi
 from bracing_analysis.bag import read_series
 from bracing_analysis.wrench_contacts import contacts_from_wrenches
 
+sys.path.insert(0, str(REPO_ROOT / "tools"))
+import engine_comparison
+
 MU = 0.1  # config/paper_4link.yaml's elbow friction
 F_ND = 10.0  # [N] its desired normal force
 
 
 def _run(output: Path, *extra: str) -> dict:
     done = subprocess.run(
-        pair_argv(output, "--duration", "2", "--mode", "torque", "--no-animation", *extra),
+        pair_argv(output, *engine_comparison.PAIR_ARGS, *extra),  # the results page's comparison's runs
         env=isolated_env(),
         capture_output=True,
         text=True,
@@ -65,6 +68,18 @@ def test_pair_on_mujoco_keeps_the_elbow_on_the_floor_at_the_desired_force(tmp_pa
     assert here.size >= 1990
     assert np.max(np.linalg.norm(series.hand_actual[here] - base.hand_actual[there], axis=1)) <= 3e-3
     assert abs(summary["hand_rms_error_m"] - ours["hand_rms_error_m"]) <= 3e-3
+
+    # The results page's comparison (tools/engine_comparison.py) from these two runs: its figures as measured here.
+    found = engine_comparison.figures(tmp_path / "mujoco", tmp_path / "bracing")
+    assert found["common_stamps"] == here.size and found["hand_apart_max_m"] <= 3e-3
+    assert found["mujoco"]["penetration_m"] == summary["max_penetration_m"]
+    assert found["mujoco"]["force_late_max_n"] == np.max(np.abs(cs.normal_force_error[cs.t_matched >= 0.2]))
+    assert found["mujoco"]["force_late_max_n"] <= 0.1 and found["mujoco"]["force_rms_n"] <= 0.5
+    assert found["ours"]["force_rms_n"] <= 1e-9 and found["ours"]["penetration_m"] <= 1e-9  # held exactly
+    recorded = json.loads(engine_comparison.record_comparison(tmp_path / "comparison.json", found).read_text())
+    assert set(recorded) == {"recorded", "study", "config", "figures", "tables"} and recorded["figures"] == found
+    table = recorded["tables"][engine_comparison.TABLE]
+    assert len(table["rows"]) == 6 and all(len(row) == 3 for row in table["rows"])
 
 
 PEER = """

@@ -20,6 +20,7 @@ from ros_helpers import PAPER_YAML, isolated_env, pair_argv, run
 from bracing_experiments import optimize as optimize_module
 from bracing_experiments.executors import LocalExecutor
 from bracing_experiments.optimize import BEST_YAML, TRIALS_PARQUET, build_problem, open_study, optimize
+from bracing_experiments.recorded import TABLES_FILE, render_table
 
 FORCE = "contacts.elbow.desired_normal_force"
 TARGET_Y = "contacts.elbow.target[1]"
@@ -198,3 +199,27 @@ def test_an_unknown_metric_fails_before_any_trial(tmp_path: Path) -> None:
     )
     assert done.returncode == 2 and "energy_j" in done.stderr, done.stderr
     assert not (tmp_path / "study.db").exists()
+
+
+def test_the_optimiser_records_its_search_and_optimum_in_tables_json(tmp_path: Path) -> None:
+    """DIR/tables.json: the search's facts, the report's optimum and runs tables byte for byte, the provenance."""
+    problem = build_problem(PAPER_YAML, [f"{FORCE}=5:30"], ["energy_consumed_j"], duration=0.05)
+    with LocalExecutor(1) as executor:
+        found = optimize(problem, tmp_path, executor, trials=3, progress=False, seed=7, references=False)
+    assert found.best is not None
+    recorded = json.loads((tmp_path / TABLES_FILE).read_text())
+    assert recorded["study"] == "optimize" and recorded["config"] == PAPER_YAML.name
+    assert set(recorded["recorded"]) == {"date", "time_utc", "commit", "dirty", "machine"}
+    search = recorded["tables"]["search"]
+    header = ["trials", "feasible", "infeasible", "failed", "sampler", "best trial", "this invocation"]
+    assert search["header"] == header
+    facts = dict(zip(search["header"], search["rows"][0], strict=True))
+    assert (facts["trials"], facts["feasible"], facts["failed"]) == ("3", "3", "0")
+    assert facts["sampler"] == "TPE (Optuna), seed 7" and facts["best trial"] == str(found.best.number)
+    assert facts["this invocation"].startswith("3 trials in ")
+    optimum = recorded["tables"]["optimum"]
+    assert optimum["rows"] == [[FORCE, "10", f"{found.best.params[FORCE]:.4g}"]]
+    report = (tmp_path / "report.md").read_text()
+    for key in ("optimum", "optimum-2"):
+        assert render_table(recorded["tables"][key]) in report
+    assert recorded["tables"]["optimum-2"]["rows"][0][1] == f"{found.best.values[0]:.4g}"

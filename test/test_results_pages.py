@@ -13,6 +13,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from conftest import REPO_ROOT
 
 sys.path.insert(0, str(REPO_ROOT / "tools"))
@@ -111,3 +112,26 @@ def test_a_recording_names_its_commit_and_whether_the_code_differed(tmp_path: Pa
     outside = tmp_path.parent / "not_a_checkout"
     outside.mkdir(exist_ok=True)
     assert (provenance(outside)["commit"], provenance(outside)["dirty"]) == (None, None)
+
+
+@pytest.mark.parametrize(
+    ("file", "table"),
+    [
+        ("optimize_paper_4link.json", "optimum-2"),  # bracing-optimize's tables.json
+        ("ur5_table.json", "runs"),  # bracing-sweep --record
+        ("tiago_table.json", "runs"),  # bracing-sweep --record, the three variants zipped
+        ("engine_comparison.json", "engine-comparison"),  # tools/engine_comparison.py --record
+    ],
+)
+def test_each_recorded_run_renders_its_page_block_and_a_changed_cell_fails_the_check(
+    tmp_path: Path, file: str, table: str
+) -> None:
+    data = tmp_path / "data"
+    shutil.copytree(RESULTS / "data", data)
+    recorded = json.loads((data / file).read_text())
+    page = docs_reference.results_pages(data)[RESULTS / "index.md"]
+    assert f"<!-- results: {file} {table} -->\n{render_table(recorded['tables'][table])}\n" in page
+    assert page == (RESULTS / "index.md").read_text()
+    recorded["tables"][table]["rows"][0][1] += "0"
+    (data / file).write_text(json.dumps(recorded))
+    assert docs_reference.main(["--check"], data_dir=data) == 1

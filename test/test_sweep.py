@@ -231,6 +231,35 @@ def test_sweep_cli_rejects_a_bad_set_before_running(tmp_path: Path) -> None:
     assert not (tmp_path / "runs").exists()
 
 
+def test_record_writes_the_runs_varied_values_and_chosen_metrics_with_provenance(tmp_path: Path) -> None:
+    """--record FILE --columns: one row per run (the varied value, then each metric as the table has it, a failed
+    run's error), the date, commit and machine; a misspelt metric refused (exit 2)."""
+    record, columns = tmp_path / "recorded.json", "contacts.elbow.normal_force_max_n,energy_consumed_j"
+    sets = ["--set", "contacts.elbow.offset=0.0,0.05", "--duration", "0.3", "--workers", "1"]
+    done = subprocess.run(
+        _sweep_cli(tmp_path / "out", *sets, "--record", str(record), "--columns", columns),
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 1, done.stderr  # the 5 cm offset is an infeasible start: a failed row
+    recorded = json.loads(record.read_text())
+    assert recorded["study"] == "sweep" and recorded["config"] == PAPER_YAML.name
+    assert set(recorded["recorded"]) == {"date", "time_utc", "commit", "dirty", "machine"}
+    table = recorded["tables"]["runs"]
+    assert table["header"] == ["contacts.elbow.offset", *columns.split(",")]
+    ok = pq.read_table(tmp_path / "out" / RESULTS_PARQUET).to_pylist()[0]
+    assert table["rows"][0] == ["0", f"{ok['contacts.elbow.normal_force_max_n']:.4g}", f"{ok['energy_consumed_j']:.4g}"]
+    assert table["rows"][1][0] == "0.05" and table["rows"][1][1].startswith("failed: ") and table["rows"][1][2] == ""
+    misspelt = subprocess.run(
+        _sweep_cli(tmp_path / "out", *sets, "--record", str(record), "--columns", "energy_j"),
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert misspelt.returncode == 2 and "energy_j" in misspelt.stderr
+
+
 # -- Dask ------------------------------------------------------------------------------------------------
 def _kill_group(proc: subprocess.Popen[bytes]) -> None:
     if proc.poll() is None:

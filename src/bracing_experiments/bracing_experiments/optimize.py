@@ -65,6 +65,7 @@ from bracing_experiments.cli import (
 )
 from bracing_experiments.executors import Executor, make_executor
 from bracing_experiments.experiment import STATUS_OK, RunSpec, execute_run
+from bracing_experiments.optimize_record import record_optimisation
 from bracing_experiments.study_runs import check_window
 from bracing_experiments.sweep import make_spec
 from bracing_experiments.sweep import write_tables as write_sweep_tables
@@ -751,8 +752,31 @@ def optimize(
     note = f"This invocation: {result.ran} trials in {result.wall_time_s:.1f} s on {executor.description}"
     note += f" ({rate:.0f} trials/min)." if rate else "."
     best = write_outputs(problem, study, output, refs, note)
+    record_optimisation(output / REPORT, problem.config, search_facts(problem, study, best, seed, result, executor))
     total = sum(1 for t in study.get_trials(deepcopy=False) if counted(t))
     return Optimum(best, result, refs, total)
+
+
+def search_facts(
+    problem: Problem,
+    study: optuna.Study,
+    best: optuna.trial.FrozenTrial | None,
+    seed: int | None,
+    result: SearchResult,
+    executor: Executor,
+) -> dict[str, Any]:
+    """The search in one row of the recorded file: trials by status, the sampler, its seed, the best trial, and
+    this invocation's trials, wall time [s] and executor."""
+    statuses = [t.user_attrs.get("status", STATUS_INTERRUPTED) for t in study.get_trials(deepcopy=False)]
+    return {
+        "trials": len(statuses),
+        "feasible": statuses.count(STATUS_OK),
+        STATUS_INFEASIBLE: statuses.count(STATUS_INFEASIBLE),
+        STATUS_FAILED: statuses.count(STATUS_FAILED),
+        "sampler": f"{'NSGA-II' if len(problem.objectives) > 1 else 'TPE'} (Optuna), seed {seed}",
+        "best trial": "none feasible" if best is None else best.number,
+        "this invocation": f"{result.ran} trials in {result.wall_time_s:.1f} s on {executor.description}",
+    }
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:

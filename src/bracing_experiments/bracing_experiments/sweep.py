@@ -1,7 +1,7 @@
 """bracing-sweep: a scenario over a grid of parameter values, in-process runs in parallel.
 
     bracing-sweep --config F --set KEY=V1,V2,... [--set ...] [--zip] [--duration S]
-                  [--workers N] [--scheduler ADDRESS] --output DIR
+                  [--workers N] [--scheduler ADDRESS] --output DIR [--record FILE --columns A,B,...]
 
 Every combination of the --set values (or, with --zip, the i-th value of every key together)
 is one run of the nodes' core objects in one process (bracing_core.rollout), on local
@@ -9,8 +9,10 @@ worker processes, or on a Dask cluster with --scheduler tcp://HOST:PORT (``local
 LocalCluster on this machine). Writes DIR/runs/<run id>/{row.json,summary.json,arrays.npz}
 as each run finishes and DIR/results.parquet + DIR/results.csv, one row per run. A failing
 run is a row with its error; Ctrl-C keeps every finished row; the same command again skips
-the runs already done. Every run's configuration is checked before the first starts, the task's
-rank at the start posture too (as a run checks it). Exit 0 when every run is ok, 1 when one failed
+the runs already done. ``--record FILE --columns A,B,...``: the table's varied values and those
+metrics also as a recorded file (bracing_experiments.sweep_record: with the date, commit and machine).
+Every run's configuration is checked before the first starts, the task's rank at the start posture
+too (as a run checks it). Exit 0 when every run is ok, 1 when one failed
 (the table is still written), 2 on a configuration error before any run, 130 when interrupted.
 """
 
@@ -59,6 +61,7 @@ from bracing_experiments.cli import (
 )
 from bracing_experiments.executors import Executor, make_executor
 from bracing_experiments.experiment import STATUS_FAILED, STATUS_OK, RunOutcome, RunSpec, execute_run
+from bracing_experiments.sweep_record import parse_columns, record_sweep, unknown_columns
 
 if TYPE_CHECKING:
     from bracing_core.config import SimulatorConfig
@@ -338,9 +341,13 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     add_executor(parser)
     add_output(parser, "sweep")
     parser.add_argument("--retry-failed", action="store_true", help="run again the runs that failed before")
+    parser.add_argument("--record", type=Path, metavar="FILE", help="also write the table as a recorded file (JSON)")
+    parser.add_argument("--columns", type=parse_columns, metavar="A,B,...", help="--record's metrics, in order")
     add_progress(parser)
     args = parser.parse_args(argv)
     check_options(parser, args)
+    if (args.record is None) != (args.columns is None):
+        parser.error("--record and --columns go together")
     return args
 
 
@@ -402,6 +409,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:  # before the first run was submitted
         return EXIT_INTERRUPTED
     print(outcome_text(result, args.output, len(specs)))
+    if args.record is not None:
+        if unknown := unknown_columns(result.rows, args.columns):
+            return config_error("bracing-sweep", ConfigError(f"--columns: not a metric of a run: {', '.join(unknown)}"))
+        varied = list(dict.fromkeys(key for spec in specs for key in spec.varied))
+        print(f"recorded: {record_sweep(args.record, args.config, result.rows, varied, args.columns)}")
     return EXIT_FAILED if result.lost or failed_runs(result.rows) else 0
 
 
