@@ -59,7 +59,6 @@ import json
 import math
 import os
 import signal
-import struct
 import sys
 import time
 from collections import deque
@@ -75,7 +74,6 @@ from nav_msgs.msg import Odometry
 from nav_msgs.msg import Path as PathMsg
 from rcl_interfaces.msg import ParameterEvent
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
 from rclpy.utilities import remove_ros_args
@@ -106,6 +104,7 @@ from bracing_bringup.topics import expected_counts as expected_counts  # re-expo
 from bracing_core.kinematics import DescriptionError
 from bracing_core.overrides import SIMULATOR
 from bracing_core.record_batch import BatchError, unpack
+from bracing_core.stamps import cdr_stamp_ns
 from bracing_core.typestore import BRACING_MSGS as BRACING_MSGS  # re-exported: the typestore lives in bracing_core
 from bracing_core.typestore import (
     CLOCK,
@@ -131,8 +130,9 @@ from bracing_core.typestore import bracing_msgs_dir as bracing_msgs_dir
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState, RecordBatch, RunStatus
 from bracing_ros.fastdds import use_fastdds_profile
 from bracing_ros.lifetime import report_faults, stop_with_parent
+from bracing_ros.qos import PARAMETER_EVENTS_QOS, RECORD_QOS, STATUS_QOS
 from bracing_ros.record_batch import RECORD_BATCH_TOPIC
-from bracing_ros.status import STATUS_QOS, STATUS_TOPIC, StatusPublisher
+from bracing_ros.status import STATUS_TOPIC, StatusPublisher
 from bracing_ros.waiter import SubscriptionWaiter
 
 BAG_VERSION: Literal[8] = 8
@@ -160,24 +160,6 @@ LATCHED = Qos(
 )
 """Offered QoS stored for /tf_static and robot_description: ``ros2 bag play`` replays them latched."""
 
-RECORD_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=100000,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-"""Reliable, deep and transient-local, so that nothing is lost in lockstep runs: a publisher
-that starts before the recorder has discovered it still delivers its first messages.
-(It matches the nodes' transient-local publishers; a volatile publisher is not recorded.)"""
-
-PARAMETER_EVENTS_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1000,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-"""rclpy's own for /parameter_events: its publishers are volatile, which a transient-local
-subscription would not match. The targets' too (a script's, RViz's, MoveIt's publishers are volatile)."""
 
 _TARGET_TYPES: dict[str, type] = {
     POINT_STAMPED: PointStamped,
@@ -216,16 +198,6 @@ def missing_messages(bag: Path, contacts: Sequence[str], expected: int, namespac
         for connection in reader.connections:
             counts[connection.topic] = counts.get(connection.topic, 0) + connection.msgcount
     return missing_from_counts(counts, contacts, expected, namespace)
-
-
-def cdr_stamp_ns(data: bytes) -> int:
-    """Stamp [ns] of a CDR message whose first field is a builtin_interfaces/Time.
-
-    True for every recorded type: the std_msgs/Header ones and rosgraph_msgs/Clock.
-    """
-    endian = "<" if data[1] & 1 else ">"
-    sec, nanosec = struct.unpack_from(endian + "iI", data, 4)
-    return int(sec) * 1_000_000_000 + int(nanosec)
 
 
 class Recorder(Node):
