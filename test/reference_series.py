@@ -25,9 +25,10 @@ from bracing_analysis.bag import (
     resolve_bag,
     wanted_connections,
 )
-from bracing_analysis.bag_events import RunEvents, read_events, stamp_ns, xyz
+from bracing_analysis.bag_events import RunEvents, read_events, xyz
 from bracing_analysis.series import BagSeries, ContactSeries, LinkPenetrationSeries
 from bracing_core.contact_roles import LINK_PENETRATION_TOPIC
+from bracing_core.stamps import stamp_ns
 from bracing_core.typestore import CONTACTS, CONTROLLER_STATE, JOINT_STATE, MOTOR_COMMAND, STRING, WRENCH_STAMPED
 
 _Xyz = tuple[float, ...]
@@ -70,7 +71,7 @@ def _read(path: Path) -> tuple[_Streams, RunEvents]:
                 if conn.msgtype == STRING:
                     streams.description = streams.description or str(msg.data)
                     continue
-                stamp = stamp_ns(msg)
+                stamp = stamp_ns(msg.header.stamp)
                 if conn.msgtype == JOINT_STATE:
                     streams.joint.append((stamp, msg))
                 elif conn.msgtype == WRENCH_STAMPED:

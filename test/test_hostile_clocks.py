@@ -34,7 +34,7 @@ from bracing_core.sim_clock import ClockGuard
 from bracing_core.state_freshness import StateFreshness
 from bracing_msgs.msg import RunStatus
 from bracing_ros.ack_window import AckWindow
-from bracing_ros.status import STATUS_QOS
+from bracing_ros.qos import STATUS_QOS
 
 S = 1_000_000_000  # ns per s
 

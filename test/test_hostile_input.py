@@ -43,9 +43,8 @@ from bracing_core.typestore import JOINT_STATE, MOTOR_COMMAND, bracing_typestore
 from bracing_msgs.msg import MotorCommand
 from bracing_ros import stop_signal, wire
 from bracing_ros.commands import CommandError, command_vector, effort_vector
-from bracing_ros.qos import STREAM_QOS
+from bracing_ros.qos import COMMAND_QOS, STREAM_QOS
 from bracing_ros.waiter import SubscriptionWaiter
-from bracing_sim.topics import JOINT_COMMANDS_QOS
 
 FLOOD_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
@@ -310,7 +309,7 @@ def joint_commands_sim(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Har
             isolated_env(domain.domain_id),
             argv,
             ("/robot_joint_commands", JointState, FLOOD_QOS),
-            states=("/robot_joint_states", JOINT_COMMANDS_QOS),
+            states=("/robot_joint_states", COMMAND_QOS),
         )
         assert sim.peer.spin_until(lambda: len(sim.states) > 50, 60.0), sim.node.text()[-3000:]
         yield sim

@@ -56,11 +56,11 @@ def test_a_batch_holds_at_least_one_state() -> None:
 
 
 def test_the_encoder_writes_what_rclpy_reads_back() -> None:
-    """wire.RecordBatchEncoder (rosbags' serialiser) against rclpy's own deserialiser."""
+    """report_encoders.RecordBatchEncoder (rosbags' serialiser) against rclpy's own deserialiser."""
     from rclpy.serialization import deserialize_message
 
     from bracing_msgs.msg import RecordBatch
-    from bracing_ros.wire import RecordBatchEncoder
+    from bracing_ros.report_encoders import RecordBatchEncoder
 
     packer = BatchPacker(TOPICS, size=3)
     for index, data in _messages(3):

@@ -242,7 +242,8 @@ def batch_publisher_main(namespace: str, contacts: str, n: int, sent_file: str) 
     from std_msgs.msg import String
 
     from bracing_msgs.msg import RecordBatch
-    from bracing_ros.record_batch import RECORD_BATCH_QOS, RECORD_BATCH_TOPIC, RecordBatchPublisher
+    from bracing_ros.qos import RECORD_BATCH_QOS
+    from bracing_ros.record_batch import RECORD_BATCH_TOPIC, RecordBatchPublisher
 
     names = tuple(c for c in contacts.split(",") if c)
     rclpy.init()

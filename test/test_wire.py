@@ -27,7 +27,7 @@ from sensor_msgs.msg import JointState
 
 from bracing_core.typestore import bracing_msgs_dir, bracing_typestore
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState
-from bracing_ros import wire
+from bracing_ros import cdr_template, report_encoders, wire
 
 MOTOR_STATE = "bracing_msgs/msg/MotorState"
 
@@ -74,10 +74,10 @@ def test_joint_state_decoder_reads_any_layout() -> None:
 
 def test_clock_and_wrench() -> None:
     stamp = _stamp_ns()
-    clock = deserialize_message(wire.ClockEncoder().encode(stamp), Clock)
+    clock = deserialize_message(report_encoders.ClockEncoder().encode(stamp), Clock)
     assert _ns(clock.clock) == stamp
     force = RNG.normal(size=3)
-    wrench = deserialize_message(wire.WrenchStampedEncoder("world").encode(stamp, force), WrenchStamped)
+    wrench = deserialize_message(report_encoders.WrenchStampedEncoder("world").encode(stamp, force), WrenchStamped)
     assert _ns(wrench.header.stamp) == stamp and wrench.header.frame_id == "world"
     assert _xyz(wrench.wrench.force) == force.tolist() and _xyz(wrench.wrench.torque) == [0.0, 0.0, 0.0]
 
@@ -86,7 +86,7 @@ def test_clock_and_wrench() -> None:
 def test_contacts(count: int) -> None:
     names, frames = [f"c{k}" for k in range(count)], [f"link_{k}_frame" for k in range(count)]
     reports = [
-        wire.ContactReport(
+        report_encoders.ContactReport(
             active=bool(k % 2 == 0),
             position=RNG.normal(size=3),
             normal=RNG.normal(size=3),
@@ -98,7 +98,7 @@ def test_contacts(count: int) -> None:
         for k in range(count)
     ]
     stamp = _stamp_ns()
-    msg = deserialize_message(wire.ContactsEncoder(names, frames).encode(stamp, reports), Contacts)
+    msg = deserialize_message(report_encoders.ContactsEncoder(names, frames).encode(stamp, reports), Contacts)
     assert _ns(msg.header.stamp) == stamp and msg.header.frame_id == "world"
     assert len(msg.contacts) == count
     for got, name, frame, want in zip(msg.contacts, names, frames, reports, strict=True):
@@ -124,7 +124,7 @@ def test_motor_state(names: list[str], thermal: bool) -> None:
     energies = (1.5, -2.25, 3.0e-7)
     stamp = _stamp_ns()
     temperature = 25.0 + RNG.random(size=n) if thermal else np.zeros(0)
-    raw = wire.MotorStateEncoder(names).encode(stamp, v, i, p, energies, temperature)
+    raw = report_encoders.MotorStateEncoder(names).encode(stamp, v, i, p, energies, temperature)
     for msg in (deserialize_message(raw, MotorState), bracing_typestore().deserialize_cdr(raw, MOTOR_STATE)):
         assert list(msg.name) == names
         assert list(msg.voltage) == v.tolist() and list(msg.current) == i.tolist() and list(msg.power) == p.tolist()
@@ -267,7 +267,8 @@ def grown_store(tmp_path: Path) -> Typestore:
 
 def test_a_field_added_to_the_msg_needs_no_code(grown_store: Typestore, monkeypatch: pytest.MonkeyPatch) -> None:
     """The MotorCommand encoder and decoders on the grown definition: new fields at their defaults."""
-    monkeypatch.setattr(wire, "bracing_typestore", lambda: grown_store)
+    for module in (wire, cdr_template):  # the decoders' reader and the templates' layout
+        monkeypatch.setattr(module, "bracing_typestore", lambda: grown_store)
     names, value, stamp = ["a", "bb", "ccc"], RNG.normal(size=3), _stamp_ns()
     data = wire.MotorCommandEncoder(names, MotorCommand.TORQUE).encode(stamp, value)
 
@@ -303,7 +304,8 @@ def test_a_grown_joint_state_needs_no_code(monkeypatch: pytest.MonkeyPatch) -> N
     }
     for typename, text in definitions.items():
         store.register(get_types_from_msg(text, typename))
-    monkeypatch.setattr(wire, "bracing_typestore", lambda: store)
+    for module in (wire, cdr_template):  # the decoders' reader and the templates' layout
+        monkeypatch.setattr(module, "bracing_typestore", lambda: store)
     names, stamp = ["j1", "j2"], _stamp_ns()
     q, dq, tau = RNG.normal(size=2), RNG.normal(size=2), RNG.normal(size=2)
     data = wire.JointStateEncoder(names).encode(stamp, q, dq, tau)
@@ -404,7 +406,7 @@ def _spec(store: Typestore, typename: str, message: Any, live: set[str], path: s
     for name, (kind, arg) in fields:
         value, where = getattr(message, name), path + name
         if where in live:
-            spec[name] = wire.PerMessage(len(value)) if kind == Nodetype.SEQUENCE else wire.PER_MESSAGE
+            spec[name] = cdr_template.PerMessage(len(value)) if kind == Nodetype.SEQUENCE else cdr_template.PER_MESSAGE
             values.append(_numbers(value))
         elif kind == Nodetype.NAME:
             spec[name], inner = _spec(store, arg, value, live, where + ".")
@@ -447,7 +449,7 @@ def test_derived_templates_agree_with_rosbags(sample_store: Typestore, count: in
     typename = "test_msgs/msg/Sample"
     constant = _random_message(sample_store, typename, count)
     spec, _ = _spec(sample_store, typename, constant, live)
-    template = wire.derive_template(typename, spec, sample_store)
+    template = cdr_template.derive_template(typename, spec, sample_store)
     for _ in range(3):
         expected = _merge(sample_store, typename, constant, _random_message(sample_store, typename, count), live)
         _, values = _spec(sample_store, typename, expected, live)
@@ -482,19 +484,19 @@ def test_template_specs_are_checked(sample_store: Typestore) -> None:
     typename = "test_msgs/msg/Sample"
     cases: list[tuple[str, dict[str, Any], str]] = [
         (typename, {"nope": 1}, "no field nope"),
-        (typename, {"header": wire.PER_MESSAGE}, "string"),  # header.frame_id
-        (typename, {"pair": wire.PER_MESSAGE}, "string"),  # Inner.name
-        (typename, {"values": wire.PER_MESSAGE}, "needs its length"),
-        (typename, {"x": wire.PerMessage(2)}, "only a sequence"),
+        (typename, {"header": cdr_template.PER_MESSAGE}, "string"),  # header.frame_id
+        (typename, {"pair": cdr_template.PER_MESSAGE}, "string"),  # Inner.name
+        (typename, {"values": cdr_template.PER_MESSAGE}, "needs its length"),
+        (typename, {"x": cdr_template.PerMessage(2)}, "only a sequence"),
         (typename, {"triple": [1, 2]}, "array of 3"),
         (typename, {"label": "x" * 11}, "at most 10 characters"),
-        ("geometry_msgs/msg/PolygonStamped", {"polygon": wire.PER_MESSAGE}, "sequence inside"),
+        ("geometry_msgs/msg/PolygonStamped", {"polygon": cdr_template.PER_MESSAGE}, "sequence inside"),
     ]
     for name, spec, match in cases:
         with pytest.raises(ValueError, match=match):
-            wire.derive_template(name, spec, sample_store)
+            cdr_template.derive_template(name, spec, sample_store)
     with pytest.raises(TypeError):
-        wire.derive_template(typename, {"label": 5}, sample_store)
+        cdr_template.derive_template(typename, {"label": 5}, sample_store)
 
 
 def test_odometry_template_is_rclpys_message_byte_for_byte() -> None:

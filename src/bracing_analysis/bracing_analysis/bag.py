@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 from rosbags.highlevel import AnyReader
 
-from bracing_analysis.bag_events import custom_data, read_events, stamp_ns
+from bracing_analysis.bag_events import custom_data, read_events
 from bracing_analysis.columns import Layout, column, decode
 from bracing_analysis.link_depths import every_link_deepest
 from bracing_analysis.series import BagSeries, ContactSeries, FloatArray, LinkPenetrationSeries
@@ -35,6 +35,7 @@ from bracing_analysis.truth import (
 )
 from bracing_analysis.wrench_contacts import contacts_from_wrenches
 from bracing_core.contact_roles import LINK_PENETRATION_TOPIC, surface_owner
+from bracing_core.stamps import ns_of, stamp_ns
 from bracing_core.targets import ORIENTATION_ERROR_TOPIC
 from bracing_core.typestore import (
     CONTACTS,
@@ -128,7 +129,7 @@ def read_ground_truth(series: BagSeries, path: Path, reader: AnyReader | None = 
         for conn, _, raw in reader.messages(connections=wanted):
             msg: Any = reader.deserialize(raw, conn.msgtype)
             names = names or list(msg.name)
-            stamps.append(stamp_ns(msg))
+            stamps.append(stamp_ns(msg.header.stamp))
             rows.append(by_name(msg, names))
     except Exception as exc:  # rosbags raises many kinds on a damaged bag
         raise BagReadError(f"cannot read bag {path}: {exc}") from exc
@@ -212,7 +213,7 @@ def _messages(typestore: Any, msgtype: str, raws: list[bytes]) -> _Messages:
     layouts = decode(typestore, msgtype, raws)
     count = len(raws)
     sec = column(layouts, "header.stamp.sec", count).astype(np.int64)
-    stamp = sec * 1_000_000_000 + column(layouts, "header.stamp.nanosec", count).astype(np.int64)
+    stamp = ns_of(sec, column(layouts, "header.stamp.nanosec", count).astype(np.int64))
     order = np.argsort(stamp, kind="stable")
     rank = np.empty(count, dtype=np.intp)
     rank[order] = np.arange(count)

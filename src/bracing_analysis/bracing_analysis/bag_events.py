@@ -22,6 +22,7 @@ from bracing_analysis.truth import (
     command_limits_from_json,
     task_axes_from_json,
 )
+from bracing_core.stamps import stamp_ns
 from bracing_core.targets import ACCEPTED, POSE_TOPIC, REFUSED, REFUSED_COUNT_KEY, REFUSED_KIND_KEY
 from bracing_core.typestore import (
     DIAGNOSTIC_STATUS,
@@ -53,12 +54,6 @@ INPUT_MODES = ("voltage", "torque")
 _Target = tuple[int, str, list[tuple[float, float, float]], list[int]]
 _Refused = tuple[int, str, str, str, int]  # bag time [ns], topic, kind, why, refused on the topic so far
 _ParameterEvent = tuple[int, str, dict[str, Any]]
-
-
-def stamp_ns(msg: Any) -> int:
-    """A message's header stamp [ns]."""
-    stamp = msg.header.stamp
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
 def xyz(point: Any) -> tuple[float, float, float]:
@@ -169,7 +164,7 @@ def _targets(reader: AnyReader) -> list[_Target]:
         task = str(_target_task(conn.topic.removesuffix(suffix)))
         if conn.msgtype == PATH:
             points = [xyz(pose.pose.position) for pose in msg.poses]
-            times = [stamp_ns(pose) for pose in msg.poses]
+            times = [stamp_ns(pose.header.stamp) for pose in msg.poses]
         elif conn.msgtype == POSE_STAMPED:  # its position drawn (its orientation is in hand_orientation_error)
             points, times = [xyz(msg.pose.position)], [stamp]
         else:
@@ -206,7 +201,7 @@ def _parameter_events(reader: AnyReader) -> list[_ParameterEvent]:
         values = {str(p.name): _parameter_value(p.value) for p in event.changed_parameters}
         values.update({str(p.name): None for p in event.deleted_parameters})
         if values:
-            stamp = int(event.stamp.sec) * 1_000_000_000 + int(event.stamp.nanosec)
+            stamp = stamp_ns(event.stamp)
             out.append((stamp, str(event.node), values))
     return sorted(out, key=lambda e: e[0])
 

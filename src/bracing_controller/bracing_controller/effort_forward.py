@@ -25,37 +25,13 @@ from __future__ import annotations
 
 import numpy as np
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64MultiArray
 
 from bracing_core.controller_config import ControllerConfig
 from bracing_core.node_log import NodeLog
 from bracing_core.state_freshness import StateFreshness
 from bracing_core.types import Vector
-
-COMMAND_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=10,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-"""ros-controls/ros2_controllers forward_command_controller/src/forward_controllers_base.cpp (which
-effort_controllers/JointGroupEffortController derives from on Jazzy; on Rolling it is gone: a
-ForwardCommandController with interface_name effort) subscribes ``~/commands`` with SystemDefaultsQoS:
-the RMW's own choice (rmw_fastrtps_cpp here: a best-effort, volatile reader). A reliable, volatile
-publisher matches it whatever it resolves to. It drops a message with a non-finite value and fails its
-update on a length other than its ``joints``; we never send either."""
-
-STATE_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=10,
-    reliability=ReliabilityPolicy.BEST_EFFORT,
-    durability=DurabilityPolicy.VOLATILE,
-)
-"""Best effort: matches joint_state_broadcaster's ``joint_states`` publisher (ros2_controllers
-joint_state_broadcaster/src/joint_state_broadcaster.cpp: SystemDefaultsQoS, under rmw_fastrtps_cpp a
-reliable, transient-local writer; NaN for an interface a joint lacks) and a SensorDataQoS publisher
-alike; the latest counts."""
+from bracing_ros.qos import COMMAND_QOS
 
 
 class EffortForward:

@@ -20,12 +20,11 @@ from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import qos_profile_system_default
 from rclpy.subscription import Subscription
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
 
-from bracing_controller.effort_forward import STATE_QOS, EffortForward
+from bracing_controller.effort_forward import EffortForward
 from bracing_controller.targets import TargetTopics
 from bracing_core import schema
 from bracing_core.answering import Answer, StateAnswerer
@@ -33,6 +32,7 @@ from bracing_core.controller_config import ControllerConfig
 from bracing_core.kinematics import WORLD_FRAME
 from bracing_core.message_limits import SizeError
 from bracing_core.mobile_base import CMD_VEL_TOPIC
+from bracing_core.stamps import stamp_ns
 from bracing_core.step_timing import WorkTimer
 from bracing_core.targets import ORIENTATION_ERROR_TOPIC
 from bracing_core.typestore import MOTOR_STATE, TWIST_STAMPED, WRENCH_STAMPED
@@ -43,7 +43,7 @@ from bracing_ros.commands import MODE_CODES
 from bracing_ros.matching import create_waking_publisher, wait_until
 from bracing_ros.node_log import RosNodeLog
 from bracing_ros.node_main import run
-from bracing_ros.qos import STREAM_QOS, SUBSCRIBE_QOS
+from bracing_ros.qos import CMD_VEL_QOS, JOINT_STATE_QOS, STREAM_QOS, SUBSCRIBE_QOS
 from bracing_ros.raw_messages import read_checked, read_joint_state
 from bracing_ros.record_batch import RecordBatchPublisher
 from bracing_ros.sim_clock import guard_clock
@@ -103,7 +103,7 @@ class ControllerNode(Node):
         # base_command cmd_vel: what a teleop or navigation stack sends, taken as diff_drive_controller takes it
         # (TwistStamped, the system default QoS), raw: its size checked before it is decoded
         self.cmd_vel_sub = (
-            self.create_subscription(TwistStamped, CMD_VEL_TOPIC, self.on_cmd_vel, qos_profile_system_default, raw=True)
+            self.create_subscription(TwistStamped, CMD_VEL_TOPIC, self.on_cmd_vel, CMD_VEL_QOS, raw=True)
             if config.base_command == "cmd_vel"
             else None
         )
@@ -163,15 +163,13 @@ class ControllerNode(Node):
         msg = self.read_measurement(data, topic, WRENCH_STAMPED, WrenchStamped)
         if msg is not None:
             f = msg.wrench.force
-            self.core.take_force(
-                contact, wire.stamp_ns(msg.header.stamp), np.array([f.x, f.y, f.z]), msg.header.frame_id
-            )
+            self.core.take_force(contact, stamp_ns(msg.header.stamp), np.array([f.x, f.y, f.z]), msg.header.frame_id)
 
     def on_temperature(self, data: bytes) -> None:
         """The windings' temperatures (motor_state, CDR bytes), to the core unless they cannot be read."""
         msg = self.read_measurement(data, "motor_state", MOTOR_STATE, MotorState)
         if msg is not None:
-            self.core.take_temperature(wire.stamp_ns(msg.header.stamp), np.asarray(msg.temperature, dtype=float))
+            self.core.take_temperature(stamp_ns(msg.header.stamp), np.asarray(msg.temperature, dtype=float))
 
     def on_cmd_vel(self, data: bytes) -> None:
         """A cmd_vel (CDR bytes) to the core, unless it cannot be read."""
@@ -180,7 +178,7 @@ class ControllerNode(Node):
             if msg is not None:
                 linear, angular = msg.twist.linear, msg.twist.angular
                 self.core.take_cmd_vel(
-                    wire.stamp_ns(msg.header.stamp), [linear.x, linear.y, linear.z], [angular.x, angular.y, angular.z]
+                    stamp_ns(msg.header.stamp), [linear.x, linear.y, linear.z], [angular.x, angular.y, angular.z]
                 )
         except Exception as exc:  # the last line of defence: no message may stop the controller
             self.log.limited("error", "internal", f"cmd_vel ignored: {type(exc).__name__}: {exc}")
@@ -362,20 +360,16 @@ def spin_effort_forward(node: ControllerNode) -> int:
     assert effort is not None
     executor = StoppableExecutor()
     executor.add_node(node)
-    node.create_subscription(JointState, "joint_states", effort.on_state, STATE_QOS, raw=True)
+    node.create_subscription(JointState, "joint_states", effort.on_state, JOINT_STATE_QOS, raw=True)
     node.create_timer(1.0 / node.config.control_rate, lambda: effort_tick(node))
     node.get_logger().info(
         f"effort_forward: {node.config.effort_command_topic} at {node.config.control_rate:g} Hz, joints {effort.joints}"
     )
     node.status.say(RunStatus.STEPPING)
-    try:
-        # Never one endless wait: under use_sim_time with /clock stopped, rclpy's wait would not return,
-        # and the Python signal handlers (SIGINT, SIGTERM: bracing_ros.node_main.run) would never run.
-        while True:
-            executor.spin_once(timeout_sec=0.1)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    return 0
+    # Never one endless wait: under use_sim_time with /clock stopped, rclpy's wait would not return, and the
+    # Python signal handlers (SIGINT, SIGTERM: bracing_ros.node_main.run, which ends the node) would never run.
+    while True:
+        executor.spin_once(timeout_sec=0.1)
 
 
 def main(args: list[str] | None = None) -> int:

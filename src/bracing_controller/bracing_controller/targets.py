@@ -21,11 +21,11 @@ from geometry_msgs.msg import PointStamped, PoseStamped
 from nav_msgs.msg import Path
 from rclpy.node import Node
 from rclpy.publisher import Publisher
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.subscription import Subscription
 
 from bracing_core.kinematics import WORLD_FRAME
 from bracing_core.node_log import NodeLog
+from bracing_core.stamps import sec_nanosec, stamp_ns, stamp_seconds
 from bracing_core.targets import (
     ACCEPTED,
     POSE_TOPIC,
@@ -38,29 +38,12 @@ from bracing_core.targets import (
     echo_topic,
 )
 from bracing_ros import wire
+from bracing_ros.qos import ECHO_QOS, TARGET_QOS
 from bracing_ros.raw_messages import deserialize, path_sizes
 
-TARGET_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,  # the latest wins: an older target waiting in the reader would be superseded anyway
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-"""What a script, RViz or MoveIt publishes by default (reliable); a transient-local publisher matches it too."""
-ECHO_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=100,  # at most one per topic per state: a recorder that lags a little still gets each
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
 
-
-def _seconds(stamp: Any) -> float:
-    return int(stamp.sec) + int(stamp.nanosec) * 1e-9
-
-
-def _time(stamp_ns: int) -> Time:
-    sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+def _time(t_ns: int) -> Time:
+    sec, nanosec = sec_nanosec(t_ns)
     return Time(sec=sec, nanosec=nanosec)
 
 
@@ -170,7 +153,7 @@ class TargetTopics:
         poses = msg.poses
         frames = [pose.header.frame_id or msg.header.frame_id for pose in poses]
         points = [[pose.pose.position.x, pose.pose.position.y, pose.pose.position.z] for pose in poses]
-        times = [_seconds(pose.header.stamp) for pose in poses]
+        times = [stamp_seconds(stamp_ns(pose.header.stamp)) for pose in poses]
         return self.targets.path(topic.task, times, points, frames, now_ns * 1e-9, topic.name), msg
 
     def _refuse(self, topic: TargetTopic, exc: TargetError) -> None:

@@ -30,13 +30,14 @@ from bracing_core.law import ControlOutput, DecoupledController
 from bracing_core.measurements import Measurements
 from bracing_core.message_limits import DEFAULT_LIMITS, MessageLimits, SizeError, quote_names
 from bracing_core.mobile_base import BaseDrive, CmdVelRefused, keep_contact_force
-from bracing_core.node_log import NodeLog
+from bracing_core.node_log import NodeLog, Refusal
 from bracing_core.numbers import all_finite
 from bracing_core.params import ConfigError
+from bracing_core.stamps import NS_PER_S
 from bracing_core.targets import OrientationSpec, TargetLimits, TaskSpec, TaskTargets
 from bracing_core.types import Vector
 
-STAMP_RANGE_NS = (-(2**31) * 1_000_000_000, 2**31 * 1_000_000_000)
+STAMP_RANGE_NS = (-(2**31) * NS_PER_S, 2**31 * NS_PER_S)
 """The stamps an answer can carry (builtin_interfaces/Time: int32 seconds)."""
 NULL_SPACE_CHECK_EVERY = 20
 """States between two looks at the null space's speed (1 us each in the engine; a runaway lasts 100s of steps)."""
@@ -45,12 +46,8 @@ MEASUREMENT_WAIT_S = 0.5
 (``Measurements``); past it the state is answered with the latest ones, and a warning says which lagged."""
 
 
-class StateError(ValueError):
-    """A joint_states message the controller cannot use; ``kind`` (a word, no number) keys its rate limit."""
-
-    def __init__(self, kind: str, message: str) -> None:
-        super().__init__(message)
-        self.kind = kind
+class StateError(Refusal):
+    """A joint_states message the controller cannot use."""
 
 
 def joint_vectors(

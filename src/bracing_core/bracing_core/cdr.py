@@ -1,7 +1,7 @@
 """The CDR layout of a message, walked along its definition in a rosbags typestore.
 
 One type table, one alignment rule, one traversal for the three users that work with message
-bytes directly: the byte templates of :mod:`bracing_ros.wire` (writing), the column-wise bag
+bytes directly: the byte templates of :mod:`bracing_ros.cdr_template` (writing), the column-wise bag
 read of :mod:`bracing_analysis.columns` (reading) and, through wire, the recorder's scene.
 
 The layout is rosbags' and rclpy's: plain CDR (XCDR1) after a 4-byte encapsulation header,

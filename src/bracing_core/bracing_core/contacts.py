@@ -38,6 +38,12 @@ def _radius(value: float, what: str) -> float:
     return float(value)
 
 
+def _replace_checked(surface: object, **values: object) -> None:
+    """A frozen surface's fields set to their checked values (in its ``__post_init__``)."""
+    for name, value in values.items():
+        object.__setattr__(surface, name, value)
+
+
 @dataclass(frozen=True)
 class Plane:
     """C = n . r - offset (n normalised): the half-space n . r >= offset is free."""
@@ -47,7 +53,7 @@ class Plane:
     kind = "plane"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "normal", _vector(self.normal, "normal", unit=True))
+        _replace_checked(self, normal=_vector(self.normal, "normal", unit=True))
         if not np.isfinite(self.offset):
             raise ValueError("offset: must be finite")
 
@@ -62,8 +68,7 @@ class Sphere:
     kind = "sphere"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "center", _vector(self.center, "center"))
-        object.__setattr__(self, "radius", _radius(self.radius, "radius"))
+        _replace_checked(self, center=_vector(self.center, "center"), radius=_radius(self.radius, "radius"))
 
 
 @dataclass(frozen=True)
@@ -78,9 +83,8 @@ class Cylinder:
     kind = "cylinder"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "point", _vector(self.point, "point"))
-        object.__setattr__(self, "axis", _vector(self.axis, "axis", unit=True))
-        object.__setattr__(self, "radius", _radius(self.radius, "radius"))
+        point, axis = _vector(self.point, "point"), _vector(self.axis, "axis", unit=True)
+        _replace_checked(self, point=point, axis=axis, radius=_radius(self.radius, "radius"))
 
 
 Surface = Plane | Sphere | Cylinder

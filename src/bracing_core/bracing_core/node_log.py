@@ -7,6 +7,14 @@ from __future__ import annotations
 from typing import Protocol
 
 
+class Refusal(ValueError):
+    """Input a node refuses (a state, a command); ``kind`` (a word, no number) keys its rate-limited report."""
+
+    def __init__(self, kind: str, message: str) -> None:
+        super().__init__(message)
+        self.kind = kind
+
+
 class NodeLog(Protocol):
     def info(self, message: str) -> None:
         """A line of the node's log."""

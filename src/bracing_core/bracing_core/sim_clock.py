@@ -23,8 +23,8 @@ time with a ValueError that escapes the executor's spin: one ``sec = -1`` ended 
 from __future__ import annotations
 
 from bracing_core.node_log import NodeLog
+from bracing_core.stamps import NS_PER_S, ns_of
 
-NS_PER_S = 1_000_000_000
 AHEAD_REPORT_S = 1.0
 """[s] A /clock this far past the last one is reported (still taken): a thousand of our 1 ms steps,
 far more than any simulator's or bag player's tick, far less than a stray timestamp's error."""
@@ -47,7 +47,7 @@ class ClockGuard:
                 "warning", "clock-malformed", f"/clock refused: nanosec {nanosec} outside [0, 10^9); {self._now()}"
             )
             return None
-        t_ns = sec * NS_PER_S + nanosec
+        t_ns = ns_of(sec, nanosec)
         last = self.last_ns
         self.last_ns = t_ns
         if last is not None and t_ns < last:

@@ -18,7 +18,8 @@ state stale at once: it arrived after the new time, on the timeline before the r
 from __future__ import annotations
 
 from bracing_core.node_log import NodeLog
-from bracing_core.sim_clock import NS_PER_S, seconds
+from bracing_core.sim_clock import seconds
+from bracing_core.stamps import NS_PER_S
 
 
 class StateFreshness:

@@ -22,6 +22,22 @@ namespace bracing_engine {
 
 namespace pin = pinocchio;
 
+namespace {
+
+// dq projected onto R dq = 0 by the impulse Mc^-1 R^T lambda, lambda = -(R Mc^-1 R^T)^+ R dq (least-norm where
+// the rows are dependent; Mc factorised on `data`). Returns the kinetic energy lost, (R dq)^T (R Mc^-1 R^T)^+
+// (R dq) / 2: a touchdown's inelastic impact (normal rows), a contact that starts to stick (its tangential rows).
+double remove_velocity(const pin::Model& model, pin::Data& data, const Eigen::MatrixXd& r, Vector& column, Vector& dq) {
+  Eigen::MatrixXd y(model.nv, r.rows());  // Mc^-1 R^T
+  mass_inverse_rows(model, data, r, column, y.transpose());
+  const Vector velocity = r * dq;
+  const Vector impulse = -(r * y).completeOrthogonalDecomposition().solve(velocity);
+  dq += y * impulse;
+  return -0.5 * velocity.dot(impulse);
+}
+
+}  // namespace
+
 struct Dynamics::Impl {
   mutable pin::Model model;  // mutable: the geometry contacts' frames move to their points at each evaluation
   LinkShapes shapes;         // the links' collision shapes (robot.collision_description)
@@ -189,7 +205,7 @@ void Dynamics::Impl::normal_row(int i, int j, const ContactModes& modes, const E
   const double mu = contacts[j].friction;
   if (!modes.sticking[j] && mu != 0.0) {
     const Vector3 e = slide_direction(j, modes, out);
-    w.row(i).noalias() -= mu * (e.transpose() * out.jacobians.middleRows<3>(3 * j));
+    subtract_friction(w.row(i), mu, e, out.jacobians.middleRows<3>(3 * j));
     slide_e.row(j) = e.transpose();
   }
   normal_velocity[i] = row.dot(dq);
@@ -463,13 +479,9 @@ double Dynamics::hold_velocity(const Vector& q, Vector& dq, const ContactModes& 
     for (int i = 0; i < 3; ++i) rows.push_back(m.rolling.row(i).transpose());
   const int k = static_cast<int>(rows.size());
   if (!k) return 0.0;
-  Eigen::MatrixXd r(k, n), y(n, k);
+  Eigen::MatrixXd r(k, n);
   for (int i = 0; i < k; ++i) r.row(i) = rows[i].transpose();
-  mass_inverse_rows(m.model, m.data, r, m.y_column, y.transpose());
-  const Vector velocity = r * dq;
-  const Vector impulse = -(r * y).completeOrthogonalDecomposition().solve(velocity);
-  dq += y * impulse;
-  return -0.5 * velocity.dot(impulse);
+  return remove_velocity(m.model, m.data, r, m.y_column, dq);
 }
 
 Vector Dynamics::project(const Vector& q0, const std::vector<int>& rows, double tolerance) const {
@@ -508,14 +520,10 @@ double Dynamics::impact(Vector& q, Vector& dq, const std::vector<int>& rows) con
   terms(q, dq, answer);
   pin::cholesky::decompose(m.model, m.data);
   const int rolling = rolling_rows();  // the wheels keep rolling through the impulse
-  Eigen::MatrixXd jc(k + rolling, n), y(n, k + rolling);
+  Eigen::MatrixXd jc(k + rolling, n);
   for (int i = 0; i < k; ++i) jc.row(i) = answer.normal_jacobian.row(rows[i]);
   if (rolling) jc.bottomRows(rolling) = m.rolling;
-  mass_inverse_rows(m.model, m.data, jc, m.y_column, y.transpose());
-  const Vector normal_velocity = jc * dq;
-  const Vector impulse = -(jc * y).partialPivLu().solve(normal_velocity);
-  dq += y * impulse;
-  return -0.5 * normal_velocity.dot(impulse);  // (J_c dq)^T (J_c Mc^-1 J_c^T)^-1 (J_c dq) / 2
+  return remove_velocity(m.model, m.data, jc, m.y_column, dq);
 }
 
 }  // namespace bracing_engine

@@ -645,10 +645,10 @@ BraceRows Law::Impl::brace_rows(const Eigen::MatrixXd& brace_jacobians, const Ve
     if (contact.friction == 0.0) continue;
     if (!contact.coulomb) {
       const Vector3 direction = point.slip / std::sqrt(speed * speed + spec.slip_epsilon * spec.slip_epsilon);
-      rows.w.row(j).noalias() -= contact.friction * (direction.transpose() * jacobian);  // J_c - mu J_t
+      subtract_friction(rows.w.row(j), contact.friction, direction, jacobian);  // J_c - mu J_t
     } else if (speed > kSlipAtRest) {  // sliding: |f_t| = mu |f_nd| against the slip d
       const Vector3 e = (rows.f_nd[j] < 0.0 ? -1.0 : 1.0) * point.slip / speed;
-      rows.w.row(j).noalias() -= contact.friction * (e.transpose() * jacobian);
+      subtract_friction(rows.w.row(j), contact.friction, e, jacobian);
     } else {
       rows.sticking.push_back(j);
     }

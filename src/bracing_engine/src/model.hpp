@@ -49,6 +49,14 @@ void mass_inverse_rows(const pinocchio::Model& model, pinocchio::Data& data, con
   }
 }
 
+// A normal row's W with its sliding friction, W = J_c - mu e^T J: `mu e^T jacobian` taken from `w` (J_c on
+// entry), e the unit direction the friction acts against, J the contact's translational Jacobian (3 x n).
+// The simulator's rows and the law's alike (docs/model.md).
+template <typename Row, typename Jacobian>
+void subtract_friction(Row&& w, double mu, const Vector3& e, const Eigen::MatrixBase<Jacobian>& jacobian) {
+  w.noalias() -= mu * (e.transpose() * jacobian);
+}
+
 // The translational Jacobian (3 x n, world axes at the frame: the top rows of `work`, a 6 x n frame
 // Jacobian) of `frame` after rigid_body_terms.
 inline auto translational_jacobian(const pinocchio::Model& model, pinocchio::Data& data, pinocchio::FrameIndex frame,

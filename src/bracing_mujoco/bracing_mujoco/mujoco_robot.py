@@ -27,9 +27,8 @@ import time
 from functools import partial
 
 from geometry_msgs.msg import WrenchStamped
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
@@ -40,12 +39,12 @@ from bracing_core.message_limits import MessageLimits, SizeError
 from bracing_core.stepping import PROGRESS_PERIOD_S, HeldEffort, Periodic
 from bracing_msgs.msg import RunStatus
 from bracing_mujoco.mujoco_plant import MujocoRobot
-from bracing_ros import parameters, wire
+from bracing_ros import parameters, report_encoders, wire
 from bracing_ros.ack_window import AckWindow
 from bracing_ros.matching import create_waking_publisher, wait_until
 from bracing_ros.node_log import RosNodeLog
 from bracing_ros.node_main import run
-from bracing_ros.qos import STREAM_QOS
+from bracing_ros.qos import COMMAND_QOS, DESCRIPTION_QOS, STREAM_QOS
 from bracing_ros.raw_messages import read_checked
 from bracing_ros.sim_clock import guard_clock
 from bracing_ros.status import StatusPublisher
@@ -53,16 +52,6 @@ from bracing_ros.stop_signal import StoppableExecutor
 
 COMMAND_TOPIC = "effort_controller/commands"
 FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
-COMMAND_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)  # fmt: skip
-"""forward_command_controller's ``~/commands`` subscription (reliable here: it matches our controller's
-reliable publisher and keeps every command)."""
-DESCRIPTION_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)  # fmt: skip
 
 
 class MujocoRobotNode(Node):
@@ -85,8 +74,8 @@ class MujocoRobotNode(Node):
         self.publishers_ = [self.joint_pub, self.clock_pub, *self.wrench_pubs, self.description_pub]
         self.flow = AckWindow(self, self.publishers_, STREAM_QOS.depth)
         self.joint_wire = wire.JointStateEncoder(self.joint_names)
-        self.clock_wire = wire.ClockEncoder()
-        self.wrench_wire = wire.WrenchStampedEncoder("world")
+        self.clock_wire = report_encoders.ClockEncoder()
+        self.wrench_wire = report_encoders.WrenchStampedEncoder("world")
         # Raw: a message's sizes are checked before its elements are decoded.
         self.limits = MessageLimits.of(self.config)
         self.command_sub = self.create_subscription(
@@ -162,16 +151,13 @@ def wait_for_peers(node: MujocoRobotNode, executor: SingleThreadedExecutor) -> N
 def spin(node: MujocoRobotNode) -> int:
     executor = StoppableExecutor()
     executor.add_node(node)
-    try:
-        wait_for_peers(node, executor)
-        node.status.say(RunStatus.STEPPING, 0.0)
-        node.publish_state()
-        while not node.done():
-            node.held.wait_for_answer(lambda timeout_s: executor.spin_once(timeout_sec=timeout_s))
-            node.advance()
-        node.finish()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+    wait_for_peers(node, executor)  # stopped (Ctrl-C, SIGTERM, shutdown) anywhere: node_main.run ends the node
+    node.status.say(RunStatus.STEPPING, 0.0)
+    node.publish_state()
+    while not node.done():
+        node.held.wait_for_answer(lambda timeout_s: executor.spin_once(timeout_sec=timeout_s))
+        node.advance()
+    node.finish()
     return 0
 
 

@@ -55,7 +55,6 @@ seconds, at most ``--drain-timeout`` seconds) and the bag is closed cleanly.
 from __future__ import annotations
 
 import math
-import struct
 import sys
 import time
 from collections import deque
@@ -69,7 +68,6 @@ from nav_msgs.msg import Odometry
 from nav_msgs.msg import Path as PathMsg
 from rcl_interfaces.msg import ParameterEvent
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.subscription import Subscription
 from rosbags.interfaces import Connection, Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag2 import Writer
@@ -83,6 +81,7 @@ from bracing_analysis import surfaces
 from bracing_core.kinematics import DescriptionError
 from bracing_core.overrides import SIMULATOR
 from bracing_core.record_batch import BatchError, unpack
+from bracing_core.stamps import cdr_stamp_ns
 from bracing_core.typestore import BRACING_MSGS as BRACING_MSGS  # re-exported: the typestore lives in bracing_core
 from bracing_core.typestore import (
     CLOCK,
@@ -120,8 +119,9 @@ from bracing_recorder.topics import (
     target_verdict_topics,
 )
 from bracing_recorder.topics import expected_counts as expected_counts  # re-exported: the check lives in topics
+from bracing_ros.qos import PARAMETER_EVENTS_QOS, RECORD_QOS, STATUS_QOS
 from bracing_ros.record_batch import RECORD_BATCH_TOPIC
-from bracing_ros.status import STATUS_QOS, STATUS_TOPIC
+from bracing_ros.status import STATUS_TOPIC
 from bracing_ros.waiter import SubscriptionWaiter
 
 BAG_VERSION: Literal[8] = 8
@@ -140,24 +140,6 @@ LATCHED = Qos(
 )
 """Offered QoS stored for /tf_static and robot_description: ``ros2 bag play`` replays them latched."""
 
-RECORD_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=100000,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-"""Reliable, deep and transient-local, so that nothing is lost in lockstep runs: a publisher
-that starts before the recorder has discovered it still delivers its first messages.
-(It matches the nodes' transient-local publishers; a volatile publisher is not recorded.)"""
-
-PARAMETER_EVENTS_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1000,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-"""rclpy's own for /parameter_events: its publishers are volatile, which a transient-local
-subscription would not match. The targets' too (a script's, RViz's, MoveIt's publishers are volatile)."""
 
 _TARGET_TYPES: dict[str, type] = {
     POINT_STAMPED: PointStamped,
@@ -192,16 +174,6 @@ def missing_messages(bag: Path, contacts: Sequence[str], expected: int, namespac
     from bracing_analysis.bag import topic_counts  # rosbags' reader: only where a bag is read
 
     return missing_from_counts(topic_counts(bag), contacts, expected, namespace)
-
-
-def cdr_stamp_ns(data: bytes) -> int:
-    """Stamp [ns] of a CDR message whose first field is a builtin_interfaces/Time.
-
-    True for every recorded type: the std_msgs/Header ones and rosgraph_msgs/Clock.
-    """
-    endian = "<" if data[1] & 1 else ">"
-    sec, nanosec = struct.unpack_from(endian + "iI", data, 4)
-    return int(sec) * 1_000_000_000 + int(nanosec)
 
 
 class Recorder(Node):

@@ -14,7 +14,7 @@ Jazzy typestore.
   (``surfaces``: from the scenario) as a SPHERE or a CYLINDER marker, else as its tangent plane.
 
 The messages of one run have one layout (the same frame ids, links, contact names, marker
-strings), so bytes are made and read with :mod:`bracing_ros.wire`'s byte templates: the
+strings), so bytes are made and read with :mod:`bracing_ros.cdr_template`'s byte templates: the
 first message of a layout goes through rosbags' general path (message objects and the
 generated (de)serialiser) and its strings and lengths make the template; the following
 ones only pack / unpack their numbers. A message of another layout (another contact count
@@ -38,8 +38,9 @@ from bracing_analysis.surfaces import Shape, shape_of
 from bracing_core import cdr
 from bracing_core.contact_roles import KEPT_OUT, role
 from bracing_core.kinematics import WORLD_FRAME, LinkPoses, z_to
+from bracing_core.stamps import sec_nanosec
 from bracing_core.typestore import CONTACTS, MARKER_ARRAY, STRING, TF_MESSAGE, WRENCH_STAMPED
-from bracing_ros import wire
+from bracing_ros import cdr_template, wire
 
 FloatArray = NDArray[np.float64]
 
@@ -217,7 +218,7 @@ class SceneBuilder:
         poses = self.poses
         poses.update(poses.configuration(state.name, state.position))
         rows = poses.xyzquat(poses.moving_ids).tolist()
-        stamp = divmod(stamp_ns, 1_000_000_000)
+        stamp = sec_nanosec(stamp_ns)
         values = [slot for row in rows for slot in (stamp, row)]  # per transform: header.stamp, transform
         out = self._tf_bytes.fast((), values)
         if out is None:
@@ -241,7 +242,7 @@ class SceneBuilder:
         del self._parts[stamp_ns]
         if not contacts:
             return []  # a run without contacts has nothing to mark
-        stamp = divmod(stamp_ns, 1_000_000_000)
+        stamp = sec_nanosec(stamp_ns)
         draw = self._markers.draw
         drawn = [draw(c, forces.get(c.name)) for c in contacts]
         layout = tuple([(c.name, len(markers)) for c, markers in zip(contacts, drawn, strict=True)])
@@ -451,7 +452,7 @@ class _Layout:
     def __init__(self, store: Typestore, typename: str, varies: frozenset[str]) -> None:
         self.store, self.typename, self.varies = store, typename, varies
         self.key: object = None
-        self.template: wire.Template | None = None
+        self.template: cdr_template.Template | None = None
         self._tried = False
 
     def fast(self, key: object, values: Sequence[Sequence[float | int]]) -> bytes | None:
@@ -466,7 +467,7 @@ class _Layout:
         if not self._tried:
             self._tried, self.key = True, key
             try:
-                template, _ = wire.message_template(
+                template, _ = cdr_template.message_template(
                     self.typename, message, lambda path, _: path in self.varies, self.store
                 )
                 if template.fill(*values) == data:
@@ -485,9 +486,9 @@ class _Reader:
 
     def __init__(self, store: Typestore, typename: str, message: Any) -> None:
         self.slots: dict[str, list[int]] = {}
-        self.template: wire.Template | None = None
+        self.template: cdr_template.Template | None = None
         try:
-            self.template, paths = wire.message_template(
+            self.template, paths = cdr_template.message_template(
                 typename, message, lambda _, desc: _read_per_message(store, desc), store
             )
         except (ValueError, TypeError, AttributeError, struct.error):

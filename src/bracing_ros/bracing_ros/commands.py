@@ -14,6 +14,7 @@ import numpy as np
 
 from bracing_core.dynamics import InputMode
 from bracing_core.message_limits import DEFAULT_LIMITS, MessageLimits, SizeError, duplicated, quote_names
+from bracing_core.node_log import Refusal
 from bracing_core.types import Vector
 from bracing_core.typestore import motor_command_modes
 
@@ -21,12 +22,8 @@ MODE_CODES = {mode: motor_command_modes()[mode.value] for mode in InputMode}
 """An input mode -> its bracing_msgs/MotorCommand.mode constant."""
 
 
-class CommandError(ValueError):
-    """A command that must not be applied; ``kind`` groups errors for rate-limited logging."""
-
-    def __init__(self, kind: str, message: str) -> None:
-        super().__init__(message)
-        self.kind = kind
+class CommandError(Refusal):
+    """A command that must not be applied."""
 
 
 def command_vector(

@@ -9,6 +9,7 @@ from collections.abc import Callable
 import rclpy
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
@@ -43,7 +44,7 @@ def run(node_factory: Callable[[], Node], spin: Callable[[Node], int], args: lis
     except (ConfigError, ParameterException) as exc:
         print(f"error: {exc}", file=sys.stderr, flush=True)
         code = EXIT_CONFIG
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):  # stopped: the spin's end, as Ctrl-C
         code = 0
     finally:
         if node is not None:

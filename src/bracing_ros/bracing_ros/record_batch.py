@@ -13,21 +13,15 @@ from collections.abc import Sequence
 
 from rclpy.node import Node
 from rclpy.publisher import Publisher
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from bracing_core.record_batch import BatchPacker
 from bracing_msgs.msg import RecordBatch
 from bracing_ros.ack_window import AckWindow
 from bracing_ros.matching import create_waking_publisher
-from bracing_ros.wire import RecordBatchEncoder
+from bracing_ros.qos import RECORD_BATCH_QOS
+from bracing_ros.report_encoders import RecordBatchEncoder
 
 RECORD_BATCH_TOPIC = "record_batch"
-RECORD_BATCH_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=100,  # batches of ~100 states (~100 kB each) kept for a late recorder; AckWindow every 50
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,  # what the recorder's transient-local reader matches
-)
 
 
 class RecordBatchPublisher:

@@ -22,20 +22,14 @@ import rclpy
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
 from bracing_msgs.msg import RunStatus
 from bracing_ros.fastdds import PROFILE_ENV, RANGE_ENV, SKIP_ENV, use_fastdds_profile
 from bracing_ros.matching import create_waking_publisher
+from bracing_ros.qos import STATUS_QOS
 
 STATUS_TOPIC = "run_status"
-STATUS_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=100,  # a run's few events and warnings and its latest progress, for a late subscriber
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
 EVENT_NAMES = {
     RunStatus.CONFIGURED: "configured",
     RunStatus.READY: "ready",

@@ -37,13 +37,13 @@ from bracing_ros.commands import MODE_CODES, CommandError, command_vector, effor
 from bracing_ros.matching import wait_until
 from bracing_ros.node_log import RosNodeLog
 from bracing_ros.node_main import run
-from bracing_ros.qos import SUBSCRIBE_QOS
+from bracing_ros.qos import COMMAND_QOS, SUBSCRIBE_QOS
 from bracing_ros.raw_messages import read_joint_state, read_motor_command
 from bracing_ros.sim_clock import guard_clock
 from bracing_ros.status import StatusPublisher
 from bracing_ros.stop_signal import StoppableExecutor
 from bracing_ros.waiter import SubscriptionWaiter
-from bracing_sim.topics import JOINT_COMMANDS_QOS, SimulatorTopics
+from bracing_sim.topics import SimulatorTopics
 
 FLUSH_AT_FAILURE_S = 10.0
 """[s] wall the simulator waits, after a divergence, for the recorder to acknowledge what it sent: the last
@@ -74,7 +74,7 @@ class SimulatorNode(Node):
             )
         else:  # joint_commands: ros2_control's JointStateTopicSystem's efforts
             self.create_subscription(
-                JointState, config.joint_commands_topic, self.on_joint_command, JOINT_COMMANDS_QOS, raw=True
+                JointState, config.joint_commands_topic, self.on_joint_command, COMMAND_QOS, raw=True
             )
         self.log = RosNodeLog(self, self.status, config.log_throttle_period)
         guard_clock(self, self.log)  # use_sim_time (its own /clock): a bad one refused, not fatal

@@ -12,7 +12,6 @@ from geometry_msgs.msg import WrenchStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.publisher import Publisher
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
@@ -32,34 +31,12 @@ from bracing_core.mobile_base import (
 from bracing_core.sensing import GROUND_TRUTH
 from bracing_core.stepping import StateOut, StepOut
 from bracing_msgs.msg import Contacts, MotorState, RunStatus
-from bracing_ros import wire
+from bracing_ros import report_encoders, wire
 from bracing_ros.ack_window import AckWindow
 from bracing_ros.matching import create_waking_publisher
-from bracing_ros.qos import STREAM_QOS
+from bracing_ros.qos import COMMAND_QOS, DESCRIPTION_QOS, STREAM_QOS
 from bracing_ros.record_batch import RecordBatchPublisher
 from bracing_ros.status import StatusPublisher
-
-DESCRIPTION_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-"""robot_description as robot_state_publisher offers it: one message, kept for late subscribers."""
-
-JOINT_COMMANDS_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=10,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-"""robot_joint_commands / robot_joint_states, as ros-controls/topic_based_hardware_interfaces'
-joint_state_topic_hardware_interface/src/joint_state_topic_hardware_interface.cpp has them: its
-commands go out with rclcpp::QoS(1) (reliable, volatile, depth 1), one JointState with every joint's
-name in its own order and only the declared command interfaces filled (here `effort`), unless
-trigger_joint_command_threshold holds them back; it reads the state with SensorDataQoS (best effort,
-the latest message kept), joints matched by name, only finite position/velocity/effort used. A
-reliable subscription matches its publisher, a reliable publisher its best-effort reader."""
 
 
 class SimulatorTopics:
@@ -106,12 +83,12 @@ class SimulatorTopics:
             self.odom_wire = wire.OdometryEncoder(ODOM_FRAME, self.root_link)
         self.joint_command_pubs: list[Publisher] = []  # joint_commands: the ros2_control side's state topic
         if config.command_source == "joint_commands":
-            self.joint_command_pubs = [node.create_publisher(JointState, config.joint_states_topic, JOINT_COMMANDS_QOS)]
+            self.joint_command_pubs = [node.create_publisher(JointState, config.joint_states_topic, COMMAND_QOS)]
         contacts = plant.contact_set.contacts
-        self.joint_wire, self.clock_wire = wire.JointStateEncoder(joint_names), wire.ClockEncoder()
-        self.wrench_wire = wire.WrenchStampedEncoder("world")
-        self.contacts_wire = wire.ContactsEncoder([c.name for c in contacts], [c.frame for c in contacts])
-        self.motor_wire = wire.MotorStateEncoder(joint_names)
+        self.joint_wire, self.clock_wire = wire.JointStateEncoder(joint_names), report_encoders.ClockEncoder()
+        self.wrench_wire = report_encoders.WrenchStampedEncoder("world")
+        self.contacts_wire = report_encoders.ContactsEncoder([c.name for c in contacts], [c.frame for c in contacts])
+        self.motor_wire = report_encoders.MotorStateEncoder(joint_names)
         # robot_description too: a short run could otherwise end before the recorder has it.
         self.data_pubs = [self.joint_pub, self.contacts_pub, self.motor_pub, self.clock_pub, *self.wrench_pubs]
         self.data_pubs += [self.description_pub, *self.truth_pubs, *self.link_pubs, *self.odom_pubs]
@@ -152,7 +129,9 @@ class SimulatorTopics:
     def link_message(self, t_ns: int, links: list[LinkDepth]) -> bytes:
         """link_penetration: per surface the link deepest into it (or nearest), no force."""
         zero = np.zeros(3)
-        reports = [wire.ContactReport(d.active, d.position, d.normal, 0.0, 0.0, zero, d.residual) for d in links]
+        reports = [
+            report_encoders.ContactReport(d.active, d.position, d.normal, 0.0, 0.0, zero, d.residual) for d in links
+        ]
         return self.contacts_wire.encode(t_ns, reports, [(d.name, d.link) for d in links])
 
     def publish_odometry(self, t_ns: int, base: BaseOdometry) -> None:
@@ -167,7 +146,7 @@ class SimulatorTopics:
             send(pub, self.wrench_wire.encode(t_ns, force))  # at the contact point: no moment
         terms = d.contacts
         reports = [
-            wire.ContactReport(
+            report_encoders.ContactReport(
                 active=bool(step.active[j]),
                 position=terms.positions[j],
                 normal=terms.normals[j],

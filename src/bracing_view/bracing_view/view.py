@@ -20,7 +20,6 @@ import ctypes
 import os
 import shutil
 import signal
-import struct
 import subprocess
 import sys
 import time
@@ -39,6 +38,7 @@ from bracing_core.contact_roles import KEPT_OUT, LINK_PENETRATION_TOPIC, role
 from bracing_core.kinematics import LinkPoses
 from bracing_core.overrides import SIMULATOR
 from bracing_core.params import ConfigError
+from bracing_core.stamps import cdr_stamp_seconds, stamp_ns, stamp_seconds
 from bracing_core.targets import ACCEPTED
 from bracing_core.typestore import (
     CONTACTS,
@@ -98,14 +98,8 @@ def blueprint() -> rrb.Blueprint:
     )
 
 
-def _raw_stamp_s(data: bytes) -> float:
-    """The header stamp of a message's CDR bytes (4 bytes of encapsulation, then sec, nanosec)."""
-    sec, nanosec = struct.unpack_from("<iI", data, 4)
-    return sec + 1e-9 * nanosec
-
-
 def _stamp_s(msg: Any) -> float:
-    return float(msg.header.stamp.sec) + 1e-9 * float(msg.header.stamp.nanosec)
+    return stamp_seconds(stamp_ns(msg.header.stamp))
 
 
 class Feed:
@@ -382,8 +376,7 @@ def _wait_for_port(port: int, proxy: subprocess.Popen[bytes], timeout: float = 2
 POLL_S = 0.03
 """[s] wall time between the live viewer's drains of its subscriptions. Waking per message (5 topics at
 1 kHz in lockstep) cost the lockstep loop half its speed on 2 cores; a drain every 30 ms takes what
-queued meanwhile (QUEUE_DEPTH per topic, the rest dropped by DDS: a viewer draws the newest)."""
-QUEUE_DEPTH = 100
+queued meanwhile (VIEW_QOS's depth per topic, the rest dropped by DDS: a viewer draws the newest)."""
 
 
 class Live:
@@ -396,12 +389,12 @@ class Live:
 
     def __init__(self, feed: Feed, after_stepping: bool = False) -> None:
         import rclpy  # imported where used: rclpy ~70 ms, live only (python -X importtime)
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # rclpy ~70 ms, live only, where used
 
         from bracing_core.typestore import bracing_typestore
         from bracing_ros.fastdds import use_fastdds_profile
         from bracing_ros.lifetime import stop_with_parent
-        from bracing_ros.status import STATUS_QOS, STATUS_TOPIC
+        from bracing_ros.qos import DESCRIPTION_QOS, STATUS_QOS, VIEW_QOS
+        from bracing_ros.status import STATUS_TOPIC
 
         stop_with_parent()  # under bracing-pair: a SIGTERM should the pair die
         os.nice(10)  # the lockstep loop comes first (as the recorder)
@@ -410,10 +403,7 @@ class Live:
         use_fastdds_profile()  # as the run's processes: loopback only, matched at once
         rclpy.init()
         self.node = node = rclpy.create_node("bracing_view")
-        self._fast = QoSProfile(depth=QUEUE_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
-        latched = QoSProfile(
-            depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
-        )
+        self._fast = VIEW_QOS
         contacts = [str(c) for c in node.declare_parameter("contacts", ["elbow"]).value or []]
         self._types = _rclpy_types()
         self._later = [
@@ -422,7 +412,7 @@ class Live:
         self._later += [(f"contact_wrench/{c}", WRENCH_STAMPED) for c in contacts]
         self._later += [(f"brace_target/{c}{_ACCEPTED}", POINT_STAMPED) for c in contacts]
         self.topics: dict[Any, tuple[str, str]] = {}
-        self._subscribe("robot_description", _TYPES["robot_description"], latched)
+        self._subscribe("robot_description", _TYPES["robot_description"], DESCRIPTION_QOS)
         self.status = None
         if after_stepping:
             from bracing_msgs.msg import RunStatus
@@ -478,7 +468,7 @@ class Live:
                     topic, typename = self.topics[sub]
                     # Most states are not drawn: their header stamp (right after the CDR header) says
                     # so before any decoding. Of the wrenches only the newest counts (the next contacts').
-                    if topic in feed.period_kinds and not feed.wanted(topic, _raw_stamp_s(data)):
+                    if topic in feed.period_kinds and not feed.wanted(topic, cdr_stamp_seconds(data)):
                         continue
                     if topic.startswith("contact_wrench/") and newest_wrench[topic] != k:
                         continue
