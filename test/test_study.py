@@ -16,7 +16,7 @@ from bracing_core.params import ConfigError
 from bracing_core.rollout import build_scenario, run_recorded
 from bracing_experiments.executors import LocalExecutor
 from bracing_experiments.experiment import FORCE_MAX_ERROR_KEY, STATUS_OK, summarize
-from bracing_experiments.optimize import open_study
+from bracing_experiments.optimize_search import open_study
 from bracing_experiments.study import (
     PAPER_HAND_RMS_BOUND,
     build_study,

@@ -23,7 +23,6 @@ Exit 0 when every run is ok, 1 when one failed, 2 on a configuration error befor
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,19 +36,22 @@ from bracing_core.numbers import markdown_table, number
 from bracing_core.overrides import CONTROLLER, node_params, parse_single, route
 from bracing_core.params import ConfigError
 from bracing_core.variants import FREE_SPACE, PASSIVE
-from bracing_experiments.cli import add_study_options, check_options, config_error, interrupted, study_exit
-from bracing_experiments.executors import make_executor
+from bracing_experiments.cli import add_study_options, check_options, study_exit
+from bracing_experiments.executors import Executor
 from bracing_experiments.experiment import RunSpec
-from bracing_experiments.optimize import Optimum, Problem, build_problem, optimize
+from bracing_experiments.optimize_search import Optimum, optimize
+from bracing_experiments.optimize_specs import Problem, build_problem
 from bracing_experiments.recorded import record_report
 from bracing_experiments.reporting import is_ok, resolve_scenario
 from bracing_experiments.robustness_specs import FORCE_BIAS_N, VELOCITY_FILTER_HZ
+from bracing_experiments.study_cli import run_form
 from bracing_experiments.study_runs import PERCENTILE_SEEDS, Median, check_window, form_scenario, seed_list
 from bracing_experiments.study_specs import _brace_origin as brace_origin
-from bracing_experiments.sweep import ResultsStore, make_spec, run_sweep, write_tables
+from bracing_experiments.sweep import ResultsStore, SweepResult, make_spec, run_sweep, write_tables
 
 STUDY = "pays"
 """bracing-study's first argument for this study (study.main dispatches it here)."""
+COMMAND = f"bracing-study {STUDY}"
 REPORT, RUNS, RUNS_PARQUET = "report.md", "runs.csv", "runs.parquet"
 ENERGY, HAND_RMS = "energy_consumed_j", "hand_rms_error_m"
 FORCE_SCALES = (0.5, 1.0, 2.0, 3.0)
@@ -193,6 +195,8 @@ def spread_text(values: Sequence[float], digits: int = 3) -> str:
 
 
 Rows = dict[tuple[str, int, Any, Any], dict[str, Any]]
+_AfterGrid = tuple[Optimum | None, str, list[RunSpec], SweepResult | None]
+"""What runs after the grid: the optimum found, the search's note, the optimum's runs and their sweep."""
 """(condition, seed, f_nd, place) -> that run's row (ok runs only)."""
 
 
@@ -451,32 +455,33 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
-    name = f"bracing-study {STUDY}"
-    try:
-        config = resolve_scenario(form_scenario(args.config))
-        study = build_pays(
-            config, args.seeds, args.duration, parse_single(args.sets), args.force_list, args.positions, args.span
-        )
-        ResultsStore(args.output).check_manifest(config)
-        executor = make_executor(args.workers, args.scheduler)
-    except ConfigError as exc:
-        return config_error(name, exc)
-    progress = not args.no_progress
-    try:
-        with executor:
-            print(f"{name}: {len(study.specs)} runs of {config} on {executor.description}", file=sys.stderr)
-            result = run_sweep(study.specs, args.output, executor, progress=progress)
-            problem, found, note = run_search(study, args.output, executor, args.trials, progress)
-            again = optimum_specs(study, problem, found) if problem is not None and found is not None else []
-            rerun = run_sweep(again, args.output, executor, progress=progress) if again else None
-    except ConfigError as exc:
-        return config_error(name, exc)
-    except KeyboardInterrupt:
-        return interrupted(name)
-    specs = [*study.specs, *again]
-    report = write_report(study, specs, args.output, found, note)
+    ran = run_form(COMMAND, args, lambda: _checked_study(args), lambda study, executor: _search(study, args, executor))
+    if isinstance(ran, int):
+        return ran
+    found, note, again, rerun = ran.after
+    specs = [*ran.study.specs, *again]
+    report = write_report(ran.study, specs, args.output, found, note)
     write_runs(specs, ResultsStore(args.output), args.output)
-    record_report(report, STUDY, config)
-    print(f"{name}: {result.ran} run now, {result.skipped} reused; report: {report}")
-    rows = [*result.rows, *(rerun.rows if rerun else [])]
-    return study_exit(name, rows, [*result.lost, *(rerun.lost if rerun else [])], args.output)
+    record_report(report, STUDY, ran.config)
+    print(f"{COMMAND}: {ran.sweep.ran} run now, {ran.sweep.skipped} reused; report: {report}")
+    rows = [*ran.sweep.rows, *(rerun.rows if rerun else [])]
+    return study_exit(COMMAND, rows, [*ran.sweep.lost, *(rerun.lost if rerun else [])], args.output)
+
+
+def _checked_study(args: argparse.Namespace) -> tuple[Path, Pays]:
+    """The scenario file and the study's runs, every one checked, and the directory's manifest."""
+    config = resolve_scenario(form_scenario(args.config))
+    study = build_pays(
+        config, args.seeds, args.duration, parse_single(args.sets), args.force_list, args.positions, args.span
+    )
+    ResultsStore(args.output).check_manifest(config)
+    return config, study
+
+
+def _search(study: Pays, args: argparse.Namespace, executor: Executor) -> _AfterGrid:
+    """After the grid: the optimiser's search, then its optimum run again in every seed."""
+    progress = not args.no_progress
+    problem, found, note = run_search(study, args.output, executor, args.trials, progress)
+    again = optimum_specs(study, problem, found) if problem is not None and found is not None else []
+    rerun = run_sweep(again, args.output, executor, progress=progress) if again else None
+    return found, note, again, rerun

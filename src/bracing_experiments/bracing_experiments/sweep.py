@@ -47,17 +47,15 @@ from bracing_core.overrides import (
 from bracing_core.params import ConfigError
 from bracing_experiments.cli import (
     EXIT_FAILED,
-    EXIT_INTERRUPTED,
     add_duration,
     add_executor,
     add_output,
     add_progress,
     check_options,
-    config_error,
     failed_runs,
-    handle_stop_signals,
+    run_command,
 )
-from bracing_experiments.executors import Executor, make_executor
+from bracing_experiments.executors import Executor
 from bracing_experiments.experiment import STATUS_FAILED, STATUS_OK, RunOutcome, RunSpec, execute_run
 
 if TYPE_CHECKING:
@@ -351,6 +349,13 @@ def build_specs(config: Path, sets: Sequence[str], zipped: bool, duration: float
     return [make_spec(config, varied, duration) for varied in combinations(parse_sweep(sets), zipped)]
 
 
+def _checked_specs(args: argparse.Namespace) -> list[RunSpec]:
+    """The sweep's specs, checked, and its directory's manifest (a directory holds one scenario's runs)."""
+    specs = build_specs(args.config, args.sets, args.zip, args.duration)
+    ResultsStore(args.output).check_manifest(args.config)
+    return specs
+
+
 def outcome_text(result: SweepResult, output: Path, total: int) -> str:
     """What bracing-sweep prints at its end: the runs in the table, where it is, what to do next, the warnings."""
     ok = sum(1 for row in result.rows if row.get("status") == STATUS_OK)
@@ -383,26 +388,24 @@ def row_warnings(rows: Sequence[dict[str, Any]]) -> dict[str, int]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
-    handle_stop_signals()
+    ran = run_command(
+        "bracing-sweep", args, lambda: _checked_specs(args), lambda specs, executor: _sweep(specs, executor, args), None
+    )
+    if isinstance(ran, int):
+        return ran
+    result = ran.done
+    print(outcome_text(result, args.output, len(ran.built)))
+    return EXIT_FAILED if result.lost or failed_runs(result.rows) else 0
+
+
+def _sweep(specs: list[RunSpec], executor: Executor, args: argparse.Namespace) -> SweepResult:
+    """The sweep on the executor; on Ctrl-C (after the first run was submitted) what is in the table, said."""
+    print(f"bracing-sweep: {len(specs)} runs on {executor.description}", file=sys.stderr)
     try:
-        specs = build_specs(args.config, args.sets, args.zip, args.duration)
-        ResultsStore(args.output).check_manifest(args.config)
-        executor = make_executor(args.workers, args.scheduler)
-    except ConfigError as exc:
-        return config_error("bracing-sweep", exc)
-    try:
-        with executor:
-            print(f"bracing-sweep: {len(specs)} runs on {executor.description}", file=sys.stderr)
-            result = run_sweep(
-                specs, args.output, executor, retry_failed=args.retry_failed, progress=not args.no_progress
-            )
+        return run_sweep(specs, args.output, executor, retry_failed=args.retry_failed, progress=not args.no_progress)
     except SweepInterrupted as interrupt:
         print(outcome_text(interrupt.result, args.output, len(specs)), file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except KeyboardInterrupt:  # before the first run was submitted
-        return EXIT_INTERRUPTED
-    print(outcome_text(result, args.output, len(specs)))
-    return EXIT_FAILED if result.lost or failed_runs(result.rows) else 0
+        raise
 
 
 if __name__ == "__main__":
