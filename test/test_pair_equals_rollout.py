@@ -36,7 +36,7 @@ from bracing_experiments.experiment import execute_run, series_from_recording
 from bracing_experiments.optimize_report import BEST_YAML
 from bracing_experiments.optimize_search import optimize
 from bracing_experiments.optimize_specs import build_problem
-from bracing_experiments.sweep import make_spec
+from bracing_experiments.specs import make_spec
 
 REAL_SENSING = {
     "sensors.noise_seed": 3,

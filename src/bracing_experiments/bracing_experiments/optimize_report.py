@@ -13,7 +13,7 @@ from bracing_core.overrides import CONTROLLER, SIMULATOR, destination, node_para
 from bracing_experiments.experiment import STATUS_OK
 from bracing_experiments.optimize_figures import draw_convergence, draw_pareto
 from bracing_experiments.optimize_specs import STATUS_FAILED, STATUS_INFEASIBLE, STATUS_INTERRUPTED, Problem
-from bracing_experiments.sweep import write_tables as write_sweep_tables
+from bracing_experiments.running import write_tables as write_sweep_tables
 
 if TYPE_CHECKING:
     import optuna

@@ -24,7 +24,7 @@ from bracing_experiments.executors import Executor
 from bracing_experiments.experiment import STATUS_OK, RunSpec, execute_run
 from bracing_experiments.optimize_report import write_outputs
 from bracing_experiments.optimize_specs import STATUS_FAILED, STATUS_INFEASIBLE, Problem, Vary
-from bracing_experiments.sweep import make_spec
+from bracing_experiments.specs import make_spec
 
 if TYPE_CHECKING:
     import optuna

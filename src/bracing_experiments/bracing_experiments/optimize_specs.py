@@ -22,8 +22,8 @@ from bracing_core.params import ConfigError
 from bracing_core.rollout import build_scenario
 from bracing_core.schema import Kind
 from bracing_experiments.experiment import STATUS_OK, RunSpec, execute_run
+from bracing_experiments.specs import make_spec
 from bracing_experiments.study_runs import check_window
-from bracing_experiments.sweep import make_spec
 
 STATUS_INFEASIBLE, STATUS_FAILED, STATUS_INTERRUPTED = "infeasible", "failed", "interrupted"
 _VARY = re.compile(r"^\s*([A-Za-z_][\w.]*)(?:\[(\d+)\])?\s*=\s*([^:]+):([^:]+)$")

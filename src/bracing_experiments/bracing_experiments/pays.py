@@ -44,10 +44,11 @@ from bracing_experiments.optimize_specs import Problem, build_problem
 from bracing_experiments.recorded import record_report
 from bracing_experiments.reporting import is_ok, resolve_scenario
 from bracing_experiments.robustness_specs import FORCE_BIAS_N, VELOCITY_FILTER_HZ
+from bracing_experiments.running import ResultsStore, SweepResult, run_sweep, write_tables
+from bracing_experiments.specs import make_spec
 from bracing_experiments.study_cli import run_form
 from bracing_experiments.study_runs import PERCENTILE_SEEDS, Median, check_window, form_scenario, seed_list
 from bracing_experiments.study_specs import _brace_origin as brace_origin
-from bracing_experiments.sweep import ResultsStore, SweepResult, make_spec, run_sweep, write_tables
 
 STUDY = "pays"
 """bracing-study's first argument for this study (study.main dispatches it here)."""

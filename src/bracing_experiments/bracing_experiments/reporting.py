@@ -1,5 +1,5 @@
 """What bracing-study's reports share (the paper study, ``study``, and the robustness study, ``robustness``):
-the scenario by name, a run's row and arrays as a sweep stored them, the runs'
+the scenario by name, a run's row and arrays as a sweep stored them, a ratio of two runs' metric, the runs'
 warnings. A module of its own so that ``study`` (which dispatches ``bracing-study robustness``) and
 ``robustness`` both import it without importing each other (test_layout: no import cycles)."""
 
@@ -13,7 +13,7 @@ import numpy as np
 from bracing_analysis.ratios import ratio
 from bracing_core.params import resolve_file
 from bracing_experiments.experiment import STATUS_OK
-from bracing_experiments.sweep import ARRAYS_FILE, ResultsStore, row_warnings
+from bracing_experiments.running import ARRAYS_FILE, ResultsStore, row_warnings
 
 SCENARIO_ALIASES = {"paper": "paper_4link.yaml"}
 

@@ -58,9 +58,9 @@ from bracing_experiments.robustness_specs import (
     Robustness,
     build_robustness,
 )
+from bracing_experiments.running import ResultsStore
 from bracing_experiments.study_cli import run_form
 from bracing_experiments.study_runs import form_scenario
-from bracing_experiments.sweep import ResultsStore
 
 COMMAND = f"bracing-study {STUDY}"
 

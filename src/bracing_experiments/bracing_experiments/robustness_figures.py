@@ -28,7 +28,7 @@ from bracing_experiments.robustness_specs import (
     Robustness,
     force_error,
 )
-from bracing_experiments.sweep import ResultsStore
+from bracing_experiments.running import ResultsStore
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

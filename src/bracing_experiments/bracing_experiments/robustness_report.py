@@ -1,5 +1,6 @@
-"""The robustness study's report (bracing-study robustness): its tables, figures and the paragraph that
-answers where bracing still pays and what force feedback buys, from the runs' rows."""
+"""The robustness study's report (bracing-study robustness): its tables and the paragraph that answers
+where bracing still pays and what force feedback buys, from the runs' rows (its figures:
+robustness_figures)."""
 
 from __future__ import annotations
 
@@ -38,8 +39,8 @@ from bracing_experiments.robustness_specs import (
     _gains,
     force_error,
 )
+from bracing_experiments.running import ResultsStore
 from bracing_experiments.study_runs import holds_text, median_row, window_text
-from bracing_experiments.sweep import ResultsStore
 
 if TYPE_CHECKING:
     pass

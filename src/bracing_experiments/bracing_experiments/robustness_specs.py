@@ -17,8 +17,8 @@ from bracing_core.params import ConfigError
 from bracing_core.variants import BRACED, FREE_SPACE, PASSIVE, Variant
 from bracing_experiments.experiment import RunSpec
 from bracing_experiments.reporting import is_ok
+from bracing_experiments.specs import make_spec
 from bracing_experiments.study_runs import Replicas, seed_label, seed_list
-from bracing_experiments.sweep import make_spec
 
 STUDY = "robustness"
 """bracing-study's first argument for this study (study.main dispatches it here)."""

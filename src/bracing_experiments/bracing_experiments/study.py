@@ -45,6 +45,7 @@ from bracing_experiments.recorded import record_report
 from bracing_experiments.reporting import resolve_scenario
 from bracing_experiments.robustness import STUDY as ROBUSTNESS
 from bracing_experiments.robustness import main as robustness_main
+from bracing_experiments.running import ResultsStore
 from bracing_experiments.study_cli import run_form
 from bracing_experiments.study_report import write_report
 from bracing_experiments.study_runs import DEFAULT_SCENARIO, form_scenario
@@ -57,7 +58,6 @@ from bracing_experiments.study_specs import (
     placement_search,
     run_placement_search,
 )
-from bracing_experiments.sweep import ResultsStore
 
 COMMAND = "bracing-study"
 

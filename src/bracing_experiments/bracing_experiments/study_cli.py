@@ -15,7 +15,7 @@ from typing import Generic, Protocol, TypeVar
 from bracing_experiments.cli import run_command
 from bracing_experiments.executors import Executor
 from bracing_experiments.experiment import RunSpec
-from bracing_experiments.sweep import SweepResult, run_sweep
+from bracing_experiments.running import SweepResult, run_sweep
 
 
 class Form(Protocol):

@@ -10,8 +10,8 @@ import numpy as np
 
 from bracing_experiments.experiment import FORCE_MAX_ERROR_KEY
 from bracing_experiments.reporting import braced_forces, is_ok, run_arrays
+from bracing_experiments.running import ResultsStore
 from bracing_experiments.study_specs import ENERGY, HAND_RMS, Study
-from bracing_experiments.sweep import ResultsStore
 
 
 def draw_bracing(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any]]) -> None:

@@ -1,5 +1,5 @@
-"""The paper study's report (bracing-study paper): its three sections, their tables and figures, from
-the runs' rows."""
+"""The paper study's report (bracing-study paper): its three sections and their tables, from the runs'
+rows (the optimum's section: study_optimum; the figures: study_figures)."""
 
 from __future__ import annotations
 
@@ -16,11 +16,11 @@ from bracing_experiments.reporting import braced_forces as _braced_forces
 from bracing_experiments.reporting import is_ok as _ok
 from bracing_experiments.reporting import run_arrays as _arrays
 from bracing_experiments.reporting import warnings_section as _warnings_section
+from bracing_experiments.running import ResultsStore
 from bracing_experiments.study_figures import draw_bracing, draw_gains, draw_placement
 from bracing_experiments.study_optimum import _search_lines
 from bracing_experiments.study_runs import holds_text, window_text
 from bracing_experiments.study_specs import ENERGY, HAND_MAX, HAND_RMS, REPORT, PlacementSearch, Study
-from bracing_experiments.sweep import ResultsStore
 
 
 # -- the report ------------------------------------------------------------------------------------
