@@ -39,8 +39,8 @@ from bracing_core.overrides import parse_single
 from bracing_core.params import ConfigError
 from bracing_experiments.cli import EXIT_FAILED, add_study_options, check_options, study_exit
 from bracing_experiments.executors import Executor
-from bracing_experiments.pays import STUDY as PAYS
 from bracing_experiments.pays import main as pays_main
+from bracing_experiments.pays_specs import STUDY as PAYS
 from bracing_experiments.recorded import record_report
 from bracing_experiments.reporting import resolve_scenario
 from bracing_experiments.robustness import STUDY as ROBUSTNESS
