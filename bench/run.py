@@ -484,7 +484,8 @@ def optimize_trials_per_min(trials: int = 40, duration: float = 10.0) -> float:
     subject to hand RMS <= 30 mm over f_nd and the brace target's y), 2 local workers, warmed up first
     (the search alone: no reference runs, a fresh study)."""
     from bracing_experiments.executors import make_executor
-    from bracing_experiments.optimize import build_problem, open_study, search
+    from bracing_experiments.optimize_search import open_study, search
+    from bracing_experiments.optimize_specs import build_problem
 
     problem = build_problem(
         PAPER,

@@ -39,7 +39,7 @@ def sweep_throughput(runs: int = 16, duration: float = 10.0, repeats: int = 2) -
     # table) are what a 2-worker sweep of 8 runs waits on (efficiency 0.82 on a quiet machine,
     # 2026-11-23); at 16 they weigh as in a real sweep (0.94 the same hour).
     from bracing_experiments.executors import make_executor
-    from bracing_experiments.sweep import run_sweep
+    from bracing_experiments.running import run_sweep
 
     load_before = os.getloadavg()[0]  # other work on the machine takes cores from the workers
     samples: dict[str, list[float]] = {name: [] for name in EXECUTORS}

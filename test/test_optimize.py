@@ -17,9 +17,11 @@ import pyarrow.parquet as pq
 import pytest
 from ros_helpers import PAPER_YAML, isolated_env, pair_argv, run
 
-from bracing_experiments import optimize as optimize_module
+from bracing_experiments import optimize_search
 from bracing_experiments.executors import LocalExecutor
-from bracing_experiments.optimize import BEST_YAML, TRIALS_PARQUET, build_problem, open_study, optimize
+from bracing_experiments.optimize_report import BEST_YAML, TRIALS_PARQUET
+from bracing_experiments.optimize_search import open_study, optimize
+from bracing_experiments.optimize_specs import build_problem
 from bracing_experiments.recorded import TABLES_FILE, render_table
 
 FORCE = "contacts.elbow.desired_normal_force"
@@ -160,8 +162,8 @@ def test_a_ctrl_c_while_a_trial_is_told_keeps_that_trial_whole(tmp_path: Path, m
             os.kill(os.getpid(), signal.SIGINT)  # lands inside _record's deferral
         return real_tell(study, trial, problem, row)
 
-    real_tell = optimize_module._tell
-    monkeypatch.setattr(optimize_module, "_tell", tell_then_ctrl_c)
+    real_tell = optimize_search._tell
+    monkeypatch.setattr(optimize_search, "_tell", tell_then_ctrl_c)
     problem = build_problem(PAPER_YAML, [f"{FORCE}=0:40"], ["energy_consumed_j"], duration=0.1)
     with LocalExecutor(1) as executor, pytest.raises(KeyboardInterrupt):
         optimize(problem, tmp_path, executor, trials=10, progress=False, references=False)

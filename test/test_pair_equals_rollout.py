@@ -33,8 +33,10 @@ from bracing_core.overrides import route
 from bracing_core.rollout import Recording, Scenario, build_scenario, run_recorded
 from bracing_experiments.executors import LocalExecutor
 from bracing_experiments.experiment import execute_run, series_from_recording
-from bracing_experiments.optimize import BEST_YAML, build_problem, optimize
-from bracing_experiments.sweep import make_spec
+from bracing_experiments.optimize_report import BEST_YAML
+from bracing_experiments.optimize_search import optimize
+from bracing_experiments.optimize_specs import build_problem
+from bracing_experiments.specs import make_spec
 
 REAL_SENSING = {
     "sensors.noise_seed": 3,

@@ -27,7 +27,8 @@ from bracing_core.rollout import build_scenario
 from bracing_core.simulator import ContactEvent
 from bracing_core.watch import RunWatch
 from bracing_experiments.experiment import execute_run
-from bracing_experiments.sweep import build_specs, row_warnings
+from bracing_experiments.running import row_warnings
+from bracing_experiments.sweep import build_specs
 
 CONFIG_DIR = PAPER_YAML.parent
 SCENARIOS = ("paper_4link", "hyper_7link", "wall_7link", "mobile_8joint", "writing_desk")

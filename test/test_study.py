@@ -16,7 +16,8 @@ from bracing_core.params import ConfigError
 from bracing_core.rollout import build_scenario, run_recorded
 from bracing_experiments.executors import LocalExecutor
 from bracing_experiments.experiment import FORCE_MAX_ERROR_KEY, STATUS_OK, summarize
-from bracing_experiments.optimize import open_study
+from bracing_experiments.optimize_search import open_study
+from bracing_experiments.running import RESULTS_PARQUET, ResultsStore, run_sweep
 from bracing_experiments.study import (
     PAPER_HAND_RMS_BOUND,
     build_study,
@@ -25,7 +26,6 @@ from bracing_experiments.study import (
     run_placement_search,
     write_report,
 )
-from bracing_experiments.sweep import RESULTS_PARQUET, ResultsStore, run_sweep
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PAPER_YAML = REPO_ROOT / "config" / "paper_4link.yaml"

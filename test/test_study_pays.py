@@ -12,14 +12,8 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
-from bracing_experiments.pays import (
-    ENERGY,
-    HAND_RMS,
-    REALISTIC,
-    build_pays,
-    conditions,
-    spread_text,
-)
+from bracing_experiments.pays_report import spread_text
+from bracing_experiments.pays_specs import ENERGY, HAND_RMS, REALISTIC, build_pays, conditions
 from bracing_experiments.recorded import TABLES_FILE, render_table
 from bracing_experiments.study import main as study_main
 

@@ -28,8 +28,9 @@ from bracing_experiments.robustness import (
     late_force_rms,
     write_report,
 )
+from bracing_experiments.running import RESULTS_PARQUET, ResultsStore, run_sweep
+from bracing_experiments.specs import make_spec
 from bracing_experiments.study import main as study_main
-from bracing_experiments.sweep import RESULTS_PARQUET, ResultsStore, make_spec, run_sweep
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PAPER_YAML = REPO_ROOT / "config" / "paper_4link.yaml"

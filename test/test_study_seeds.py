@@ -22,7 +22,7 @@ import test_sweep
 from bracing_analysis.summary import HAND_ERROR_T_MIN_S, WINDOWED_KEYS
 from bracing_core.params import ConfigError
 from bracing_experiments.experiment import execute_run
-from bracing_experiments.optimize import build_problem
+from bracing_experiments.optimize_specs import build_problem
 from bracing_experiments.robustness import BRACED, FEEDBACK_LAW, build_robustness
 from bracing_experiments.study import main as study_main
 from bracing_experiments.study_runs import RUNS_CSV, SEED_KEY, Median, holds_text

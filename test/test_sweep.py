@@ -33,15 +33,8 @@ from bracing_core.params import ConfigError
 from bracing_core.rollout import build_scenario, run_closed_loop
 from bracing_experiments.executors import STOP_REQUESTED, DaskExecutor, LocalExecutor
 from bracing_experiments.experiment import STATUS_FAILED, STATUS_OK, RunOutcome, execute_run
-from bracing_experiments.sweep import (
-    RESULTS_CSV,
-    RESULTS_PARQUET,
-    ROW_FILE,
-    ResultsStore,
-    build_specs,
-    combinations,
-    run_sweep,
-)
+from bracing_experiments.running import RESULTS_CSV, RESULTS_PARQUET, ROW_FILE, ResultsStore, run_sweep
+from bracing_experiments.sweep import build_specs, combinations
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PAPER_YAML = REPO_ROOT / "config" / "paper_4link.yaml"

@@ -6,17 +6,21 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 from bracing_core.params import ConfigError
-from bracing_experiments.executors import STOP_REQUESTED
+from bracing_experiments.executors import STOP_REQUESTED, Executor, make_executor
 from bracing_experiments.experiment import STATUS_FAILED
 
 EXIT_FAILED = 1
 EXIT_CONFIG = 2
 EXIT_INTERRUPTED = 130
+
+Built = TypeVar("Built")
+Done = TypeVar("Done")
 
 
 def add_output(parser: argparse.ArgumentParser, what: str) -> None:
@@ -105,16 +109,47 @@ def handle_stop_signals() -> None:
     signal.signal(signal.SIGTERM, stop)
 
 
+@dataclass
+class Ran(Generic[Built, Done]):
+    """A command's work, done (``run_command``)."""
+
+    built: Built  # its configuration, checked
+    done: Done  # what its work returned
+    where: str  # the executor's description
+
+
+def run_command(
+    command: str,
+    args: argparse.Namespace,
+    build: Callable[[], Built],
+    work: Callable[[Built, Executor], Done],
+    interrupted: str | None = "the same command again runs the rest",
+) -> Ran[Built, Done] | int:
+    """A command's steps (every experiment command's): its stop signals handled, ``build`` (its configuration,
+    every run checked before any starts), the executor of --workers / --scheduler, ``work`` on it. An exit
+    code instead: EXIT_CONFIG on a configuration error (said on stderr), EXIT_INTERRUPTED on Ctrl-C or SIGTERM
+    (said with ``interrupted``, what to do next; None: ``work`` said it)."""
+    handle_stop_signals()
+    try:
+        built = build()
+        executor = make_executor(args.workers, args.scheduler)
+    except ConfigError as exc:
+        return config_error(command, exc)
+    try:
+        with executor:
+            return Ran(built, work(built, executor), executor.description)
+    except ConfigError as exc:  # (a form's search after its runs)
+        return config_error(command, exc)
+    except KeyboardInterrupt:
+        if interrupted is not None:
+            print(f"{command}: interrupted; {interrupted}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
 def config_error(command: str, exc: ConfigError) -> int:
     """Say what is wrong with the command's configuration; its exit code."""
     print(f"{command}: error: {exc}", file=sys.stderr)
     return EXIT_CONFIG
-
-
-def interrupted(command: str) -> int:
-    """Say that a study stopped on Ctrl-C and how to go on; its exit code."""
-    print(f"{command}: interrupted; the same command again runs the rest", file=sys.stderr)
-    return EXIT_INTERRUPTED
 
 
 def failed_runs(rows: Sequence[dict[str, Any]]) -> int:

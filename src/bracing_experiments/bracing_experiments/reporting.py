@@ -1,5 +1,5 @@
 """What bracing-study's reports share (the paper study, ``study``, and the robustness study, ``robustness``):
-the scenario by name, a run's row and arrays as a sweep stored them, the runs'
+the scenario by name, a run's row and arrays as a sweep stored them, a ratio of two runs' metric, the runs'
 warnings. A module of its own so that ``study`` (which dispatches ``bracing-study robustness``) and
 ``robustness`` both import it without importing each other (test_layout: no import cycles)."""
 
@@ -10,9 +10,10 @@ from typing import Any
 
 import numpy as np
 
+from bracing_analysis.ratios import ratio
 from bracing_core.params import resolve_file
 from bracing_experiments.experiment import STATUS_OK
-from bracing_experiments.sweep import ARRAYS_FILE, ResultsStore, row_warnings
+from bracing_experiments.running import ARRAYS_FILE, ResultsStore, row_warnings
 
 SCENARIO_ALIASES = {"paper": "paper_4link.yaml"}
 
@@ -56,3 +57,11 @@ def warnings_section(rows: dict[str, dict[str, Any]]) -> list[str]:
         *[f"- {text} ({runs} run{'s' if runs > 1 else ''})" for text, runs in counts.items()],
         "",
     ]
+
+
+def ok_ratio(key: str, row: dict[str, Any] | None, baseline: dict[str, Any] | None) -> float | None:
+    """``key``'s ratio of ``row`` to ``baseline`` when both runs are ok (and the ratio defined), else None."""
+    if not (is_ok(row) and is_ok(baseline)):
+        return None
+    assert row is not None and baseline is not None
+    return ratio(key, row, baseline)[0]

@@ -1,5 +1,5 @@
 """bracing-study robustness: the paper's claims on a plant that differs from the controller's model, with
-real sensing and late commands, with and without force feedback (issue 34).
+real sensing and late commands, with and without force feedback.
 
     bracing-study robustness --output DIR [--config FILE] [--seeds N] [--duration S]
                              [--workers N | --scheduler ADDRESS] [--no-progress] [--set KEY=VALUE ...]
@@ -35,20 +35,11 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from collections.abc import Sequence
+from pathlib import Path
 
 from bracing_core.overrides import parse_single
-from bracing_core.params import ConfigError
-from bracing_experiments.cli import (
-    add_study_options,
-    check_options,
-    config_error,
-    handle_stop_signals,
-    interrupted,
-    study_exit,
-)
-from bracing_experiments.executors import make_executor
+from bracing_experiments.cli import add_study_options, check_options, study_exit
 from bracing_experiments.recorded import record_report
 from bracing_experiments.reporting import resolve_scenario
 from bracing_experiments.robustness_report import answer, late_force_rms, write_report
@@ -64,10 +55,14 @@ from bracing_experiments.robustness_specs import (
     PASSIVE,
     STUDY,
     VARIANTS,
+    Robustness,
     build_robustness,
 )
+from bracing_experiments.running import ResultsStore
+from bracing_experiments.study_cli import run_form
 from bracing_experiments.study_runs import form_scenario
-from bracing_experiments.sweep import ResultsStore, run_sweep
+
+COMMAND = f"bracing-study {STUDY}"
 
 __all__ = [  # the study's names, wherever they live (its runs: robustness_specs; its report: robustness_report)
     "BRACED",
@@ -101,27 +96,21 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
-    handle_stop_signals()
-    start = time.perf_counter()
-    name = f"bracing-study {STUDY}"
-    try:
-        config = resolve_scenario(form_scenario(args.config))
-        study = build_robustness(config, args.duration, parse_single(args.sets), seeds=args.seeds)
-        ResultsStore(args.output).check_manifest(config)
-        executor = make_executor(args.workers, args.scheduler)
-    except ConfigError as exc:
-        return config_error(name, exc)
-    try:
-        with executor:
-            where = executor.description
-            print(f"{name}: {len(study.specs)} runs of {config} on {where}", file=sys.stderr)
-            result = run_sweep(study.specs, args.output, executor, progress=not args.no_progress)
-    except KeyboardInterrupt:
-        return interrupted(name)
-    report = write_report(study, args.output, time.perf_counter() - start, where, result.skipped)
-    record_report(report, STUDY, config)
-    print(f"{name}: {result.ran} run now, {result.skipped} reused; report: {report}")
-    return study_exit(name, result.rows, result.lost, args.output)
+    ran = run_form(COMMAND, args, lambda: _checked_study(args), lambda study, executor: None)
+    if isinstance(ran, int):
+        return ran
+    report = write_report(ran.study, args.output, ran.wall_time_s, ran.where, ran.sweep.skipped)
+    record_report(report, STUDY, ran.config)
+    print(f"{COMMAND}: {ran.sweep.ran} run now, {ran.sweep.skipped} reused; report: {report}")
+    return study_exit(COMMAND, ran.sweep.rows, ran.sweep.lost, args.output)
+
+
+def _checked_study(args: argparse.Namespace) -> tuple[Path, Robustness]:
+    """The scenario file and the study's runs, every one checked, and the directory's manifest."""
+    config = resolve_scenario(form_scenario(args.config))
+    study = build_robustness(config, args.duration, parse_single(args.sets), seeds=args.seeds)
+    ResultsStore(args.output).check_manifest(config)
+    return config, study
 
 
 if __name__ == "__main__":

@@ -1,9 +1,9 @@
-"""The robustness study's report (bracing-study robustness): its tables, figures and the paragraph that
-answers where bracing still pays and what force feedback buys, from the runs' rows."""
+"""The robustness study's report (bracing-study robustness): its tables and the paragraph that answers
+where bracing still pays and what force feedback buys, from the runs' rows (its figures:
+robustness_figures)."""
 
 from __future__ import annotations
 
-import math
 import statistics
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -11,11 +11,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from bracing_analysis.ratios import RATIO_FLOOR, ratio
+from bracing_analysis.ratios import RATIO_FLOOR
 from bracing_analysis.summary import HAND_ERROR_T_MIN_S
 from bracing_core.numbers import markdown_table, number
 from bracing_core.variants import Variant
-from bracing_experiments.reporting import braced_forces, is_ok, run_arrays, warnings_section
+from bracing_experiments.reporting import braced_forces, is_ok, ok_ratio, run_arrays, warnings_section
+from bracing_experiments.robustness_figures import draw_factor
 from bracing_experiments.robustness_specs import (
     BRACED,
     ENERGY,
@@ -36,12 +37,13 @@ from bracing_experiments.robustness_specs import (
     Level,
     Robustness,
     _gains,
+    force_error,
 )
+from bracing_experiments.running import ResultsStore
 from bracing_experiments.study_runs import holds_text, median_row, window_text
-from bracing_experiments.sweep import ResultsStore
 
 if TYPE_CHECKING:
-    from matplotlib.axes import Axes
+    pass
 
 
 # -- the numbers --------------------------------------------------------------------------------------
@@ -94,29 +96,12 @@ def _rows(by_seed: _SeedRows, seed: int | None = None) -> dict[str, dict[str, An
     return rows
 
 
-def _force(row: dict[str, Any] | None) -> float | None:
-    """The braced force error the report compares: after the transient when the run reached it, else the
-    whole run's."""
-    if not is_ok(row):
-        return None
-    assert row is not None
-    late, whole = row.get(FORCE_LATE), row.get(FORCE_RMS)
-    return float(late) if number(late) else float(whole) if number(whole) else None
-
-
 def _value(row: dict[str, Any] | None, key: str) -> Any:
     if row is None:
         return "not run"
     if not is_ok(row):
         return "failed"
     return row.get(key)
-
-
-def _ratio(key: str, row: dict[str, Any] | None, baseline: dict[str, Any] | None) -> float | None:
-    if not (is_ok(row) and is_ok(baseline)):
-        return None
-    assert row is not None and baseline is not None
-    return ratio(key, row, baseline)[0]
 
 
 # -- the report -------------------------------------------------------------------------------------
@@ -153,10 +138,10 @@ def _line(
         _value(braced, ENERGY),
         _value(passive, ENERGY),
         _value(free, ENERGY),
-        _ratio(ENERGY, braced, free),
-        _ratio(HAND_RMS, braced, free),
-        _ratio(ENERGY, braced, passive),
-        _ratio(HAND_RMS, braced, passive),
+        ok_ratio(ENERGY, braced, free),
+        ok_ratio(HAND_RMS, braced, free),
+        ok_ratio(ENERGY, braced, passive),
+        ok_ratio(HAND_RMS, braced, passive),
     ]
 
 
@@ -198,7 +183,7 @@ def _factor_section(
         for law in LAWS
     ]
     figure = f"robustness_{factor.key}.png"
-    _draw_factor(study, store, rows, factor, figure)
+    draw_factor(study, store, rows, factor, figure)
     return [
         f"## {number_}. {factor.title}",
         "",
@@ -210,121 +195,6 @@ def _factor_section(
         f"![hand and force RMS, energy ratios against {factor.axis}]({figure})",
         "",
     ]
-
-
-_LAW_COLOURS = {PAPER_LAW: "tab:blue", FEEDBACK_LAW: "tab:orange"}
-_VARIANT_STYLES = {BRACED.name: "-", PASSIVE.name: ":", FREE_SPACE.name: "--"}
-_Points = list[tuple[float, Factor | None, Level]]  # (x, factor or None for the nominal, level), by x
-
-
-def _series(
-    study: Robustness,
-    rows: Mapping[str, dict[str, Any]],
-    points: _Points,
-    law: str,
-    variant: str,
-    get: Any,
-    mode: str | None = None,
-) -> list[float]:
-    """``get`` of that run's row at each point; nan where it is not a number."""
-    values = []
-    for _, where, level in points:
-        value = get(study.row(rows, where, level, law, variant, mode))
-        values.append(float(value) if number(value) else math.nan)
-    return values
-
-
-def _plot_hand(ax: Axes, study: Robustness, rows: Mapping[str, dict[str, Any]], points: _Points, law: str) -> None:
-    xs = [p[0] for p in points]
-    for variant in VARIANTS:
-        hand = _series(study, rows, points, law, variant.name, lambda r: r.get(HAND_RMS) if is_ok(r) else None)
-        ax.plot(
-            xs,
-            hand,
-            marker="o",
-            ls=_VARIANT_STYLES[variant.name],
-            color=_LAW_COLOURS[law],
-            label=f"{variant.column}, {LAW_TEXT[law]}",
-        )
-
-
-def _plot_force(
-    ax: Axes, study: Robustness, rows: Mapping[str, dict[str, Any]], points: _Points, law: str, factor: Factor
-) -> bool:
-    """The braced force error in the file's mode (and torque input's, when the study has those rows);
-    True when a value is finite (a log axis can draw it)."""
-    xs = [p[0] for p in points]
-    force = _series(study, rows, points, law, BRACED.name, _force)
-    finite = bool(np.isfinite(force).any())
-    ax.plot(
-        xs, [max(v, 1e-15) for v in force], marker="o", color=_LAW_COLOURS[law], label=f"{study.mode}, {LAW_TEXT[law]}"
-    )
-    if study.torque_rows and factor.torque:
-        torque = _series(study, rows, points, law, BRACED.name, _force, TORQUE)
-        finite = finite or bool(np.isfinite(torque).any())
-        ax.plot(
-            xs,
-            [max(v, 1e-15) for v in torque],
-            marker="s",
-            ls="--",
-            color=_LAW_COLOURS[law],
-            alpha=0.7,
-            label=f"torque, {'force feedback' if law == FEEDBACK_LAW else LAW_TEXT[law]}",
-        )
-    return finite
-
-
-def _plot_energy_ratios(
-    ax: Axes, study: Robustness, rows: Mapping[str, dict[str, Any]], points: _Points, law: str
-) -> None:
-    """Braced energy over free space's and over resting passively's."""
-    xs = [p[0] for p in points]
-    for baseline, marker in ((FREE_SPACE, "o"), (PASSIVE, "^")):
-        values = []
-        for _, where, level in points:
-            braced = study.row(rows, where, level, law, BRACED.name)
-            other = study.row(rows, where, level, law, baseline.name)
-            value = _ratio(ENERGY, braced, other)
-            values.append(value if value is not None else math.nan)
-        ax.plot(
-            xs,
-            values,
-            marker=marker,
-            ls=_VARIANT_STYLES[baseline.name],
-            color=_LAW_COLOURS[law],
-            label=f"braced / {baseline.column}, {LAW_TEXT[law]}",
-        )
-
-
-def _draw_factor(
-    study: Robustness, store: ResultsStore, rows: Mapping[str, dict[str, Any]], factor: Factor, name: str
-) -> None:
-    from matplotlib.figure import Figure  # imported where used: matplotlib ~460 ms (python -X importtime)
-
-    points = sorted(
-        [(factor.nominal, None, NOMINAL_LEVEL), *((lv.value, factor, lv) for lv in factor.levels)], key=lambda p: p[0]
-    )
-    fig = Figure(figsize=(14, 4.2), layout="constrained")
-    fig.suptitle(f"{study.scenario}: {factor.title.lower()} ({study.mode} input unless marked)")
-    hand_ax, force_ax, ratio_ax = fig.subplots(1, 3)
-    logarithmic = False
-    for law in LAWS:
-        _plot_hand(hand_ax, study, rows, points, law)
-        finite = _plot_force(force_ax, study, rows, points, law, factor)
-        logarithmic = logarithmic or finite
-        _plot_energy_ratios(ratio_ax, study, rows, points, law)
-    ratio_ax.axhline(1.0, color="grey", lw=1.0)
-    for ax in (hand_ax, force_ax, ratio_ax):
-        ax.axvline(factor.nominal, color="grey", ls=":", lw=0.8)
-        ax.set_xlabel(factor.axis)
-        ax.grid(True, alpha=0.4)
-        ax.legend(fontsize=6)
-    hand_ax.set(title=f"hand RMS error (t >= {HAND_ERROR_T_MIN_S:g} s)", ylabel="[m]")
-    force_ax.set(title=f"braced |f_n - f_nd| RMS (t >= {HAND_ERROR_T_MIN_S:g} s if run so long)", ylabel="[N]")
-    if logarithmic:  # (a log axis without a finite value refuses to draw)
-        force_ax.set_yscale("log")  # torque input's is ~1e-14 N where the model is exact
-    ratio_ax.set(title="energy ratio of bracing (< 1: bracing saves)", ylabel="ratio")
-    fig.savefig(store.output / name, dpi=110)
 
 
 def _span(values: Sequence[float]) -> str:
@@ -357,7 +227,7 @@ def _verdicts(
         for factor, level in study.points():
             braced = study.row(rows, factor, level, law, BRACED.name)
             other = study.row(rows, factor, level, law, baseline.name)
-            energy, hand = _ratio(ENERGY, braced, other), _ratio(HAND_RMS, braced, other)
+            energy, hand = ok_ratio(ENERGY, braced, other), ok_ratio(HAND_RMS, braced, other)
             if energy is not None:
                 out.append((law, f"{_named(level)} with {law_text}", energy, hand))
     return out
@@ -416,8 +286,8 @@ def _feedback_forces(study: Robustness, rows: Mapping[str, dict[str, Any]]) -> l
     the paper's law's is not ~0."""
     forces = []
     for factor, level in study.points():
-        before = _force(study.row(rows, factor, level, PAPER_LAW, BRACED.name))
-        after = _force(study.row(rows, factor, level, FEEDBACK_LAW, BRACED.name))
+        before = force_error(study.row(rows, factor, level, PAPER_LAW, BRACED.name))
+        after = force_error(study.row(rows, factor, level, FEEDBACK_LAW, BRACED.name))
         if before is not None and after is not None and before >= RATIO_FLOOR:
             forces.append((after / before, _named(level), before, after))
     return forces
@@ -437,13 +307,13 @@ def _buys(study: Robustness, rows: Mapping[str, dict[str, Any]]) -> str:
         paper = study.row(rows, factor, level, PAPER_LAW, BRACED.name)
         feedback = study.row(rows, factor, level, FEEDBACK_LAW, BRACED.name)
         for key, out in ((HAND_RMS, hands), (ENERGY, energies)):
-            value = _ratio(key, feedback, paper)
+            value = ok_ratio(key, feedback, paper)
             if value is not None:
                 out.append(value)
     if not forces:
         return ""
     text = f"force feedback ({_gains(study.mode)}) with thermal compensation"
-    start = _force(nominal_paper), _force(nominal_feedback)
+    start = force_error(nominal_paper), force_error(nominal_feedback)
     if start[0] is not None and start[1] is not None:
         text += f" takes the braced |f_n - f_nd| RMS {when} from {start[0]:.3g} N to {start[1]:.3g} N at the nominal"
     lower = [f for f in forces if f[0] < 1]
@@ -478,8 +348,8 @@ def _torque_effect(study: Robustness, rows: Mapping[str, dict[str, Any]]) -> str
     for factor, level in study.points():
         if factor is not None and not factor.torque:
             continue
-        paper = _force(study.row(rows, factor, level, PAPER_LAW, BRACED.name, TORQUE))
-        feedback = _force(study.row(rows, factor, level, FEEDBACK_LAW, BRACED.name, TORQUE))
+        paper = force_error(study.row(rows, factor, level, PAPER_LAW, BRACED.name, TORQUE))
+        feedback = force_error(study.row(rows, factor, level, FEEDBACK_LAW, BRACED.name, TORQUE))
         if paper is None or feedback is None or paper < RATIO_FLOOR:
             continue  # exact to rounding (the model exact): nothing to buy
         if worst is None or paper > worst[0]:

@@ -11,12 +11,14 @@ from typing import Any
 
 from bracing_core import schema
 from bracing_core.config import SharedConfig
+from bracing_core.numbers import number
 from bracing_core.overrides import CONTROLLER, SIMULATOR, node_params, route
 from bracing_core.params import ConfigError
 from bracing_core.variants import BRACED, FREE_SPACE, PASSIVE, Variant
 from bracing_experiments.experiment import RunSpec
+from bracing_experiments.reporting import is_ok
+from bracing_experiments.specs import make_spec
 from bracing_experiments.study_runs import Replicas, seed_label, seed_list
-from bracing_experiments.sweep import make_spec
 
 STUDY = "robustness"
 """bracing-study's first argument for this study (study.main dispatches it here)."""
@@ -345,3 +347,13 @@ def build_robustness(
             if study.torque_rows and (factor is None or factor.torque):
                 add(factor, level, law, BRACED, TORQUE)
     return study
+
+
+def force_error(row: dict[str, Any] | None) -> float | None:
+    """The braced force error the report compares: after the transient when the run reached it, else the
+    whole run's."""
+    if not is_ok(row):
+        return None
+    assert row is not None
+    late, whole = row.get(FORCE_LATE), row.get(FORCE_RMS)
+    return float(late) if number(late) else float(whole) if number(whole) else None

@@ -32,41 +32,34 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from pathlib import Path
 
 from bracing_core.overrides import parse_single
 from bracing_core.params import ConfigError
-from bracing_experiments.cli import (
-    EXIT_FAILED,
-    add_study_options,
-    check_options,
-    config_error,
-    handle_stop_signals,
-    interrupted,
-    study_exit,
-)
-from bracing_experiments.executors import make_executor
-from bracing_experiments.pays import STUDY as PAYS
+from bracing_experiments.cli import EXIT_FAILED, add_study_options, check_options, study_exit
+from bracing_experiments.executors import Executor
 from bracing_experiments.pays import main as pays_main
+from bracing_experiments.pays_specs import STUDY as PAYS
 from bracing_experiments.recorded import record_report
 from bracing_experiments.reporting import resolve_scenario
 from bracing_experiments.robustness import STUDY as ROBUSTNESS
 from bracing_experiments.robustness import main as robustness_main
-from bracing_experiments.study_runs import DEFAULT_SCENARIO, form_scenario
-from bracing_experiments.sweep import ResultsStore, run_sweep
-
-if TYPE_CHECKING:
-    pass
+from bracing_experiments.running import ResultsStore
+from bracing_experiments.study_cli import run_form
 from bracing_experiments.study_report import write_report
+from bracing_experiments.study_runs import DEFAULT_SCENARIO, form_scenario
 from bracing_experiments.study_specs import (
     PAPER_HAND_RMS_BOUND,
     SEARCH_TRIALS,
+    PlacementSearch,
+    Study,
     build_study,
     placement_search,
     run_placement_search,
 )
+
+COMMAND = "bracing-study"
 
 __all__ = [  # the study's names, wherever they live (its runs: study_specs; its report: study_report)
     "PAPER_HAND_RMS_BOUND",
@@ -112,41 +105,41 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv[:1] == [PAYS]:  # its own options (bracing_experiments.pays)
         return pays_main(argv[1:])
     args = parse_args(argv)
-    handle_stop_signals()
-    start = time.perf_counter()
-    try:
-        given = None if args.scenario == DEFAULT_SCENARIO else args.scenario
-        config = resolve_scenario(form_scenario(args.config, given))
-        overrides = parse_single(args.sets)
-        study = build_study(config, args.duration, overrides, args.positions, args.span, seeds=args.seeds)
-        ResultsStore(args.output).check_manifest(config)
-        executor = make_executor(args.workers, args.scheduler)
-    except ConfigError as exc:
-        return config_error("bracing-study", exc)
-    try:
-        with executor:
-            where = executor.description
-            print(f"bracing-study: {len(study.specs)} runs of {config} on {where}", file=sys.stderr)
-            result = run_sweep(study.specs, args.output, executor, progress=not args.no_progress)
-            search, note = None, "--trials 0" if args.trials == 0 else ""
-            if args.trials > 0:
-                rows = study.replicas.median_rows(ResultsStore(args.output))
-                try:
-                    search = placement_search(study, rows, args.output)
-                except ConfigError as exc:
-                    note = str(exc)
-                    print(f"bracing-study: no optimisation: {note}", file=sys.stderr)
-                if search is not None:
-                    run_placement_search(search, executor, args.trials, progress=not args.no_progress)
-    except KeyboardInterrupt:
-        return interrupted("bracing-study")
-    report = write_report(study, args.output, time.perf_counter() - start, where, result.skipped, search, note)
-    record_report(report, "paper", config)
+    ran = run_form(COMMAND, args, lambda: _checked_study(args), lambda study, executor: _search(study, args, executor))
+    if isinstance(ran, int):
+        return ran
+    search, note = ran.after
+    report = write_report(ran.study, args.output, ran.wall_time_s, ran.where, ran.sweep.skipped, search, note)
+    record_report(report, "paper", ran.config)
     found = search.found if search is not None else None
     trials = f"; optimiser: {found.trials} trials ({found.search.ran} now)" if found is not None else ""
-    print(f"bracing-study: {result.ran} run now, {result.skipped} reused{trials}; report: {report}")
-    code = study_exit("bracing-study", result.rows, result.lost, args.output)
+    print(f"{COMMAND}: {ran.sweep.ran} run now, {ran.sweep.skipped} reused{trials}; report: {report}")
+    code = study_exit(COMMAND, ran.sweep.rows, ran.sweep.lost, args.output)
     return code or (EXIT_FAILED if found is not None and found.search.failed else 0)
+
+
+def _checked_study(args: argparse.Namespace) -> tuple[Path, Study]:
+    """The scenario file and the study's runs, every one checked, and the directory's manifest."""
+    given = None if args.scenario == DEFAULT_SCENARIO else args.scenario
+    config = resolve_scenario(form_scenario(args.config, given))
+    overrides = parse_single(args.sets)
+    study = build_study(config, args.duration, overrides, args.positions, args.span, seeds=args.seeds)
+    ResultsStore(args.output).check_manifest(config)
+    return config, study
+
+
+def _search(study: Study, args: argparse.Namespace, executor: Executor) -> tuple[PlacementSearch | None, str]:
+    """After the grid: the optimiser's search over its axes (--trials; 0: none), and a note when none ran."""
+    if args.trials == 0:
+        return None, "--trials 0"
+    rows = study.replicas.median_rows(ResultsStore(args.output))
+    try:
+        search = placement_search(study, rows, args.output)
+    except ConfigError as exc:
+        print(f"{COMMAND}: no optimisation: {exc}", file=sys.stderr)
+        return None, str(exc)
+    run_placement_search(search, executor, args.trials, progress=not args.no_progress)
+    return search, ""
 
 
 if __name__ == "__main__":

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 from bracing_analysis.ratios import ratio
 from bracing_core.numbers import cell, markdown_table, number
-from bracing_experiments.optimize import changes
+from bracing_experiments.optimize_report import changes
 from bracing_experiments.reporting import is_ok as _ok
 
 if TYPE_CHECKING:

@@ -1,11 +1,10 @@
-"""The paper study's report (bracing-study paper): its three sections, their tables and figures, from
-the runs' rows."""
+"""The paper study's report (bracing-study paper): its three sections and their tables, from the runs'
+rows (the optimum's section: study_optimum; the figures: study_figures)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -17,15 +16,23 @@ from bracing_experiments.reporting import braced_forces as _braced_forces
 from bracing_experiments.reporting import is_ok as _ok
 from bracing_experiments.reporting import run_arrays as _arrays
 from bracing_experiments.reporting import warnings_section as _warnings_section
-from bracing_experiments.sweep import ResultsStore
-
-if TYPE_CHECKING:
-    pass
+from bracing_experiments.running import ResultsStore
+from bracing_experiments.study_figures import draw_bracing, draw_gains, draw_placement
 from bracing_experiments.study_optimum import _search_lines
 from bracing_experiments.study_runs import holds_text, window_text
 from bracing_experiments.study_specs import ENERGY, HAND_MAX, HAND_RMS, REPORT, PlacementSearch, Study
 
+
 # -- the report ------------------------------------------------------------------------------------
+def _columns(header: str) -> list[str]:
+    """A table's columns, written as its header row reads (``a | b | c``)."""
+    return header.split(" | ")
+
+
+_RATIO_COLUMNS = _columns(
+    "input | gravity comp. | energy braced / free | hand RMS braced / free | energy braced / passive | "
+    "hand RMS braced / passive | hottest motor, braced"
+)
 _Lookup = dict[tuple[Any, str, bool], dict[str, Any] | None]
 """(bracing: True | False | "passive", input mode, gravity compensation) -> that run's row."""
 
@@ -99,16 +106,10 @@ def _bracing_ratios(lookup: _Lookup) -> tuple[list[list[Any]], list[str]]:
 
 
 def _bracing_section(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any]]) -> list[str]:
-    header = [
-        "bracing",
-        "input",
-        "gravity comp.",
-        "hand RMS [m]",
-        "hand max [m]",
-        "energy [J]",
-        "copper loss [J]",
-        "hottest motor [degC]",
-    ]
+    header = _columns(
+        "bracing | input | gravity comp. | hand RMS [m] | hand max [m] | energy [J] | copper loss [J] | "
+        "hottest motor [degC]"
+    )
     table, lookup = _bracing_table(study, rows)
     ratios, findings = _bracing_ratios(lookup)
     lines = [
@@ -121,18 +122,7 @@ def _bracing_section(study: Study, store: ResultsStore, rows: dict[str, dict[str
         "",
         markdown_table(header, table),
         "",
-        markdown_table(
-            [
-                "input",
-                "gravity comp.",
-                "energy braced / free",
-                "hand RMS braced / free",
-                "energy braced / passive",
-                "hand RMS braced / passive",
-                "hottest motor, braced",
-            ],
-            ratios,
-        ),
+        markdown_table(_RATIO_COLUMNS, ratios),
         "",
         *[f"- {line}" for line in findings],
         *_bracing_over_seeds(study, store),
@@ -140,7 +130,7 @@ def _bracing_section(study: Study, store: ResultsStore, rows: dict[str, dict[str
         "![hand error and energy over time, braced, passive and free](bracing.png)",
         "",
     ]
-    _draw_bracing(study, store, rows)
+    draw_bracing(study, store, rows)
     return lines
 
 
@@ -173,54 +163,10 @@ def _bracing_over_seeds(study: Study, store: ResultsStore) -> list[str]:
     return [f"- Seed by seed, {statement} {holds_text(cases, len(seeds))}." for statement, cases in held.items()]
 
 
-def _draw_bracing(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any]]) -> None:
-    from matplotlib.figure import Figure  # imported where used: matplotlib ~460 ms (python -X importtime)
-
-    fig = Figure(figsize=(11, 4.2), layout="constrained")
-    fig.suptitle(f"{study.scenario}: braced, passive and free")
-    error_ax, energy_ax = fig.subplots(1, 2)
-    colours = {
-        ("voltage", False): "tab:blue",
-        ("voltage", True): "tab:cyan",
-        ("torque", False): "tab:red",
-        ("torque", True): "tab:orange",
-    }
-    runs = [(spec, "braced" if spec.varied["bracing"] else "free") for spec in study.bracing]
-    runs += [(spec, "passive") for spec in study.passive]
-    for spec, kind in runs:
-        if not _ok(rows.get(spec.run_id)):
-            continue
-        data = _arrays(store, spec.run_id)
-        if data is None:
-            continue
-        v = spec.varied
-        gravity = "g comp." if v["gravity_compensation"] else "no g comp."
-        label = f"{kind}, {v['input_mode']}, {gravity}"
-        style = dict(
-            color=colours[(v["input_mode"], v["gravity_compensation"])],
-            ls={"braced": "-", "free": "--", "passive": ":"}[kind],
-        )
-        error = np.linalg.norm(data["hand_desired"] - data["hand_actual"], axis=1)
-        error_ax.plot(data["time"], error, label=label, lw=1.2, **style)
-        energy_ax.plot(data["time"], data["energy_consumed"], label=label, lw=1.2, **style)
-    error_ax.set(title="hand error |r_hd - r_h|", xlabel="time [s]", ylabel="[m]", yscale="log")
-    energy_ax.set(title="energy consumed (torque input: mechanical)", xlabel="time [s]", ylabel="[J]", yscale="log")
-    for ax in (error_ax, energy_ax):
-        ax.grid(True, alpha=0.4)
-    energy_ax.legend(fontsize=6, loc="lower right", ncol=2)
-    fig.savefig(store.output / "bracing.png", dpi=110)
-
-
 def _gains_section(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any]]) -> list[str]:
-    header = [
-        "input",
-        "gain scale",
-        "force max err [N]",
-        "force RMS err [N]",
-        "hand RMS [m]",
-        "hand max [m]",
-        "brace RMS [m]",
-    ]
+    header = _columns(
+        "input | gain scale | force max err [N] | force RMS err [N] | hand RMS [m] | hand max [m] | brace RMS [m]"
+    )
     table = []
     worst: dict[str, float] = {}
     for spec in study.gains:
@@ -269,7 +215,7 @@ def _gains_section(study: Study, store: ResultsStore, rows: dict[str, dict[str, 
         "![force error against position errors as the gains drop](gains.png)",
         "",
     ]
-    _draw_gains(study, store, rows)
+    draw_gains(study, store, rows)
     return lines
 
 
@@ -287,55 +233,6 @@ def _voltage_force_errors(study: Study, store: ResultsStore, rows: dict[str, dic
         early = max(early, float(np.max(error[~after], initial=0.0)))
         late = max(late, float(np.max(error[after], initial=0.0)))
     return early, late
-
-
-def _draw_gains(study: Study, store: ResultsStore, rows: dict[str, dict[str, Any]]) -> None:
-    from matplotlib.figure import Figure  # imported where used: matplotlib ~460 ms (python -X importtime)
-
-    fig = Figure(figsize=(14, 4.2), layout="constrained")
-    fig.suptitle(f"{study.scenario}: gains scaled together")
-    force_ax, position_ax, series_ax = fig.subplots(1, 3)
-    colours = {"torque": "tab:red", "voltage": "tab:blue"}
-    for mode in ("torque", "voltage"):
-        points = [
-            (s.varied["gain_scale"], rows[s.run_id])
-            for s in study.gains
-            if s.varied["input_mode"] == mode and _ok(rows.get(s.run_id))
-        ]
-        if not points:
-            continue
-        scales = [p[0] for p in points]
-        force = [max(float(p[1].get(FORCE_MAX_ERROR_KEY) or 0.0), 1e-16) for p in points]
-        force_ax.plot(scales, force, "o-", color=colours[mode], label=f"{mode}: max |f_n - f_nd|")
-        for key, marker, name in (("hand_rms_error_m", "o-", "hand RMS"), ("brace_rms_error_m", "s--", "brace RMS")):
-            position_ax.plot(
-                scales, [p[1].get(key) for p in points], marker, color=colours[mode], label=f"{mode}: {name}"
-            )
-    for spec in study.gains:
-        if spec.varied["input_mode"] != "voltage" or not _ok(rows.get(spec.run_id)):
-            continue
-        data = _arrays(store, spec.run_id)
-        if data is not None and data["desired_normal_force"].size:
-            series_ax.plot(
-                data["time"], _braced_forces(data)[:, 0], lw=1.0, label=f"voltage, x{spec.varied['gain_scale']:g}"
-            )
-            desired = float(data["desired_normal_force"][0])
-    if series_ax.lines:
-        series_ax.axhline(desired, color="tab:red", ls="--", lw=1.0, label="f_nd (torque input: every run)")
-    force_ax.axhline(np.finfo(float).eps * 10, color="grey", ls=":", lw=1.0)
-    force_ax.set(
-        title="force error (torque input: machine precision)",
-        xlabel="gain scale",
-        ylabel="[N]",
-        xscale="log",
-        yscale="log",
-    )
-    position_ax.set(title="position errors", xlabel="gain scale", ylabel="[m]", xscale="log")
-    series_ax.set(title="normal force, voltage input" + study.paper(" (Fig. 16)"), xlabel="time [s]", ylabel="f_n [N]")
-    for ax in (force_ax, position_ax, series_ax):
-        ax.grid(True, alpha=0.4)
-        ax.legend(fontsize=7)
-    fig.savefig(store.output / "gains.png", dpi=110)
 
 
 def _placement_section(
@@ -381,67 +278,8 @@ def _placement_section(
     if search is not None and optimum is not None and search.found is not None and search.found.best is not None:
         params = search.found.best.params
         point = (params[search.target] if search.target else study.origin, params[search.force])
-    _draw_placement(study, store, grids, point)
+    draw_placement(study, store, grids, point)
     return lines
-
-
-def _grid_position(value: float, ticks: Sequence[float]) -> float:
-    """``value`` on an image axis whose ticks sit at 0, 1, ...: piecewise linear between them,
-    extended past the ends by the end intervals (an optimum outside the grid lands outside it)."""
-    if len(ticks) < 2:
-        return 0.0
-    k = int(np.clip(np.searchsorted(ticks, value) - 1, 0, len(ticks) - 2))
-    return k + (value - ticks[k]) / (ticks[k + 1] - ticks[k])
-
-
-def _draw_placement(
-    study: Study, store: ResultsStore, grids: dict[str, np.ndarray], optimum: tuple[float, float] | None
-) -> None:
-    from matplotlib.figure import Figure  # imported where used: matplotlib ~460 ms (python -X importtime)
-
-    fig = Figure(figsize=(11, 4.0), layout="constrained")
-    fig.suptitle(f"{study.scenario}: brace placement and force")
-    axes = fig.subplots(1, 2)
-    for ax, (key, title) in zip(axes, ((ENERGY, "energy consumed [J]"), (HAND_RMS, "hand RMS error [m]")), strict=True):
-        grid = grids[key]
-        image = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis")
-        fig.colorbar(image, ax=ax)
-        ax.set_xticks(range(len(study.targets)), [f"{t:.3f}" for t in study.targets])
-        ax.set_yticks(range(len(study.forces)), [f"{f:g}" for f in study.forces])
-        ax.set(title=title, xlabel=f"brace target {study.axis} [m]", ylabel="desired normal force [N]")
-        for i in range(grid.shape[0]):
-            for j in range(grid.shape[1]):
-                text = f"{grid[i, j]:.3g}" if np.isfinite(grid[i, j]) else "failed"
-                ax.text(j, i, text, ha="center", va="center", fontsize=7, color="white")
-        if np.isfinite(grid).any():
-            i, j = (int(x) for x in np.unravel_index(np.nanargmin(grid), grid.shape))
-            ax.plot(
-                j,
-                i,
-                marker="*",
-                markersize=22,
-                markerfacecolor="none",
-                markeredgecolor="red",
-                markeredgewidth=2,
-                ls="none",
-                label="grid's least",
-            )
-        if optimum is not None:
-            x, y = _grid_position(optimum[0], study.targets), _grid_position(optimum[1], study.forces)
-            ax.plot(
-                x,
-                y,
-                marker="X",
-                markersize=13,
-                color="magenta",
-                markeredgecolor="white",
-                ls="none",
-                label=f"optimum ({study.axis} {optimum[0]:.3f} m, {optimum[1]:.3g} N)",
-            )
-            ax.set_xlim(min(-0.5, x - 0.4), max(len(study.targets) - 0.5, x + 0.4))
-            ax.set_ylim(min(-0.5, y - 0.4), max(len(study.forces) - 0.5, y + 0.4))
-        ax.legend(fontsize=7, loc="lower left", framealpha=0.8, markerscale=0.6)
-    fig.savefig(store.output / "placement.png", dpi=110)
 
 
 def write_report(

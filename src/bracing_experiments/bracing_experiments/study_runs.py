@@ -22,7 +22,7 @@ import numpy as np
 from bracing_analysis.summary import HAND_ERROR_T_MIN_S, WINDOWED_KEYS
 from bracing_core.params import ConfigError
 from bracing_experiments.experiment import STATUS_OK, RunSpec
-from bracing_experiments.sweep import ResultsStore, write_tables
+from bracing_experiments.running import ResultsStore, write_tables
 
 DEFAULT_SCENARIO = "paper"
 RUNS_CSV, RUNS_PARQUET = "runs.csv", "runs.parquet"

@@ -21,10 +21,11 @@ from bracing_core.rollout import build_scenario
 from bracing_core.variants import PASSIVE
 from bracing_experiments.executors import Executor
 from bracing_experiments.experiment import RunSpec
-from bracing_experiments.optimize import Optimum, Problem, build_problem, optimize
+from bracing_experiments.optimize_search import Optimum, optimize
+from bracing_experiments.optimize_specs import Problem, build_problem
 from bracing_experiments.reporting import is_ok as _ok
+from bracing_experiments.specs import make_spec
 from bracing_experiments.study_runs import Replicas, seed_label, seed_list
-from bracing_experiments.sweep import make_spec
 
 if TYPE_CHECKING:
     pass
