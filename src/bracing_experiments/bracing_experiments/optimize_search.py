@@ -22,9 +22,9 @@ from bracing_core.params import ConfigError
 from bracing_core.variants import BRACED, FREE_SPACE, PASSIVE
 from bracing_experiments.executors import Executor
 from bracing_experiments.experiment import STATUS_OK, RunSpec, execute_run
-from bracing_experiments.optimize_record import record_optimisation, search_facts
+from bracing_experiments.optimize_record import record_optimisation
 from bracing_experiments.optimize_report import REPORT, write_outputs
-from bracing_experiments.optimize_specs import STATUS_FAILED, STATUS_INFEASIBLE, Problem, Vary
+from bracing_experiments.optimize_specs import STATUS_FAILED, STATUS_INFEASIBLE, STATUS_INTERRUPTED, Problem, Vary
 from bracing_experiments.specs import make_spec
 
 if TYPE_CHECKING:
@@ -291,3 +291,25 @@ def optimize(
     record_optimisation(output / REPORT, problem.config, search_facts(problem, study, best, seed, result, executor))
     total = sum(1 for t in study.get_trials(deepcopy=False) if counted(t))
     return Optimum(best, result, refs, total)
+
+
+def search_facts(
+    problem: Problem,
+    study: optuna.Study,
+    best: optuna.trial.FrozenTrial | None,
+    seed: int | None,
+    result: SearchResult,
+    executor: Executor,
+) -> dict[str, Any]:
+    """The search in one row of the recorded file: trials by status, the sampler, its seed, the best trial, and
+    this invocation's trials, wall time [s] and executor."""
+    statuses = [t.user_attrs.get("status", STATUS_INTERRUPTED) for t in study.get_trials(deepcopy=False)]
+    return {
+        "trials": len(statuses),
+        "feasible": statuses.count(STATUS_OK),
+        STATUS_INFEASIBLE: statuses.count(STATUS_INFEASIBLE),
+        STATUS_FAILED: statuses.count(STATUS_FAILED),
+        "sampler": f"{'NSGA-II' if len(problem.objectives) > 1 else 'TPE'} (Optuna), seed {seed}",
+        "best trial": "none feasible" if best is None else best.number,
+        "this invocation": f"{result.ran} trials in {result.wall_time_s:.1f} s on {executor.description}",
+    }
