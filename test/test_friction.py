@@ -141,8 +141,11 @@ def test_a_step_started_from_the_last_steps_end_evaluation_is_the_freshly_evalua
         for _ in range(400):
             if fresh:
                 engine.set_state(engine.state)
-            _, answer = engine.step(rng.normal(0.0, 3.0, sim.n))
-            rows.append(np.concatenate([engine.state, answer.ddq, answer.di, answer.force, answer.friction]))
+            answer = engine.step(rng.normal(0.0, 3.0, sim.n)).answer
+            assert answer is not None
+            state = engine.state
+            blocks = [state.position, state.velocity, state.current, state.temperature, state.energy]
+            rows.append(np.concatenate([*blocks, answer.ddq, answer.di, answer.force, answer.friction]))
         assert {event.kind.name for event in engine.events_since(0)} == {"stick", "slip"}
         runs.append(np.array(rows))
     assert np.array_equal(runs[0], runs[1])

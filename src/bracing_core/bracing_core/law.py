@@ -102,32 +102,33 @@ class DecoupledController:
         braces = [
             engine.BracedContact(
                 engine_contact(contact),
-                c.desired_normal_force,
+                float(desired),
                 task(c.frame, c.brace_axes, c.kp, c.kd, c.trajectory, c.ki),
                 c.feedback_kp,
                 c.feedback_ki,
             )
-            for contact, c in zip(self.contact_set.contacts, contacts, strict=True)
+            for contact, c, desired in zip(self.contact_set.contacts, contacts, self.desired_normal_force, strict=True)
         ]
-        self.engine = engine.Law(
-            engine_robot(robot),
-            engine_drive(robot, self.plant.motors, self.mode),
-            self.plant.to_model_order(config.voltage_gain),
-            task(hand.frame, hand.axes, hand.kp, hand.kd, hand.trajectory, hand.ki),
-            braces,
-            config.gravity_compensation,
-            config.damping_lambda,
-            config.null_space == "dynamically_consistent",
-            float(self.contact_set.slip_epsilon),
-            config.thermal_compensation,
-            self.plant.command_limit,
-            config.back_emf_compensation,
-            self.plant.to_model_order(config.posture_kp),
-            self.plant.to_model_order(config.posture_kd),
-            self.plant.to_model_order(config.posture_rest) if config.posture_rest else np.zeros(0),
-            config.gains == "acceleration",
-            orientation_task(config.orientation),
+        self.spec = engine.LawSpec(
+            robot=engine_robot(robot),
+            drive=engine_drive(robot, self.plant.motors, self.mode),
+            voltage_gain=self.plant.to_model_order(config.voltage_gain),
+            hand=task(hand.frame, hand.axes, hand.kp, hand.kd, hand.trajectory, hand.ki),
+            braces=braces,
+            gravity_compensation=config.gravity_compensation,
+            damping_lambda=config.damping_lambda,
+            dynamically_consistent=config.null_space == "dynamically_consistent",
+            slip_epsilon=float(self.contact_set.slip_epsilon),
+            thermal_compensation=config.thermal_compensation,
+            command_limit=self.plant.command_limit,
+            back_emf_compensation=config.back_emf_compensation,
+            posture_kp=self.plant.to_model_order(config.posture_kp),
+            posture_kd=self.plant.to_model_order(config.posture_kd),
+            posture_rest=self.plant.to_model_order(config.posture_rest) if config.posture_rest else np.zeros(0),
+            acceleration_gains=config.gains == "acceleration",
+            orientation=orientation_task(config.orientation),
         )
+        self.engine = engine.Law(self.spec)
 
     def retune(self, config: ControllerConfig) -> None:
         """Take the tunable values of ``config`` (``schema`` ``tunable``: task gains, integral gains included,

@@ -22,8 +22,6 @@ import bracing_engine as engine
 from bracing_core.dynamics import ConstrainedDynamics, Derivative, derivative_of
 from bracing_core.types import Vector
 
-# The state vector is [q, dq, i, T] (STATE_BLOCKS blocks of n) and then the energy integrals, in this order.
-STATE_BLOCKS: int = engine.STATE_BLOCKS
 ENERGY_KEYS = tuple(slot.name for slot in engine.EnergySlot)
 WINDING_TEMPERATURE_LIMIT: float = engine.WINDING_TEMPERATURE_LIMIT  # [degC] (copper melts at 1085 degC)
 
@@ -85,7 +83,7 @@ class ContactEvent:
 class Checkpoint:
     """A copy of the simulator's state (see :meth:`Simulator.checkpoint`)."""
 
-    state: np.ndarray  # q, dq, i, T and the energy integrals
+    state: engine.State  # q, dq, i, T and the energy integrals
     steps_taken: int
     active: np.ndarray  # which contacts hold a force
     events: int  # length of the event log
@@ -244,14 +242,15 @@ class Simulator:
             raise ValueError(f"command: expected {self.n} finite values, got {np.ravel(u).tolist()}")
         time = self.time
         try:
-            status, answer = self.engine.step(u)
+            result = self.engine.step(u)
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
         finally:
             if self.engine.event_count != len(self.events):
                 self._take_events()
-        self._raise_for(status, time)
-        return answer
+        self._raise_for(result.status, time)
+        assert result.answer is not None  # a step taken (ok) has its answer
+        return result.answer
 
     def rollout(
         self,

@@ -28,7 +28,7 @@ from bracing_core.link_penetration import LinkDepth, LinkPenetration
 from bracing_core.node_log import NodeLog
 from bracing_core.numbers import all_finite
 from bracing_core.simulator import DivergenceError, Energy, Simulator
-from bracing_core.types import Vector
+from bracing_core.types import Mask, Vector
 from bracing_core.watch import RunWatch
 
 PROGRESS_PERIOD_S = 0.5
@@ -164,7 +164,7 @@ class SimulatorStepper:
         self.watch = RunWatch(plant, config, sim)
         # robot.collision_geometry: every link's shapes against the surfaces at each state out
         self.links = LinkPenetration(plant, sim.dynamics.engine) if config.shared.collision_geometry else None
-        self._watched: list[tuple[float, Vector, Vector, Vector]] = []  # states not yet handed to the watch
+        self._watched: list[tuple[float, Mask, Vector, Vector]] = []  # states not yet handed to the watch
 
     # -- the run's start and end --------------------------------------------------------
     def start_lines(self) -> list[str]:
