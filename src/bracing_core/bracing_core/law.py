@@ -14,7 +14,7 @@ class describes the configured tasks, contacts and gains to it and wraps its ans
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
@@ -27,20 +27,6 @@ from bracing_core.dynamics import engine_contact, engine_drive, engine_robot
 from bracing_core.params import ConfigError
 from bracing_core.trajectory import TrajectoryConfig
 from bracing_core.types import Vector
-
-
-@dataclass
-class ControlOutput:
-    command: Vector  # v [V] or tau [N m], model joint order
-    torque: Vector  # tau of eq. 38 [N m]
-    hand_desired: Vector  # (3,) [m]
-    hand_actual: Vector
-    brace_desired: Vector  # (p, 3) [m]
-    brace_actual: Vector
-    desired_normal_force: Vector  # (p,) [N]
-    damped: bool  # True when B was near-singular and a damped inverse was used
-    force_command: Vector = field(default_factory=lambda: np.zeros(0))  # (p,) f_cmd [N]: f_nd without feedback
-    orientation_error: Vector = field(default_factory=lambda: np.zeros(3))  # the hand's log(R_d R^T) [rad], world
 
 
 def axis_gains(axes: tuple[int, ...], gains: tuple[float, ...]) -> Vector:
@@ -202,21 +188,10 @@ class DecoupledController:
         ]
         return tasks
 
-    def update(self, t: float, q: Vector, dq: Vector) -> ControlOutput:
-        """The command for the measured state (q, dq) at time t [s] (model joint order)."""
-        out = self.engine.update(float(t), np.asarray(q, dtype=float), np.asarray(dq, dtype=float))
-        return ControlOutput(
-            out.command,
-            out.torque,
-            out.hand_desired,
-            out.hand_actual,
-            out.brace_desired,
-            out.brace_actual,
-            self.desired_normal_force.copy(),
-            out.damped,
-            out.force_command,
-            out.orientation_error,
-        )
+    def update(self, t: float, q: Vector, dq: Vector) -> engine.LawOutput:
+        """The command for the measured state (q, dq) at time t [s] (model joint order); the desired normal
+        forces are ``desired_normal_force``'s."""
+        return self.engine.update(float(t), np.asarray(q, dtype=float), np.asarray(dq, dtype=float))
 
     @property
     def uses_force_feedback(self) -> bool:

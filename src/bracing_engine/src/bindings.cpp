@@ -504,8 +504,8 @@ void bind_law_spec(nb::module_& m) {
 // The control law.
 void bind_law(nb::module_& m) {
   nb::class_<LawOutput>(m, "LawOutput")
-      .def_ro("command", &LawOutput::command)
-      .def_ro("torque", &LawOutput::torque)
+      .def_rw("command", &LawOutput::command, "v [V] or tau [N m], model order (a drive's base command adds to it)")
+      .def_rw("torque", &LawOutput::torque, "tau of eq. 38 [N m]")
       .def_ro("hand_desired", &LawOutput::hand_desired)
       .def_ro("hand_actual", &LawOutput::hand_actual)
       .def_ro("brace_desired", &LawOutput::brace_desired, "b x 3")
