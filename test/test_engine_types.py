@@ -12,7 +12,7 @@ import bracing_engine._engine as compiled
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
-CALLS = '''
+CALLS = """
 import numpy as np
 import bracing_engine as engine
 
@@ -22,7 +22,7 @@ sensors = engine.Sensors(spec, 1)
 reveal_type(sensors.delay(np.zeros(1)))
 law = engine.Law(robot)  # a Robot is not a LawSpec
 engine.SensorSpec(0.001, [True])  # keyword only
-'''
+"""
 
 
 def test_the_build_installs_the_engines_stubs_beside_it_marked_typed() -> None:

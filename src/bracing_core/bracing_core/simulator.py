@@ -69,17 +69,6 @@ class Energy:
 
 
 @dataclass(frozen=True)
-class ContactEvent:
-    """A unilateral contact letting go (``release``) or landing (``touchdown``); a Coulomb contact
-    starting to stick (``stick``) or to slide (``slip``), located inside a step."""
-
-    time: float  # [s]
-    contact: str
-    kind: str  # release | touchdown | stick | slip
-    impact_loss: float = 0.0  # [J] lost: a touchdown's impact, the tangential impulse that makes a contact stick
-
-
-@dataclass(frozen=True)
 class Checkpoint:
     """A copy of the simulator's state (see :meth:`Simulator.checkpoint`)."""
 
@@ -129,7 +118,7 @@ class Simulator:
         self.substeps = int(substeps)
         self.n = n
         self.t0_ns = 0  # [ns] the stamp of the state before the first step
-        self.events: list[ContactEvent] = []
+        self.events: list[engine.ContactEvent] = []
         self.engine = engine.Simulator(  # the compiled integrator (public: a rollout steps it)
             dynamics.engine, self.step_size, self.substeps, q0, dq0, robot.lower_limits, robot.upper_limits
         )
@@ -328,9 +317,7 @@ class Simulator:
 
     def _take_events(self) -> None:
         """The engine's new release and touchdown events into ``events``."""
-        for event in self.engine.events_since(len(self.events)):
-            time = engine.stamp_seconds(self.t0_ns + event.step * self.step_ns) + event.offset
-            self.events.append(ContactEvent(time, self._names[event.contact], event.kind.name, event.energy_loss))
+        self.events += self.engine.events_since(len(self.events), self.t0_ns)
 
     # -- unilateral contacts ----------------------------------------------------------
     def set_active(self, active: np.ndarray) -> None:

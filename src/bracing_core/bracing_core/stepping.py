@@ -20,6 +20,7 @@ from typing import Protocol
 
 import numpy as np
 
+import bracing_engine as engine
 from bracing_core.checks import REAL_TIME_ACHIEVED
 from bracing_core.config import Plant, SimulatorConfig
 from bracing_core.drive import CurrentLoopDrive, DriveGains
@@ -332,10 +333,11 @@ class SimulatorStepper:
         """Log the contact events of the step just taken (not Coulomb friction's) and give them to the watch."""
         events = self.sim.events[self._events_logged :]
         for event in events:
-            extra = f", {event.impact_loss:.4g} J lost in the impact" if event.kind == "touchdown" else ""
-            if event.kind in ("stick", "slip"):  # Coulomb friction: frequent, and not news
+            kind = event.kind
+            extra = f", {event.energy_loss:.4g} J lost in the impact" if kind is engine.EventKind.touchdown else ""
+            if kind in (engine.EventKind.stick, engine.EventKind.slip):  # Coulomb friction: frequent, and not news
                 continue
-            self.log.info(f"contact {event.contact!r}: {event.kind} at t = {event.time:.6f} s{extra}")
+            self.log.info(f"contact {event.contact!r}: {kind.name} at t = {event.time:.6f} s{extra}")
         self._events_logged = len(self.sim.events)
         self.watch.events(events)
 

@@ -45,6 +45,27 @@ struct StepResult {
   std::optional<ModalAnswer> answer;  // moved in and out: the answer's arrays are copied once
 };
 
+// A contact event as Python reads it: when (the state's stamp as the controller reads it, plus the offset into
+// the step) and which contact, by name.
+struct TimedEvent {
+  double time;          // [s]
+  std::string contact;  // its name
+  EventKind kind;
+  double energy_loss;  // [J]
+};
+
+std::vector<TimedEvent> timed_events(const Simulator& s, std::size_t first, std::int64_t t0_ns) {
+  const auto& events = s.events();
+  const auto& contacts = s.dynamics().contacts();
+  std::vector<TimedEvent> out;
+  for (std::size_t k = std::min(first, events.size()); k < events.size(); ++k) {
+    const ContactEvent& e = events[k];
+    const double time = stamp_seconds(t0_ns + static_cast<std::int64_t>(e.step) * s.step_ns()) + e.offset;
+    out.push_back(TimedEvent{time, contacts[static_cast<std::size_t>(e.contact)].name, e.kind, e.energy_loss});
+  }
+  return out;
+}
+
 // The simulator's state by name (the engine keeps it packed: [q, dq, i, T, energies]).
 struct State {
   Vector position, velocity, current, temperature;
@@ -311,12 +332,20 @@ void bind_modes_and_events(nb::module_& m) {
       .def_ro("sticking", &ContactModes::sticking)
       .def_ro("slide", &ContactModes::slide, "p x 3: a sliding Coulomb contact's held slip direction d")
       .def_ro("pushing", &ContactModes::pushing, "p: the sign of f_n held over a step (+1 pushing)");
-  nb::class_<ContactEvent>(m, "ContactEvent")
-      .def_ro("step", &ContactEvent::step, "the step count when it happened")
-      .def_ro("offset", &ContactEvent::offset, "[s] into that step")
-      .def_ro("contact", &ContactEvent::contact, "index in the contact list")
-      .def_ro("kind", &ContactEvent::kind)
-      .def_ro("energy_loss", &ContactEvent::energy_loss, "[J]");
+  nb::class_<TimedEvent>(m, "ContactEvent",
+                         "a unilateral contact letting go (release) or landing (touchdown); a Coulomb contact "
+                         "starting to stick (stick) or to slide (slip), located inside a step")
+      .def(
+          "__init__",
+          [](TimedEvent* event, double time, std::string contact, EventKind kind, double energy_loss) {
+            new (event) TimedEvent{time, std::move(contact), kind, energy_loss};
+          },
+          nb::kw_only(), "time"_a, "contact"_a, "kind"_a, "energy_loss"_a = 0.0)
+      .def_ro("time", &TimedEvent::time, "[s]: its step's start as the controller reads the stamp, plus the offset")
+      .def_ro("contact", &TimedEvent::contact, "the contact's name")
+      .def_ro("kind", &TimedEvent::kind)
+      .def_ro("energy_loss", &TimedEvent::energy_loss,
+              "[J] lost: a touchdown's impact, the tangential impulse that makes a contact stick");
 }
 
 // The integrator's state and a step's outcome.
@@ -390,14 +419,8 @@ void bind_simulator(nb::module_& m) {
       .def_ro("failed_joint", &Simulator::failed_joint)
       .def_ro("failed_position", &Simulator::failed_position)
       .def_prop_ro("event_count", [](const Simulator& s) { return s.events().size(); })
-      .def(
-          "events_since",
-          [](const Simulator& s, std::size_t first) {
-            const auto& events = s.events();
-            return std::vector<ContactEvent>(events.begin() + static_cast<long>(std::min(first, events.size())),
-                                             events.end());
-          },
-          "first"_a, "the events from `first` on")
+      .def("events_since", &timed_events, "first"_a, "t0_ns"_a,
+           "the events from `first` on, timed from t0_ns [ns], the stamp of the state before the first step")
       .def("truncate_events", &Simulator::truncate_events, "count"_a);
 }
 
