@@ -129,14 +129,14 @@ def engine_surface(surface: Surface) -> engine.Surface:
 def engine_contact(contact: Contact) -> engine.Contact:
     """A contact as the engine takes it."""
     return engine.Contact(
-        contact.name,
-        contact.frame,
-        engine_surface(contact.surface),
-        contact.friction,
-        contact.unilateral,
-        contact.enforced,
-        contact.friction_model == "coulomb",
-        contact.point == "geometry",
+        name=contact.name,
+        frame=contact.frame,
+        surface=engine_surface(contact.surface),
+        friction=contact.friction,
+        unilateral=contact.unilateral,
+        enforced=contact.enforced,
+        coulomb=contact.friction_model == "coulomb",
+        geometry=contact.point == "geometry",
     )
 
 

@@ -48,7 +48,12 @@ def task(
     """A PID task as the engine takes it: gains per world axis, the configured axes, the path (``ki`` empty:
     no integral)."""
     return engine.Task(
-        frame, axis_gains(axes, kp), axis_gains(axes, kd), path.path(), list(axes), integral_gains(axes, ki)
+        frame=frame,
+        kp=axis_gains(axes, kp),
+        kd=axis_gains(axes, kd),
+        path=path.path(),
+        axes=list(axes),
+        ki=integral_gains(axes, ki),
     )
 
 
@@ -60,7 +65,11 @@ def orientation_task(config: OrientationConfig) -> engine.OrientationTask:
         target = pin.Quaternion(w, x, y, z).toRotationMatrix()
     axes = config.axes
     return engine.OrientationTask(
-        list(axes), axis_gains(axes, config.kp), axis_gains(axes, config.kd), integral_gains(axes, config.ki), target
+        axes=list(axes),
+        kp=axis_gains(axes, config.kp),
+        kd=axis_gains(axes, config.kd),
+        ki=integral_gains(axes, config.ki),
+        target=target,
     )
 
 
@@ -87,11 +96,11 @@ class DecoupledController:
         self.plant.frame_id(hand.frame, "hand.frame")  # a ConfigError naming the parameter
         braces = [
             engine.BracedContact(
-                engine_contact(contact),
-                float(desired),
-                task(c.frame, c.brace_axes, c.kp, c.kd, c.trajectory, c.ki),
-                c.feedback_kp,
-                c.feedback_ki,
+                contact=engine_contact(contact),
+                desired_normal_force=float(desired),
+                task=task(c.frame, c.brace_axes, c.kp, c.kd, c.trajectory, c.ki),
+                feedback_kp=c.feedback_kp,
+                feedback_ki=c.feedback_ki,
             )
             for contact, c, desired in zip(self.contact_set.contacts, contacts, self.desired_normal_force, strict=True)
         ]

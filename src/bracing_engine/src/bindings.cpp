@@ -178,7 +178,7 @@ void bind_surfaces(nb::module_& m) {
              bool unilateral, bool enforced, bool coulomb, bool geometry) {
             new (c) Contact{std::move(name), std::move(frame), surface, friction, unilateral, enforced, coulomb, geometry};
           },
-          "name"_a, "frame"_a, "surface"_a, "friction"_a, "unilateral"_a, "enforced"_a, "coulomb"_a,
+          nb::kw_only(), "name"_a, "frame"_a, "surface"_a, "friction"_a, "unilateral"_a, "enforced"_a, "coulomb"_a,
           "geometry"_a = false, "geometry: the contact point is where the frame's link's collision shapes are nearest "
                                 "the surface (point: geometry)");
 }
@@ -438,7 +438,8 @@ void bind_tasks(nb::module_& m) {
                             point.value_or(Vector3::Zero()), std::move(waypoints), segment_time,
                             start_ramp};
           },
-          "kind"_a, "center"_a, "radius"_a, "period"_a, "direction"_a, "phase"_a, "u"_a, "v"_a, "point"_a.none(),
+          nb::kw_only(), "kind"_a, "center"_a, "radius"_a, "period"_a, "direction"_a, "phase"_a, "u"_a, "v"_a,
+          "point"_a.none(),
           "waypoints"_a, "segment_time"_a, "start_ramp"_a = 0.0)
       .def(
           "sample",
@@ -455,7 +456,7 @@ void bind_tasks(nb::module_& m) {
          std::vector<int> axes, const Vector3& ki) {
         new (task) Task{std::move(frame), kp, kd, path, std::move(axes), ki};
       },
-      "frame"_a, "kp"_a, "kd"_a, "path"_a, "axes"_a, "ki"_a = Vector3(Vector3::Zero()),
+      nb::kw_only(), "frame"_a, "kp"_a, "kd"_a, "path"_a, "axes"_a, "ki"_a = Vector3(Vector3::Zero()),
       "gains per world axis (zero: an axis the task does not use); the world axes it uses; integral gains");
 
   nb::class_<OrientationTask>(m, "OrientationTask")
@@ -466,7 +467,8 @@ void bind_tasks(nb::module_& m) {
             new (task) OrientationTask{std::move(axes), kp, kd, ki, target.has_value(),
                                        target.value_or(Matrix3(Matrix3::Identity()))};
           },
-          "axes"_a = std::vector<int>(), "kp"_a = Vector3(Vector3::Zero()), "kd"_a = Vector3(Vector3::Zero()),
+          nb::kw_only(), "axes"_a = std::vector<int>(), "kp"_a = Vector3(Vector3::Zero()),
+          "kd"_a = Vector3(Vector3::Zero()),
           "ki"_a = Vector3(Vector3::Zero()), "target"_a.none() = nb::none(),
           "the hand frame's orientation held about world axes (gains per world axis); target R_d, None: the first "
           "measured orientation");
@@ -478,7 +480,8 @@ void bind_tasks(nb::module_& m) {
              double feedback_kp, double feedback_ki) {
             new (brace) BracedContact{contact, desired_normal_force, task, feedback_kp, feedback_ki};
           },
-          "contact"_a, "desired_normal_force"_a, "task"_a, "feedback_kp"_a = 0.0, "feedback_ki"_a = 0.0,
+          nb::kw_only(), "contact"_a, "desired_normal_force"_a, "task"_a, "feedback_kp"_a = 0.0,
+          "feedback_ki"_a = 0.0,
           "feedback: f_cmd = f_nd + kp (f_nd - f_meas) + ki * integral (f_nd - f_meas) dt (0 0: the paper's law)");
 }
 
