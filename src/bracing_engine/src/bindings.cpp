@@ -183,7 +183,7 @@ void bind_surfaces(nb::module_& m) {
                                 "the surface (point: geometry)");
 }
 
-// The robot and its drive.
+// The robot.
 void bind_robot(nb::module_& m) {
   nb::class_<Robot>(m, "Robot")
       .def(
@@ -216,7 +216,10 @@ void bind_robot(nb::module_& m) {
       .def_ro("right_wheel", &Robot::right_wheel)
       .def_ro("wheel_radius", &Robot::wheel_radius)
       .def_ro("collision_description", &Robot::collision_description);
+}
 
+// The joints' drive: motors in the loop (voltage) or direct drive (torque).
+void bind_drive(nb::module_& m) {
   nb::class_<Drive>(m, "Drive")
       .def(
           "__init__",
@@ -704,6 +707,7 @@ NB_MODULE(_engine, m) {
   bind_kinds(m);
   bind_surfaces(m);
   bind_robot(m);
+  bind_drive(m);
   bind_answer(m);
   bind_dynamics(m);
   bind_modes_and_events(m);
