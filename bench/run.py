@@ -149,10 +149,10 @@ def collision_share_of_step(steps: int = 2000, repeats: int = 5) -> dict[str, An
                 step(command)
             samples["frame"].append(1e6 * (time.perf_counter() - begin) / steps)
             return
-        measure, surfaces, state = sim.dynamics.engine.measure_links, watch.surfaces, sim.engine
+        measure, surfaces, engine = sim.dynamics.engine.measure_links, watch.surfaces, sim.engine
         for _ in range(steps):
             step(command)
-            measure(state.state[: sim.n], surfaces)
+            measure(engine.position, surfaces)
         samples["geometry"].append(1e6 * (time.perf_counter() - begin) / steps)
         q = sim.position
         begin = time.perf_counter()

@@ -133,7 +133,7 @@ def test_a_retune_is_checked_whole_and_applied_from_the_next_state() -> None:
     assert core.config.shared.braced_contacts[0].desired_normal_force != -1.0
     core.answer(0, Q0, np.zeros(4), no_reports, sent.append)
     assert core.retuned is None and core.config.shared.braced_contacts[0].desired_normal_force == -1.0
-    assert np.array_equal(sent[0].output.desired_normal_force, [-1.0])
+    assert np.array_equal(sent[0].desired_normal_force, [-1.0])
 
 
 def test_a_null_space_runaway_is_said_once_on_run_status(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -233,7 +233,7 @@ def test_unbraced_command_is_task_torque(gravity_compensation: bool, paper_param
         np.testing.assert_allclose(out.torque, expected, rtol=1e-12, atol=1e-9)
         np.testing.assert_allclose(out.command, np.array(gains) * expected, rtol=1e-12, atol=1e-9)
         np.testing.assert_allclose(out.hand_desired, desired, atol=1e-12)
-        assert not out.damped and out.desired_normal_force.shape == (0,)
+        assert not out.damped and controller.desired_normal_force.shape == (0,)
 
 
 # -- 5. the paper's claim: bracing lowers energy and hand error ----------------------------

@@ -275,7 +275,7 @@ def test_a_link_dropped_on_the_floor_comes_to_rest_on_it(tmp_path: Path) -> None
         watch.measure(sim.position, sim.time)
         postures.append(sim.position.copy())
     # touched down (kept-out links among them), at rest, none of the links' shapes deeper than 1 mm
-    assert {e.contact for e in sim.events if e.kind == "touchdown"} & set(names[1:])
+    assert {e.contact for e in sim.events if e.kind.name == "touchdown"} & set(names[1:])
     assert max(watch.deepest.values()) <= 1e-3
     # at rest: the posture moved less than 1 mrad over the last second (link4 lies along the floor, touching it on
     # a line that one contact point per link and surface stands for: the point alternates between its ends)

@@ -96,13 +96,13 @@ def test_a_command_latency_of_k_steps_applies_each_command_exactly_k_steps_late(
     then follows i = v / R (1 - exp(-R (t - k h) / L)) from t = k h on."""
     commands = [np.array([0.0, 0.0, -1.0 - 0.01 * m]) for m in range(60)]
     prompt = currents(stalled_point(point_urdf), commands, None)
-    sensors = engine.Sensors(3, STEP, [False] * 3, command_latency_steps=latency)
+    sensors = engine.Sensors(engine.SensorSpec(step=STEP, revolute=[False] * 3, command_latency_steps=latency), 3)
     late = currents(stalled_point(point_urdf), commands, sensors)
     assert np.all(late[: latency + 1] == 0.0)
     assert np.array_equal(late[latency:], prompt[: len(prompt) - latency])
 
     volts = -2.0
-    sensors = engine.Sensors(3, STEP, [False] * 3, command_latency_steps=latency)
+    sensors = engine.Sensors(engine.SensorSpec(step=STEP, revolute=[False] * 3, command_latency_steps=latency), 3)
     step_response = currents(stalled_point(point_urdf), [np.array([0.0, 0.0, volts])] * 80, sensors)
     t = np.arange(step_response.size) * STEP
     expected = np.where(
@@ -113,7 +113,7 @@ def test_a_command_latency_of_k_steps_applies_each_command_exactly_k_steps_late(
 
 def test_a_refused_step_is_taken_back_from_the_delay_line() -> None:
     """What the simulator node does when it refuses a step: the next answer takes the refused one's place."""
-    sensors = engine.Sensors(1, STEP, [True], command_latency_steps=2)
+    sensors = engine.Sensors(engine.SensorSpec(step=STEP, revolute=[True], command_latency_steps=2), 1)
     applied = [float(sensors.delay(np.array([v]))[0]) for v in (1.0, 2.0, 3.0)]
     sensors.take_back()  # 3.0's step refused: 1.0 goes back to the front
     applied += [float(sensors.delay(np.array([v]))[0]) for v in (4.0, 5.0, 6.0)]
@@ -173,7 +173,7 @@ def test_differentiated_velocity_is_the_first_order_filter_of_the_difference() -
     """A joint moving at a constant 2 rad/s read through a 20 Hz filter: the estimate rises as
     1 - (1 - a)^k with a = h w / (1 + h w), w = 2 pi 20 (backward Euler), from 0 at the first state."""
     cutoff, speed = 20.0, 2.0
-    sensors = engine.Sensors(1, STEP, [True], velocity_filter_hz=cutoff)
+    sensors = engine.Sensors(engine.SensorSpec(step=STEP, revolute=[True], velocity_filter_hz=cutoff), 1)
     w = 2.0 * math.pi * cutoff
     a = STEP * w / (1.0 + STEP * w)
     for k in range(200):
@@ -183,12 +183,14 @@ def test_differentiated_velocity_is_the_first_order_filter_of_the_difference() -
 
 def test_a_force_sensor_reads_the_force_plus_its_bias_along_the_normal_plus_noise() -> None:
     sigma, bias, samples = 0.5, 0.3, 20000
-    sensors = engine.Sensors(1, STEP, [True], seed=3, force_noise=sigma, force_bias=bias)
+    sensors = engine.Sensors(
+        engine.SensorSpec(step=STEP, revolute=[True], seed=3, force_noise=sigma, force_bias=bias), 1
+    )
     force, normal = np.array([1.0, -2.0, 10.0]), np.array([0.0, 0.6, 0.8])
     readings = np.array([sensors.force(force, normal) for _ in range(samples)])
     assert np.allclose(readings.mean(axis=0), force + bias * normal, atol=4 * sigma / math.sqrt(samples))
     assert np.allclose(readings.std(axis=0), sigma, rtol=0.03)
-    exact = engine.Sensors(1, STEP, [True])
+    exact = engine.Sensors(engine.SensorSpec(step=STEP, revolute=[True]), 1)
     assert np.array_equal(exact.force(force, normal), force) and exact.exact
 
 

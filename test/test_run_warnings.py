@@ -24,8 +24,8 @@ from ros_helpers import PAPER_YAML, pair_argv, run
 from bracing_analysis.bag import read_series
 from bracing_core import checks
 from bracing_core.rollout import build_scenario
-from bracing_core.simulator import ContactEvent
 from bracing_core.watch import RunWatch
+from bracing_engine import ContactEvent, EventKind
 from bracing_experiments.experiment import execute_run
 from bracing_experiments.running import row_warnings
 from bracing_experiments.sweep import build_specs
@@ -259,15 +259,20 @@ def test_a_bounce_is_neither_an_arrival_nor_a_let_go() -> None:
     sc = build_scenario(PAPER_YAML, shared={"contacts.elbow.unilateral": True, "contacts.elbow.offset": -0.004})
     assert sc.sim_config is not None and not sc.sim.active[0]
     watch = RunWatch(sc.plant, sc.sim_config, sc.sim)
-    watch.events([ContactEvent(0.0105, "elbow", "touchdown"), ContactEvent(0.0107, "elbow", "release")])
+    watch.events(
+        [
+            ContactEvent(time=0.0105, contact="elbow", kind=EventKind.touchdown),
+            ContactEvent(time=0.0107, contact="elbow", kind=EventKind.release),
+        ]
+    )
     times = np.arange(21) * 1e-3
     held = times > 0.0195
     assert watch.states(times[:11], held[:11, None], np.zeros((11, 1)), np.zeros((11, 1))) == []  # a bounce
-    watch.events([ContactEvent(0.0193, "elbow", "touchdown")])
+    watch.events([ContactEvent(time=0.0193, contact="elbow", kind=EventKind.touchdown)])
     (late,) = watch.states(times[11:], held[11:, None], np.zeros((10, 1)), np.zeros((10, 1)))
     assert late == checks.late_reach_warning("elbow", 0.0193)
     assert watch.finish() == []  # reached: no "never touched"
-    watch.events([ContactEvent(0.0204, "elbow", "release")])
+    watch.events([ContactEvent(time=0.0204, contact="elbow", kind=EventKind.release)])
     (gone,) = watch.states([0.021], [False], [0.0], [0.0])
     assert gone == checks.let_go_warning("elbow", 0.0204, checks.force_feedback_gains(0.17 / 0.6, 1e-3))
 

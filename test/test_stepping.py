@@ -88,7 +88,9 @@ def stepper(shared: dict[str, Any] | None = None, **sim: Any) -> tuple[Simulator
 def snapshot(core: SimulatorStepper) -> tuple[bytes, int, bytes, int]:
     """The simulator's whole state, bit for bit (state vector with the energies, steps, contacts, events)."""
     sim = core.sim
-    return sim.engine.state.tobytes(), sim.steps_taken, sim.active.tobytes(), len(sim.events)
+    state = sim.engine.state
+    blocks = (state.position, state.velocity, state.current, state.temperature, state.energy)
+    return np.concatenate(blocks).tobytes(), sim.steps_taken, sim.active.tobytes(), len(sim.events)
 
 
 def receiving(core: SimulatorStepper, clock: Clock, offers: list[tuple[int, np.ndarray]]) -> Any:

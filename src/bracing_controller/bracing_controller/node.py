@@ -226,7 +226,7 @@ class ControllerNode(Node):
         publish(
             self.state_pub,
             self.state_wire.encode(
-                stamp_ns, out.hand_desired, out.hand_actual, out.desired_normal_force, *brace, out.command,
+                stamp_ns, out.hand_desired, out.hand_actual, answer.desired_normal_force, *brace, out.command,
                 answer.compute_time,
             ),
         )  # fmt: skip

@@ -26,7 +26,7 @@ from bracing_core.checks import configuration_warnings, desired_force_warning, f
 from bracing_core.controller_config import ControllerConfig
 from bracing_core.dynamics import ConstrainedDynamics, reflected_terms
 from bracing_core.kinematics import WORLD_FRAME
-from bracing_core.law import ControlOutput, DecoupledController
+from bracing_core.law import DecoupledController
 from bracing_core.measurements import Measurements
 from bracing_core.message_limits import DEFAULT_LIMITS, MessageLimits, SizeError, quote_names
 from bracing_core.mobile_base import BaseDrive, CmdVelRefused, keep_contact_force
@@ -128,7 +128,8 @@ class Answer:
     """The law's answer to the state stamped ``stamp_ns`` (motor_command and controller_state)."""
 
     stamp_ns: int
-    output: ControlOutput
+    output: engine.LawOutput
+    desired_normal_force: Vector  # (b,) f_nd [N] the law answered with (a copy: a retune changes the law's)
     compute_time: float  # [s] wall, the law's update
 
 
@@ -299,7 +300,8 @@ class StateAnswerer:
             return
         self.drive_base(stamp_ns, q, dq, out)
         compute_time = self.timer() - start
-        outputs = (out.command, out.hand_desired, out.hand_actual, out.desired_normal_force)
+        desired_normal_force = self.law.desired_normal_force.copy()
+        outputs = (out.command, out.hand_desired, out.hand_actual, desired_normal_force)
         if not all_finite(*outputs, out.brace_desired, out.brace_actual):
             message = f"joint_states at t = {t:.6f} s ignored: the law's output is not finite"
             self.log.limited("error", "command", message)
@@ -307,7 +309,7 @@ class StateAnswerer:
         if out.damped:
             self.log.limited("warning", "damped", "B is near-singular: using a damped inverse")
         self.watch_null_space(out, dq, t)
-        send(Answer(stamp_ns, out, compute_time))
+        send(Answer(stamp_ns, out, desired_normal_force, compute_time))
         self.previous_ns = stamp_ns
 
     def follow_targets(self, t: float) -> None:
@@ -347,7 +349,7 @@ class StateAnswerer:
         for task, (position, velocity) in zip(tasks, carried, strict=True):
             engine.set_reference(task, position, velocity)
 
-    def drive_base(self, stamp_ns: int, q: Vector, dq: Vector, out: ControlOutput) -> None:
+    def drive_base(self, stamp_ns: int, q: Vector, dq: Vector, out: engine.LawOutput) -> None:
         """base_command cmd_vel: the base actuators' velocity loop added to the law's command on them, the arm
         taking up what it would lean on the braces (``keep_contact_force``)."""
         drive = self.base_drive
@@ -386,7 +388,7 @@ class StateAnswerer:
         reduced[:3, :3] += np.eye(3)  # the base's block: no motor, decoupled
         return np.linalg.solve(reduced, (normal @ motion).T).T
 
-    def watch_null_space(self, out: ControlOutput, dq: Vector, t: float) -> None:
+    def watch_null_space(self, out: engine.LawOutput, dq: Vector, t: float) -> None:
         """Every NULL_SPACE_CHECK_EVERY states, until said once: warn of joints running in the null space."""
         self.answers += 1
         if self.null_space_warned or self.answers % NULL_SPACE_CHECK_EVERY:

@@ -110,7 +110,7 @@ def never_reached_warning(name: str) -> str:
 
 
 NULL_SPACE_SPEED = 2.0
-"""[rad/s or m/s] joint speed that no task sees (``ControlOutput.null_space_speed``) above which, with the
+"""[rad/s or m/s] joint speed that no task sees (``DecoupledController.null_space_speed``) above which, with the
 hand on its path, the null space is moving on its own: the paper's B^+ leaves such joints undamped."""
 TASKS_SATISFIED_M = 0.01
 """[m] hand error below which the tasks count as satisfied for that warning."""

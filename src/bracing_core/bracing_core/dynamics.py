@@ -27,7 +27,7 @@ import bracing_engine as engine
 from bracing_core.contacts import Contact, ContactSet, ContactTerms, Cylinder, Plane, Sphere, Surface
 from bracing_core.model import RobotModel
 from bracing_core.motors import MotorParams
-from bracing_core.types import Vector
+from bracing_core.types import Mask, Vector
 
 
 class InputMode(str, Enum):  # noqa: UP042 (str() / format() of a StrEnum differ; kept as it was)
@@ -62,27 +62,30 @@ class Derivative:
     normal_force: Vector  # f_n (p,) [N], on the robot along +normal
     effort: Vector  # link-side motor torque tau [N m]
     contacts: ContactTerms
-    active: Vector | None = None  # (p,) bool: contacts holding a force; None = all
+    active: Mask | None = None  # (p,) contacts holding a force; None = all
     # f_t (p,) [N]: a Coulomb contact's |f_t| (sticking: what holds it, <= mu |f_n|; sliding: mu |f_n|),
     # a regularised contact's mu f_n (the paper's law: the sign of f_n)
     friction_force: Vector = field(default_factory=lambda: np.zeros(0))
     tangential_force: Vector = field(default_factory=lambda: np.zeros((0, 3)))  # (p, 3) friction on the robot [N]
-    sticking: Vector = field(default_factory=lambda: np.zeros(0, dtype=bool))  # (p,) Coulomb contacts that stick
+    sticking: Mask = field(default_factory=lambda: np.zeros(0, dtype=bool))  # (p,) Coulomb contacts that stick
     # a differential drive's rolling rows A v [m/s]: each wheel's forward slip, the left one's lateral (empty: none)
     rolling_velocity: Vector = field(default_factory=lambda: np.zeros(0))
 
 
 def engine_robot(robot: RobotModel) -> engine.Robot:
     """What the engine rebuilds ``robot``'s pinocchio model from."""
+    wheels = robot.wheels
     return engine.Robot(
-        str(robot.urdf_path),
-        robot.gravity,
-        list(robot.locked_joints),
-        list(robot.locked_positions),
-        robot.mass_scale,
-        robot.urdf_xml,
-        *((robot.wheels.left[0], robot.wheels.right[0], robot.wheels.radius) if robot.wheels else ("", "", 0.0)),
-        robot.collision_description,
+        urdf_path=str(robot.urdf_path),
+        gravity=robot.gravity,
+        locked_joints=list(robot.locked_joints),
+        locked_positions=list(robot.locked_positions),
+        mass_scale=robot.mass_scale,
+        urdf_xml=robot.urdf_xml,
+        left_wheel=wheels.left[0] if wheels else "",
+        right_wheel=wheels.right[0] if wheels else "",
+        wheel_radius=wheels.radius if wheels else 0.0,
+        collision_description=robot.collision_description,
     )
 
 
@@ -97,18 +100,18 @@ def engine_drive(robot: RobotModel, motors: MotorParams, mode: InputMode) -> eng
     voltage = mode is InputMode.VOLTAGE
     added_inertia, damping = reflected_terms(robot, motors, mode)
     return engine.Drive(
-        voltage,
-        added_inertia,
-        damping,
-        motors.reflected_constant,
-        motors.resistance,
-        motors.inductance,
-        motors.reflected_damping if voltage else np.zeros(robot.nv),
-        thermal_applies(motors, mode),
-        motors.thermal_resistance,
-        motors.heat_capacity,
-        motors.ambient_temperature,
-        motors.temperature_coefficient,
+        voltage=voltage,
+        added_inertia=added_inertia,
+        damping=damping,
+        torque_constant=motors.reflected_constant,
+        resistance=motors.resistance,
+        inductance=motors.inductance,
+        reflected_damping=motors.reflected_damping if voltage else np.zeros(robot.nv),
+        thermal=thermal_applies(motors, mode),
+        thermal_resistance=motors.thermal_resistance,
+        heat_capacity=motors.heat_capacity,
+        ambient=motors.ambient_temperature,
+        temperature_coefficient=motors.temperature_coefficient,
     )
 
 
@@ -126,14 +129,14 @@ def engine_surface(surface: Surface) -> engine.Surface:
 def engine_contact(contact: Contact) -> engine.Contact:
     """A contact as the engine takes it."""
     return engine.Contact(
-        contact.name,
-        contact.frame,
-        engine_surface(contact.surface),
-        contact.friction,
-        contact.unilateral,
-        contact.enforced,
-        contact.friction_model == "coulomb",
-        contact.point == "geometry",
+        name=contact.name,
+        frame=contact.frame,
+        surface=engine_surface(contact.surface),
+        friction=contact.friction,
+        unilateral=contact.unilateral,
+        enforced=contact.enforced,
+        coulomb=contact.friction_model == "coulomb",
+        geometry=contact.point == "geometry",
     )
 
 

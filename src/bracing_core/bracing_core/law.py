@@ -14,7 +14,7 @@ class describes the configured tasks, contacts and gains to it and wraps its ans
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
@@ -27,20 +27,6 @@ from bracing_core.dynamics import engine_contact, engine_drive, engine_robot
 from bracing_core.params import ConfigError
 from bracing_core.trajectory import TrajectoryConfig
 from bracing_core.types import Vector
-
-
-@dataclass
-class ControlOutput:
-    command: Vector  # v [V] or tau [N m], model joint order
-    torque: Vector  # tau of eq. 38 [N m]
-    hand_desired: Vector  # (3,) [m]
-    hand_actual: Vector
-    brace_desired: Vector  # (p, 3) [m]
-    brace_actual: Vector
-    desired_normal_force: Vector  # (p,) [N]
-    damped: bool  # True when B was near-singular and a damped inverse was used
-    force_command: Vector = field(default_factory=lambda: np.zeros(0))  # (p,) f_cmd [N]: f_nd without feedback
-    orientation_error: Vector = field(default_factory=lambda: np.zeros(3))  # the hand's log(R_d R^T) [rad], world
 
 
 def axis_gains(axes: tuple[int, ...], gains: tuple[float, ...]) -> Vector:
@@ -62,7 +48,12 @@ def task(
     """A PID task as the engine takes it: gains per world axis, the configured axes, the path (``ki`` empty:
     no integral)."""
     return engine.Task(
-        frame, axis_gains(axes, kp), axis_gains(axes, kd), path.path(), list(axes), integral_gains(axes, ki)
+        frame=frame,
+        kp=axis_gains(axes, kp),
+        kd=axis_gains(axes, kd),
+        path=path.path(),
+        axes=list(axes),
+        ki=integral_gains(axes, ki),
     )
 
 
@@ -74,7 +65,11 @@ def orientation_task(config: OrientationConfig) -> engine.OrientationTask:
         target = pin.Quaternion(w, x, y, z).toRotationMatrix()
     axes = config.axes
     return engine.OrientationTask(
-        list(axes), axis_gains(axes, config.kp), axis_gains(axes, config.kd), integral_gains(axes, config.ki), target
+        axes=list(axes),
+        kp=axis_gains(axes, config.kp),
+        kd=axis_gains(axes, config.kd),
+        ki=integral_gains(axes, config.ki),
+        target=target,
     )
 
 
@@ -101,33 +96,34 @@ class DecoupledController:
         self.plant.frame_id(hand.frame, "hand.frame")  # a ConfigError naming the parameter
         braces = [
             engine.BracedContact(
-                engine_contact(contact),
-                c.desired_normal_force,
-                task(c.frame, c.brace_axes, c.kp, c.kd, c.trajectory, c.ki),
-                c.feedback_kp,
-                c.feedback_ki,
+                contact=engine_contact(contact),
+                desired_normal_force=float(desired),
+                task=task(c.frame, c.brace_axes, c.kp, c.kd, c.trajectory, c.ki),
+                feedback_kp=c.feedback_kp,
+                feedback_ki=c.feedback_ki,
             )
-            for contact, c in zip(self.contact_set.contacts, contacts, strict=True)
+            for contact, c, desired in zip(self.contact_set.contacts, contacts, self.desired_normal_force, strict=True)
         ]
-        self.engine = engine.Law(
-            engine_robot(robot),
-            engine_drive(robot, self.plant.motors, self.mode),
-            self.plant.to_model_order(config.voltage_gain),
-            task(hand.frame, hand.axes, hand.kp, hand.kd, hand.trajectory, hand.ki),
-            braces,
-            config.gravity_compensation,
-            config.damping_lambda,
-            config.null_space == "dynamically_consistent",
-            float(self.contact_set.slip_epsilon),
-            config.thermal_compensation,
-            self.plant.command_limit,
-            config.back_emf_compensation,
-            self.plant.to_model_order(config.posture_kp),
-            self.plant.to_model_order(config.posture_kd),
-            self.plant.to_model_order(config.posture_rest) if config.posture_rest else np.zeros(0),
-            config.gains == "acceleration",
-            orientation_task(config.orientation),
+        self.spec = engine.LawSpec(
+            robot=engine_robot(robot),
+            drive=engine_drive(robot, self.plant.motors, self.mode),
+            voltage_gain=self.plant.to_model_order(config.voltage_gain),
+            hand=task(hand.frame, hand.axes, hand.kp, hand.kd, hand.trajectory, hand.ki),
+            braces=braces,
+            gravity_compensation=config.gravity_compensation,
+            damping_lambda=config.damping_lambda,
+            dynamically_consistent=config.null_space == "dynamically_consistent",
+            slip_epsilon=float(self.contact_set.slip_epsilon),
+            thermal_compensation=config.thermal_compensation,
+            command_limit=self.plant.command_limit,
+            back_emf_compensation=config.back_emf_compensation,
+            posture_kp=self.plant.to_model_order(config.posture_kp),
+            posture_kd=self.plant.to_model_order(config.posture_kd),
+            posture_rest=self.plant.to_model_order(config.posture_rest) if config.posture_rest else np.zeros(0),
+            acceleration_gains=config.gains == "acceleration",
+            orientation=orientation_task(config.orientation),
         )
+        self.engine = engine.Law(self.spec)
 
     def retune(self, config: ControllerConfig) -> None:
         """Take the tunable values of ``config`` (``schema`` ``tunable``: task gains, integral gains included,
@@ -201,21 +197,10 @@ class DecoupledController:
         ]
         return tasks
 
-    def update(self, t: float, q: Vector, dq: Vector) -> ControlOutput:
-        """The command for the measured state (q, dq) at time t [s] (model joint order)."""
-        out = self.engine.update(float(t), np.asarray(q, dtype=float), np.asarray(dq, dtype=float))
-        return ControlOutput(
-            out.command,
-            out.torque,
-            out.hand_desired,
-            out.hand_actual,
-            out.brace_desired,
-            out.brace_actual,
-            self.desired_normal_force.copy(),
-            out.damped,
-            out.force_command,
-            out.orientation_error,
-        )
+    def update(self, t: float, q: Vector, dq: Vector) -> engine.LawOutput:
+        """The command for the measured state (q, dq) at time t [s] (model joint order); the desired normal
+        forces are ``desired_normal_force``'s."""
+        return self.engine.update(float(t), np.asarray(q, dtype=float), np.asarray(dq, dtype=float))
 
     @property
     def uses_force_feedback(self) -> bool:

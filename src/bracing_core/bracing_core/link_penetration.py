@@ -118,9 +118,21 @@ def deepest_over_postures(
         urdf = Path(folder) / "robot.urdf"
         urdf.write_text(description, encoding="utf-8")
         zeros = np.zeros(len(joint_names))
-        drive = engine.Drive(False, zeros, zeros, zeros, zeros, zeros, zeros, False, zeros, zeros, 20.0, 0.0)
-        # by keyword: the shapes are collision_description's (urdf_xml and a drive's wheels come before it)
-        robot = engine.Robot(str(urdf), np.zeros(3), [], [], 1.0, collision_description=description)
+        drive = engine.Drive(
+            voltage=False,
+            added_inertia=zeros,
+            damping=zeros,
+            torque_constant=zeros,
+            resistance=zeros,
+            inductance=zeros,
+            reflected_damping=zeros,
+            thermal=False,
+            thermal_resistance=zeros,
+            heat_capacity=zeros,
+            ambient=20.0,
+            temperature_coefficient=0.0,
+        )
+        robot = engine.Robot(urdf_path=str(urdf), gravity=np.zeros(3), collision_description=description)
         dynamics = engine.Dynamics(robot, drive, [], 1e-4, 0.0)
     measured = [engine_surface(surface) for surface in surfaces]
     order = [list(joint_names).index(name) for name in dynamics.joint_names]

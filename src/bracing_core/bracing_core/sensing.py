@@ -69,10 +69,9 @@ class SensorConfig:
         """The engine's sensors for joints that are ``prismatic`` (not on the encoder's angular grid)."""
         import bracing_engine as engine
 
-        return engine.Sensors(
-            len(prismatic),
-            step,
-            [not p for p in prismatic],
+        spec = engine.SensorSpec(
+            step=step,
+            revolute=[not p for p in prismatic],
             seed=self.noise_seed,
             encoder_counts_per_rev=self.encoder_counts_per_rev,
             position_noise=self.position_noise_rad,
@@ -83,3 +82,4 @@ class SensorConfig:
             current_noise=self.current_noise_a,
             command_latency_steps=self.command_latency_steps,
         )
+        return engine.Sensors(spec, len(prismatic))

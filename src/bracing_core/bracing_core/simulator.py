@@ -22,8 +22,6 @@ import bracing_engine as engine
 from bracing_core.dynamics import ConstrainedDynamics, Derivative, derivative_of
 from bracing_core.types import Vector
 
-# The state vector is [q, dq, i, T] (STATE_BLOCKS blocks of n) and then the energy integrals, in this order.
-STATE_BLOCKS: int = engine.STATE_BLOCKS
 ENERGY_KEYS = tuple(slot.name for slot in engine.EnergySlot)
 WINDING_TEMPERATURE_LIMIT: float = engine.WINDING_TEMPERATURE_LIMIT  # [degC] (copper melts at 1085 degC)
 
@@ -71,21 +69,10 @@ class Energy:
 
 
 @dataclass(frozen=True)
-class ContactEvent:
-    """A unilateral contact letting go (``release``) or landing (``touchdown``); a Coulomb contact
-    starting to stick (``stick``) or to slide (``slip``), located inside a step."""
-
-    time: float  # [s]
-    contact: str
-    kind: str  # release | touchdown | stick | slip
-    impact_loss: float = 0.0  # [J] lost: a touchdown's impact, the tangential impulse that makes a contact stick
-
-
-@dataclass(frozen=True)
 class Checkpoint:
     """A copy of the simulator's state (see :meth:`Simulator.checkpoint`)."""
 
-    state: np.ndarray  # q, dq, i, T and the energy integrals
+    state: engine.State  # q, dq, i, T and the energy integrals
     steps_taken: int
     active: np.ndarray  # which contacts hold a force
     events: int  # length of the event log
@@ -131,7 +118,7 @@ class Simulator:
         self.substeps = int(substeps)
         self.n = n
         self.t0_ns = 0  # [ns] the stamp of the state before the first step
-        self.events: list[ContactEvent] = []
+        self.events: list[engine.ContactEvent] = []
         self.engine = engine.Simulator(  # the compiled integrator (public: a rollout steps it)
             dynamics.engine, self.step_size, self.substeps, q0, dq0, robot.lower_limits, robot.upper_limits
         )
@@ -244,14 +231,15 @@ class Simulator:
             raise ValueError(f"command: expected {self.n} finite values, got {np.ravel(u).tolist()}")
         time = self.time
         try:
-            status, answer = self.engine.step(u)
+            result = self.engine.step(u)
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
         finally:
             if self.engine.event_count != len(self.events):
                 self._take_events()
-        self._raise_for(status, time)
-        return answer
+        self._raise_for(result.status, time)
+        assert result.answer is not None  # a step taken (ok) has its answer
+        return result.answer
 
     def rollout(
         self,
@@ -329,9 +317,7 @@ class Simulator:
 
     def _take_events(self) -> None:
         """The engine's new release and touchdown events into ``events``."""
-        for event in self.engine.events_since(len(self.events)):
-            time = engine.stamp_seconds(self.t0_ns + event.step * self.step_ns) + event.offset
-            self.events.append(ContactEvent(time, self._names[event.contact], event.kind.name, event.energy_loss))
+        self.events += self.engine.events_since(len(self.events), self.t0_ns)
 
     # -- unilateral contacts ----------------------------------------------------------
     def set_active(self, active: np.ndarray) -> None:

@@ -22,6 +22,7 @@ from typing import Protocol
 
 import numpy as np
 
+import bracing_engine as engine
 from bracing_core.checks import REAL_TIME_ACHIEVED
 from bracing_core.config import Plant, SimulatorConfig
 from bracing_core.drive import CurrentLoopDrive, DriveGains
@@ -30,7 +31,7 @@ from bracing_core.link_penetration import LinkDepth, LinkPenetration
 from bracing_core.node_log import NodeLog
 from bracing_core.numbers import all_finite
 from bracing_core.simulator import DivergenceError, Energy, Simulator
-from bracing_core.types import Vector
+from bracing_core.types import Mask, Vector
 from bracing_core.watch import RunWatch
 
 PROGRESS_PERIOD_S = 0.5
@@ -174,7 +175,7 @@ class SimulatorStepper:
         self.watch = RunWatch(plant, config, sim)
         # robot.collision_geometry: every link's shapes against the surfaces at each state out
         self.links = LinkPenetration(plant, sim.dynamics.engine) if config.shared.collision_geometry else None
-        self._watched: list[tuple[float, Vector, Vector, Vector]] = []  # states not yet handed to the watch
+        self._watched: list[tuple[float, Mask, Vector, Vector]] = []  # states not yet handed to the watch
 
     # -- the run's start and end --------------------------------------------------------
     def start_lines(self) -> list[str]:
@@ -360,10 +361,11 @@ class SimulatorStepper:
         """Log the contact events of the step just taken (not Coulomb friction's) and give them to the watch."""
         events = self.sim.events[self._events_logged :]
         for event in events:
-            extra = f", {event.impact_loss:.4g} J lost in the impact" if event.kind == "touchdown" else ""
-            if event.kind in ("stick", "slip"):  # Coulomb friction: frequent, and not news
+            kind = event.kind
+            extra = f", {event.energy_loss:.4g} J lost in the impact" if kind is engine.EventKind.touchdown else ""
+            if kind in (engine.EventKind.stick, engine.EventKind.slip):  # Coulomb friction: frequent, and not news
                 continue
-            self.log.info(f"contact {event.contact!r}: {event.kind} at t = {event.time:.6f} s{extra}")
+            self.log.info(f"contact {event.contact!r}: {kind.name} at t = {event.time:.6f} s{extra}")
         self._events_logged = len(self.sim.events)
         self.watch.events(events)
 

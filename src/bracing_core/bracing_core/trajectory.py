@@ -55,18 +55,18 @@ class TrajectoryConfig:
         (minimum jerk): the reference starts where the point is, at rest."""
         u, v = self.plane
         return engine.Path(
-            engine.PathKind[self.kind],
-            np.asarray(self.center, dtype=float),
-            self.radius,
-            self.period,
-            self.direction,
-            self.phase,
-            u,
-            v,
-            None if self.point is None else np.asarray(self.point, dtype=float),
-            [np.asarray(w, dtype=float) for w in self.waypoints],
-            self.segment_time,
-            self.start_ramp,
+            kind=engine.PathKind[self.kind],
+            center=np.asarray(self.center, dtype=float),
+            radius=self.radius,
+            period=self.period,
+            direction=self.direction,
+            phase=self.phase,
+            u=u,
+            v=v,
+            point=None if self.point is None else np.asarray(self.point, dtype=float),
+            waypoints=[np.asarray(w, dtype=float) for w in self.waypoints],
+            segment_time=self.segment_time,
+            start_ramp=self.start_ramp,
         )
 
     def build(self, start: Sequence[float]) -> Trajectory:

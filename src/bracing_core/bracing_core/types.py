@@ -9,3 +9,4 @@ import numpy.typing as npt
 
 Vector = npt.NDArray[np.float64]
 Array = npt.NDArray[Any]
+Mask = npt.NDArray[np.bool_]  # per contact or joint: whether it holds (a flag array)

@@ -35,7 +35,8 @@ from bracing_core import checks
 
 if TYPE_CHECKING:  # the configuration's types only
     from bracing_core.config import Plant, SimulatorConfig
-    from bracing_core.simulator import ContactEvent, Simulator
+    from bracing_core.simulator import Simulator
+    from bracing_engine import ContactEvent
 
 PULL_SHARE = 0.05
 """A bilateral contact that pulls in more than this share of a run's states is warned about (a few
@@ -98,8 +99,9 @@ class RunWatch:
     def events(self, events: Sequence[ContactEvent]) -> None:
         """Contact events (releases and touchdowns give the warnings their times); before the states they lead to."""
         for event in events:
-            if event.kind in ("release", "touchdown"):
-                self._events.setdefault((event.contact, event.kind), []).append(event.time)
+            kind = event.kind.name  # by name: the engine stays unloaded until a simulator brings it
+            if kind in ("release", "touchdown"):
+                self._events.setdefault((event.contact, kind), []).append(event.time)
 
     def _event_time(self, contact: str, kind: str, t: float) -> float:
         """The time of ``contact``'s last ``kind`` event at or before ``t`` [s] (``t`` itself if none)."""

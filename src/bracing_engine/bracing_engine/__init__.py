@@ -2,16 +2,17 @@
 robot + motor-circuit model, ``Simulator`` integrates it (RK4, energy integrals, unilateral
 contacts), ``Law`` is the decoupled control law with its task ``Path``s, and ``rollout`` runs the
 closed loop (law + simulator) for many steps without coming back to Python; ``Sensors`` is what a
-real arm's controller measures and how late its commands land. Answers cross as structures with
-named fields (``Answer``, ``LawOutput``, ``Recording``, ``ContactEvent``, ``ContactModes``), kinds as
-enums (``StepStatus``, ``Refusal``, ``EventKind``, ``PathKind``, ``EnergySlot``). ``bracing_core``'s
+real arm's controller measures and how late its commands land. Specifications cross whole, by keyword
+(``Robot``, ``Drive``, ``LawSpec``, ``SensorSpec``); answers as structures with named fields (``Answer``,
+``StepResult``, ``State``, ``LawOutput``, ``Recording``, ``ContactEvent``, ``ContactModes``), kinds as
+enums (``StepStatus``, ``Refusal``, ``EventKind``, ``PathKind``, ``EnergySlot``). The build writes the
+module's type stubs (``_engine.pyi``, nanobind's stub generator): mypy checks every call into it. ``bracing_core``'s
 dynamics, simulator, law and trajectory modules are its readable Python face."""
 
 import pinocchio  # first: the engine links the libpinocchio this loads (one copy in the process)
 
 from bracing_engine._engine import (
     PINOCCHIO_VERSION,
-    STATE_BLOCKS,
     WINDING_TEMPERATURE_LIMIT,
     Answer,
     BracedContact,
@@ -24,6 +25,7 @@ from bracing_engine._engine import (
     EventKind,
     Law,
     LawOutput,
+    LawSpec,
     LinkMeasurement,
     OrientationTask,
     Path,
@@ -32,8 +34,11 @@ from bracing_engine._engine import (
     Refusal,
     Robot,
     Sensors,
+    SensorSpec,
     Simulator,
     SingularError,
+    State,
+    StepResult,
     StepStatus,
     Surface,
     Task,
@@ -48,7 +53,6 @@ if PINOCCHIO_VERSION != pinocchio.__version__:
     )
 
 __all__ = [
-    "STATE_BLOCKS",
     "WINDING_TEMPERATURE_LIMIT",
     "Answer",
     "BracedContact",
@@ -61,6 +65,7 @@ __all__ = [
     "EventKind",
     "Law",
     "LawOutput",
+    "LawSpec",
     "LinkMeasurement",
     "OrientationTask",
     "Path",
@@ -68,9 +73,12 @@ __all__ = [
     "Recording",
     "Refusal",
     "Robot",
+    "SensorSpec",
     "Sensors",
     "Simulator",
     "SingularError",
+    "State",
+    "StepResult",
     "StepStatus",
     "Surface",
     "Task",

@@ -12,6 +12,8 @@
 #include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
 
+#include <stdexcept>
+
 #include "bracing_engine/engine.hpp"
 #include "bracing_engine/law.hpp"
 #include "bracing_engine/sensors.hpp"
@@ -36,6 +38,56 @@ struct ModalAnswer : Answer {
       : Answer(answer), held(flags(modes.held)), sticking(flags(modes.sticking)) {}
   Flags held, sticking;  // per contact: held a normal force; of those, stuck (Coulomb)
 };
+
+// A step's outcome: its status and, taken (ok), the model's answer at its start.
+struct StepResult {
+  StepStatus status;
+  std::optional<ModalAnswer> answer;  // moved in and out: the answer's arrays are copied once
+};
+
+// A contact event as Python reads it: when (the state's stamp as the controller reads it, plus the offset into
+// the step) and which contact, by name.
+struct TimedEvent {
+  double time;          // [s]
+  std::string contact;  // its name
+  EventKind kind;
+  double energy_loss;  // [J]
+};
+
+std::vector<TimedEvent> timed_events(const Simulator& s, std::size_t first, std::int64_t t0_ns) {
+  const auto& events = s.events();
+  const auto& contacts = s.dynamics().contacts();
+  std::vector<TimedEvent> out;
+  for (std::size_t k = std::min(first, events.size()); k < events.size(); ++k) {
+    const ContactEvent& e = events[k];
+    const double time = stamp_seconds(t0_ns + static_cast<std::int64_t>(e.step) * s.step_ns()) + e.offset;
+    out.push_back(TimedEvent{time, contacts[static_cast<std::size_t>(e.contact)].name, e.kind, e.energy_loss});
+  }
+  return out;
+}
+
+// The simulator's state by name (the engine keeps it packed: [q, dq, i, T, energies]).
+struct State {
+  Vector position, velocity, current, temperature;
+  Vector energy;  // in EnergySlot order
+};
+
+State state_of(const Simulator& s) {
+  const Vector& y = s.state();
+  const auto n = s.nv();
+  return State{y.head(n), y.segment(n, n), y.segment(2 * n, n), y.segment(3 * n, n), y.tail(kEnergies)};
+}
+
+Vector packed(const Simulator& s, const State& state) {
+  const auto n = s.nv();
+  for (const Vector* block : {&state.position, &state.velocity, &state.current, &state.temperature})
+    if (block->size() != n) throw std::invalid_argument("State: each of position, velocity, current, temperature "
+                                                        "needs one value per joint");
+  if (state.energy.size() != kEnergies) throw std::invalid_argument("State: energy needs one value per EnergySlot");
+  Vector y(kStates * n + kEnergies);
+  y << state.position, state.velocity, state.current, state.temperature, state.energy;
+  return y;
+}
 
 // The modes with the contacts `held` holding a force, none sticking.
 ContactModes modes_of(const Mask& held) {
@@ -80,7 +132,6 @@ void bind_kinds(nb::module_& m) {
       .value("friction_loss", energy::friction_loss)
       .value("constraint_work", energy::constraint_work)
       .value("impact_loss", energy::impact_loss);
-  m.attr("STATE_BLOCKS") = kStates;  // the state is [q, dq, i, T] (blocks of n), then the energies
 }
 
 // Surfaces and contacts.
@@ -127,12 +178,12 @@ void bind_surfaces(nb::module_& m) {
              bool unilateral, bool enforced, bool coulomb, bool geometry) {
             new (c) Contact{std::move(name), std::move(frame), surface, friction, unilateral, enforced, coulomb, geometry};
           },
-          "name"_a, "frame"_a, "surface"_a, "friction"_a, "unilateral"_a, "enforced"_a, "coulomb"_a,
+          nb::kw_only(), "name"_a, "frame"_a, "surface"_a, "friction"_a, "unilateral"_a, "enforced"_a, "coulomb"_a,
           "geometry"_a = false, "geometry: the contact point is where the frame's link's collision shapes are nearest "
                                 "the surface (point: geometry)");
 }
 
-// The robot and its drive.
+// The robot.
 void bind_robot(nb::module_& m) {
   nb::class_<Robot>(m, "Robot")
       .def(
@@ -146,15 +197,29 @@ void bind_robot(nb::module_& m) {
                           std::move(left_wheel),       std::move(right_wheel),
                           wheel_radius,                std::move(collision_description)};
           },
-          "urdf_path"_a, "gravity"_a, "locked_joints"_a, "locked_positions"_a, "mass_scale"_a = 1.0,
+          nb::kw_only(), "urdf_path"_a, "gravity"_a, "locked_joints"_a = std::vector<std::string>(),
+          "locked_positions"_a = std::vector<double>(), "mass_scale"_a = 1.0,
           "urdf_xml"_a = "", "left_wheel"_a = "", "right_wheel"_a = "", "wheel_radius"_a = 0.0,
           "collision_description"_a = "",
           "mass_scale: every moving link's mass and rotational inertia times this (a plant's model error); "
           "urdf_xml: the URDF text to build from instead of the file's (empty: the file); left_wheel, right_wheel, "
           "wheel_radius [m]: a differential drive's wheel joints (empty: none), rolling without slipping; "
           "collision_description: the URDF text whose <collision> shapes are measured (meshes by absolute or "
-          "file:// paths), empty: none");
+          "file:// paths), empty: none")
+      .def_ro("urdf_path", &Robot::urdf_path)
+      .def_ro("gravity", &Robot::gravity)
+      .def_ro("locked_joints", &Robot::locked_joints)
+      .def_ro("locked_positions", &Robot::locked_positions)
+      .def_ro("mass_scale", &Robot::mass_scale)
+      .def_ro("urdf_xml", &Robot::urdf_xml)
+      .def_ro("left_wheel", &Robot::left_wheel)
+      .def_ro("right_wheel", &Robot::right_wheel)
+      .def_ro("wheel_radius", &Robot::wheel_radius)
+      .def_ro("collision_description", &Robot::collision_description);
+}
 
+// The joints' drive: motors in the loop (voltage) or direct drive (torque).
+void bind_drive(nb::module_& m) {
   nb::class_<Drive>(m, "Drive")
       .def(
           "__init__",
@@ -165,11 +230,24 @@ void bind_robot(nb::module_& m) {
                           resistance,       inductance,      reflected_damping, thermal,
                           thermal_resistance, heat_capacity, ambient,    temperature_coefficient};
           },
-          "voltage"_a, "added_inertia"_a, "damping"_a, "torque_constant"_a, "resistance"_a, "inductance"_a,
+          nb::kw_only(), "voltage"_a, "added_inertia"_a, "damping"_a, "torque_constant"_a, "resistance"_a,
+          "inductance"_a,
           "reflected_damping"_a, "thermal"_a, "thermal_resistance"_a, "heat_capacity"_a, "ambient"_a,
           "temperature_coefficient"_a,
           "resistance: R_20 at 20 degC; thermal: R(T) = R_20 (1 + alpha (T - 20)), C_th dT/dt = R(T) i^2 - (T - "
-          "ambient) / R_th");
+          "ambient) / R_th")
+      .def_ro("voltage", &Drive::voltage)
+      .def_ro("added_inertia", &Drive::added_inertia, "Mc - M (J_m, or zeros)")
+      .def_ro("damping", &Drive::damping, "Dc")
+      .def_ro("torque_constant", &Drive::torque_constant, "K_m [N m / A]")
+      .def_ro("resistance", &Drive::resistance, "R_20 [ohm], at 20 degC")
+      .def_ro("inductance", &Drive::inductance, "L [H]")
+      .def_ro("reflected_damping", &Drive::reflected_damping, "D_m")
+      .def_ro("thermal", &Drive::thermal)
+      .def_ro("thermal_resistance", &Drive::thermal_resistance, "R_th, winding to ambient [K/W]")
+      .def_ro("heat_capacity", &Drive::heat_capacity, "C_th [J/K]")
+      .def_ro("ambient", &Drive::ambient, "T_a [degC]")
+      .def_ro("temperature_coefficient", &Drive::temperature_coefficient, "alpha [1/K]");
 }
 
 // The model's answer (Dynamics.evaluate, Simulator.step), every array a view of one copy.
@@ -257,12 +335,40 @@ void bind_modes_and_events(nb::module_& m) {
       .def_ro("sticking", &ContactModes::sticking)
       .def_ro("slide", &ContactModes::slide, "p x 3: a sliding Coulomb contact's held slip direction d")
       .def_ro("pushing", &ContactModes::pushing, "p: the sign of f_n held over a step (+1 pushing)");
-  nb::class_<ContactEvent>(m, "ContactEvent")
-      .def_ro("step", &ContactEvent::step, "the step count when it happened")
-      .def_ro("offset", &ContactEvent::offset, "[s] into that step")
-      .def_ro("contact", &ContactEvent::contact, "index in the contact list")
-      .def_ro("kind", &ContactEvent::kind)
-      .def_ro("energy_loss", &ContactEvent::energy_loss, "[J]");
+  nb::class_<TimedEvent>(m, "ContactEvent",
+                         "a unilateral contact letting go (release) or landing (touchdown); a Coulomb contact "
+                         "starting to stick (stick) or to slide (slip), located inside a step")
+      .def(
+          "__init__",
+          [](TimedEvent* event, double time, std::string contact, EventKind kind, double energy_loss) {
+            new (event) TimedEvent{time, std::move(contact), kind, energy_loss};
+          },
+          nb::kw_only(), "time"_a, "contact"_a, "kind"_a, "energy_loss"_a = 0.0)
+      .def_ro("time", &TimedEvent::time, "[s]: its step's start as the controller reads the stamp, plus the offset")
+      .def_ro("contact", &TimedEvent::contact, "the contact's name")
+      .def_ro("kind", &TimedEvent::kind)
+      .def_ro("energy_loss", &TimedEvent::energy_loss,
+              "[J] lost: a touchdown's impact, the tangential impulse that makes a contact stick");
+}
+
+// The integrator's state and a step's outcome.
+void bind_state(nb::module_& m) {
+  nb::class_<State>(m, "State", "a simulator's state, each block a copy")
+      .def(
+          "__init__",
+          [](State* state, Vector position, Vector velocity, Vector current, Vector temperature, Vector energy) {
+            new (state) State{std::move(position), std::move(velocity), std::move(current), std::move(temperature),
+                              std::move(energy)};
+          },
+          nb::kw_only(), "position"_a, "velocity"_a, "current"_a, "temperature"_a, "energy"_a)
+      .def_ro("position", &State::position, "q [rad or m]")
+      .def_ro("velocity", &State::velocity, "dq [rad/s or m/s]")
+      .def_ro("current", &State::current, "i [A] (zeros in torque mode)")
+      .def_ro("temperature", &State::temperature, "the windings' T [degC]")
+      .def_ro("energy", &State::energy, "the energy integrals [J], in EnergySlot order");
+  nb::class_<StepResult>(m, "StepResult", "a step's outcome (Simulator.step)")
+      .def_ro("status", &StepResult::status)
+      .def_ro("answer", &StepResult::answer, "the model's answer at the step's start; None unless status is ok");
 }
 
 // The integrator.
@@ -274,14 +380,11 @@ void bind_simulator(nb::module_& m) {
       .def(
           "step",
           [](Simulator& s, const Vector& u) {
-            const StepStatus status = s.step(u);
-            // the answer moved into its Python object (an optional<ModalAnswer> would be copied once more)
-            nb::object answer = status == StepStatus::ok
-                                    ? nb::cast(ModalAnswer(s.report, s.report_modes()), nb::rv_policy::move)
-                                    : nb::none();
-            return nb::make_tuple(status, answer);
+            StepResult result{s.step(u), std::nullopt};
+            if (result.status == StepStatus::ok) result.answer.emplace(s.report, s.report_modes());
+            return result;
           },
-          "u"_a, "(status, the answer at the step's start; None unless ok: the state is then unchanged, "
+          "u"_a, "the step's status and the answer at its start (None unless ok: the state is then unchanged, "
           "failed_joint names a joint limit)")
       .def(
           "evaluate",
@@ -299,13 +402,14 @@ void bind_simulator(nb::module_& m) {
           },
           "speed_limit"_a, "residual_limit"_a,
           "(Refusal, the speed, temperature or largest held |C| it measured) of the step just taken")
-      .def_prop_ro("state", [](const Simulator& s) { return Vector(s.state()); }, "[q, dq, i, T, energies]")
+      .def_prop_ro("state", &state_of, "a copy of the state")
       .def_prop_ro("position", [](const Simulator& s) { return Vector(s.state().head(s.nv())); })
       .def_prop_ro("velocity", [](const Simulator& s) { return Vector(s.state().segment(s.nv(), s.nv())); })
       .def_prop_ro("current", [](const Simulator& s) { return Vector(s.state().segment(2 * s.nv(), s.nv())); })
       .def_prop_ro("temperature", [](const Simulator& s) { return Vector(s.state().segment(3 * s.nv(), s.nv())); })
       .def_prop_ro("energy", [](const Simulator& s) { return Vector(s.state().tail(kEnergies)); }, "in EnergySlot order")
-      .def("set_state", &Simulator::set_state, "y"_a)
+      .def(
+          "set_state", [](Simulator& s, const State& state) { s.set_state(packed(s, state)); }, "state"_a)
       .def_prop_ro("active", &Simulator::active)
       .def("set_active", &Simulator::set_active, "active"_a)
       .def_prop_ro("modes", [](const Simulator& s) { return s.modes(); })
@@ -318,14 +422,8 @@ void bind_simulator(nb::module_& m) {
       .def_ro("failed_joint", &Simulator::failed_joint)
       .def_ro("failed_position", &Simulator::failed_position)
       .def_prop_ro("event_count", [](const Simulator& s) { return s.events().size(); })
-      .def(
-          "events_since",
-          [](const Simulator& s, std::size_t first) {
-            const auto& events = s.events();
-            return std::vector<ContactEvent>(events.begin() + static_cast<long>(std::min(first, events.size())),
-                                             events.end());
-          },
-          "first"_a, "the events from `first` on")
+      .def("events_since", &timed_events, "first"_a, "t0_ns"_a,
+           "the events from `first` on, timed from t0_ns [ns], the stamp of the state before the first step")
       .def("truncate_events", &Simulator::truncate_events, "count"_a);
 }
 
@@ -343,7 +441,8 @@ void bind_tasks(nb::module_& m) {
                             point.value_or(Vector3::Zero()), std::move(waypoints), segment_time,
                             start_ramp};
           },
-          "kind"_a, "center"_a, "radius"_a, "period"_a, "direction"_a, "phase"_a, "u"_a, "v"_a, "point"_a.none(),
+          nb::kw_only(), "kind"_a, "center"_a, "radius"_a, "period"_a, "direction"_a, "phase"_a, "u"_a, "v"_a,
+          "point"_a.none(),
           "waypoints"_a, "segment_time"_a, "start_ramp"_a = 0.0)
       .def(
           "sample",
@@ -360,7 +459,7 @@ void bind_tasks(nb::module_& m) {
          std::vector<int> axes, const Vector3& ki) {
         new (task) Task{std::move(frame), kp, kd, path, std::move(axes), ki};
       },
-      "frame"_a, "kp"_a, "kd"_a, "path"_a, "axes"_a, "ki"_a = Vector3(Vector3::Zero()),
+      nb::kw_only(), "frame"_a, "kp"_a, "kd"_a, "path"_a, "axes"_a, "ki"_a = Vector3(Vector3::Zero()),
       "gains per world axis (zero: an axis the task does not use); the world axes it uses; integral gains");
 
   nb::class_<OrientationTask>(m, "OrientationTask")
@@ -371,7 +470,8 @@ void bind_tasks(nb::module_& m) {
             new (task) OrientationTask{std::move(axes), kp, kd, ki, target.has_value(),
                                        target.value_or(Matrix3(Matrix3::Identity()))};
           },
-          "axes"_a = std::vector<int>(), "kp"_a = Vector3(Vector3::Zero()), "kd"_a = Vector3(Vector3::Zero()),
+          nb::kw_only(), "axes"_a = std::vector<int>(), "kp"_a = Vector3(Vector3::Zero()),
+          "kd"_a = Vector3(Vector3::Zero()),
           "ki"_a = Vector3(Vector3::Zero()), "target"_a.none() = nb::none(),
           "the hand frame's orientation held about world axes (gains per world axis); target R_d, None: the first "
           "measured orientation");
@@ -383,15 +483,58 @@ void bind_tasks(nb::module_& m) {
              double feedback_kp, double feedback_ki) {
             new (brace) BracedContact{contact, desired_normal_force, task, feedback_kp, feedback_ki};
           },
-          "contact"_a, "desired_normal_force"_a, "task"_a, "feedback_kp"_a = 0.0, "feedback_ki"_a = 0.0,
+          nb::kw_only(), "contact"_a, "desired_normal_force"_a, "task"_a, "feedback_kp"_a = 0.0,
+          "feedback_ki"_a = 0.0,
           "feedback: f_cmd = f_nd + kp (f_nd - f_meas) + ki * integral (f_nd - f_meas) dt (0 0: the paper's law)");
+}
+
+// What a law is built from (LawSpec), keyword by keyword.
+void bind_law_spec(nb::module_& m) {
+  nb::class_<LawSpec>(m, "LawSpec", "what a Law is built from")
+      .def(
+          "__init__",
+          [](LawSpec* spec, const Robot& robot, const Drive& drive, Vector voltage_gain, const Task& hand,
+             std::vector<BracedContact> braces, bool gravity_compensation, double damping_lambda,
+             bool dynamically_consistent, double slip_epsilon, bool thermal_compensation, Vector command_limit,
+             bool back_emf_compensation, Vector posture_kp, Vector posture_kd, Vector posture_rest,
+             bool acceleration_gains, const OrientationTask& orientation) {
+            new (spec) LawSpec{robot, drive, std::move(voltage_gain), hand, std::move(braces), gravity_compensation,
+                               damping_lambda, dynamically_consistent, slip_epsilon, thermal_compensation,
+                               std::move(command_limit), back_emf_compensation, std::move(posture_kp),
+                               std::move(posture_kd), std::move(posture_rest), acceleration_gains, orientation};
+          },
+          nb::kw_only(), "robot"_a, "drive"_a, "voltage_gain"_a, "hand"_a, "braces"_a,
+          "gravity_compensation"_a = false, "damping_lambda"_a = 1e-6, "dynamically_consistent"_a = false,
+          "slip_epsilon"_a = 1e-4, "thermal_compensation"_a = false, "command_limit"_a = Vector(),
+          "back_emf_compensation"_a = false, "posture_kp"_a = Vector(), "posture_kd"_a = Vector(),
+          "posture_rest"_a = Vector(), "acceleration_gains"_a = false, "orientation"_a = OrientationTask(),
+          "voltage_gain: K_V, model order; command_limit: |command| per joint where the motors saturate (empty: "
+          "none); posture_*: the null-space posture task per joint (empty: none; posture_rest empty: the first "
+          "measured position)")
+      .def_ro("robot", &LawSpec::robot)
+      .def_ro("drive", &LawSpec::drive)
+      .def_ro("voltage_gain", &LawSpec::voltage_gain)
+      .def_ro("hand", &LawSpec::hand)
+      .def_ro("braces", &LawSpec::braces)
+      .def_ro("gravity_compensation", &LawSpec::gravity_compensation)
+      .def_ro("damping_lambda", &LawSpec::damping_lambda)
+      .def_ro("dynamically_consistent", &LawSpec::dynamically_consistent)
+      .def_ro("slip_epsilon", &LawSpec::slip_epsilon)
+      .def_ro("thermal_compensation", &LawSpec::thermal_compensation)
+      .def_ro("command_limit", &LawSpec::command_limit)
+      .def_ro("back_emf_compensation", &LawSpec::back_emf_compensation)
+      .def_ro("posture_kp", &LawSpec::posture_kp)
+      .def_ro("posture_kd", &LawSpec::posture_kd)
+      .def_ro("posture_rest", &LawSpec::posture_rest)
+      .def_ro("acceleration_gains", &LawSpec::acceleration_gains)
+      .def_ro("orientation", &LawSpec::orientation);
 }
 
 // The control law.
 void bind_law(nb::module_& m) {
   nb::class_<LawOutput>(m, "LawOutput")
-      .def_ro("command", &LawOutput::command)
-      .def_ro("torque", &LawOutput::torque)
+      .def_rw("command", &LawOutput::command, "v [V] or tau [N m], model order (a drive's base command adds to it)")
+      .def_rw("torque", &LawOutput::torque, "tau of eq. 38 [N m]")
       .def_ro("hand_desired", &LawOutput::hand_desired)
       .def_ro("hand_actual", &LawOutput::hand_actual)
       .def_ro("brace_desired", &LawOutput::brace_desired, "b x 3")
@@ -400,23 +543,7 @@ void bind_law(nb::module_& m) {
       .def_ro("orientation_error", &LawOutput::orientation_error, "the hand frame's log(R_d R^T) [rad], world axes")
       .def_ro("damped", &LawOutput::damped);
   nb::class_<Law>(m, "Law")
-      .def(
-          "__init__",
-          [](Law* law, const Robot& robot, const Drive& drive, Vector voltage_gain, const Task& hand,
-             std::vector<BracedContact> braces, bool gravity_compensation, double damping_lambda,
-             bool dynamically_consistent, double slip_epsilon, bool thermal_compensation, Vector command_limit,
-             bool back_emf_compensation, Vector posture_kp, Vector posture_kd, Vector posture_rest,
-             bool acceleration_gains, const OrientationTask& orientation) {
-            new (law) Law(LawSpec{robot, drive, std::move(voltage_gain), hand, std::move(braces), gravity_compensation,
-                                  damping_lambda, dynamically_consistent, slip_epsilon, thermal_compensation,
-                                  std::move(command_limit), back_emf_compensation, std::move(posture_kp),
-                                  std::move(posture_kd), std::move(posture_rest), acceleration_gains, orientation});
-          },
-          "robot"_a, "drive"_a, "voltage_gain"_a, "hand"_a, "braces"_a, "gravity_compensation"_a, "damping_lambda"_a,
-          "dynamically_consistent"_a, "slip_epsilon"_a, "thermal_compensation"_a = false,
-          "command_limit"_a = Vector(), "back_emf_compensation"_a = false, "posture_kp"_a = Vector(),
-          "posture_kd"_a = Vector(), "posture_rest"_a = Vector(), "acceleration_gains"_a = false,
-          "orientation"_a = OrientationTask())
+      .def(nb::init<const LawSpec&>(), "spec"_a)
       .def(
           "update",
           [](Law& law, double t, const Vector& q, const Vector& dq) {
@@ -460,29 +587,34 @@ void bind_law(nb::module_& m) {
 
 // What a real arm measures.
 void bind_sensors(nb::module_& m) {
-  nb::class_<Sensors>(m, "Sensors")
+  nb::class_<SensorSpec>(m, "SensorSpec", "what a Sensors measures and how late its commands land")
       .def(
           "__init__",
-          [](Sensors* sensors, int n, double step, Mask revolute, unsigned long long seed, long encoder_counts_per_rev,
+          [](SensorSpec* spec, double step, Mask revolute, unsigned long long seed, long encoder_counts_per_rev,
              double position_noise, double velocity_noise, double velocity_filter_hz, double force_noise,
              double force_bias, double current_noise, long command_latency_steps) {
-            SensorSpec spec;
-            spec.seed = seed;
-            spec.encoder_counts_per_rev = encoder_counts_per_rev;
-            spec.position_noise = position_noise;
-            spec.velocity_noise = velocity_noise;
-            spec.velocity_filter_hz = velocity_filter_hz;
-            spec.force_noise = force_noise;
-            spec.force_bias = force_bias;
-            spec.current_noise = current_noise;
-            spec.command_latency_steps = command_latency_steps;
-            spec.step = step;
-            spec.revolute = std::move(revolute);
-            new (sensors) Sensors(spec, n);
+            new (spec) SensorSpec{seed,        encoder_counts_per_rev, position_noise,        velocity_noise,
+                                  velocity_filter_hz, force_noise,     force_bias,            current_noise,
+                                  command_latency_steps, step,         std::move(revolute)};
           },
-          "n"_a, "step"_a, "revolute"_a, "seed"_a = 0, "encoder_counts_per_rev"_a = 0, "position_noise"_a = 0.0,
-          "velocity_noise"_a = 0.0, "velocity_filter_hz"_a = 0.0, "force_noise"_a = 0.0, "force_bias"_a = 0.0,
-          "current_noise"_a = 0.0, "command_latency_steps"_a = 0)
+          nb::kw_only(), "step"_a, "revolute"_a, "seed"_a = 0, "encoder_counts_per_rev"_a = 0,
+          "position_noise"_a = 0.0, "velocity_noise"_a = 0.0, "velocity_filter_hz"_a = 0.0, "force_noise"_a = 0.0,
+          "force_bias"_a = 0.0, "current_noise"_a = 0.0, "command_latency_steps"_a = 0,
+          "step [s]: the control period; revolute: per joint, the encoder's grid applies; noises are sigmas [rad "
+          "or m, rad/s or m/s, N, A]; force_bias [N] along the contact's normal")
+      .def_ro("step", &SensorSpec::step)
+      .def_ro("revolute", &SensorSpec::revolute)
+      .def_ro("seed", &SensorSpec::seed)
+      .def_ro("encoder_counts_per_rev", &SensorSpec::encoder_counts_per_rev)
+      .def_ro("position_noise", &SensorSpec::position_noise)
+      .def_ro("velocity_noise", &SensorSpec::velocity_noise)
+      .def_ro("velocity_filter_hz", &SensorSpec::velocity_filter_hz)
+      .def_ro("force_noise", &SensorSpec::force_noise)
+      .def_ro("force_bias", &SensorSpec::force_bias)
+      .def_ro("current_noise", &SensorSpec::current_noise)
+      .def_ro("command_latency_steps", &SensorSpec::command_latency_steps);
+  nb::class_<Sensors>(m, "Sensors")
+      .def(nb::init<const SensorSpec&, int>(), "spec"_a, "n"_a, "for n joints")
       .def_prop_ro("exact", &Sensors::exact)
       .def_prop_ro("exact_joints", &Sensors::exact_joints)
       .def(
@@ -528,7 +660,14 @@ void bind_rollout(nb::module_& m) {
       .def_ro("friction_force", &Recording::friction_force)
       .def_ro("residual", &Recording::residual)
       .def_ro("active", &Recording::active, "1/0")
-      .def_ro("energy", &Recording::energy, "rows x 3: consumed, net, copper loss up to the step's start")
+      .def_prop_ro(
+          "energy_consumed", [](const Recording& r) { return Vector(r.energy.col(0)); },
+          "[J] consumed up to the step's start (EnergySlot.consumed)")
+      .def_prop_ro(
+          "energy_net", [](const Recording& r) { return Vector(r.energy.col(1)); }, "[J] net (EnergySlot.net)")
+      .def_prop_ro(
+          "copper_loss", [](const Recording& r) { return Vector(r.energy.col(2)); },
+          "[J] copper loss (EnergySlot.copper_loss)")
       .def_ro("measured_position", &Recording::measured_position, "(0 rows without sensors)")
       .def_ro("measured_velocity", &Recording::measured_velocity)
       .def_ro("force_command", &Recording::force_command)
@@ -568,11 +707,14 @@ NB_MODULE(_engine, m) {
   bind_kinds(m);
   bind_surfaces(m);
   bind_robot(m);
+  bind_drive(m);
   bind_answer(m);
   bind_dynamics(m);
   bind_modes_and_events(m);
+  bind_state(m);
   bind_simulator(m);
   bind_tasks(m);
+  bind_law_spec(m);
   bind_law(m);
   bind_sensors(m);
   bind_rollout(m);
