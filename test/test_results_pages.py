@@ -121,6 +121,8 @@ def test_a_recording_names_its_commit_and_whether_the_code_differed(tmp_path: Pa
         ("ur5_table.json", "runs"),  # bracing-sweep --record
         ("tiago_table.json", "runs"),  # bracing-sweep --record, the three variants zipped
         ("engine_comparison.json", "engine-comparison"),  # tools/engine_comparison.py --record
+        ("tiago_cmd_vel.json", "tiago-cmd-vel"),  # tools/tiago_cmd_vel.py --record
+        ("robustness.json", "1-link-masses-and-inertias-2"),  # a study's table beside the one its section renders
     ],
 )
 def test_each_recorded_run_renders_its_page_block_and_a_changed_cell_fails_the_check(

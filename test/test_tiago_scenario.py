@@ -7,48 +7,26 @@ seconds of sim time."""
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
-from conftest import CONFIG_DIR
+from conftest import REPO_ROOT
 from ros_helpers import pair_argv, run
 from test_stepping import Clock, Log
 
-from bracing_core.answering import Answer, StateAnswerer
+from bracing_core.answering import StateAnswerer
 from bracing_core.base import BASE_JOINTS
 from bracing_core.kinematics import LinkPoses
 from bracing_core.mobile_base import base_indices, odometry
 from bracing_core.rollout import build_scenario, run_recorded
 
-TIAGO = CONFIG_DIR / "tiago_table.yaml"
-F_ND = 10.0  # [N] contacts.elbow.desired_normal_force
-ARM = ["torso_lift_joint", *(f"arm_{k}_joint" for k in range(1, 8))]
+sys.path.insert(0, str(REPO_ROOT / "tools"))
+import tiago_cmd_vel
+from tiago_cmd_vel import ARM, F_ND, TIAGO, drive, drive_figures, planar_tiago, wheeled_tiago
+
 LOCKED = ["wheel_left_joint", "wheel_right_joint", "head_1_joint", "head_2_joint"]
-
-
-MOTOR = {"torque_constant": 0.1, "resistance": 0.5, "inductance": 1e-4, "rotor_inertia": 1e-6, "gear_ratio": 100.0,
-         "gear_damping": 1e-5}  # fmt: skip
-"""The file's servo, the same on every joint."""
-
-
-def planar_tiago(kd: float) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
-    """(shared, simulator, controller) overrides: the file's robot on robot.base: planar (its wheels still held),
-    the base's three joints first in every per-joint list, driven by cmd_vel with the velocity loop's ``kd``."""
-    n = 3 + len(ARM)
-    shared: dict[str, Any] = {"robot.base": "planar", "robot.joint_names": [*BASE_JOINTS, *ARM]}
-    shared |= {f"motors.{field}": [value] * n for field, value in MOTOR.items()}
-    shared["motors.transmission_radius"] = [0.0985, 0.0985, 0.0, 0.01] + [0.0] * 7  # the wheel's; the torso's pinion
-    sim = {"initial_position": [0.0, 0.0, 0.0, 0.1, 1.5, 0.3, -1.5, 0.8, 0.0, 0.0, 0.0]}
-    ctl = {
-        "voltage_gain": [1.0] * n,
-        "null_space_posture.kp": [0.0, 0.0, 0.0, 0.0] + [5.0] * 7,
-        "null_space_posture.kd": [0.0, 0.0, 0.0, 100.0] + [1.0] * 7,  # none on the base: it would brake the loop
-        "base_command": "cmd_vel",
-        "base_velocity_kd": kd,
-    }
-    return shared, sim, ctl
 
 
 def test_the_unmodified_urdf_loads_braked_with_head_and_hand_locked() -> None:
@@ -87,21 +65,9 @@ def test_the_scenario_runs_through_bracing_pair(tmp_path: Path) -> None:
 def test_driven_by_cmd_vel_the_base_moves_while_the_brace_holds() -> None:
     """robot.base: planar, base_command cmd_vel, kd 500 N s/m, ki 5000 N/m: 0.1 m/s forward sent every 0.1 s
     from 0.5 s to 1.4 s (in process: the policy the controller node runs; test_mobile_ros drives it over DDS)."""
-    shared, sim, ctl = planar_tiago(500.0)
-    scenario = build_scenario(TIAGO, shared=shared, sim=sim, ctl={**ctl, "base_velocity_ki": 5000.0})
-    assert scenario.controller is not None
     log = Log()
-    core = StateAnswerer(scenario.controller.config, log, Clock())
-    plant, sent = scenario.sim, list[Answer]()
-    steps = 2500
-    x, f_n, hand_error = np.zeros(steps), np.zeros(steps), np.zeros(steps)
-    for k in range(steps):
-        if k % 100 == 0 and 500 <= k < 1500:
-            core.take_cmd_vel(k * 1_000_000, [0.1, 0.0, 0.0], [0.0, 0.0, 0.0])
-        core.answer(k * 1_000_000, plant.position, plant.velocity, lambda _: None, sent.append)
-        out = sent[-1].output
-        x[k], hand_error[k] = plant.position[0], np.linalg.norm(out.hand_desired - out.hand_actual)
-        f_n[k] = plant.step(out.command).normal_force[0]
+    run = drive(planar_tiago(500.0, 5000.0), log=log)
+    x, f_n, hand_error = run.pose[:, 0], run.normal_force, run.hand_error
     speed = np.diff(x) / 0.001
     # the last cmd_vel (1.4 s) is followed until it is 0.5 s old: 0.1 m/s over 1.4 s in all; the loop's integral
     # takes the base there against the elbow's friction (3 N) and the law's own push on the base
@@ -113,14 +79,20 @@ def test_driven_by_cmd_vel_the_base_moves_while_the_brace_holds() -> None:
     assert np.abs(f_n[510:1950] - F_ND).max() < 1e-9
     assert np.abs(f_n - F_ND).max() < 1.0  # at rest the elbow sticks (Coulomb): eq. 40 slides
     assert hand_error[500:].max() < 1.5e-3
+    # the results page's row (tools/tiago_cmd_vel.py) from this run: its figures as measured here
+    found = drive_figures(run)
+    assert found["travel_m"] == pytest.approx(x[-1], abs=2e-3) and found["drift_before_m"] < 0.003
+    assert found["force_off_driven_max_n"] == np.abs(f_n[500:1900] - F_ND).max() < 1e-9
+    assert found["force_off_max_n"] == np.abs(f_n - F_ND).max()
+    assert found["hand_error_driven_max_m"] == hand_error[500:].max()
+    assert found["end_speed_mps"] == pytest.approx(abs(speed[-1]), abs=1e-3) and run.warnings == log.warnings
 
 
 def test_the_drawn_base_is_where_odom_has_it() -> None:
     """robot_description of a mobile base carries its chart (odom root, base_x, base_y, base_yaw), so what poses
     links from joint_states (the recorder's /tf, bracing-view, the animation: LinkPoses) draws the root link
     at odom's pose; braked, the base's joints are in the text too, at rest."""
-    shared, sim, _ = planar_tiago(500.0)
-    scenario = build_scenario(TIAGO, shared=shared, sim=sim, with_controller=False)
+    scenario = planar_tiago(500.0)
     description, _ = scenario.plant.description()
     poses = LinkPoses(description)
     names = list(scenario.plant.joint_names)
@@ -133,29 +105,6 @@ def test_the_drawn_base_is_where_odom_has_it() -> None:
     odom = odometry(position, np.zeros(position.size), indices)
     assert drawn == pytest.approx([odom.x, odom.y, 0.0, *odom.quaternion], abs=1e-15)
     assert 'joint name="base_x"' in build_scenario(TIAGO, with_controller=False).plant.description()[0]
-
-
-def wheeled_tiago() -> Any:
-    """TIAGo on its turning wheels (torque input), base_command cmd_vel, kd 10 N m s/rad, ki 100 N m/rad per
-    wheel."""
-    n = 2 + len(ARM)
-    locked = [name for name in build_scenario(TIAGO, with_controller=False).plant.robot.locked_joints]
-    shared: dict[str, Any] = {
-        "robot.joint_names": ["wheel_left_joint", "wheel_right_joint", *ARM],
-        "robot.locked_joints": [j for j in locked if j.startswith(("head_", "hand_"))],
-    }
-    shared |= {f"motors.{field}": [value] * n for field, value in MOTOR.items()}
-    shared["motors.transmission_radius"] = [0.0, 0.0, 0.01] + [0.0] * 7
-    sim = {"initial_position": [0.0, 0.0, 0.1, 1.5, 0.3, -1.5, 0.8, 0.0, 0.0, 0.0]}
-    ctl = {
-        "voltage_gain": [1.0] * n,
-        "null_space_posture.kp": [0.0, 0.0, 0.0] + [5.0] * 7,
-        "null_space_posture.kd": [0.0, 0.0, 100.0] + [1.0] * 7,
-        "base_command": "cmd_vel",
-        "base_velocity_kd": 10.0,
-        "base_velocity_ki": 100.0,
-    }
-    return build_scenario(TIAGO, shared=shared, sim=sim, ctl=ctl)
 
 
 def test_the_law_s_motion_map_is_the_plant_s_rolling_rows_null_space() -> None:
@@ -184,21 +133,8 @@ def test_on_its_wheels_cmd_vel_turns_the_wheels_by_diff_drive_controller_s_kinem
     """robot.base: diff_drive with the wheels turning (torque input), cmd_vel 0.1 m/s forward and 0.2 rad/s from
     0.5 s to 1.4 s: each wheel's loop (kd 10 N m s/rad, ki 100 N m/rad) follows w = (v -/+ omega s / 2) / r, so
     the base runs the unicycle's arc, 1.4 s of it (the last command followed until it is 0.5 s old)."""
-    scenario = wheeled_tiago()
-    assert scenario.controller is not None
-    names = list(scenario.plant.joint_names)
-    indices = base_indices(names)
-    assert indices is not None  # the model's base joints, passive: the wheels move them
-    core, plant, sent = StateAnswerer(scenario.controller.config, Log(), Clock()), scenario.sim, list[Answer]()
-    steps = 2500
-    pose, f_n, hand_error = np.zeros((steps, 3)), np.zeros(steps), np.zeros(steps)
-    for k in range(steps):
-        if k % 100 == 0 and 500 <= k < 1500:
-            core.take_cmd_vel(k * 1_000_000, [0.1, 0.0, 0.0], [0.0, 0.0, 0.2])
-        core.answer(k * 1_000_000, plant.position, plant.velocity, lambda _: None, sent.append)
-        out = sent[-1].output
-        pose[k], hand_error[k] = plant.position[list(indices)], np.linalg.norm(out.hand_desired - out.hand_actual)
-        f_n[k] = plant.step(out.command).normal_force[0]
+    run = drive(wheeled_tiago(), tiago_cmd_vel.TURN_RAD_S)
+    pose, f_n, hand_error = run.pose, run.normal_force, run.hand_error
     travel = np.sum(np.linalg.norm(np.diff(pose[:, :2], axis=0), axis=1))
     assert travel == pytest.approx(0.1 * 1.4, abs=0.005) and pose[-1, 2] == pytest.approx(0.2 * 1.4, abs=0.005)
     assert np.linalg.norm(pose[-1, :2] - pose[-2, :2]) < 1e-5  # stopped
@@ -209,3 +145,33 @@ def test_on_its_wheels_cmd_vel_turns_the_wheels_by_diff_drive_controller_s_kinem
     # within 2.7 mm of its carried circle
     assert np.abs(f_n[500:] - F_ND).max() < 1e-9 and np.abs(f_n[3:] - F_ND).max() < 1e-8
     assert np.abs(f_n - F_ND).max() < 1.0 and hand_error[500:].max() < 3e-3
+    found = drive_figures(run)  # the results page's row (tools/tiago_cmd_vel.py) from this run
+    assert found["travel_m"] == np.linalg.norm(pose[-1, :2] - pose[0, :2]) and found["yaw_rad"] == pose[-1, 2]
+    assert found["force_off_max_at_s"] < 0.003 and found["force_off_max_n"] == np.abs(f_n - F_ND).max()
+
+
+def test_the_results_table_s_figures_are_the_runs_as_driven(tmp_path: Path) -> None:
+    """tools/tiago_cmd_vel.py's figures on a run of known numbers: where the base ends and its yaw, its drift
+    before the first cmd_vel (0.5 s), its speed at the end, the force off f_nd while driven (0.5 s to the
+    timeout's 1.9 s) and over the run (with its time), the tool's error from the first cmd_vel; its table and
+    recorded file."""
+    steps = tiago_cmd_vel.STEPS
+    pose = np.zeros((steps, 3))
+    pose[:, 0] = np.minimum(np.arange(steps), 2000) * 1e-4  # 0.1 m/s from the start up to 2 s
+    pose[-1, 1] = 3e-5  # a last step of 0.03 m/s sideways
+    pose[:, 2] = 0.25
+    f_n = np.full(steps, F_ND)
+    f_n[[1, 700, 2400]] = [10.5, 10.002, 9.0]
+    hand = np.zeros(steps)
+    hand[[100, 900]] = [0.05, 0.002]
+    found = drive_figures(tiago_cmd_vel.Drive(pose, f_n, hand))
+    assert found["travel_m"] == pytest.approx(np.hypot(0.2, 3e-5), abs=1e-12) and found["yaw_rad"] == 0.25
+    assert found["drift_before_m"] == pytest.approx(0.0499) and found["end_speed_mps"] == pytest.approx(0.03)
+    assert found["force_off_driven_max_n"] == pytest.approx(0.002) and found["force_off_max_n"] == 1.0
+    assert found["force_off_max_at_s"] == 2.4 and found["hand_error_driven_max_m"] == 0.002
+    figures = {name: found for name in tiago_cmd_vel.BASES}
+    table = tiago_cmd_vel.cmd_vel_table(figures)
+    assert table["rows"][0][2:] == ["0.2 m, 0.25 rad (0.14 m, 0.28 rad)", "50", "0.03", "0.002", "1 (t = 2.4 s)", "2"]
+    assert table["rows"][1][2] == "0.2 m (0.14 m)"
+    recorded = json.loads(tiago_cmd_vel.record_cmd_vel(tmp_path / "cmd_vel.json", figures).read_text())
+    assert recorded["tables"][tiago_cmd_vel.TABLE] == table and recorded["figures"]["planar"] == found
