@@ -1,4 +1,4 @@
-"""ros2_control's topic conventions both ways, and targets while running (issue 33).
+"""ros2_control's topic conventions both ways, and targets while running.
 
 No rclcpp wheel exists, so the controller_manager cannot run here: the ros2_control side is played by
 rclpy peers (test/ros2_control_peer.py) that behave as its components are documented to (QoS, joint

@@ -1,5 +1,5 @@
 """bracing-study robustness: the paper's claims on a plant that differs from the controller's model, with
-real sensing and late commands, with and without force feedback (issue 34).
+real sensing and late commands, with and without force feedback.
 
     bracing-study robustness --output DIR [--config FILE] [--seeds N] [--duration S]
                              [--workers N | --scheduler ADDRESS] [--no-progress] [--set KEY=VALUE ...]
