@@ -402,17 +402,14 @@ def test_a_flood_of_huge_commands_logs_little(joint_commands_sim: Harness) -> No
 
 
 # -- the lockstep simulator (motor_command) -----------------------------------------------------------
-@pytest.mark.parametrize(
-    ("max_elements", "bound_s"),
-    [(10_000, 0.5), (2 * HUGE, 2.0)],
-    ids=["refused-by-size", "duplicate-check"],
-)
-def test_100k_duplicate_names_on_motor_command_do_not_stall_the_simulator(
-    tmp_path: Path, max_elements: int, bound_s: float
-) -> None:
-    """The next state within ``bound_s`` of the valid command that follows 10^5 duplicate names (before:
-    131 s). Refused by its size (the default limit): 0.5 s for a loaded machine. With the limit raised
-    so that the names are decoded and checked (0.3 s to decode 10^5 names here, 20 ms to check them): 2 s."""
+@pytest.mark.parametrize("max_elements", [10_000, 2 * HUGE], ids=["refused-by-size", "duplicate-check"])
+def test_100k_duplicate_names_on_motor_command_do_not_stall_the_simulator(tmp_path: Path, max_elements: int) -> None:
+    """The next state comes after the valid command that follows 10^5 duplicate names (before: 131 s of
+    stall; the wait gives up after 10 s), refused by its size (the default limit), or with the limit raised
+    so that the names are decoded and checked (0.3 s to decode 10^5 names here, 20 ms to check them). How
+    long it takes is no test's business on a shared machine: the check's work is counted in
+    test_the_duplicate_check_is_linear_on_100k_names, the refusal by size in
+    test_sizes_are_refused_from_the_length_fields_before_decoding."""
     params = {"max_message_elements": max_elements, "command_timeout": 30.0}
     argv = node_argv("bracing_sim.node", params_file(tmp_path, "bracing_simulator", params))
     sim = _harness(isolated_env(), argv, ("motor_command", MotorCommand, FLOOD_QOS), ("joint_states", STREAM_QOS))
@@ -422,10 +419,7 @@ def test_100k_duplicate_names_on_motor_command_do_not_stall_the_simulator(
         sim.publisher.publish(bad)  # stamped 0: the state it waits on
         good = MotorCommand(mode=MotorCommand.VOLTAGE, name=JOINTS, value=known_command(0))
         sim.publisher.publish(good)
-        sent = time.monotonic()
         assert sim.peer.spin_until(lambda: any(stamp > 0 for _, stamp in sim.states), 10.0), sim.node.text()[-3000:]
-        arrived = next(t for t, stamp in sim.states if stamp > 0)
-        assert arrived - sent < bound_s
     finally:
         log = sim.close()
     refusal = "name: 100000 elements" if max_elements < HUGE else "duplicate joint names ['joint1']"
