@@ -250,8 +250,8 @@ def path_and_brace(node: rclpy.node.Node, t_pub: float, poses: list[list[float]]
         """On the newest state (a depth-1 subscription: never one of a backlog of rows, which a script slowed
         by a busy machine would reach late, sending late)."""
         t, bd = _stamp(msg), msg.brace_desired[0]
-        if sent or t < t_pub:
-            return
+        if sent or t < t_pub or any(node.count_subscribers(echo.topic_name) < 2 for echo in echoes):
+            return  # sent once the recorder's echo readers are known too (this script's are the other two)
         path = Path()
         path.header.frame_id = "world"
         for tp, x, y, z in poses:

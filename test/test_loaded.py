@@ -85,8 +85,15 @@ def test_burners_stop_when_the_script_is_killed(tmp_path: Path) -> None:
 
 def test_make_test_loaded_runs_pytest_through_it() -> None:
     """The target's recipe (make -n prints it without running it): PYTEST_ARGS, if given, replaces the suite."""
-    selected = ["make", "-n", "test-loaded", "PYTEST_ARGS=test/test_x.py -k y"]
-    recipe = subprocess.run(selected, cwd=ROOT, capture_output=True, text=True, check=True).stdout
-    assert "bash tools/loaded.sh python -m pytest test/test_x.py -k y" in recipe
-    whole = subprocess.run(["make", "-n", "test-loaded"], cwd=ROOT, capture_output=True, text=True, check=True).stdout
-    assert "bash tools/loaded.sh python -m pytest test" in whole
+    # as make runs this test: its command-line variables (PYTEST_ARGS) are in the environment and MAKEFLAGS
+    env = {k: v for k, v in os.environ.items() if k not in ("MAKEFLAGS", "MFLAGS", "MAKELEVEL", "PYTEST_ARGS")}
+
+    def recipe(*args: str) -> list[str]:
+        done = subprocess.run(["make", "-n", "test-loaded", *args], cwd=ROOT, env=env, capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr
+        return done.stdout.splitlines()
+
+    assert recipe("PYTEST_ARGS=test/test_x.py -k y")[-1].endswith(
+        "bash tools/loaded.sh python -m pytest test/test_x.py -k y"
+    )
+    assert recipe()[-1].endswith("bash tools/loaded.sh python -m pytest test")

@@ -296,7 +296,9 @@ def test_hand_path_and_brace_target_mid_run_recorded_and_drawn(tmp_path: Path) -
     env = isolated_env()
     bag = tmp_path / "bag"
     recorder = _start_recorder(bag, env)
-    ctl = {"targets.max_velocity": 0.3, "targets.max_acceleration": 1.5}
+    # wait_for_recorder: the controller takes no state before the recorder has matched it (its echoes are
+    # volatile: one sent before the recorder's reader matched its writer would be lost to the bag)
+    ctl = {"targets.max_velocity": 0.3, "targets.max_acceleration": 1.5, "wait_for_recorder": True}
     controller = start(node_argv("bracing_controller.node", params_file(tmp_path, "bracing_controller", ctl)), env)
     # joint_states' subscribers: the controller, the recorder and the script (2 let a loaded machine start the
     # run before the script listened: it then sent its path late, in the past)
