@@ -4,11 +4,12 @@ SHELL := /bin/bash
 IN_ENV := source env.sh &&
 PY_SRC := src/bracing_engine/bracing_engine src/bracing_core/bracing_core src/bracing_ros/bracing_ros src/bracing_sim/bracing_sim src/bracing_controller/bracing_controller src/bracing_analysis/bracing_analysis src/bracing_experiments/bracing_experiments src/bracing_recorder/bracing_recorder src/bracing_view/bracing_view src/bracing_mujoco/bracing_mujoco src/bracing_bringup/bracing_bringup
 
-.PHONY: help setup test test-slow lint typecheck docs docs-check pytest run bench lock clean
+.PHONY: help setup test test-loaded test-slow lint typecheck docs docs-check pytest run bench lock clean
 
 help:
 	@echo "make run    - set up if needed, run the paper scenario braced, passive and in free space, print the table"
 	@echo "make test   - set up if needed, then ruff, mypy and the pytest suite (the docs site built, warnings as errors)"
+	@echo "make test-loaded - the pytest suite (or PYTEST_ARGS=\"test/test_x.py -k y\") beside one CPU-bound process per core"
 	@echo "make test-slow - the long runs: 10 min of sim time; 3 pairs at once x 10 rounds; make run x 10 and in two clones at once"
 	@echo "make bench  - benchmarks (engine vs MuJoCo, pair vs DDS bound, controller latency, scaling)"
 	@echo "make docs   - the documentation site (Sphinx, MyST Markdown) into docs/_build/html (index.html)"
@@ -39,6 +40,11 @@ docs-check: setup
 	@$(IN_ENV) $(SPHINX) -E -W --keep-going -n
 
 test: lint typecheck pytest
+
+# The suite on a machine as busy as a loaded CI runner: a CPU-bound burner per core (nproc) beside pytest,
+# stopped whatever the result (tools/loaded.sh). PYTEST_ARGS, if given, replaces the whole suite.
+test-loaded: setup
+	@$(IN_ENV) bash tools/loaded.sh python -m pytest $(or $(PYTEST_ARGS),test)
 
 # The long runs (10 minutes of sim time in lockstep: memory and constraint drift).
 test-slow: setup

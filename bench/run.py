@@ -426,7 +426,7 @@ def bare_import_s(repeats: int = 3) -> float:
 
 
 def target_figures(result: dict[str, Any], sweep: dict[str, Any]) -> dict[str, float | None]:
-    """The speed figures issue 36 sets targets on (``TARGETS``), as ratios of figures of this one run."""
+    """The speed figures with targets (``TARGETS``), as ratios of figures of this one run."""
     works = [work["controller"] for work in result["node_work_us"]]
     law_us = result["controller_update_us_p50"]
     rollout_s = result["rollout_sim_time_s"] * 1000.0 / result["rollout_steps_per_s"]  # one rollout [s]
@@ -457,7 +457,7 @@ TARGETS = {
     "run_wall_minus_stepping_s": "<= 2.0",
     "tiny_run_vs_bare_import": "<= 3",
 }
-"""Issue 36's targets on ``target_figures`` (printed beside them; a figure, never a timed test)."""
+"""The targets on ``target_figures`` (printed beside them; a figure, never a timed test)."""
 
 
 def make_run(duration: float | None = None) -> dict[str, Any]:
@@ -480,7 +480,7 @@ def make_run(duration: float | None = None) -> dict[str, Any]:
 
 
 def optimize_trials_per_min(trials: int = 40, duration: float = 10.0) -> float:
-    """bracing-optimize's throughput: trials per minute of the issue's problem on the paper arm (energy
+    """bracing-optimize's throughput: trials per minute of the paper arm's problem (energy
     subject to hand RMS <= 30 mm over f_nd and the brace target's y), 2 local workers, warmed up first
     (the search alone: no reference runs, a fresh study)."""
     from bracing_experiments.executors import make_executor
@@ -743,7 +743,7 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
     rows.append((f"sweep runs/min ({sweep['run_sim_time_s']:g} s runs)", sweep_rates))
     rows.append(("sweep parallel efficiency, 2 workers (target >= 0.9)", f"{sweep['parallel_efficiency']:.3f}"))
     rows.append(("optimiser trials/min (paper arm, 10 s runs, 2 workers)", f"{optimize_rate:.0f}"))
-    rows.append(("issue 36's figures (this run) against their targets:", ""))
+    rows.append(("speed figures (this run) against their targets:", ""))
     for key, value in result["targets"].items():
         rows.append((f"  {key.replace('_', ' ')} (target {TARGETS[key]})", "n/a" if value is None else f"{value:.3g}"))
     rows.append(("bench wall time", f"{result['bench_wall_time_s']:.0f} s"))

@@ -36,8 +36,8 @@ def _specs(runs: int, duration: float, tag: int) -> list[Any]:
 
 def sweep_throughput(runs: int = 16, duration: float = 10.0, repeats: int = 2) -> dict[str, Any]:
     # 16 runs a sweep: a sweep's fixed costs (validating every run's configuration, the results
-    # table) are what a 2-worker sweep of 8 runs waits on (efficiency 0.82 on a quiet machine,
-    # 2026-11-23); at 16 they weigh as in a real sweep (0.94 the same hour).
+    # table) are what a 2-worker sweep of 8 runs waits on (efficiency 0.82 on a quiet machine);
+    # at 16 they weigh as in a real sweep (0.94 the same hour).
     from bracing_experiments.executors import make_executor
     from bracing_experiments.running import run_sweep
 

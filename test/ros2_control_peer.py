@@ -27,7 +27,8 @@ python ros2_control_peer.py effort-controller N
 python ros2_control_peer.py path T_PUB PATH_JSON BRACE_DY
     a script at t >= T_PUB sending a nav_msgs/Path on hand_path (PATH_JSON: [[t, x, y, z], ...], each
     pose stamped t [s] in the controller's time, frame world) and the elbow's brace point moved by
-    BRACE_DY along y on brace_target/elbow; records the controller_state's hand and elbow brace point.
+    BRACE_DY along y on brace_target/elbow; records the controller_state's hand and elbow brace point, and
+    the stamps of the controller's echoes (``taken``: the state each target was taken with).
 python ros2_control_peer.py sim-clock
     the forward controller's side of a use_sim_time run: publishes /clock (frozen at 5 s for 1 s of wall
     time, then 10 ms a tick for 50 ticks) and joint_states, and counts the commands in each phase.
@@ -235,13 +236,22 @@ def path_and_brace(node: rclpy.node.Node, t_pub: float, poses: list[list[float]]
     brace_pub = node.create_publisher(PointStamped, "brace_target/elbow", 10)
     rows: list[list[float]] = []
     sent: list[list[float]] = []
+    taken: dict[str, float] = {}  # the stamp of each echo: the state the controller took the target with [s]
+    echoes = [
+        node.create_subscription(kind, topic, lambda m, topic=topic: taken.setdefault(topic, _stamp(m)), 10)
+        for kind, topic in ((Path, "hand_path/accepted"), (PointStamped, "brace_target/elbow/accepted"))
+    ]
 
     def on_state(msg: ControllerState) -> None:
-        t = _stamp(msg)
         d, a, bd, ba = msg.hand_desired, msg.hand_actual, msg.brace_desired[0], msg.brace_actual[0]
-        rows.append([t, d.x, d.y, d.z, a.x, a.y, a.z, bd.x, bd.y, bd.z, ba.x, ba.y, ba.z])
-        if sent or t < t_pub:
-            return
+        rows.append([_stamp(msg), d.x, d.y, d.z, a.x, a.y, a.z, bd.x, bd.y, bd.z, ba.x, ba.y, ba.z])
+
+    def send_once(msg: ControllerState) -> None:
+        """On the newest state (a depth-1 subscription: never one of a backlog of rows, which a script slowed
+        by a busy machine would reach late, sending late)."""
+        t, bd = _stamp(msg), msg.brace_desired[0]
+        if sent or t < t_pub or any(node.count_subscribers(echo.topic_name) < 2 for echo in echoes):
+            return  # sent once the recorder's echo readers are known too (this script's are the other two)
         path = Path()
         path.header.frame_id = "world"
         for tp, x, y, z in poses:
@@ -257,8 +267,11 @@ def path_and_brace(node: rclpy.node.Node, t_pub: float, poses: list[list[float]]
         brace_pub.publish(brace)
         sent.append([t, brace.point.x, brace.point.y, brace.point.z])
 
+    node.create_subscription(ControllerState, "controller_state", send_once, QoSProfile(depth=1))
+    while any(echo.get_publisher_count() < 1 for echo in echoes):  # heard before anything is sent
+        rclpy.spin_once(node, timeout_sec=0.05)
     _follow_run(node, on_state, [path_pub, brace_pub], rows)
-    return {"sent": sent, "rows": rows}
+    return {"sent": sent, "rows": rows, "taken": taken}
 
 
 def sim_clock(node: rclpy.node.Node) -> dict[str, object]:

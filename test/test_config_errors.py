@@ -154,7 +154,7 @@ def test_pair_refusing_what_only_the_full_check_finds_keeps_nothing(tmp_path: Pa
     assert left.stdout == "", left.stdout
 
 
-# -- messages that point at the fix (issue 35) ---------------------------------------------------------
+# -- messages that point at the fix ---------------------------------------------------------
 def yaw_arm_urdf() -> str:
     """The paper's arm with a base that turns about the vertical (joint1) instead of pitching: a spatial
     4-joint arm. Its elbow (tip of link 2) moves on a sphere about joint2; held at one height by the

@@ -1,4 +1,4 @@
-"""Issue 29, item 6: spheres and cylinders are drawn as spheres and cylinders, in contact_markers
+"""Spheres and cylinders are drawn as spheres and cylinders, in contact_markers
 (visualization_msgs SPHERE / CYLINDER) and in the animation; planes as before.
 
 One short real bracing-pair run (0.3 s, over DDS) of the paper's arm with its elbow braced on a

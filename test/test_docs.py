@@ -1,4 +1,4 @@
-"""The documentation site (issue 37): its generated reference pages are those the code gives today, it
+"""The documentation site: its generated reference pages are those the code gives today, it
 builds with Sphinx from scratch with every warning an error and every reference checked (a broken
 link, a missing page or a page outside the toctree fails), every page of the toctree is built, and
 the README's links lead to files that exist, its docs links to pages of the site."""

@@ -1,5 +1,5 @@
 """A run that fails before its first step leaves nothing behind but its logs, and the same
---output works again (issue 29, item 2: the retry was refused, "--output: out/volt/bag exists
+--output works again (the retry used to be refused, "--output: out/volt/bag exists
 already", and the folder held an empty bag, overrides, a timeline)."""
 
 from __future__ import annotations

@@ -59,19 +59,42 @@ HUGE = 100_000
 
 
 # -- no DDS ------------------------------------------------------------------------------------------
+class CountedName(str):
+    """A joint name that counts the comparisons made with it (``COMPARED``): the work of a check, not its time."""
+
+    def __eq__(self, other: object) -> bool:
+        COMPARED[0] += 1
+        return str.__eq__(self, other)
+
+    def __lt__(self, other: str) -> bool:
+        COMPARED[0] += 1
+        return str.__lt__(self, other)
+
+    __hash__ = str.__hash__
+
+
+COMPARED = [0]
+
+
 def test_the_duplicate_check_is_linear_on_100k_names() -> None:
     """The reported stall: 10^5 names, all 'joint1' or 5*10^4 distinct ones twice, with the limit raised
-    so that the check runs (it took 131 s, quadratic; now ~10 ms: 1 s allows a loaded machine). With the
-    default limit the message is refused by its size before any name is looked at."""
+    so that the check runs (it took 131 s: it compared every pair of names). Counted on 2,000 names, each
+    a distinct object: the check compares a name with a few others (hashing, then sorting the duplicates),
+    ~N log N at most, where the pairwise check took N^2 / 2 = 2*10^6. With the default limit the message is
+    refused by its size before any name is looked at."""
+    n = 2000
+    counted = [CountedName(f"j{k % (n // 2)}") for k in range(n)]
+    COMPARED[0] = 0
+    with pytest.raises(CommandError, match="duplicate joint names"):
+        effort_vector(counted, np.zeros(n), JOINTS, limits=MessageLimits(max_elements=10 * n))
+    assert 0 < COMPARED[0] <= 20 * n * math.log2(n), COMPARED[0]  # counted: the check did compare them
     raised = MessageLimits(max_elements=10 * HUGE)
     for names, quoted in (
         (["joint1"] * HUGE, "duplicate joint names ['joint1']"),
         ([f"j{k % (HUGE // 2)}" for k in range(HUGE)], "duplicate joint names ['j0', 'j1', 'j10'] and 49997 more"),
     ):
-        start_s = time.perf_counter()
         with pytest.raises(CommandError) as caught:
             effort_vector(names, np.zeros(HUGE), JOINTS, limits=raised)
-        assert time.perf_counter() - start_s < 1.0
         assert caught.value.kind == "duplicate" and str(caught.value) == quoted
     with pytest.raises(CommandError) as caught:
         command_vector(["joint1"] * HUGE, np.zeros(HUGE), 0, JOINTS, InputMode.VOLTAGE)
@@ -98,10 +121,9 @@ def test_sizes_are_refused_from_the_length_fields_before_decoding() -> None:
     a string; a message within the limits, or cut short, passes (the decoder says what is wrong)."""
     store, limits = bracing_typestore(), MessageLimits()
     huge = serialize_message(JointState(name=["joint1"] * HUGE, effort=[0.0] * HUGE))
-    start_s = time.perf_counter()
-    with pytest.raises(SizeError, match=r"^name: 100000 elements, more than max_message_elements \(10000\)$"):
-        check_cdr_sizes(store, JOINT_STATE, huge, limits)
-    assert time.perf_counter() - start_s < 0.05  # measured 0.1 ms; a decode of it takes 0.3 s
+    for data in (huge, huge[:400]):  # cut after ~30 of its names: refused from the count, no name read
+        with pytest.raises(SizeError, match=r"^name: 100000 elements, more than max_message_elements \(10000\)$"):
+            check_cdr_sizes(store, JOINT_STATE, data, limits)
     with pytest.raises(SizeError, match="value: 20000 elements"):
         check_cdr_sizes(store, MOTOR_COMMAND, serialize_message(MotorCommand(name=[], value=[0.0] * 20000)), limits)
     long_frame = JointState(name=JOINTS, effort=[0.0] * 4)
@@ -379,17 +401,14 @@ def test_a_flood_of_huge_commands_logs_little(joint_commands_sim: Harness) -> No
 
 
 # -- the lockstep simulator (motor_command) -----------------------------------------------------------
-@pytest.mark.parametrize(
-    ("max_elements", "bound_s"),
-    [(10_000, 0.5), (2 * HUGE, 2.0)],
-    ids=["refused-by-size", "duplicate-check"],
-)
-def test_100k_duplicate_names_on_motor_command_do_not_stall_the_simulator(
-    tmp_path: Path, max_elements: int, bound_s: float
-) -> None:
-    """The next state within ``bound_s`` of the valid command that follows 10^5 duplicate names (before:
-    131 s). Refused by its size (the default limit): 0.5 s for a loaded machine. With the limit raised
-    so that the names are decoded and checked (0.3 s to decode 10^5 names here, 20 ms to check them): 2 s."""
+@pytest.mark.parametrize("max_elements", [10_000, 2 * HUGE], ids=["refused-by-size", "duplicate-check"])
+def test_100k_duplicate_names_on_motor_command_do_not_stall_the_simulator(tmp_path: Path, max_elements: int) -> None:
+    """The next state comes after the valid command that follows 10^5 duplicate names (before: 131 s of
+    stall; the wait gives up after 10 s), refused by its size (the default limit), or with the limit raised
+    so that the names are decoded and checked (0.3 s to decode 10^5 names here, 20 ms to check them). How
+    long it takes is no test's business on a shared machine: the check's work is counted in
+    test_the_duplicate_check_is_linear_on_100k_names, the refusal by size in
+    test_sizes_are_refused_from_the_length_fields_before_decoding."""
     params = {"max_message_elements": max_elements, "command_timeout": 30.0}
     argv = node_argv("bracing_sim.node", params_file(tmp_path, "bracing_simulator", params))
     sim = _harness(isolated_env(), argv, ("motor_command", MotorCommand, FLOOD_QOS), ("joint_states", STREAM_QOS))
@@ -399,10 +418,7 @@ def test_100k_duplicate_names_on_motor_command_do_not_stall_the_simulator(
         sim.publisher.publish(bad)  # stamped 0: the state it waits on
         good = MotorCommand(mode=MotorCommand.VOLTAGE, name=JOINTS, value=known_command(0))
         sim.publisher.publish(good)
-        sent = time.monotonic()
         assert sim.peer.spin_until(lambda: any(stamp > 0 for _, stamp in sim.states), 10.0), sim.node.text()[-3000:]
-        arrived = next(t for t, stamp in sim.states if stamp > 0)
-        assert arrived - sent < bound_s
     finally:
         log = sim.close()
     refusal = "name: 100000 elements" if max_elements < HUGE else "duplicate joint names ['joint1']"

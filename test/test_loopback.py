@@ -1,4 +1,4 @@
-"""A run is reachable from this machine only (issue 29, item 8): every DDS socket of its processes is
+"""A run is reachable from this machine only: every DDS socket of its processes is
 on 127.0.0.1 (and shared memory), and a participant in another network namespace, joined to this
 one by a veth pair and told this machine's address there, can neither discover the run nor inject a
 command, while the run itself is unaffected. With ``--network`` the same participant does both

@@ -1,4 +1,4 @@
-"""Issue 29, item 3: what does not apply is null in summary.json and n/a in every table, figure and
+"""What does not apply is null in summary.json and n/a in every table, figure and
 comparison; titles name the scenario and cite the paper only for the paper's; comparisons divide by
 a stated baseline, never across input modes for energy, never by ~0.
 

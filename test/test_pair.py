@@ -140,8 +140,14 @@ def test_timeline_accounts_for_the_whole_run(paper_run: Path) -> None:
         "last file written",
     ]
     assert [at[what] for what in order] == sorted(at[what] for what in order), at
-    for what in ("simulator configured", "controller configured", "controller answering", "recorder ready"):
-        assert 0 < at[what] <= at["first step"] + 0.05, what  # the recorder may print after the match
+    # Bounds by cause, not by wall time (a busy machine may delay any process): the simulator steps once it
+    # has matched the controller's state subscription, made after the controller is configured; the controller
+    # says it answers before it takes a state (and the run ends on its answers); the recorder says it is
+    # ready once subscribed (the simulator waits for that match, not for the word) and before it closes the bag.
+    for what in ("simulator configured", "controller configured"):
+        assert 0 < at[what] <= at["first step"], what
+    assert 0 < at["controller answering"] < at["last step"]
+    assert 0 < at["recorder ready"] < at["recorder closed the bag"]
     drawn = {what for what in at if what.startswith("plot ") or what == "animation"}
     pngs = ("hand_y.png", "hand_z.png", "brace_y.png", "normal_force.png", "energy.png", "motor_temperature.png")
     assert drawn == {f"plot {png}" for png in pngs} | {"animation"}

@@ -1,4 +1,4 @@
-"""Issue 29, item 7: a gain changed while the controller runs leaves a trace in the bag (rclpy's
+"""A gain changed while the controller runs leaves a trace in the bag (rclpy's
 /parameter_events, the controller's event stamped with the run's sim time) and a vertical line on
 the report's figures.
 

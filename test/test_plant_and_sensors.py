@@ -1,5 +1,5 @@
 """A plant that differs from the controller's model, sensing as a real arm has it, force feedback and
-thermal compensation (issue 34; docs/model.md, Model error, sensing and force feedback).
+thermal compensation (docs/model.md, Model error, sensing and force feedback).
 
 Every knob is off by default and leaves every shipped scenario's numbers as they were, bit for bit
 (test/data/golden_defaults.json, written by tools/golden_defaults.py on the commit before them). The

@@ -1,4 +1,4 @@
-"""Scenario files and --set values read once, the way the nodes' rcl reads them (issue 29, item 1).
+"""Scenario files and --set values read once, the way the nodes' rcl reads them.
 
 rcl types YAML 1.1 scalars its own way (a bare y is true, 1e-3 a number) and refuses a list mixing
 types, an empty value, an alias; PyYAML did neither, so a scenario ran in process and killed both

@@ -1,4 +1,4 @@
-"""The README's and the docs' examples do what they say (issue 29, item 5): the nodes started by hand
+"""The README's and the docs' examples do what they say: the nodes started by hand
 (docs/tutorials/by-hand.md) run the duration their second params file gives (a ``-p duration:=2.0``
 ran the file's 10 s), in a domain of their own, recorded by the project's recorder; and ``make run``
 is told one way."""

@@ -1,4 +1,4 @@
-"""A real arm out of the box (issue 35): geared motors with stiff circuits at the default 1 ms step, a
+"""A real arm out of the box: geared motors with stiff circuits at the default 1 ms step, a
 voltage law that inverts the motor, and a null space that stays put.
 
 The geared arm is the paper's 4-link arm with small servo motors behind a 100:1 gear (K 0.1 N m/A,

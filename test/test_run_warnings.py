@@ -1,4 +1,4 @@
-"""Issue 29, item 4: silent nonsense is said, once, in the node's log and in summary.json's
+"""Silent nonsense is said, once, in the node's log and in summary.json's
 ``warnings``: a braced contact pushed with f_nd <= 0, a braced contact that lets go or is never
 reached, a target out of the arm's reach (before the run, from the kinematics), real-time stepping
 slower than real time. And bracing-sweep / bracing-study exit 1 when a run failed, 2 on a
@@ -188,7 +188,7 @@ def test_the_study_checks_the_task_rank_before_any_run_and_exits_1_when_a_run_fa
     assert "failed: DivergenceError" in (tmp_path / "failed" / "report.md").read_text()
 
 
-# --------------------------------------------------------------------------- issue 35: every simulator warning
+# --------------------------------------------------------------------------- every simulator warning
 # The simulator's warnings come from one policy (bracing_core.watch.RunWatch, in the node and in process) and
 # reach summary.json by one path: run_status -> the recorder's bag -> the summary (bracing-pair's and
 # bracing-report's alike). Each is forced below: in process for the policy, over DDS for the path.

@@ -1,4 +1,4 @@
-"""bracing-study robustness (issue 34): the paper scenario braced, passive and free under model error, real
+"""bracing-study robustness: the paper scenario braced, passive and free under model error, real
 sensing and command latency, one factor at a time, with the paper's law and with force feedback + thermal
 compensation; one report with a table and a figure per factor and one generated paragraph. Short runs (the
 full study's numbers are in docs/results/index.md); the nominal braced run is the plain paper run, bit for bit."""

@@ -81,7 +81,7 @@ def test_a_penetrating_start_is_still_refused() -> None:
         build_scenario({**UNILATERAL, "contacts.elbow.offset": 0.05}, with_controller=False)
 
 
-# -- a one-sided table starts on the table (issue 35) ------------------------------------------------
+# -- a one-sided table starts on the table ------------------------------------------------
 PROJECTED = {**UNILATERAL, "project_initial_position": True}
 
 

@@ -15,7 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def bench_targets() -> dict[str, str]:
-    """bench/run.py's ``TARGETS = {...}`` (issue 36's figure -> its target), read without importing the bench."""
+    """bench/run.py's ``TARGETS = {...}`` (a speed figure -> its target), read without importing the bench."""
     tree = ast.parse((ROOT / "bench" / "run.py").read_text())
     for node in ast.walk(tree):
         if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "TARGETS" for t in node.targets):
@@ -88,7 +88,7 @@ def headline_table(bench: dict[str, Any]) -> str:
 
 
 def targets_table(bench: dict[str, Any]) -> str:
-    """Issue 36's figures (``targets`` of the file) beside bench/run.py's targets."""
+    """The speed figures (``targets`` of the file) beside bench/run.py's targets."""
     targets = bench_targets()
     rows = [(f"`{key}`", _n(value), targets.get(key, "")) for key, value in bench["targets"].items()]
     return markdown_table(["figure (a ratio of this run's figures)", "this `make bench`", "target"], rows)

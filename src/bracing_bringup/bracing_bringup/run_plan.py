@@ -25,7 +25,7 @@ MUJOCO_NEEDS = {"command_output": "effort_forward", "input_mode": "torque"}
 PAIR_RECORD_BATCH = 100
 """States per record_batch the pair's nodes hand the recorder (``--set record_batch=0``: every topic
 subscribed one by one, as any rosbag2 recorder does). The recorder's share of a lockstep step of the
-paper arm fell from 31 % to 7.5 % (make bench, 2026-11-26: docs/results/performance.md)."""
+paper arm fell from 31 % to 7.5 % (make bench: docs/results/performance.md)."""
 
 
 @dataclass

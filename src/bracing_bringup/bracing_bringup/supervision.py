@@ -39,7 +39,7 @@ RECORDER_CLOSED = "recorder closed the bag"
 EARLY_DRAWING_MAX_S = 1.0
 """[s] of sim time: a run this short starts its drawing processes with its nodes, not at its end. Their
 ~0.8 s import would otherwise follow a stepping of a fraction of a second: a 0.01 s run's command took
-3.26 s instead of 4.04 (medians of 4 alternated, 2026-11-26, a loaded machine); a longer run's stepping
+3.26 s instead of 4.04 (medians of 4 alternated, a loaded machine); a longer run's stepping
 would share its cores with the import (10-15 % slower on a 4 s run)."""
 
 

@@ -299,7 +299,7 @@ def spin(node: ControllerNode) -> int:
         wait_for_outputs(node, executor)
         state_sub = node.listen()
         # The targets in the same wait: a wait of their own on every state cost ~15 % of the node's time
-        # (py-spy, 2026-11-26).
+        # (py-spy).
         commands = [node.cmd_vel_sub] if node.cmd_vel_sub is not None else []
         waiter = SubscriptionWaiter(node, [state_sub, *targets.subscriptions, *commands])
         node.log.info("answering joint_states")

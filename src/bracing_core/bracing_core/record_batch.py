@@ -1,7 +1,7 @@
 """Batches of a node's per-step messages for the recorder (``bracing_msgs/RecordBatch``), ROS-free.
 
 Why: a recorder that subscribes to every per-step topic costs the lockstep loop one DDS delivery
-per message to a third process, with its wake-ups on a two-core machine: measured (2026-11-26, paper
+per message to a third process, with its wake-ups on a two-core machine: measured (paper
 arm, 4 s runs) a subscriber that only took the messages and dropped them slowed the pair from 2.47x
 to 1.56x real time, as much as the recorder itself (1.85x), and one that woke only every 50 ms
 still to 1.73x. Handed over in batches, the recorder gets one sample per ``size`` states.

@@ -38,7 +38,7 @@ PROGRESS_PERIOD_S = 0.5
 """[s] wall between two progress lines (and run_status PROGRESS)."""
 WATCH_EVERY = 100
 """States handed to the run's watch at once: its checks are vectorised over states (the rollout hands it
-a whole run), and one state at a time cost the simulator node ~25 us a step (py-spy, 2026-11-26: 9 % of
+a whole run), and one state at a time cost the simulator node ~25 us a step (py-spy: 9 % of
 its samples). A warning comes at most this many states later, with the time it is about."""
 EFFORT_WAIT_S = 0.05
 """[s] wall: the longest a MuJoCo step waits for the controller's answer to the last state (``HeldEffort``)."""

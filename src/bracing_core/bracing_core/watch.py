@@ -16,8 +16,8 @@ warnings each feed gives, once each (texts: ``checks``):
   watchdog), and real-time stepping slower than asked (``real_time``).
 
 "Holds" is what the states say, not the events: a unilateral contact that touches down and lets go
-again within one step (a bounce) never held, so it is neither reached nor let go (the issue's arm
-touched down at 4.68 s and bounced: it was said to have let go, and never to have been reached).
+again within one step (a bounce) never held, so it is neither reached nor let go (an arm
+that touched down at 4.68 s and bounced: it was said to have let go, and never to have been reached).
 The node says each warning in its log and on run_status (``bracing_ros.status``), whence the recorder
 puts it in the bag and the summary takes it; ``rollout.run_recorded`` keeps them in the recording.
 """

@@ -1,7 +1,7 @@
 // Python bindings (nanobind: ~0.2 us a call, the lightest of the C++ binding libraries). Answers cross
 // as structures with named fields, copied once (so nothing Python keeps changes under it): their arrays
 // are views of that copy. Kinds (status, refusal, event, path) cross as enums. No packed form is kept:
-// against the former one flat array per answer (measured side by side, 2026-11-26, paper scenario, best
+// against the former one flat array per answer (measured side by side, paper scenario, best
 // of 3): Law.update 6.4 -> 5.0 us, Simulator.step 13.3 -> 12.0 us, the Python face's step 20.9 -> 21.5 us.
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>

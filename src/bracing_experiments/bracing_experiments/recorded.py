@@ -139,7 +139,7 @@ def render_table(table: dict[str, list[Any]]) -> str:
 
 
 def provenance_line(recorded: dict[str, Any]) -> str:
-    """``recorded 2026-11-27, commit abc1234, 2-core x86_64 (Python 3.11.7, pin 4.1.0, ...)``."""
+    """``recorded YYYY-MM-DD, commit abc1234, 2-core x86_64 (Python 3.11.7, pin 4.1.0, ...)``."""
     box = recorded["machine"]
     versions = ", ".join(f"{name} {version}" for name, version in box["versions"].items() if version)
     commit = recorded.get("commit") or "unknown"

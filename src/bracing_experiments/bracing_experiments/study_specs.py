@@ -37,9 +37,9 @@ FORCE_SCALES = (0.5, 1.0, 2.0)  # x the file's desired normal force
 REPORT = "report.md"
 ENERGY, HAND_RMS, HAND_MAX = "energy_consumed_j", "hand_rms_error_m", "hand_max_error_m"
 PAPER_SEARCH = ((0.0, 40.0), (0.35, 0.85))
-"""The paper arm's search (issue 28): f_nd [N] and the elbow target's y [m]."""
+"""The paper arm's search: f_nd [N] and the elbow target's y [m]."""
 PAPER_HAND_RMS_BOUND = 0.03
-"""[m] the paper arm's precision bound on the optimum (issue 28): hand RMS <= 30 mm."""
+"""[m] the paper arm's precision bound on the optimum: hand RMS <= 30 mm."""
 SEARCH_WIDEN = 5 / 3
 """Other scenarios: the target's search range is the grid's (start +- span) widened by this (the
 paper's 0.35-0.85 m is its start 0.588 m +- 0.25 m, 5/3 of the grid's 0.15 m), the force's 0 to

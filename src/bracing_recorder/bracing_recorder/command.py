@@ -31,7 +31,7 @@ MAX_SCENE_BACKLOG = 100_000
 lockstep run. Deriving cost ~150 us of CPU per state and, done beside the lockstep loop, slowed it
 by 20-30 %, so it waits for an idle moment or the end of the run unless the queue grows past this.
 (It now costs ~28 us, ~60 us with the writes, measured at the end of a run.) Derived as the batches come
-instead (2026-11-26, 8 s paper runs, four of each alternately) the loop ran 5 % slower (2.39 -> 2.27x real
+instead (8 s paper runs, four of each alternately) the loop ran 5 % slower (2.39 -> 2.27x real
 time; the two nodes alone 2.61x) for a bag closed ~0.4 s sooner after a 10 s run: the recorder's share of a
 step stays under 10 % this way."""
 

@@ -48,8 +48,8 @@ template's check and rosbags: 9.7 us a JointState, 7.4 a MotorCommand (the hand-
 reader: 10.5, 8.0). rosbags costs at most ~7 us a message more than a template for the
 simulator's four reports (+18 us a step), under the ~15 us a message past which a derived
 template would be used for them too; and they go out after the step's JointState, not before
-it. The controller's ControllerState took a template (2026-11-26): its ~8 us saved on every
-state leave the controller's callback as short as it can be (make bench's callback p50, issue 36).
+it. The controller's ControllerState took a template: its ~8 us saved on every
+state leave the controller's callback as short as it can be (make bench's callback p50).
 
 The bytes are what rclpy itself produces: plain CDR (XCDR1) with the little-endian
 encapsulation header, alignment relative to the end of that header. The tests check every
