@@ -189,7 +189,7 @@ def test_retune_applies_gains_forces_and_voltage_gain_from_the_next_update() -> 
     retuned.retune(new)
     after, expected = retuned.update(0.2, q, dq), fresh.update(0.2, q, dq)
     np.testing.assert_array_equal(after.command, expected.command)
-    np.testing.assert_array_equal(after.desired_normal_force, [4.0])
+    np.testing.assert_array_equal(retuned.desired_normal_force, [4.0])
     assert not np.allclose(before, after.command)
 
 
