@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 import bracing_engine as engine
+from bracing_core import schema
 from bracing_core.checks import configuration_warnings
 from bracing_core.config import Plant, SimulatorConfig, build_simulator
 from bracing_core.controller_config import ControllerConfig
@@ -65,11 +66,20 @@ def build_scenario_from_params(
     sim_params: Mapping[str, Any], ctl_params: Mapping[str, Any] | None, search: list[Path] | None = None
 ) -> Scenario:
     """The scenario from each node's complete flat parameters (what a sweep worker receives)."""
-    sim_config = SimulatorConfig.from_params(sim_params, search or [])
+    sim_values = schema.read("simulator", sim_params)
+    ctl_values = schema.read("controller", ctl_params) if ctl_params is not None else None
+    return build_scenario_from_values(sim_values, ctl_values, search)
+
+
+def build_scenario_from_values(
+    sim_values: schema.Values, ctl_values: schema.Values | None, search: list[Path] | None = None
+) -> Scenario:
+    """The scenario from each node's typed values (``schema.read``; a run's plan holds them)."""
+    sim_config = SimulatorConfig.from_values(sim_values, search or [])
     plant, simulator = build_simulator(sim_config)
     controller = None
-    if ctl_params is not None:
-        controller = DecoupledController(ControllerConfig.from_params(ctl_params, search or []))
+    if ctl_values is not None:
+        controller = DecoupledController(ControllerConfig.from_values(ctl_values, search or []))
         controller.check_task_rank(simulator.position)  # its own law's: one model built, not two
     return Scenario(plant, simulator, controller, sim_config)
 
