@@ -21,6 +21,8 @@ from bracing_core.rcl_yaml import load_params_file
 from bracing_core.rollout import build_scenario_from_params
 from bracing_recorder.bag_notes import bag_notes, bag_notes_of_values
 
+_KINDS = {SIMULATOR: "simulator", CONTROLLER: "controller"}
+
 
 class Reads:
     """How often a params file is parsed and a node's parameters are read into typed values."""
@@ -88,9 +90,6 @@ def test_the_plans_values_are_what_the_nodes_params_file_gives_them(tmp_path: Pa
         from_file = bag_notes([str(params_file)], "paper_4link", ground_truth)
         from_plan = bag_notes_of_values(plan.sim_values, plan.ctl_values, "paper_4link", ground_truth, plan.search)
         assert from_plan == from_file
-
-
-_KINDS = {SIMULATOR: "simulator", CONTROLLER: "controller"}
 
 
 def test_fed_back_contacts_are_those_with_a_force_gain(tmp_path: Path) -> None:

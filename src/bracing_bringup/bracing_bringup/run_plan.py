@@ -1,6 +1,6 @@
 """A run's plan: what bracing-pair and the launch file start, from the scenario file, ``--set`` and the
 flags (``RunOptions``), checked against the schemas before any process starts: every node's parameters
-(written to DIR/params.yaml), their typed values (read once: what the run's consumers take) and the
+(written to DIR/params.yaml), their typed values (read here: what the run's consumers take) and the
 processes (``RunPlan``, ``plan_run``); the configurations' own checks (``check_configs``)."""
 
 from __future__ import annotations
@@ -114,7 +114,7 @@ class RunProcess:
 @dataclass(frozen=True)
 class RunPlan:
     """What a run starts, from (scenario file, --set overrides, flags), checked against the schemas
-    (names, types, bounds): every node's parameters and the processes. No file is written."""
+    (names, types, bounds): every node's parameters, typed and flat, and the processes. No file is written."""
 
     options: RunOptions
     sim_values: schema.Values  # the simulator's typed parameters: what DIR/params.yaml gives it
@@ -172,7 +172,7 @@ def plan_run(options: RunOptions) -> RunPlan:
     """The one way a run's parameters are assembled for its nodes (bracing-pair, the launch file):
     the scenario file, then ``--set``, then the flags, then what the pair needs (``overrides``).
     The configurations' own checks (pinocchio's imports, ~0.25 s) are ``check_configs``'.
-    Each node's typed values are read from the parameters its params file will hold, once; every
+    Each node's typed values are read here, from the parameters its params file will hold; every
     consumer of the run (checks, diagnosis, bag notes, report) takes them from the plan."""
     search = [options.config.parent]
     given = node_params(options.config, command_line(options))  # the scenario file, parsed once
