@@ -8,13 +8,16 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bracing_core import rcl_yaml, schema
 from bracing_core.overrides import CONTROLLER, SIMULATOR, node_params, with_layers
 from bracing_core.params import resolve_file
 from bracing_core.sensing import SensorConfig
 from bracing_core.variants import variant_overrides
+
+if TYPE_CHECKING:
+    from bracing_core.schema.typed_values import ControllerValues, SimulatorValues
 
 PARAMS_FILE = "params.yaml"
 """DIR/params.yaml: every parameter each node ran with (``bracing-simulator --ros-args --params-file``
@@ -117,8 +120,8 @@ class RunPlan:
     (names, types, bounds): every node's parameters, typed and flat, and the processes. No file is written."""
 
     options: RunOptions
-    sim_values: schema.Values  # the simulator's typed parameters: what DIR/params.yaml gives it
-    ctl_values: schema.Values  # the controller's
+    sim_values: schema.Values[SimulatorValues]  # the simulator's typed parameters: what DIR/params.yaml gives it
+    ctl_values: schema.Values[ControllerValues]  # the controller's
     node_params: dict[str, dict[str, Any]]  # each node's complete parameters (DIR/params.yaml)
     duration: float  # [s] of sim time
     expected_states: int  # lockstep: the states the recorder waits for before it closes the bag (0: any)

@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -31,6 +31,9 @@ from bracing_core.link_penetration import LinkPenetration
 from bracing_core.overrides import CONTROLLER, SIMULATOR, NodeOverrides, node_params
 from bracing_core.simulator import Energy, Simulator
 from bracing_core.watch import RunWatch
+
+if TYPE_CHECKING:
+    from bracing_core.schema.typed_values import ControllerValues, SimulatorValues
 
 Overrides = Mapping[str, Any] | None
 
@@ -72,7 +75,9 @@ def build_scenario_from_params(
 
 
 def build_scenario_from_values(
-    sim_values: schema.Values, ctl_values: schema.Values | None, search: list[Path] | None = None
+    sim_values: schema.Values[SimulatorValues],
+    ctl_values: schema.Values[ControllerValues] | None,
+    search: list[Path] | None = None,
 ) -> Scenario:
     """The scenario from each node's typed values (``schema.read``; a run's plan holds them)."""
     sim_config = SimulatorConfig.from_values(sim_values, search or [])
