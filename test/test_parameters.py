@@ -26,6 +26,7 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 SRC = REPO_ROOT / "src"
 sys.path.insert(0, str(REPO_ROOT / "tools"))
 import docs_reference  # noqa: E402  (tools/ is no package)
+import values_stubs  # noqa: E402
 
 NODE_PACKAGES = ("bracing_sim", "bracing_controller", "bracing_mujoco", "bracing_recorder")
 
@@ -167,6 +168,17 @@ def test_adding_a_parameter_is_one_entry() -> None:
     values = schema.build(kind, flat)
     assert values.hand.grip.width == 0.07 and values.grip_topic == "grip"
     assert values.hand.frame == flat["hand.frame"]
+
+
+def test_the_values_stub_mypy_reads_is_the_schemas() -> None:
+    """schema/typed_values.pyi declares every derived class with its fields' types (mypy checks their uses)."""
+    assert values_stubs.STUB.read_text() == values_stubs.stub_text(), "stale: run python tools/values_stubs.py"
+    stub = values_stubs.STUB.read_text()
+    assert "class SimulatorValuesRobot(Section):\n    urdf: str\n" in stub
+    assert "class ContactValuesForceFeedback(Section):\n    kp: float\n" in stub
+    declared = stub.count("\n    ")
+    derived = sum(len(schema.flat_names(kind)) for kind in (*schema.NODE_VALUES.values(), schema.CONTACT_VALUES))
+    assert declared >= derived  # every leaf, plus a field per group
 
 
 def test_retune_applies_gains_forces_and_voltage_gain_from_the_next_update() -> None:

@@ -81,7 +81,11 @@ def read_scenario(files: Sequence[str | Path]) -> dict[str, Shape]:
     params: dict[str, Any] = {}
     for file in files:
         params.update(load_params_file(file, SIMULATOR))
-    values = schema.read("simulator", params)
+    return shapes_from_values(schema.read("simulator", params))
+
+
+def shapes_from_values(values: schema.Values) -> dict[str, Shape]:
+    """Every contact's surface from the simulator's typed values (``schema.read``)."""
     return {name: shape_from_values(own) for name, own in values.contacts.items()}
 
 

@@ -48,7 +48,11 @@ def read_task_notes(files: Sequence[str | Path], ground_truth: bool) -> dict[str
     params: dict[str, Any] = {}
     for file in files:
         params.update(load_params_file(file, CONTROLLER))
-    values = schema.read("controller", params)
+    return task_notes_from_values(schema.read("controller", params), ground_truth)
+
+
+def task_notes_from_values(values: schema.Values, ground_truth: bool) -> dict[str, str]:
+    """``read_task_notes`` of the controller's typed values (``schema.read``)."""
     given = values.params
     braced = {name: own for name, own in values.contacts.items() if own.desired_normal_force is not None}
     frames = {HAND: given.hand.frame, "braces": {name: own.frame for name, own in braced.items()}}
@@ -69,12 +73,18 @@ def read_command_limits(files: Sequence[str | Path]) -> dict[str, float]:
     params: dict[str, Any] = {}
     for file in files:
         params.update(load_params_file(file, SIMULATOR))
-    given = schema.read("simulator", params).params
+    return command_limits_from_values(schema.read("simulator", params), [Path(f).resolve().parent for f in files])
+
+
+def command_limits_from_values(values: schema.Values, search_dirs: Sequence[Path]) -> dict[str, float]:
+    """``read_command_limits`` of the simulator's typed values (``schema.read``; a relative URDF looked up in
+    ``search_dirs``). Raises ConfigError, OSError."""
+    given = values.params
     names = list(given.robot.joint_names)
     if given.input_mode == "voltage":
         return dict.fromkeys(names, float(given.motors.voltage_limit))
     if given.motors.torque_limit_from_urdf:
-        urdf = resolve_file(given.robot.urdf, "robot.urdf", [Path(f).resolve().parent for f in files])
+        urdf = resolve_file(given.robot.urdf, "robot.urdf", search_dirs)
         try:
             joints = list(ET.parse(urdf).getroot().iter("joint"))
             efforts = {

@@ -1,20 +1,23 @@
 """A run's plan: what bracing-pair and the launch file start, from the scenario file, ``--set`` and the
 flags (``RunOptions``), checked against the schemas before any process starts: every node's parameters
-(written to DIR/params.yaml) and the processes (``RunPlan``, ``plan_run``); the configurations' own
-checks (``check_configs``)."""
+(written to DIR/params.yaml), their typed values (read here: what the run's consumers take) and the
+processes (``RunPlan``, ``plan_run``); the configurations' own checks (``check_configs``)."""
 
 from __future__ import annotations
 
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bracing_core import rcl_yaml, schema
 from bracing_core.overrides import CONTROLLER, SIMULATOR, node_params, with_layers
 from bracing_core.params import resolve_file
 from bracing_core.sensing import SensorConfig
 from bracing_core.variants import variant_overrides
+
+if TYPE_CHECKING:
+    from bracing_core.schema.typed_values import ControllerValues, SimulatorValues
 
 PARAMS_FILE = "params.yaml"
 """DIR/params.yaml: every parameter each node ran with (``bracing-simulator --ros-args --params-file``
@@ -114,10 +117,11 @@ class RunProcess:
 @dataclass(frozen=True)
 class RunPlan:
     """What a run starts, from (scenario file, --set overrides, flags), checked against the schemas
-    (names, types, bounds): every node's parameters and the processes. No file is written."""
+    (names, types, bounds): every node's parameters, typed and flat, and the processes. No file is written."""
 
     options: RunOptions
-    sim_values: schema.Values
+    sim_values: schema.Values[SimulatorValues]  # the simulator's typed parameters: what DIR/params.yaml gives it
+    ctl_values: schema.Values[ControllerValues]  # the controller's
     node_params: dict[str, dict[str, Any]]  # each node's complete parameters (DIR/params.yaml)
     duration: float  # [s] of sim time
     expected_states: int  # lockstep: the states the recorder waits for before it closes the bag (0: any)
@@ -144,7 +148,7 @@ class RunPlan:
         recorder += ["--niceness", "10"]  # the lockstep loop comes first
         recorder += ["--drain-idle", "0.05"]  # stopped only after the nodes' last messages are acknowledged
         recorder += ["--params-file", params_file, "--scenario", self.options.config.stem]  # surfaces, name
-        recorder += ["--from-batches"] if self.node_params[SIMULATOR].get("record_batch", 0) else []
+        recorder += ["--from-batches"] if self.sim_values.params.record_batch else []
         if self.expected_states:
             recorder += ["--expect-states", str(self.expected_states)]  # it closes the bag once it has them all
         nodes = ("--params-file", params_file)
@@ -170,12 +174,15 @@ class RunPlan:
 def plan_run(options: RunOptions) -> RunPlan:
     """The one way a run's parameters are assembled for its nodes (bracing-pair, the launch file):
     the scenario file, then ``--set``, then the flags, then what the pair needs (``overrides``).
-    The configurations' own checks (pinocchio's imports, ~0.25 s) are ``check_configs``'."""
+    The configurations' own checks (pinocchio's imports, ~0.25 s) are ``check_configs``'.
+    Each node's typed values are read here, from the parameters its params file will hold; every
+    consumer of the run (checks, diagnosis, bag notes, report) takes them from the plan."""
     search = [options.config.parent]
-    given = node_params(options.config, command_line(options))
-    sim_values = schema.read("simulator", given[SIMULATOR])
-    schema.read("controller", given[CONTROLLER])  # refused here, before any process starts
-    sim = sim_values.params
+    given = node_params(options.config, command_line(options))  # the scenario file, parsed once
+    # The scenario and the command line checked as given (refused here, before any process starts),
+    # a value the pair overrides below too.
+    sim = schema.read("simulator", given[SIMULATOR]).params
+    schema.read("controller", given[CONTROLLER])
     urdf = resolve_file(sim.robot.urdf, "robot.urdf", search)
     duration = options.duration if options.duration is not None else float(sim.duration)
     step = float(sim.step)
@@ -186,7 +193,8 @@ def plan_run(options: RunOptions) -> RunPlan:
     # wait_for_recorder). MuJoCo's robot publishes no batches: its recorder subscribes to each topic.
     record_batch = 0 if options.engine == MUJOCO else int(options.parameters.get("record_batch", PAIR_RECORD_BATCH))
     every = with_layers(given, pair_needs(options, urdf, record_batch))
-    return RunPlan(options, sim_values, every, duration, expected_states)
+    sim_values, ctl_values = schema.read("simulator", every[SIMULATOR]), schema.read("controller", every[CONTROLLER])
+    return RunPlan(options, sim_values, ctl_values, every, duration, expected_states)
 
 
 def check_configs(plan: RunPlan) -> list[str]:
@@ -195,8 +203,8 @@ def check_configs(plan: RunPlan) -> list[str]:
     before the run leaves a bag behind. The targets out of the arm's reach: warnings, as the
     controller logs them (the summary's)."""
     from bracing_core.checks import reach_warnings
-    from bracing_core.rollout import build_scenario_from_params
+    from bracing_core.rollout import build_scenario_from_values
 
-    scenario = build_scenario_from_params(plan.node_params[SIMULATOR], plan.node_params[CONTROLLER], plan.search)
+    scenario = build_scenario_from_values(plan.sim_values, plan.ctl_values, plan.search)
     assert scenario.controller is not None  # built with the controller's parameters
     return reach_warnings(scenario.controller.config, scenario.controller.plant)

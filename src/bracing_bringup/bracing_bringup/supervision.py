@@ -23,7 +23,6 @@ from bracing_bringup.processes import Interrupted, Pair, environment
 from bracing_bringup.run_plan import PARAMS_FILE, RunOptions, RunPlan, check_configs, plan_run, write_params
 from bracing_bringup.timeline import BAG_CLOSED, FIRST_STEP, LAST_FILE, LAST_STEP, TIMELINE_FILE, Timeline
 from bracing_core.failures import DIVERGED, EXIT_DIVERGED
-from bracing_core.overrides import CONTROLLER, SIMULATOR
 from bracing_core.params import ConfigError
 from bracing_recorder.topics import missing_from_counts
 from bracing_view.viewurl import free_ports, view_url, wait_for_port
@@ -328,13 +327,14 @@ def _recover_recording(
     out = plan.options.output
     if pair.timeline.at("simulator stepping") is None or not cut_files(out / "bag"):
         return None
-    from bracing_recorder.bag_notes import bag_notes
+    from bracing_recorder.bag_notes import bag_notes_of_values
 
     said = f"the recorder {_recorder_end(pair.exit_code('recorder'))}"
     if outcome.failed == "recorder":  # said here, with what became of the bag
         message = message.split("\n", 1)[1] if "\n" in message else ""
     try:
-        notes = bag_notes([str(out / PARAMS_FILE)], plan.options.config.stem, plan.ground_truth)
+        scenario, truth = plan.options.config.stem, plan.ground_truth
+        notes = bag_notes_of_values(plan.sim_values, plan.ctl_values, scenario, truth, plan.search)
         recovered = recover_bag(out / "bag", notes)
     except RecoveryError as exc:
         return None, f"error: {said}; the recording is lost: {exc}\n{message}".rstrip("\n")
@@ -416,9 +416,9 @@ def diagnose_pair(plan: RunPlan, series: Any, reason: str, warnings: list[str]) 
     import numpy as np
 
     from bracing_core.failures import History, diagnose
-    from bracing_core.rollout import build_scenario_from_params
+    from bracing_core.rollout import build_scenario_from_values
 
-    scenario = build_scenario_from_params(plan.node_params[SIMULATOR], plan.node_params[CONTROLLER], plan.search)
+    scenario = build_scenario_from_values(plan.sim_values, plan.ctl_values, plan.search)
     assert scenario.controller is not None
     names = list(scenario.plant.joint_names)
     columns = [series.joint_names.index(name) for name in names] if series.joint_t.size else []
@@ -477,7 +477,7 @@ def _draw(
         mark=timeline.mark,
         warnings=warnings,
         outcome=outcome,
-        fed_back=fed_back(plan.node_params[CONTROLLER]),
+        fed_back=fed_back(plan.ctl_values),
     )
     timeline.mark(LAST_FILE)
     return summary

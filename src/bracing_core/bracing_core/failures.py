@@ -21,15 +21,16 @@ recording) both ask ``diagnose``, so both say the same.
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 if TYPE_CHECKING:
     from bracing_core.config import Plant
     from bracing_core.controller_config import ControllerConfig
+    from bracing_core.schema import Values
 
 RUNAWAY_WINDOW_S = 0.05
 """[s] of sim time before the failure over which a joint's speed growth is measured."""
@@ -179,11 +180,9 @@ def _hint_from_warnings(warnings: Sequence[str], fed_back: Sequence[str]) -> tup
     return None
 
 
-def fed_back(params: Mapping[str, Any]) -> list[str]:
-    """The braced contacts whose normal force is fed back, from the controller's flat parameters."""
-    names = params.get("contacts.names") or []
-    gains = ("force_feedback.kp", "force_feedback.ki")
-    return [name for name in names if any(params.get(f"contacts.{name}.{gain}") for gain in gains)]
+def fed_back(values: Values) -> list[str]:
+    """The braced contacts whose normal force is fed back, from the controller's typed values (``schema.read``)."""
+    return [name for name, own in values.contacts.items() if own.force_feedback.kp or own.force_feedback.ki]
 
 
 def fed_back_contacts(config: ControllerConfig) -> list[str]:

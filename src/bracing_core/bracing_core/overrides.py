@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 from bracing_core import rcl_yaml, schema
 from bracing_core.params import ConfigError
-from bracing_core.rcl_yaml import load_params_file
+from bracing_core.rcl_yaml import load_nodes_params
 
 if TYPE_CHECKING:
     from bracing_core.config import SimulatorConfig
@@ -124,7 +124,7 @@ def node_params(config: str | Path, *layers: NodeOverrides | Mapping[str, Any]) 
     studies, the optimiser): each node's complete flat parameters, by node name, from the scenario
     file, then each layer in order (a later one wins). A layer is flat names, routed here to their
     node (``route``: ConfigError for an unknown name), or a ``NodeOverrides`` routed already."""
-    return with_layers({node: load_params_file(config, node) for node in (SIMULATOR, CONTROLLER)}, *layers)
+    return with_layers(load_nodes_params(config, (SIMULATOR, CONTROLLER)), *layers)
 
 
 def with_layers(

@@ -210,6 +210,11 @@ def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Leaf]:
 def node_sections(path: Path, node_name: str) -> dict[str, Leaf]:
     """What a node named ``node_name`` gets from a params file: the ``/**`` and ``<node_name>``
     (or ``/<node_name>``) sections, merged in file order as rcl does, as rcl reads them."""
+    return sections_of(params_document(path), path, node_name)
+
+
+def params_document(path: Path) -> dict[str, Any]:
+    """A params file read and parsed (once, whatever number of nodes it is for): its node sections."""
     try:
         text = path.read_text()
     except FileNotFoundError:
@@ -219,6 +224,11 @@ def node_sections(path: Path, node_name: str) -> dict[str, Leaf]:
     document = read_document(text, str(path))
     if not isinstance(document, dict):
         raise ConfigError(f"params file {path}: expected a mapping of node sections")
+    return document
+
+
+def sections_of(document: Mapping[str, Any], path: Path, node_name: str) -> dict[str, Leaf]:
+    """``node_sections`` of a params file parsed already (``params_document``)."""
     params: dict[str, Leaf] = {}
     for section, body in document.items():
         if section in ("/**", node_name, "/" + node_name):
@@ -371,5 +381,11 @@ def load_params_file(path: str | Path, node_name: str) -> dict[str, Any]:
     order, as rcl does. Values are read as the node's rcl reads them and given the meaning the
     user wrote (``rcl_yaml``): every reader of a scenario file sees what the nodes will.
     """
+    return load_nodes_params(path, [node_name])[node_name]
+
+
+def load_nodes_params(path: str | Path, node_names: Sequence[str]) -> dict[str, dict[str, Any]]:
+    """``load_params_file`` for each of ``node_names``, the file read and parsed once."""
     path = Path(path)
-    return conform_all(node_sections(path, node_name), str(path))
+    document = params_document(path)
+    return {node: conform_all(sections_of(document, path, node), str(path)) for node in node_names}

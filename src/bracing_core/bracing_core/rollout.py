@@ -16,11 +16,12 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 import bracing_engine as engine
+from bracing_core import schema
 from bracing_core.checks import configuration_warnings
 from bracing_core.config import Plant, SimulatorConfig, build_simulator
 from bracing_core.controller_config import ControllerConfig
@@ -30,6 +31,9 @@ from bracing_core.link_penetration import LinkPenetration
 from bracing_core.overrides import CONTROLLER, SIMULATOR, NodeOverrides, node_params
 from bracing_core.simulator import Energy, Simulator
 from bracing_core.watch import RunWatch
+
+if TYPE_CHECKING:
+    from bracing_core.schema.typed_values import ControllerValues, SimulatorValues
 
 Overrides = Mapping[str, Any] | None
 
@@ -65,11 +69,22 @@ def build_scenario_from_params(
     sim_params: Mapping[str, Any], ctl_params: Mapping[str, Any] | None, search: list[Path] | None = None
 ) -> Scenario:
     """The scenario from each node's complete flat parameters (what a sweep worker receives)."""
-    sim_config = SimulatorConfig.from_params(sim_params, search or [])
+    sim_values = schema.read("simulator", sim_params)
+    ctl_values = schema.read("controller", ctl_params) if ctl_params is not None else None
+    return build_scenario_from_values(sim_values, ctl_values, search)
+
+
+def build_scenario_from_values(
+    sim_values: schema.Values[SimulatorValues],
+    ctl_values: schema.Values[ControllerValues] | None,
+    search: list[Path] | None = None,
+) -> Scenario:
+    """The scenario from each node's typed values (``schema.read``; a run's plan holds them)."""
+    sim_config = SimulatorConfig.from_values(sim_values, search or [])
     plant, simulator = build_simulator(sim_config)
     controller = None
-    if ctl_params is not None:
-        controller = DecoupledController(ControllerConfig.from_params(ctl_params, search or []))
+    if ctl_values is not None:
+        controller = DecoupledController(ControllerConfig.from_values(ctl_values, search or []))
         controller.check_task_rank(simulator.position)  # its own law's: one model built, not two
     return Scenario(plant, simulator, controller, sim_config)
 

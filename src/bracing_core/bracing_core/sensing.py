@@ -15,6 +15,7 @@ from bracing_core.schema import Values
 
 if TYPE_CHECKING:
     import bracing_engine as engine
+    from bracing_core.schema.typed_values import SimulatorValues
 
 
 @dataclass(frozen=True)
@@ -56,7 +57,7 @@ class SensorConfig:
     command_latency_steps: int = 0
 
     @classmethod
-    def from_values(cls, values: Values) -> SensorConfig:
+    def from_values(cls, values: Values[SimulatorValues]) -> SensorConfig:
         """From the simulator's schema values (``schema.read``)."""
         return cls(**schema.fields_of(values.params.sensors))
 

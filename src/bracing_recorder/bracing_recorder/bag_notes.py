@@ -10,6 +10,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from bracing_analysis import surfaces, truth
+from bracing_core import schema
 
 
 def scenario_surfaces(files: Sequence[str]) -> dict[str, surfaces.Shape]:
@@ -53,6 +54,21 @@ def bag_notes(params_files: Sequence[str], scenario: str | None, ground_truth: b
     return {**notes, **command_limit_notes(params_files)}
 
 
+def bag_notes_of_values(
+    sim_values: schema.Values, ctl_values: schema.Values, scenario: str, ground_truth: bool, search: Sequence[Path]
+) -> dict[str, str]:
+    """``bag_notes`` of the nodes' typed values read already (a run's plan holds them: the values of its params
+    file): the same notes, nothing read again."""
+    notes = {**scene_notes(scenario, surfaces.shapes_from_values(sim_values))}
+    notes |= truth.task_notes_from_values(ctl_values, ground_truth)
+    try:
+        limits = truth.command_limits_from_values(sim_values, search)
+    except (ValueError, OSError) as exc:  # an unreadable URDF: the nodes said so too
+        print(f"recorder: warning: no command limits: {exc}", file=sys.stderr, flush=True)
+        return notes
+    return {**notes, **limit_notes(limits)}
+
+
 def command_limit_notes(files: Sequence[str]) -> dict[str, str]:
     """The motors' |command| saturation by joint (truth.read_command_limits), where a joint has one, as the
     bag's custom_data (summary.json's saturation_fraction); none if unreadable."""
@@ -63,6 +79,11 @@ def command_limit_notes(files: Sequence[str]) -> dict[str, str]:
     except (ValueError, OSError) as exc:  # ConfigError, an unreadable URDF: the nodes will say so too
         print(f"recorder: warning: no command limits from {', '.join(files)}: {exc}", file=sys.stderr, flush=True)
         return {}
+    return limit_notes(limits)
+
+
+def limit_notes(limits: Mapping[str, float]) -> dict[str, str]:
+    """The motors' |command| saturation by joint as the bag's custom_data; none where no joint has one."""
     if not any(limit > 0.0 for limit in limits.values()):
         return {}
     return {truth.COMMAND_LIMIT_KEY: json.dumps(limits, sort_keys=True)}

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, Generic, Literal, TypeVar, overload
 
 from bracing_core.numbers import number
 from bracing_core.params import ConfigError, Params
@@ -15,6 +15,11 @@ from bracing_core.schema.param import ABSENT, REQUIRED, Kind, Param, PerJoint
 from bracing_core.schema.shared import SHARED
 from bracing_core.schema.simulator import SIMULATOR
 from bracing_core.schema.typed import Section, build, fields_of, lookup, section_class
+
+if TYPE_CHECKING:  # the classes as mypy sees them (tools/values_stubs.py writes them from the schema)
+    from bracing_core.schema.typed_values import ContactValues, ControllerValues, SimulatorValues
+
+P = TypeVar("P", bound=Section)
 
 NODE_PARAMETERS: dict[str, tuple[Param, ...]] = {"simulator": SIMULATOR, "controller": CONTROLLER}
 
@@ -222,13 +227,13 @@ CONTACT_VALUES = section_class("ContactValues", CONTACT)
 
 
 @dataclass(frozen=True)
-class Values:
+class Values(Generic[P]):
     """What :func:`read` gives: the node's parameters typed (``values.params.robot.urdf``), and each contact's
     (``values.contacts[name].frame``), in contacts.names order."""
 
     node: str
-    params: Section  # a NODE_VALUES[node]
-    contacts: dict[str, Section]  # CONTACT_VALUES per contact name
+    params: P  # a NODE_VALUES[node]
+    contacts: dict[str, ContactValues]  # CONTACT_VALUES per contact name
 
     def flat(self) -> list[tuple[str, Param, Any]]:
         """Every parameter the node declares: its flat ROS name, its Param and its read value."""
@@ -251,7 +256,13 @@ def contact_values(own: Mapping[str, Any]) -> Section:
     return build(CONTACT_VALUES, unread | dict(own))
 
 
-def read(node: str, params: Params) -> Values:
+@overload
+def read(node: Literal["simulator"], params: Params) -> Values[SimulatorValues]: ...
+@overload
+def read(node: Literal["controller"], params: Params) -> Values[ControllerValues]: ...
+@overload
+def read(node: str, params: Params) -> Values[Any]: ...
+def read(node: str, params: Params) -> Values[Any]:
     """Validate ``node``'s flat parameters against its schema: unknown names, types, bounds,
     lengths. Each ConfigError names the parameter."""
     schema, fields = node_schema(node), contact_fields(node)
@@ -260,7 +271,7 @@ def read(node: str, params: Params) -> Values:
     for param in schema:
         values[param.name] = read_value(param, param.name, params, values)
     typed = build(NODE_VALUES[node], values)
-    contacts: dict[str, Section] = {}
+    contacts: dict[str, Any] = {}
     for contact in typed.contacts.names:
         own: dict[str, Any] = {}
         for field in fields:
