@@ -8,7 +8,7 @@ of the step, which is what the simulator reports for that step (forces, effort).
 The stepping runs in the compiled engine (``bracing_engine.Simulator``): the four stages,
 the energy integrals, unilateral contacts releasing at a step's start and landing at its
 end (inelastic impact), the joint-limit stop and the divergence check. This class checks
-the input, raises the errors and turns the engine's answers into Python objects.
+the input and raises the errors; its answers are the engine's ``Answer``.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import bracing_engine as engine
-from bracing_core.dynamics import ConstrainedDynamics, Derivative, derivative_of
+from bracing_core.dynamics import ConstrainedDynamics
 from bracing_core.types import Vector
 
 ENERGY_KEYS = tuple(slot.name for slot in engine.EnergySlot)
@@ -179,24 +179,12 @@ class Simulator:
         return np.array(self.engine.modes.sticking, dtype=bool)
 
     # -- model answers ----------------------------------------------------------------
-    def evaluate(self, command: Vector) -> Derivative:
+    def evaluate(self, command: Vector) -> engine.Answer:
         """The model at the current state under ``command`` (no time passes)."""
-        return self.derivative(self._evaluate(command))
-
-    def effort(self, command: Vector) -> Vector:
-        """``evaluate(command).effort`` without the rest of the answer as Python objects (~8 us less a
-        call: the lockstep simulator's JointState.effort, on its critical path)."""
-        return self._evaluate(command).effort
-
-    def _evaluate(self, command: Vector) -> engine.Answer:
         try:
             return self.engine.evaluate(np.asarray(command, dtype=float))
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
-
-    def derivative(self, answer: engine.Answer) -> Derivative:
-        """The engine's answer (``step_answer``'s, ``evaluate``'s) as a Derivative of this model's contacts."""
-        return derivative_of(answer, self.dynamics.contacts)
 
     # -- checkpoints --------------------------------------------------------------------
     def checkpoint(self) -> Checkpoint:
@@ -213,18 +201,13 @@ class Simulator:
         self.engine.set_modes(checkpoint.modes)
 
     # -- integration ------------------------------------------------------------------
-    def step(self, command: Vector) -> Derivative:
+    def step(self, command: Vector) -> engine.Answer:
         """Advance one step with ``command`` held (zero-order hold); RK4 per sub-step.
 
         Returns the model's answer at the start of the step. Raises ValueError for a
         command of the wrong shape or with non-finite values, DivergenceError if the new
         state is not finite; in both cases the state is unchanged.
         """
-        return self.derivative(self.step_answer(command))
-
-    def step_answer(self, command: Vector) -> engine.Answer:
-        """``step``, its answer as the engine gives it (``derivative`` turns it into a Derivative later:
-        the lockstep simulator sends the next state first)."""
         u = np.asarray(command, dtype=float)
         # A finite u . u means every entry is finite; otherwise check exactly (u . u may overflow).
         if u.shape != (self.n,) or (not math.isfinite(u.dot(u)) and not np.isfinite(u).all()):

@@ -253,28 +253,29 @@ void bind_drive(nb::module_& m) {
 // The model's answer (Dynamics.evaluate, Simulator.step), every array a view of one copy.
 void bind_answer(nb::module_& m) {
   nb::class_<ModalAnswer>(m, "Answer")
-      .def_ro("ddq", &Answer::ddq)
-      .def_ro("di", &Answer::di, "(zeros in torque mode)")
-      .def_ro("force", &Answer::force, "f_n per contact [N] (zero where not held)")
-      .def_ro("effort", &Answer::effort)
+      .def_ro("acceleration", &Answer::ddq, "ddq [rad/s^2 or m/s^2]")
+      .def_ro("current_rate", &Answer::di, "di/dt [A/s] (zeros in torque mode)")
+      .def_ro("normal_force", &Answer::force, "f_n per contact [N], on the robot along +normal (zero where not held)")
+      .def_ro("effort", &Answer::effort, "the link-side motor torque tau [N m]")
       .def_ro("friction_power", &Answer::friction_power)
       .def_ro("constraint_power", &Answer::constraint_power)
       .def_ro("positions", &Answer::positions, "p x 3")
       .def_ro("jacobians", &Answer::jacobians, "3p x n: contact j's translational Jacobian in rows 3j..3j+2")
       .def_ro("normal_jacobian", &Answer::normal_jacobian, "p x n")
       .def_ro("tangent_jacobian", &Answer::tangent_jacobian, "p x n")
-      .def_ro("drift", &Answer::drift)
-      .def_ro("residual", &Answer::residual)
-      .def_ro("slip", &Answer::slip, "p x 3")
-      .def_ro("direction", &Answer::direction, "p x 3")
+      .def_ro("drift", &Answer::drift, "gamma = n . (dJ dq) + v^T H v")
+      .def_ro("residual", &Answer::residual, "C: the signed distance to the surface [m]")
+      .def_ro("slip_velocity", &Answer::slip, "p x 3: the contact points' tangential velocity [m/s]")
+      .def_ro("slip_direction", &Answer::direction, "p x 3: slip / sqrt(|slip|^2 + eps^2)")
       .def_ro("normals", &Answer::normals, "p x 3")
       .def_ro("tangential_force", &Answer::tangential_force, "p x 3, the friction force on the robot [N]")
-      .def_ro("friction", &Answer::friction, "|f_t| of a Coulomb contact, mu f_n of a regularised one [N]")
+      .def_ro("friction_force", &Answer::friction, "|f_t| of a Coulomb contact, mu f_n of a regularised one [N]")
       .def_ro("rolling_velocity", &Answer::rolling_velocity,
               "a differential drive's rolling rows A v [m/s] (the wheels' forward slip, the left one's lateral)")
       .def_ro("rolling_force", &Answer::rolling_force, "the rolling rows' forces [N]")
-      .def_ro("held", &ModalAnswer::held)
-      .def_ro("sticking", &ModalAnswer::sticking);
+      .def_ro("held", &ModalAnswer::held, "per contact: holding a normal force")
+      .def_ro("sticking", &ModalAnswer::sticking, "per contact: a held Coulomb contact that sticks")
+      .def_prop_ro("contact_count", [](const ModalAnswer& a) { return a.residual.size(); });
 }
 
 // The model.
