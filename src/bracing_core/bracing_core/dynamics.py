@@ -26,7 +26,7 @@ import bracing_engine as engine
 from bracing_core.contacts import Contact, ContactSet, Cylinder, Plane, Sphere, Surface
 from bracing_core.model import RobotModel
 from bracing_core.motors import MotorParams
-from bracing_core.types import Vector
+from bracing_core.types import EngineField, Vector
 
 
 class InputMode(str, Enum):  # noqa: UP042 (str() / format() of a StrEnum differ; kept as it was)
@@ -158,14 +158,7 @@ class ConstrainedDynamics:
         """The windings' temperatures are modelled (``thermal_applies``)."""
         return thermal_applies(self.motors, self.mode)
 
-    @property
-    def baumgarte(self) -> float:
-        """a [1/s]: J_c ddq = -gamma - 2 a J_c dq - a^2 C (0: the paper)."""
-        return float(self.engine.baumgarte)
-
-    @baumgarte.setter
-    def baumgarte(self, value: float) -> None:
-        self.engine.baumgarte = float(value)
+    baumgarte = EngineField(float)  # a [1/s]: J_c ddq = -gamma - 2 a J_c dq - a^2 C (0: the paper)
 
     def with_contacts(self, contacts: ContactSet) -> ConstrainedDynamics:
         """The same robot, motors, mode and Baumgarte gain with another set of contacts."""

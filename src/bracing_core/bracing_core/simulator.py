@@ -20,7 +20,7 @@ import numpy as np
 
 import bracing_engine as engine
 from bracing_core.dynamics import ConstrainedDynamics
-from bracing_core.types import Vector
+from bracing_core.types import EngineField, Vector, as_vector
 
 ENERGY_KEYS = tuple(slot.name for slot in engine.EnergySlot)
 WINDING_TEMPERATURE_LIMIT: float = engine.WINDING_TEMPERATURE_LIMIT  # [degC] (copper melts at 1085 degC)
@@ -124,18 +124,12 @@ class Simulator:
         )
 
     # -- state ------------------------------------------------------------------------
-    @property
-    def steps_taken(self) -> int:
-        return int(self.engine.steps_taken)
-
-    @steps_taken.setter
-    def steps_taken(self, value: int) -> None:
-        self.engine.steps_taken = int(value)
-
-    @property
-    def step_ns(self) -> int:
-        """[ns] what each step adds to the state's stamp."""
-        return int(self.engine.step_ns)
+    steps_taken = EngineField(int)
+    step_ns = EngineField(int)  # [ns] what each step adds to the state's stamp
+    position = EngineField(as_vector)  # q [rad or m]
+    velocity = EngineField(as_vector)  # dq [rad/s or m/s]
+    current = EngineField(as_vector)  # i [A] (zeros in torque mode)
+    temperature = EngineField(as_vector)  # the windings' T [degC] (ambient throughout without the thermal model)
 
     @property
     def now_ns(self) -> int:
@@ -146,23 +140,6 @@ class Simulator:
     def time(self) -> float:
         """[s] the current state's time: its stamp as the controller node reads it (``engine.stamp_seconds``)."""
         return engine.stamp_seconds(self.now_ns)
-
-    @property
-    def position(self) -> Vector:
-        return self.engine.position
-
-    @property
-    def velocity(self) -> Vector:
-        return self.engine.velocity
-
-    @property
-    def current(self) -> Vector:
-        return self.engine.current
-
-    @property
-    def temperature(self) -> Vector:
-        """The motor windings' temperatures [degC] (ambient throughout without the thermal model)."""
-        return self.engine.temperature
 
     @property
     def energy(self) -> Energy:
