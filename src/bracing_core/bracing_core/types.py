@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any, Generic, TypeVar, overload
+from typing import Any, Generic, NewType, TypeVar, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -12,6 +12,14 @@ Vector = npt.NDArray[np.float64]
 Array = npt.NDArray[Any]
 Mask = npt.NDArray[np.bool_]  # per contact or joint: whether it holds (a flag array)
 T = TypeVar("T")
+
+TaskIndex = NewType("TaskIndex", int)  # the law's task as the engine numbers it: HAND_TASK, then brace_task(j)
+HAND_TASK = TaskIndex(0)
+
+
+def brace_task(brace: int) -> TaskIndex:
+    """The task of braced contact ``brace`` (0-based, in the configuration's order): after the hand's."""
+    return TaskIndex(1 + brace)
 
 
 class EngineField(Generic[T]):
