@@ -159,7 +159,7 @@ def drive_in_process(duration_s: float, forward: float, send_until_s: float) -> 
         core.answer(stamp_ns, sim.position, sim.velocity, lambda _: None, sent.append)
         base_x[k] = sim.position[0]
         d = sim.step(sent[-1].output.command)
-        slip = d.contacts.slip_velocity[0]
+        slip = d.slip_velocity[0]
         normal_force[k] = d.normal_force[0]
         friction_x[k] = -d.friction_force[0] * slip[0] / max(np.linalg.norm(slip), 1e-300)
     return base_x, normal_force, friction_x, log

@@ -145,7 +145,8 @@ def test_a_step_started_from_the_last_steps_end_evaluation_is_the_freshly_evalua
             assert answer is not None
             state = engine.state
             blocks = [state.position, state.velocity, state.current, state.temperature, state.energy]
-            rows.append(np.concatenate([*blocks, answer.ddq, answer.di, answer.force, answer.friction]))
+            forces = [answer.normal_force, answer.friction_force]
+            rows.append(np.concatenate([*blocks, answer.acceleration, answer.current_rate, *forces]))
         assert {event.kind.name for event in engine.events_since(0, 0)} == {"stick", "slip"}
         runs.append(np.array(rows))
     assert np.array_equal(runs[0], runs[1])

@@ -216,7 +216,7 @@ def geometry_brace(tmp_path: Path, duration_steps: int) -> tuple[list[float], li
     for _ in range(duration_steps):
         d = sim.step(ctl.update(sim.time, sim.position, sim.velocity).command)
         forces.append(float(d.normal_force[0]))
-        residuals.append(float(d.contacts.residual[0]))
+        residuals.append(float(d.residual[0]))
     return forces, residuals, sc
 
 

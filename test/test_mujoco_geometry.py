@@ -59,7 +59,7 @@ def _ours_braced() -> tuple[np.ndarray, np.ndarray]:
     points, forces = [], []
     for _ in range(STEPS):
         d = sim.step(ctl.update(sim.time, sim.position, sim.velocity).command)
-        points.append(d.contacts.positions[0].copy())
+        points.append(d.positions[0].copy())
         forces.append(float(d.normal_force[0]))
     return np.array(points), np.array(forces)
 

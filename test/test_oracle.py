@@ -46,9 +46,10 @@ from reference_model import (
     reference_target,
 )
 
+import bracing_engine as engine
 from bracing_core.config import SharedConfig
 from bracing_core.contacts import Contact
-from bracing_core.dynamics import ConstrainedDynamics, Derivative
+from bracing_core.dynamics import ConstrainedDynamics
 from bracing_core.rcl_yaml import load_params_file
 from bracing_core.rollout import Scenario, build_scenario
 
@@ -308,20 +309,19 @@ def rows(answer: Answer, indices: np.ndarray) -> Answer:
     return Answer(**{k: (v[indices] if k in per_contact else v) for k, v in vars(answer).items()})
 
 
-def compare_derivative(check: str, d: Derivative, ref: Answer, geometry: Answer, case: str) -> None:
+def compare_derivative(check: str, d: engine.Answer, ref: Answer, geometry: Answer, case: str) -> None:
     """The engine's answer against the reference's: the dynamics, then every contact's terms."""
     close(f"{check}.ddq", d.acceleration, ref.ddq, case)
     close(f"{check}.di", d.current_rate, ref.di, case)
     close(f"{check}.f_n", d.normal_force, ref.f_n, case)
     close(f"{check}.effort", d.effort, ref.effort, case)
-    terms = d.contacts
-    close(f"{check}.contact.position", terms.positions, geometry.positions, case)
-    close(f"{check}.contact.normal", terms.normals, geometry.normals, case)
-    close(f"{check}.contact.C", terms.residual, geometry.residual, case)
-    close(f"{check}.contact.gamma", terms.drift, geometry.drift, case)
-    close(f"{check}.contact.slip", terms.slip_velocity, geometry.slip, case)
-    close(f"{check}.contact.J_c", terms.normal_jacobian, geometry.J_c, case)
-    close(f"{check}.contact.J_t", terms.tangent_jacobian, geometry.J_t, case)
+    close(f"{check}.contact.position", d.positions, geometry.positions, case)
+    close(f"{check}.contact.normal", d.normals, geometry.normals, case)
+    close(f"{check}.contact.C", d.residual, geometry.residual, case)
+    close(f"{check}.contact.gamma", d.drift, geometry.drift, case)
+    close(f"{check}.contact.slip", d.slip_velocity, geometry.slip, case)
+    close(f"{check}.contact.J_c", d.normal_jacobian, geometry.J_c, case)
+    close(f"{check}.contact.J_t", d.tangent_jacobian, geometry.J_t, case)
 
 
 def compare_state(sc: Scenario, oracle: Oracle, t: float, first_q: np.ndarray, moving: bool, case: str) -> None:

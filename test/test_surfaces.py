@@ -75,7 +75,7 @@ def test_point_on_a_sphere_feels_the_centripetal_force(urdf: Path) -> None:
     for _ in range(1000):  # 1 s: a third of a great circle
         d = sim.step(np.zeros(3))
         assert d.normal_force[0] == pytest.approx(expected, rel=1e-6)
-        assert abs(d.contacts.residual[0]) < 1e-9  # the curvature term of gamma keeps it on the sphere
+        assert abs(d.residual[0]) < 1e-9  # the curvature term of gamma keeps it on the sphere
     position = sim.position
     assert np.linalg.norm(position - center) == pytest.approx(radius, abs=1e-9)
     assert np.linalg.norm(sim.velocity) == pytest.approx(speed, rel=1e-9)  # no work done by the constraint
@@ -89,7 +89,7 @@ def test_inside_a_sphere_the_force_points_inwards_and_pushes(urdf: Path) -> None
     sim = simulator(urdf, Sphere(center, radius, inside=True), np.array([0.0, 0.0, -radius]), np.array([speed, 0, 0]))
     d = sim.step(np.zeros(3))
     # Inside, n points to the centre and the wall pushes the point along it: +m v^2 / R.
-    assert d.contacts.normals[0] == pytest.approx([0.0, 0.0, 1.0])
+    assert d.normals[0] == pytest.approx([0.0, 0.0, 1.0])
     assert d.normal_force[0] == pytest.approx(MASS * speed**2 / radius, rel=1e-6)
 
 
@@ -103,7 +103,7 @@ def test_point_on_a_cylinder_around_and_along_the_axis(urdf: Path) -> None:
     for _ in range(500):
         d = sim.step(np.zeros(3))
         assert d.normal_force[0] == pytest.approx(-MASS * speed**2 / radius, rel=1e-6)
-        assert abs(d.contacts.residual[0]) < 1e-9
+        assert abs(d.residual[0]) < 1e-9
     along = simulator(urdf, Cylinder(point, axis, radius), start, axis * speed)
     for _ in range(200):
         d = along.step(np.zeros(3))
@@ -126,7 +126,7 @@ def test_friction_acts_in_the_tangent_plane_against_the_slip(urdf: Path) -> None
     # At the top: f_n = m g - m v^2 / R; friction mu f_n against +x; the point decelerates at mu f_n / m.
     normal_force = MASS * 9.81 - MASS * 0.25 / radius
     assert d.normal_force[0] == pytest.approx(normal_force, rel=1e-6)
-    assert d.contacts.slip_direction[0] == pytest.approx([1.0, 0.0, 0.0], abs=1e-5)
+    assert d.slip_direction[0] == pytest.approx([1.0, 0.0, 0.0], abs=1e-5)
     assert d.acceleration[0] == pytest.approx(-mu * normal_force / MASS, rel=1e-5)
     assert d.acceleration[2] == pytest.approx(-0.25 / radius, rel=1e-5)  # centripetal, towards the centre
 

@@ -21,7 +21,7 @@ def test_bilateral_is_the_default_and_may_pull() -> None:
     for _ in range(50):
         d = sim.step(ctl.update(sim.time, sim.position, sim.velocity).command)
         assert d.normal_force[0] == pytest.approx(-5.0, abs=1e-9)  # the plane pulls, as in the paper
-    assert d.active is None and not [e for e in sim.events if e.kind.name in ("release", "touchdown")]
+    assert d.held.all() and not [e for e in sim.events if e.kind.name in ("release", "touchdown")]
 
 
 def test_release_when_the_force_would_pull() -> None:
@@ -32,9 +32,9 @@ def test_release_when_the_force_would_pull() -> None:
     residuals = []
     for _ in range(300):
         d = sim.step(ctl.update(sim.time, sim.position, sim.velocity).command)
-        assert d.active is not None and not d.active[0]
+        assert not d.held[0]
         assert d.normal_force[0] == 0.0
-        residuals.append(d.contacts.residual[0])
+        residuals.append(d.residual[0])
     assert [(e.contact, e.kind.name, e.time) for e in sim.events] == [("elbow", "release", 0.0)]
     assert residuals[-1] > 1e-3  # in flight above the floor
 

@@ -37,6 +37,7 @@ from bracing_core.targets import (
     TaskTargets,
     echo_topic,
 )
+from bracing_core.types import HAND_TASK, TaskIndex, brace_task
 from bracing_ros import wire
 from bracing_ros.qos import ECHO_QOS, TARGET_QOS
 from bracing_ros.raw_messages import deserialize, path_sizes
@@ -52,7 +53,7 @@ class TargetTopic:
     """One target topic: its task, its kind of message and where its verdicts go."""
 
     name: str  # hand_target, hand_path, hand_pose_target, brace_target/<contact>
-    task: int  # 0 the hand, 1 + j brace j
+    task: TaskIndex  # HAND_TASK or brace_task(j)
     msg_type: type  # geometry_msgs/PointStamped, nav_msgs/Path or geometry_msgs/PoseStamped
     accepted: Publisher
     refused: Publisher
@@ -67,17 +68,17 @@ class TargetTopics:
         self.node, self.targets, self.log = node, targets, log
         self.topics: dict[Subscription, TargetTopic] = {}
         self.pending: dict[str, tuple[TargetTopic, bytes]] = {}
-        self._add("hand_target", 0, PointStamped)
-        self._add("hand_path", 0, Path)
-        self._add(POSE_TOPIC, 0, PoseStamped)
+        self._add("hand_target", HAND_TASK, PointStamped)
+        self._add("hand_path", HAND_TASK, Path)
+        self._add(POSE_TOPIC, HAND_TASK, PoseStamped)
         for j, name in enumerate(contacts):
-            self._add(f"brace_target/{name}", j + 1, PointStamped)
+            self._add(f"brace_target/{name}", brace_task(j), PointStamped)
 
     @property
     def subscriptions(self) -> list[Subscription]:
         return list(self.topics)
 
-    def _add(self, name: str, task: int, msg_type: type) -> None:
+    def _add(self, name: str, task: TaskIndex, msg_type: type) -> None:
         node = self.node
         topic = TargetTopic(
             name,

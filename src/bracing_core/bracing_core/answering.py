@@ -35,7 +35,7 @@ from bracing_core.numbers import all_finite
 from bracing_core.params import ConfigError
 from bracing_core.stamps import NS_PER_S
 from bracing_core.targets import OrientationSpec, TargetLimits, TaskSpec, TaskTargets
-from bracing_core.types import Vector
+from bracing_core.types import HAND_TASK, Vector, brace_task
 
 STAMP_RANGE_NS = (-(2**31) * NS_PER_S, 2**31 * NS_PER_S)
 """The stamps an answer can carry (builtin_interfaces/Time: int32 seconds)."""
@@ -344,7 +344,8 @@ class StateAnswerer:
         if drive is None or self.previous_ns is None:  # the paths start at the first state
             return
         engine = self.law.engine
-        tasks = [k for k in range(1 + len(self.config.shared.braced_contacts)) if k not in self.targets.goals]
+        braces = range(len(self.config.shared.braced_contacts))
+        tasks = [k for k in (HAND_TASK, *map(brace_task, braces)) if k not in self.targets.goals]
         carried = drive.targets(q, dq, [engine.path_sample(k, t) for k in tasks])
         for task, (position, velocity) in zip(tasks, carried, strict=True):
             engine.set_reference(task, position, velocity)

@@ -3,7 +3,7 @@
 Each surface gives, at a point r, the signed distance C(r) (positive on the side the robot
 stays on), its unit gradient n(r) = dC/dr (the direction the surface pushes) and its
 Hessian H_C(r) (zero for a plane). The engine evaluates them (bracing_engine Surface) and
-stacks, for all p contacts, the rows of docs/model.md (Contacts) as ``ContactTerms``:
+stacks, for all p contacts, the rows of docs/model.md (Contacts) into its ``Answer``:
 j_c = n^T J, gamma = n . (dJ dq) + (J dq)^T H_C (J dq), the slip velocity (the part of J dq in
 the tangent plane) and its regularised direction, j_t = J^T (slip direction). This module
 describes the surfaces and contacts.
@@ -129,26 +129,6 @@ class Contact:
             raise ValueError(f"contacts.{self.name}.friction: must be >= 0, got {self.friction}")
         if not self.enforced and not self.unilateral:
             raise ValueError(f"contacts.{self.name}: a contact that is only watched must be unilateral")
-
-
-@dataclass
-class ContactTerms:
-    """Stacked contact quantities at one state (p rows; p may be 0)."""
-
-    positions: Vector  # (p, 3) contact points, world [m]
-    jacobians: Vector  # (p, 3, n) translational Jacobians, world axes
-    normal_jacobian: Vector  # J_c (p, n): rows n_j^T J_j
-    tangent_jacobian: Vector  # J_t (p, n): rows J_j^T s_j / sqrt(|s_j|^2 + eps^2)
-    drift: Vector  # gamma (p,): n_j . (dJ_j dq) + v_j^T H_j v_j
-    residual: Vector  # C (p,): signed distance to the surface [m]
-    slip_velocity: Vector  # (p, 3) tangential velocity of the contact points [m/s]
-    slip_direction: Vector  # (p, 3) regularised unit-ish slip direction
-    friction: Vector  # mu (p,)
-    normals: Vector  # (p, 3) surface normals n(r) at the contact points
-
-    @property
-    def count(self) -> int:
-        return int(self.residual.size)
 
 
 @dataclass

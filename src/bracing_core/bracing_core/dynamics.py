@@ -12,22 +12,21 @@ Mc = M, Dc = D in torque mode. M, h + g, Jacobians and gamma come from pinocchio
 The model is evaluated by the compiled engine (``bracing_engine``, C++ on pinocchio's C++
 API: its own model from the same URDF with J_m as armature, the contact forces from the
 p x p Schur complement of the (n + p) system). This module describes a robot, its motors
-and its contacts to the engine and turns its answers into ``Derivative``s.
+and its contacts to the engine; its answers are the engine's ``Answer`` (named arrays).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from enum import Enum
 
 import numpy as np
 
 import bracing_engine as engine
-from bracing_core.contacts import Contact, ContactSet, ContactTerms, Cylinder, Plane, Sphere, Surface
+from bracing_core.contacts import Contact, ContactSet, Cylinder, Plane, Sphere, Surface
 from bracing_core.model import RobotModel
 from bracing_core.motors import MotorParams
-from bracing_core.types import Mask, Vector
+from bracing_core.types import EngineField, Vector
 
 
 class InputMode(str, Enum):  # noqa: UP042 (str() / format() of a StrEnum differ; kept as it was)
@@ -51,25 +50,6 @@ def reflected_terms(robot: RobotModel, motors: MotorParams, mode: InputMode) -> 
     if mode is InputMode.VOLTAGE:
         return motors.reflected_inertia, robot.damping + motors.reflected_damping
     return np.zeros(robot.nv), robot.damping.copy()
-
-
-@dataclass
-class Derivative:
-    """Everything the model says at one (state, input)."""
-
-    acceleration: Vector  # ddq [rad/s^2]
-    current_rate: Vector  # di/dt [A/s] (zeros in torque mode)
-    normal_force: Vector  # f_n (p,) [N], on the robot along +normal
-    effort: Vector  # link-side motor torque tau [N m]
-    contacts: ContactTerms
-    active: Mask | None = None  # (p,) contacts holding a force; None = all
-    # f_t (p,) [N]: a Coulomb contact's |f_t| (sticking: what holds it, <= mu |f_n|; sliding: mu |f_n|),
-    # a regularised contact's mu f_n (the paper's law: the sign of f_n)
-    friction_force: Vector = field(default_factory=lambda: np.zeros(0))
-    tangential_force: Vector = field(default_factory=lambda: np.zeros((0, 3)))  # (p, 3) friction on the robot [N]
-    sticking: Mask = field(default_factory=lambda: np.zeros(0, dtype=bool))  # (p,) Coulomb contacts that stick
-    # a differential drive's rolling rows A v [m/s]: each wheel's forward slip, the left one's lateral (empty: none)
-    rolling_velocity: Vector = field(default_factory=lambda: np.zeros(0))
 
 
 def engine_robot(robot: RobotModel) -> engine.Robot:
@@ -140,36 +120,6 @@ def engine_contact(contact: Contact) -> engine.Contact:
     )
 
 
-def derivative_of(answer: engine.Answer, contacts: ContactSet) -> Derivative:
-    """The engine's answer (its named arrays) as a Derivative for ``contacts``."""
-    p, n = len(contacts), answer.ddq.size
-    terms = ContactTerms(
-        answer.positions,
-        answer.jacobians.reshape(p, 3, n),
-        answer.normal_jacobian,
-        answer.tangent_jacobian,
-        answer.drift,
-        answer.residual,
-        answer.slip,
-        answer.direction,
-        contacts.friction,
-        answer.normals,
-    )
-    held = answer.held
-    return Derivative(
-        answer.ddq,
-        answer.di,
-        answer.force,
-        answer.effort,
-        terms,
-        None if held.all() else held,
-        answer.friction,
-        answer.tangential_force,
-        answer.sticking,
-        answer.rolling_velocity,
-    )
-
-
 class ConstrainedDynamics:
     """The model of docs/model.md for one robot, its motors and its contacts (evaluated by the engine)."""
 
@@ -208,14 +158,7 @@ class ConstrainedDynamics:
         """The windings' temperatures are modelled (``thermal_applies``)."""
         return thermal_applies(self.motors, self.mode)
 
-    @property
-    def baumgarte(self) -> float:
-        """a [1/s]: J_c ddq = -gamma - 2 a J_c dq - a^2 C (0: the paper)."""
-        return float(self.engine.baumgarte)
-
-    @baumgarte.setter
-    def baumgarte(self, value: float) -> None:
-        self.engine.baumgarte = float(value)
+    baumgarte = EngineField(float)  # a [1/s]: J_c ddq = -gamma - 2 a J_c dq - a^2 C (0: the paper)
 
     def with_contacts(self, contacts: ContactSet) -> ConstrainedDynamics:
         """The same robot, motors, mode and Baumgarte gain with another set of contacts."""
@@ -223,7 +166,7 @@ class ConstrainedDynamics:
 
     def evaluate(
         self, q: Vector, dq: Vector, current: Vector, command: Vector, temperature: Vector | None = None
-    ) -> Derivative:
+    ) -> engine.Answer:
         """ddq, di, f_n at state (q, dq, i, T) under the held input (v or tau), every contact held
         (``temperature``: the windings' T [degC], R(T) in the circuit; None: ambient)."""
         n = self.n
@@ -231,7 +174,7 @@ class ConstrainedDynamics:
         if temperature is None:
             temperature = np.full(n, self.motors.ambient_temperature)
         try:
-            answer = self.engine.evaluate(
+            return self.engine.evaluate(
                 np.asarray(q, dtype=float),
                 np.asarray(dq, dtype=float),
                 current,
@@ -241,12 +184,10 @@ class ConstrainedDynamics:
             )
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
-        return derivative_of(answer, self.contacts)
 
-    def terms(self, q: Vector, dq: Vector) -> ContactTerms:
-        """Every contact's terms at (q, dq) (positions, Jacobians, residuals, slip)."""
-        answer = self.engine.terms(np.asarray(q, dtype=float), np.asarray(dq, dtype=float))
-        return derivative_of(answer, self.contacts).contacts
+    def terms(self, q: Vector, dq: Vector) -> engine.Answer:
+        """Every contact's terms at (q, dq) (positions, Jacobians, residuals, slip), as an answer with no force."""
+        return self.engine.terms(np.asarray(q, dtype=float), np.asarray(dq, dtype=float))
 
     def project(self, q: Vector, rows: Sequence[int], tolerance: float = 1e-13) -> Vector:
         """The posture near ``q`` where the contacts at ``rows`` hold (C = 0), by Newton steps in the

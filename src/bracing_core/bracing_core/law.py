@@ -26,7 +26,7 @@ from bracing_core.controller_config import ControllerConfig, OrientationConfig
 from bracing_core.dynamics import engine_contact, engine_drive, engine_robot
 from bracing_core.params import ConfigError
 from bracing_core.trajectory import TrajectoryConfig
-from bracing_core.types import Vector
+from bracing_core.types import HAND_TASK, TaskIndex, Vector, brace_task
 
 
 def axis_gains(axes: tuple[int, ...], gains: tuple[float, ...]) -> Vector:
@@ -189,11 +189,12 @@ class DecoupledController:
     def _rank_tasks(self) -> list[_RankTask]:
         """The configured tasks in the engine's order (the hand, its orientation, each brace)."""
         config = self.config
-        tasks = [_RankTask("hand.axes", config.hand.frame, config.hand.axes, 0, 0)]
-        tasks.append(_RankTask("hand.orientation.axes", config.hand.frame, config.orientation.axes, 0, 3))
+        tasks = [_RankTask("hand.axes", config.hand.frame, config.hand.axes, HAND_TASK, 0)]
+        tasks.append(_RankTask("hand.orientation.axes", config.hand.frame, config.orientation.axes, HAND_TASK, 3))
         contacts = config.shared.braced_contacts
         tasks += [
-            _RankTask(f"contacts.{c.name}.brace_axes", c.frame, c.brace_axes, k + 1, 0) for k, c in enumerate(contacts)
+            _RankTask(f"contacts.{c.name}.brace_axes", c.frame, c.brace_axes, brace_task(k), 0)
+            for k, c in enumerate(contacts)
         ]
         return tasks
 
@@ -233,7 +234,7 @@ class _RankTask:
     parameter: str
     frame: str
     axes: tuple[int, ...]
-    task: int
+    task: TaskIndex
     offset: int
 
     def rows(self, axes: list[int]) -> list[tuple[int, int]]:

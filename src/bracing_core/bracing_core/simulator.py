@@ -8,7 +8,7 @@ of the step, which is what the simulator reports for that step (forces, effort).
 The stepping runs in the compiled engine (``bracing_engine.Simulator``): the four stages,
 the energy integrals, unilateral contacts releasing at a step's start and landing at its
 end (inelastic impact), the joint-limit stop and the divergence check. This class checks
-the input, raises the errors and turns the engine's answers into Python objects.
+the input and raises the errors; its answers are the engine's ``Answer``.
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 
 import bracing_engine as engine
-from bracing_core.dynamics import ConstrainedDynamics, Derivative, derivative_of
-from bracing_core.types import Vector
+from bracing_core.dynamics import ConstrainedDynamics
+from bracing_core.types import EngineField, Vector, as_vector
 
 ENERGY_KEYS = tuple(slot.name for slot in engine.EnergySlot)
 WINDING_TEMPERATURE_LIMIT: float = engine.WINDING_TEMPERATURE_LIMIT  # [degC] (copper melts at 1085 degC)
@@ -124,18 +124,12 @@ class Simulator:
         )
 
     # -- state ------------------------------------------------------------------------
-    @property
-    def steps_taken(self) -> int:
-        return int(self.engine.steps_taken)
-
-    @steps_taken.setter
-    def steps_taken(self, value: int) -> None:
-        self.engine.steps_taken = int(value)
-
-    @property
-    def step_ns(self) -> int:
-        """[ns] what each step adds to the state's stamp."""
-        return int(self.engine.step_ns)
+    steps_taken = EngineField(int)
+    step_ns = EngineField(int)  # [ns] what each step adds to the state's stamp
+    position = EngineField(as_vector)  # q [rad or m]
+    velocity = EngineField(as_vector)  # dq [rad/s or m/s]
+    current = EngineField(as_vector)  # i [A] (zeros in torque mode)
+    temperature = EngineField(as_vector)  # the windings' T [degC] (ambient throughout without the thermal model)
 
     @property
     def now_ns(self) -> int:
@@ -146,23 +140,6 @@ class Simulator:
     def time(self) -> float:
         """[s] the current state's time: its stamp as the controller node reads it (``engine.stamp_seconds``)."""
         return engine.stamp_seconds(self.now_ns)
-
-    @property
-    def position(self) -> Vector:
-        return self.engine.position
-
-    @property
-    def velocity(self) -> Vector:
-        return self.engine.velocity
-
-    @property
-    def current(self) -> Vector:
-        return self.engine.current
-
-    @property
-    def temperature(self) -> Vector:
-        """The motor windings' temperatures [degC] (ambient throughout without the thermal model)."""
-        return self.engine.temperature
 
     @property
     def energy(self) -> Energy:
@@ -179,24 +156,12 @@ class Simulator:
         return np.array(self.engine.modes.sticking, dtype=bool)
 
     # -- model answers ----------------------------------------------------------------
-    def evaluate(self, command: Vector) -> Derivative:
+    def evaluate(self, command: Vector) -> engine.Answer:
         """The model at the current state under ``command`` (no time passes)."""
-        return self.derivative(self._evaluate(command))
-
-    def effort(self, command: Vector) -> Vector:
-        """``evaluate(command).effort`` without the rest of the answer as Python objects (~8 us less a
-        call: the lockstep simulator's JointState.effort, on its critical path)."""
-        return self._evaluate(command).effort
-
-    def _evaluate(self, command: Vector) -> engine.Answer:
         try:
             return self.engine.evaluate(np.asarray(command, dtype=float))
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None
-
-    def derivative(self, answer: engine.Answer) -> Derivative:
-        """The engine's answer (``step_answer``'s, ``evaluate``'s) as a Derivative of this model's contacts."""
-        return derivative_of(answer, self.dynamics.contacts)
 
     # -- checkpoints --------------------------------------------------------------------
     def checkpoint(self) -> Checkpoint:
@@ -213,18 +178,13 @@ class Simulator:
         self.engine.set_modes(checkpoint.modes)
 
     # -- integration ------------------------------------------------------------------
-    def step(self, command: Vector) -> Derivative:
+    def step(self, command: Vector) -> engine.Answer:
         """Advance one step with ``command`` held (zero-order hold); RK4 per sub-step.
 
         Returns the model's answer at the start of the step. Raises ValueError for a
         command of the wrong shape or with non-finite values, DivergenceError if the new
         state is not finite; in both cases the state is unchanged.
         """
-        return self.derivative(self.step_answer(command))
-
-    def step_answer(self, command: Vector) -> engine.Answer:
-        """``step``, its answer as the engine gives it (``derivative`` turns it into a Derivative later:
-        the lockstep simulator sends the next state first)."""
         u = np.asarray(command, dtype=float)
         # A finite u . u means every entry is finite; otherwise check exactly (u . u may overflow).
         if u.shape != (self.n,) or (not math.isfinite(u.dot(u)) and not np.isfinite(u).all()):

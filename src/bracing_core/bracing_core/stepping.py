@@ -26,7 +26,7 @@ import bracing_engine as engine
 from bracing_core.checks import REAL_TIME_ACHIEVED
 from bracing_core.config import Plant, SimulatorConfig
 from bracing_core.drive import CurrentLoopDrive, DriveGains
-from bracing_core.dynamics import Derivative, InputMode
+from bracing_core.dynamics import InputMode
 from bracing_core.link_penetration import LinkDepth, LinkPenetration
 from bracing_core.node_log import NodeLog
 from bracing_core.numbers import all_finite
@@ -78,7 +78,7 @@ class StepOut:
     temperatures up to its start)."""
 
     t_ns: int
-    forces: Derivative
+    forces: engine.Answer
     active: np.ndarray  # (p,) bool: which contacts hold a force
     wrenches: list[Vector]  # each configured contact's force on the robot [N], as measured
     voltage: Vector
@@ -333,7 +333,7 @@ class SimulatorStepper:
         command = self.sensors.delay(command) if self.sensors is not None else command
         try:
             with np.errstate(over="ignore", invalid="ignore"):  # an overflow is reported as a refusal
-                answer = sim.step_answer(command)  # as a Derivative once the state is out
+                answer = sim.step(command)
                 residual = sim.check(self.config.divergence_speed, self.config.divergence_residual)
                 effort = self.state_effort(command)
             if not all_finite(effort):
@@ -347,11 +347,10 @@ class SimulatorStepper:
         self.command = command
         self.max_residual = max(self.max_residual, residual)
         self.outlet.publish_state(self.state_out(effort))
-        d = sim.derivative(answer)
-        self.outlet.publish_step(self.step_out(t_ns, command, d, current, temperature, energy))
+        self.outlet.publish_step(self.step_out(t_ns, command, answer, current, temperature, energy))
         self.outlet.sent()
         self._take_events()
-        self._watch_state(t_ns, d)
+        self._watch_state(t_ns, answer)
         if self.progress_due():
             self.log.info(self.progress_line())
             self.outlet.progress(sim.time)
@@ -369,11 +368,9 @@ class SimulatorStepper:
         self._events_logged = len(self.sim.events)
         self.watch.events(events)
 
-    def _watch_state(self, t_ns: int, d: Derivative) -> None:
+    def _watch_state(self, t_ns: int, d: engine.Answer) -> None:
         """Keep the state a step's reports described (as ``contacts`` has it) for the watch (``WATCH_EVERY``)."""
-        terms = d.contacts
-        active = d.active if d.active is not None else np.ones(terms.count, dtype=bool)
-        self._watched.append((t_ns * 1e-9, active, d.normal_force, terms.residual))
+        self._watched.append((t_ns * 1e-9, d.held, d.normal_force, d.residual))
         if len(self._watched) >= WATCH_EVERY:
             self._hand_to_watch()
 
@@ -391,7 +388,7 @@ class SimulatorStepper:
         command = self.command if command is None else command
         if self.mode is InputMode.TORQUE:
             return command
-        return self.sim.effort(command)
+        return self.sim.evaluate(command).effort
 
     # -- what goes out --------------------------------------------------------------
     def state_out(self, effort: Vector) -> StateOut:
@@ -405,16 +402,15 @@ class SimulatorStepper:
         return StateOut(self.now_ns, position, velocity, effort, measured, links)
 
     def step_out(
-        self, t_ns: int, command: Vector, d: Derivative, current: Vector, temperature: Vector, energy: Energy
+        self, t_ns: int, command: Vector, d: engine.Answer, current: Vector, temperature: Vector, energy: Energy
     ) -> StepOut:
         """Reports of one step: forces at its start under the held command, energies and the windings'
         temperatures up to its start (the sensors' noise drawn in the order the topics go out)."""
-        terms, sensors = d.contacts, self.sensors
-        active = d.active if d.active is not None else np.ones(terms.count, dtype=bool)
+        sensors = self.sensors
         wrenches = []
-        for j in range(min(terms.count, self.wrench_count)):
-            force = float(d.normal_force[j]) * terms.normals[j] + d.tangential_force[j]
-            wrenches.append(sensors.force(force, terms.normals[j]) if sensors is not None else force)
+        for j in range(min(d.contact_count, self.wrench_count)):
+            force = float(d.normal_force[j]) * d.normals[j] + d.tangential_force[j]
+            wrenches.append(sensors.force(force, d.normals[j]) if sensors is not None else force)
         n = self.sim.n
         if self.mode is InputMode.VOLTAGE:
             voltage, power = command, command * current
@@ -426,7 +422,7 @@ class SimulatorStepper:
         if sensors is not None and self.mode is InputMode.VOLTAGE:
             measured = sensors.currents(current)
         energies = (energy.consumed, energy.net, energy.copper_loss)
-        return StepOut(t_ns, d, active, wrenches, voltage, measured, current, power, energies, temperature)
+        return StepOut(t_ns, d, d.held, wrenches, voltage, measured, current, power, energies, temperature)
 
     # -- lockstep -------------------------------------------------------------------
     def next_command(self, receive: Callable[[float], None], deadline: float) -> Vector | None:
@@ -465,7 +461,7 @@ class SimulatorStepper:
         checkpoint = sim.checkpoint()
         try:
             with np.errstate(over="ignore", invalid="ignore"):
-                sim.step_answer(self.sensors.delay(command) if self.sensors is not None else command)
+                sim.step(self.sensors.delay(command) if self.sensors is not None else command)
                 sim.check(self.config.divergence_speed, self.config.divergence_residual)
                 finite = all_finite(self.state_effort(command))
         except (DivergenceError, np.linalg.LinAlgError):

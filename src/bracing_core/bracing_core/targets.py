@@ -38,7 +38,7 @@ import pinocchio as pin
 
 from bracing_core.checks import Reach
 from bracing_core.message_limits import shorten
-from bracing_core.types import Vector
+from bracing_core.types import HAND_TASK, TaskIndex, Vector
 
 
 class TargetError(ValueError):
@@ -285,7 +285,7 @@ class OrientationSpec:
 
 
 class TaskTargets:
-    """The targets of every task (0 the hand, 1 + j brace j) and the references that lead to them.
+    """The targets of every task (``HAND_TASK``, then ``brace_task(j)``) and the references that lead to them.
 
     ``point`` and ``path`` check a target and set it as its task's goal (TargetError otherwise; None
     when it equals the current goal: no change); ``references`` advances each retargeted task's
@@ -305,12 +305,12 @@ class TaskTargets:
         self.max_acceleration = max_acceleration
         self.limits = limits
         self.orientation = orientation if orientation is not None else OrientationSpec()
-        self.goals: dict[int, Goal] = {}
-        self.references: dict[int, Reference] = {}
+        self.goals: dict[TaskIndex, Goal] = {}
+        self.references: dict[TaskIndex, Reference] = {}
         self.orientation_goal: Vector | None = None  # (3, 3) R_goal, world (hand_pose_target)
         self.orientation_reference: OrientationReference | None = None
 
-    def point(self, task: int, point: Sequence[float], frame_id: str) -> Goal | None:
+    def point(self, task: TaskIndex, point: Sequence[float], frame_id: str) -> Goal | None:
         """A point to move to and hold (``hand_target``, ``brace_target/<contact>``), checked."""
         spec = self.tasks[task]
         self.check_size(spec.what, 1, len(frame_id))
@@ -321,7 +321,7 @@ class TaskTargets:
         """A hand pose to move to and hold (``hand_pose_target``): its position as ``point``'s, its orientation
         [x, y, z, w] (normalised) the orientation task's goal. Refused whole (TargetError) if either part is:
         also without an orientation task. None if both are the goals already (no change)."""
-        what, spec = POSE_TOPIC, self.tasks[0]
+        what, spec = POSE_TOPIC, self.tasks[HAND_TASK]
         self.check_size(what, 1, len(frame_id))
         p = check_point(what, point, frame_id, spec.axes, spec.reach)
         rotation = check_quaternion(what, quaternion)
@@ -331,9 +331,9 @@ class TaskTargets:
                 "hand.orientation.kp and kd; or send the position alone on hand_target)",
                 "no orientation task",
             )
-        moved = self._set(0, Goal(np.zeros(1), p.reshape(1, 3)))
+        moved = self._set(HAND_TASK, Goal(np.zeros(1), p.reshape(1, 3)))
         turned = self.turn_to_rotation(rotation)
-        return self.goals[0] if moved is not None or turned else None
+        return self.goals[HAND_TASK] if moved is not None or turned else None
 
     def restart(self) -> None:
         """A new run (the states went back in time): every goal kept, each reference to start again at the next
@@ -379,7 +379,7 @@ class TaskTargets:
 
     def path(
         self,
-        task: int,
+        task: TaskIndex,
         times: Sequence[float],
         points: Sequence[Sequence[float]],
         frames: Sequence[str],
@@ -411,7 +411,7 @@ class TaskTargets:
             )
         return self._set(task, goal)
 
-    def _set(self, task: int, goal: Goal) -> Goal | None:
+    def _set(self, task: TaskIndex, goal: Goal) -> Goal | None:
         """The task's goal from now on; None if it is that already (no change)."""
         current = self.goals.get(task)
         if (
@@ -424,8 +424,8 @@ class TaskTargets:
         return goal
 
     def advance(
-        self, t: float, path_at: Callable[[int, float], tuple[Vector, Vector]]
-    ) -> dict[int, tuple[Vector, Vector]]:
+        self, t: float, path_at: Callable[[TaskIndex, float], tuple[Vector, Vector]]
+    ) -> dict[TaskIndex, tuple[Vector, Vector]]:
         """Each retargeted task's desired (position, velocity) at t; ``path_at(task, t)`` gives a task's
         configured path where a reference starts."""
         out = {}

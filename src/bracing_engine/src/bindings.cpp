@@ -3,23 +3,10 @@
 // are views of that copy. Kinds (status, refusal, event, path) cross as enums. No packed form is kept:
 // against the former one flat array per answer (measured side by side, paper scenario, best
 // of 3): Law.update 6.4 -> 5.0 us, Simulator.step 13.3 -> 12.0 us, the Python face's step 20.9 -> 21.5 us.
-#include <nanobind/eigen/dense.h>
-#include <nanobind/nanobind.h>
-#include <nanobind/stl/optional.h>
-#include <nanobind/stl/pair.h>
-#include <nanobind/stl/shared_ptr.h>
-#include <nanobind/stl/string.h>
-#include <nanobind/stl/tuple.h>
-#include <nanobind/stl/vector.h>
+#include "bindings.hpp"
 
 #include <stdexcept>
 
-#include "bracing_engine/engine.hpp"
-#include "bracing_engine/law.hpp"
-#include "bracing_engine/sensors.hpp"
-
-namespace nb = nanobind;
-using namespace nb::literals;
 using namespace bracing_engine;
 
 namespace {
@@ -93,16 +80,6 @@ Vector packed(const Simulator& s, const State& state) {
 ContactModes modes_of(const Mask& held) {
   const auto p = static_cast<Eigen::Index>(held.size());
   return ContactModes{held, Mask(held.size(), false), RowMatrix::Zero(p, 3), Vector::Ones(p)};
-}
-
-// A recording cut to the rows the rollout filled.
-void keep_filled_rows(Recording& r) {
-  r.time.conservativeResize(r.rows);
-  for (RowMatrix* a : {&r.position, &r.velocity, &r.current, &r.temperature, &r.command, &r.hand_desired,
-                       &r.hand_actual, &r.brace_desired, &r.brace_actual, &r.contact_position, &r.slip_velocity,
-                       &r.normal_force, &r.friction_force, &r.residual, &r.active, &r.energy,
-                       &r.measured_position, &r.measured_velocity, &r.force_command, &r.orientation_error})
-    a->conservativeResize(std::min<Eigen::Index>(r.rows, a->rows()), Eigen::NoChange);
 }
 
 // The kinds that cross as enums, and the state's layout.
@@ -206,16 +183,10 @@ void bind_robot(nb::module_& m) {
           "wheel_radius [m]: a differential drive's wheel joints (empty: none), rolling without slipping; "
           "collision_description: the URDF text whose <collision> shapes are measured (meshes by absolute or "
           "file:// paths), empty: none")
-      .def_ro("urdf_path", &Robot::urdf_path)
-      .def_ro("gravity", &Robot::gravity)
-      .def_ro("locked_joints", &Robot::locked_joints)
-      .def_ro("locked_positions", &Robot::locked_positions)
-      .def_ro("mass_scale", &Robot::mass_scale)
-      .def_ro("urdf_xml", &Robot::urdf_xml)
-      .def_ro("left_wheel", &Robot::left_wheel)
-      .def_ro("right_wheel", &Robot::right_wheel)
-      .def_ro("wheel_radius", &Robot::wheel_radius)
-      .def_ro("collision_description", &Robot::collision_description);
+      BRACING_RO(Robot, urdf_path) BRACING_RO(Robot, gravity) BRACING_RO(Robot, locked_joints)
+      BRACING_RO(Robot, locked_positions) BRACING_RO(Robot, mass_scale) BRACING_RO(Robot, urdf_xml)
+      BRACING_RO(Robot, left_wheel) BRACING_RO(Robot, right_wheel) BRACING_RO(Robot, wheel_radius)
+      BRACING_RO(Robot, collision_description);
 }
 
 // The joints' drive: motors in the loop (voltage) or direct drive (torque).
@@ -253,28 +224,29 @@ void bind_drive(nb::module_& m) {
 // The model's answer (Dynamics.evaluate, Simulator.step), every array a view of one copy.
 void bind_answer(nb::module_& m) {
   nb::class_<ModalAnswer>(m, "Answer")
-      .def_ro("ddq", &Answer::ddq)
-      .def_ro("di", &Answer::di, "(zeros in torque mode)")
-      .def_ro("force", &Answer::force, "f_n per contact [N] (zero where not held)")
-      .def_ro("effort", &Answer::effort)
+      .def_ro("acceleration", &Answer::ddq, "ddq [rad/s^2 or m/s^2]")
+      .def_ro("current_rate", &Answer::di, "di/dt [A/s] (zeros in torque mode)")
+      .def_ro("normal_force", &Answer::force, "f_n per contact [N], on the robot along +normal (zero where not held)")
+      .def_ro("effort", &Answer::effort, "the link-side motor torque tau [N m]")
       .def_ro("friction_power", &Answer::friction_power)
       .def_ro("constraint_power", &Answer::constraint_power)
       .def_ro("positions", &Answer::positions, "p x 3")
       .def_ro("jacobians", &Answer::jacobians, "3p x n: contact j's translational Jacobian in rows 3j..3j+2")
       .def_ro("normal_jacobian", &Answer::normal_jacobian, "p x n")
       .def_ro("tangent_jacobian", &Answer::tangent_jacobian, "p x n")
-      .def_ro("drift", &Answer::drift)
-      .def_ro("residual", &Answer::residual)
-      .def_ro("slip", &Answer::slip, "p x 3")
-      .def_ro("direction", &Answer::direction, "p x 3")
+      .def_ro("drift", &Answer::drift, "gamma = n . (dJ dq) + v^T H v")
+      .def_ro("residual", &Answer::residual, "C: the signed distance to the surface [m]")
+      .def_ro("slip_velocity", &Answer::slip, "p x 3: the contact points' tangential velocity [m/s]")
+      .def_ro("slip_direction", &Answer::direction, "p x 3: slip / sqrt(|slip|^2 + eps^2)")
       .def_ro("normals", &Answer::normals, "p x 3")
       .def_ro("tangential_force", &Answer::tangential_force, "p x 3, the friction force on the robot [N]")
-      .def_ro("friction", &Answer::friction, "|f_t| of a Coulomb contact, mu f_n of a regularised one [N]")
+      .def_ro("friction_force", &Answer::friction, "|f_t| of a Coulomb contact, mu f_n of a regularised one [N]")
       .def_ro("rolling_velocity", &Answer::rolling_velocity,
               "a differential drive's rolling rows A v [m/s] (the wheels' forward slip, the left one's lateral)")
       .def_ro("rolling_force", &Answer::rolling_force, "the rolling rows' forces [N]")
-      .def_ro("held", &ModalAnswer::held)
-      .def_ro("sticking", &ModalAnswer::sticking);
+      .def_ro("held", &ModalAnswer::held, "per contact: holding a normal force")
+      .def_ro("sticking", &ModalAnswer::sticking, "per contact: a held Coulomb contact that sticks")
+      .def_prop_ro("contact_count", [](const ModalAnswer& a) { return a.residual.size(); });
 }
 
 // The model.
@@ -427,274 +399,9 @@ void bind_simulator(nb::module_& m) {
       .def("truncate_events", &Simulator::truncate_events, "count"_a);
 }
 
-// Task paths, tasks and braced contacts.
-void bind_tasks(nb::module_& m) {
-  nb::class_<Path>(m, "Path")
-      .def(
-          "__init__",
-          [](Path* path, PathKind kind, const Vector3& center, double radius, double period, double direction, double phase,
-             int u, int v, std::optional<Vector3> point, std::vector<Vector3> waypoints, double segment_time,
-             double start_ramp) {
-            new (path) Path{kind,         center,        radius,
-                            period,       direction,     phase,
-                            u,            v,             point.has_value(),
-                            point.value_or(Vector3::Zero()), std::move(waypoints), segment_time,
-                            start_ramp};
-          },
-          nb::kw_only(), "kind"_a, "center"_a, "radius"_a, "period"_a, "direction"_a, "phase"_a, "u"_a, "v"_a,
-          "point"_a.none(),
-          "waypoints"_a, "segment_time"_a, "start_ramp"_a = 0.0)
-      .def(
-          "sample",
-          [](const Path& path, const Vector3& start, double t) {
-            Vector3 position, velocity;
-            path.sample(start, t, position, velocity);
-            return nb::make_tuple(position, velocity);
-          },
-          "start"_a, "t"_a);
-
-  nb::class_<Task>(m, "Task").def(
-      "__init__",
-      [](Task* task, std::string frame, const Vector3& kp, const Vector3& kd, const Path& path,
-         std::vector<int> axes, const Vector3& ki) {
-        new (task) Task{std::move(frame), kp, kd, path, std::move(axes), ki};
-      },
-      nb::kw_only(), "frame"_a, "kp"_a, "kd"_a, "path"_a, "axes"_a, "ki"_a = Vector3(Vector3::Zero()),
-      "gains per world axis (zero: an axis the task does not use); the world axes it uses; integral gains");
-
-  nb::class_<OrientationTask>(m, "OrientationTask")
-      .def(
-          "__init__",
-          [](OrientationTask* task, std::vector<int> axes, const Vector3& kp, const Vector3& kd, const Vector3& ki,
-             std::optional<Matrix3> target) {
-            new (task) OrientationTask{std::move(axes), kp, kd, ki, target.has_value(),
-                                       target.value_or(Matrix3(Matrix3::Identity()))};
-          },
-          nb::kw_only(), "axes"_a = std::vector<int>(), "kp"_a = Vector3(Vector3::Zero()),
-          "kd"_a = Vector3(Vector3::Zero()),
-          "ki"_a = Vector3(Vector3::Zero()), "target"_a.none() = nb::none(),
-          "the hand frame's orientation held about world axes (gains per world axis); target R_d, None: the first "
-          "measured orientation");
-
-  nb::class_<BracedContact>(m, "BracedContact")
-      .def(
-          "__init__",
-          [](BracedContact* brace, const Contact& contact, double desired_normal_force, const Task& task,
-             double feedback_kp, double feedback_ki) {
-            new (brace) BracedContact{contact, desired_normal_force, task, feedback_kp, feedback_ki};
-          },
-          nb::kw_only(), "contact"_a, "desired_normal_force"_a, "task"_a, "feedback_kp"_a = 0.0,
-          "feedback_ki"_a = 0.0,
-          "feedback: f_cmd = f_nd + kp (f_nd - f_meas) + ki * integral (f_nd - f_meas) dt (0 0: the paper's law)");
-}
-
-// What a law is built from (LawSpec), keyword by keyword.
-void bind_law_spec(nb::module_& m) {
-  nb::class_<LawSpec>(m, "LawSpec", "what a Law is built from")
-      .def(
-          "__init__",
-          [](LawSpec* spec, const Robot& robot, const Drive& drive, Vector voltage_gain, const Task& hand,
-             std::vector<BracedContact> braces, bool gravity_compensation, double damping_lambda,
-             bool dynamically_consistent, double slip_epsilon, bool thermal_compensation, Vector command_limit,
-             bool back_emf_compensation, Vector posture_kp, Vector posture_kd, Vector posture_rest,
-             bool acceleration_gains, const OrientationTask& orientation) {
-            new (spec) LawSpec{robot, drive, std::move(voltage_gain), hand, std::move(braces), gravity_compensation,
-                               damping_lambda, dynamically_consistent, slip_epsilon, thermal_compensation,
-                               std::move(command_limit), back_emf_compensation, std::move(posture_kp),
-                               std::move(posture_kd), std::move(posture_rest), acceleration_gains, orientation};
-          },
-          nb::kw_only(), "robot"_a, "drive"_a, "voltage_gain"_a, "hand"_a, "braces"_a,
-          "gravity_compensation"_a = false, "damping_lambda"_a = 1e-6, "dynamically_consistent"_a = false,
-          "slip_epsilon"_a = 1e-4, "thermal_compensation"_a = false, "command_limit"_a = Vector(),
-          "back_emf_compensation"_a = false, "posture_kp"_a = Vector(), "posture_kd"_a = Vector(),
-          "posture_rest"_a = Vector(), "acceleration_gains"_a = false, "orientation"_a = OrientationTask(),
-          "voltage_gain: K_V, model order; command_limit: |command| per joint where the motors saturate (empty: "
-          "none); posture_*: the null-space posture task per joint (empty: none; posture_rest empty: the first "
-          "measured position)")
-      .def_ro("robot", &LawSpec::robot)
-      .def_ro("drive", &LawSpec::drive)
-      .def_ro("voltage_gain", &LawSpec::voltage_gain)
-      .def_ro("hand", &LawSpec::hand)
-      .def_ro("braces", &LawSpec::braces)
-      .def_ro("gravity_compensation", &LawSpec::gravity_compensation)
-      .def_ro("damping_lambda", &LawSpec::damping_lambda)
-      .def_ro("dynamically_consistent", &LawSpec::dynamically_consistent)
-      .def_ro("slip_epsilon", &LawSpec::slip_epsilon)
-      .def_ro("thermal_compensation", &LawSpec::thermal_compensation)
-      .def_ro("command_limit", &LawSpec::command_limit)
-      .def_ro("back_emf_compensation", &LawSpec::back_emf_compensation)
-      .def_ro("posture_kp", &LawSpec::posture_kp)
-      .def_ro("posture_kd", &LawSpec::posture_kd)
-      .def_ro("posture_rest", &LawSpec::posture_rest)
-      .def_ro("acceleration_gains", &LawSpec::acceleration_gains)
-      .def_ro("orientation", &LawSpec::orientation);
-}
-
-// The control law.
-void bind_law(nb::module_& m) {
-  nb::class_<LawOutput>(m, "LawOutput")
-      .def_rw("command", &LawOutput::command, "v [V] or tau [N m], model order (a drive's base command adds to it)")
-      .def_rw("torque", &LawOutput::torque, "tau of eq. 38 [N m]")
-      .def_ro("hand_desired", &LawOutput::hand_desired)
-      .def_ro("hand_actual", &LawOutput::hand_actual)
-      .def_ro("brace_desired", &LawOutput::brace_desired, "b x 3")
-      .def_ro("brace_actual", &LawOutput::brace_actual, "b x 3")
-      .def_ro("force_command", &LawOutput::force_command, "f_cmd per brace [N] (f_nd without feedback)")
-      .def_ro("orientation_error", &LawOutput::orientation_error, "the hand frame's log(R_d R^T) [rad], world axes")
-      .def_ro("damped", &LawOutput::damped);
-  nb::class_<Law>(m, "Law")
-      .def(nb::init<const LawSpec&>(), "spec"_a)
-      .def(
-          "update",
-          [](Law& law, double t, const Vector& q, const Vector& dq) {
-            LawOutput o;
-            law.update(t, q, dq, o);
-            return o;
-          },
-          "t"_a, "q"_a, "dq"_a, "the command for the measured state (q, dq) at t")
-      .def("reset", &Law::reset)
-      .def("set_reference", &Law::set_reference, "task"_a, "position"_a, "velocity"_a,
-           "task k (0 the hand, 1 + j brace j) follows this desired position and velocity instead of its path")
-      .def("clear_reference", &Law::clear_reference, "task"_a, "task k follows its path again")
-      .def("set_orientation_reference", &Law::set_orientation_reference, "rotation"_a, "angular_velocity"_a,
-           "the orientation task holds R_d = rotation (world), turning at angular_velocity [rad/s], from the next "
-           "update on")
-      .def("orientation_reference", &Law::orientation_reference, "the orientation task's R_d now")
-      .def("path_sample", &Law::path_sample, "task"_a, "t"_a, "task k's configured path at t: (position, velocity)")
-      .def("measure_force", &Law::measure_force, "brace"_a, "force"_a,
-           "brace j's measured force on the robot [N], world axes (force feedback reads its normal component)")
-      .def("measure_temperature", &Law::measure_temperature, "temperature"_a,
-           "the windings' measured temperatures [degC] (thermal compensation)")
-      .def_prop_ro("uses_force_feedback", &Law::uses_force_feedback)
-      .def_prop_ro("uses_temperature", &Law::uses_temperature)
-      .def("motion_map", &Law::motion_map, "q"_a,
-           "T (n x n) at q: dq = T dq over the motions a differential drive's rolling allows ([0 S_b; 0 I], the "
-           "base's velocities those the wheels give), else the identity")
-      .def("task_positions", &Law::task_positions, "q"_a, "the hand's and each brace point's positions at q")
-      .def("null_space_speed", &Law::null_space_speed, "dq"_a,
-           "max |(I - J^+ J) dq| [rad/s or m/s], J the task rows at the last update's q")
-      .def("first_rankless_axis", &Law::first_rankless_axis, "q0"_a,
-           "(task: 0 the hand, 1 + j brace j; world axis) of the first axis adding no rank at q0, or (-1, -1)")
-      .def("task_rank", &Law::task_rank, "q0"_a, "rows"_a,
-           "the rank at q0 of the rows [(task: 0 the hand, 1 + j brace j; world axis)] within the motions the "
-           "braced contacts allow")
-      .def("retune", &Law::retune, "hand_kp"_a, "hand_kd"_a, "brace_kp"_a, "brace_kd"_a, "desired_normal_force"_a,
-           "voltage_gain"_a, "hand_ki"_a, "brace_ki"_a)
-      .def("task_integral", &Law::task_integral, "task"_a,
-           "task k's integral of its position error [m s] (0 the hand, 1 + j brace j), world axes")
-      .def_prop_ro("desired_normal_force", &Law::desired_normal_force);
-}
-
-// What a real arm measures.
-void bind_sensors(nb::module_& m) {
-  nb::class_<SensorSpec>(m, "SensorSpec", "what a Sensors measures and how late its commands land")
-      .def(
-          "__init__",
-          [](SensorSpec* spec, double step, Mask revolute, unsigned long long seed, long encoder_counts_per_rev,
-             double position_noise, double velocity_noise, double velocity_filter_hz, double force_noise,
-             double force_bias, double current_noise, long command_latency_steps) {
-            new (spec) SensorSpec{seed,        encoder_counts_per_rev, position_noise,        velocity_noise,
-                                  velocity_filter_hz, force_noise,     force_bias,            current_noise,
-                                  command_latency_steps, step,         std::move(revolute)};
-          },
-          nb::kw_only(), "step"_a, "revolute"_a, "seed"_a = 0, "encoder_counts_per_rev"_a = 0,
-          "position_noise"_a = 0.0, "velocity_noise"_a = 0.0, "velocity_filter_hz"_a = 0.0, "force_noise"_a = 0.0,
-          "force_bias"_a = 0.0, "current_noise"_a = 0.0, "command_latency_steps"_a = 0,
-          "step [s]: the control period; revolute: per joint, the encoder's grid applies; noises are sigmas [rad "
-          "or m, rad/s or m/s, N, A]; force_bias [N] along the contact's normal")
-      .def_ro("step", &SensorSpec::step)
-      .def_ro("revolute", &SensorSpec::revolute)
-      .def_ro("seed", &SensorSpec::seed)
-      .def_ro("encoder_counts_per_rev", &SensorSpec::encoder_counts_per_rev)
-      .def_ro("position_noise", &SensorSpec::position_noise)
-      .def_ro("velocity_noise", &SensorSpec::velocity_noise)
-      .def_ro("velocity_filter_hz", &SensorSpec::velocity_filter_hz)
-      .def_ro("force_noise", &SensorSpec::force_noise)
-      .def_ro("force_bias", &SensorSpec::force_bias)
-      .def_ro("current_noise", &SensorSpec::current_noise)
-      .def_ro("command_latency_steps", &SensorSpec::command_latency_steps);
-  nb::class_<Sensors>(m, "Sensors")
-      .def(nb::init<const SensorSpec&, int>(), "spec"_a, "n"_a, "for n joints")
-      .def_prop_ro("exact", &Sensors::exact)
-      .def_prop_ro("exact_joints", &Sensors::exact_joints)
-      .def(
-          "joints",
-          [](Sensors& s, const Vector& q, const Vector& dq) {
-            Vector q_out, dq_out;
-            s.joints(q, dq, q_out, dq_out);
-            return std::make_pair(q_out, dq_out);
-          },
-          "q"_a, "dq"_a, "(q, dq) as measured; call once per state, in order")
-      .def("force", &Sensors::force, "force"_a, "normal"_a, "a contact sensor's reading [N]")
-      .def(
-          "currents",
-          [](Sensors& s, const Vector& current) {
-            Vector out;
-            s.currents(current, out);
-            return out;
-          },
-          "current"_a)
-      .def(
-          "delay", [](Sensors& s, const Vector& command) { return Vector(s.delay(command)); }, "command"_a,
-          "the command to apply now (the answer command_latency_steps states ago; zero before the first lands)")
-      .def("take_back", &Sensors::take_back, "undo the last delay() (its step was refused)")
-      .def("reset", &Sensors::reset);
-}
-
-// The closed loop and its recording.
-void bind_rollout(nb::module_& m) {
-  nb::class_<Recording>(m, "Recording", "per state k = 0..rows-1, as the nodes publish it in lockstep")
-      .def_ro("time", &Recording::time)
-      .def_ro("position", &Recording::position)
-      .def_ro("velocity", &Recording::velocity)
-      .def_ro("current", &Recording::current)
-      .def_ro("temperature", &Recording::temperature)
-      .def_ro("command", &Recording::command)
-      .def_ro("hand_desired", &Recording::hand_desired)
-      .def_ro("hand_actual", &Recording::hand_actual)
-      .def_ro("brace_desired", &Recording::brace_desired, "rows x 3b")
-      .def_ro("brace_actual", &Recording::brace_actual, "rows x 3b")
-      .def_ro("contact_position", &Recording::contact_position, "rows x 3p")
-      .def_ro("slip_velocity", &Recording::slip_velocity, "rows x 3p")
-      .def_ro("normal_force", &Recording::normal_force)
-      .def_ro("friction_force", &Recording::friction_force)
-      .def_ro("residual", &Recording::residual)
-      .def_ro("active", &Recording::active, "1/0")
-      .def_prop_ro(
-          "energy_consumed", [](const Recording& r) { return Vector(r.energy.col(0)); },
-          "[J] consumed up to the step's start (EnergySlot.consumed)")
-      .def_prop_ro(
-          "energy_net", [](const Recording& r) { return Vector(r.energy.col(1)); }, "[J] net (EnergySlot.net)")
-      .def_prop_ro(
-          "copper_loss", [](const Recording& r) { return Vector(r.energy.col(2)); },
-          "[J] copper loss (EnergySlot.copper_loss)")
-      .def_ro("measured_position", &Recording::measured_position, "(0 rows without sensors)")
-      .def_ro("measured_velocity", &Recording::measured_velocity)
-      .def_ro("force_command", &Recording::force_command)
-      .def_ro("orientation_error", &Recording::orientation_error, "rows x 3: the hand's log(R_d R^T) [rad]")
-      .def_ro("step_status", &Recording::step_status, "not ok: the step from the last row's state was refused")
-      .def_ro("refusal", &Recording::refusal, "not none: the node refuses the step after the last row")
-      .def_ro("measured", &Recording::measured, "the refusal's speed, temperature or residual");
-  m.def(
-      "rollout",
-      [](Law& law, Simulator& simulator, long steps, std::int64_t t0_ns, double divergence_speed, double divergence_residual,
-         Sensors* sensors, const Vector& command_limit) {
-        Recording r;
-        {
-          nb::gil_scoped_release release;
-          rollout(law, simulator, steps, t0_ns, divergence_speed, divergence_residual, r, sensors, command_limit);
-        }
-        keep_filled_rows(r);
-        return r;
-      },
-      "law"_a, "simulator"_a, "steps"_a, "t0_ns"_a, "divergence_speed"_a, "divergence_residual"_a,
-      "sensors"_a.none() = nb::none(), "command_limit"_a = Vector(),
-      "The closed loop for `steps` steps (and the final state's answer), all in C++: the Recording, stopped "
-      "early where a step is refused (step_status) or the node would refuse it (refusal); each applied |command| "
-      "saturated to command_limit (per joint, 0: none), the recording keeping the law's.");
-}
-
 }  // namespace
+
+using namespace bracing_engine::bindings;
 
 NB_MODULE(_engine, m) {
   m.doc() = "The bracing engine: constrained robot + motor-circuit dynamics and RK4 on pinocchio (C++).";

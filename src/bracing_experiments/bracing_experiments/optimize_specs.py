@@ -170,7 +170,7 @@ def contact_start(config: Path, contact: str, base: dict[str, Any]) -> list[floa
     shared = SharedConfig.from_values(schema.read("controller", ctl), [config.resolve().parent])
     names = [c.name for c in shared.contacts]
     scenario = build_scenario(config, shared=routed.shared, sim=routed.simulator, with_controller=False)
-    positions = scenario.sim.evaluate(np.zeros(scenario.sim.n)).contacts.positions
+    positions = scenario.sim.evaluate(np.zeros(scenario.sim.n)).positions
     if contact not in names:
         raise ConfigError(f"contacts.{contact}.target: no contact {contact!r} in the scenario")
     return [float(v) for v in positions[names.index(contact)]]

@@ -150,7 +150,7 @@ def _gain_specs(
 def _brace_origin(config: Path, routed: NodeOverrides, shared: SharedConfig, contact: ContactConfig) -> np.ndarray:
     """The contact's brace target as the file has it, else where its point starts (q = 0)."""
     scenario = build_scenario(config, shared=routed.shared, sim=routed.simulator, with_controller=False)
-    start = scenario.sim.evaluate(np.zeros(scenario.sim.n)).contacts.positions
+    start = scenario.sim.evaluate(np.zeros(scenario.sim.n)).positions
     return np.array(contact.target if contact.target is not None else start[shared.contacts.index(contact)])
 
 

@@ -144,18 +144,17 @@ class SimulatorTopics:
         t_ns, d, send = step.t_ns, step.forces, self.batch.publish
         for pub, force in zip(self.wrench_pubs, step.wrenches, strict=True):
             send(pub, self.wrench_wire.encode(t_ns, force))  # at the contact point: no moment
-        terms = d.contacts
         reports = [
             report_encoders.ContactReport(
                 active=bool(step.active[j]),
-                position=terms.positions[j],
-                normal=terms.normals[j],
+                position=d.positions[j],
+                normal=d.normals[j],
                 normal_force=float(d.normal_force[j]),
                 friction_force=float(d.friction_force[j]),
-                slip_velocity=terms.slip_velocity[j],
-                residual=float(terms.residual[j]),
+                slip_velocity=d.slip_velocity[j],
+                residual=float(d.residual[j]),
             )
-            for j in range(terms.count)
+            for j in range(d.contact_count)
         ]
         send(self.contacts_pub, self.contacts_wire.encode(t_ns, reports))
         motor = (step.voltage, step.current, step.power, step.energies, step.temperature)
