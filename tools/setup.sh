@@ -63,7 +63,7 @@ if n:
 PY
 
 # --- 3. colcon build ---------------------------------------------------------------
-src_hash=$( (find src config -type f -not -path '*/__pycache__/*' -not -name '*.pyc' | LC_ALL=C sort | xargs sha256sum) | sha256sum | cut -d' ' -f1)
+src_hash=$( (find src config cmake -type f -not -path '*/__pycache__/*' -not -name '*.pyc' | LC_ALL=C sort | xargs sha256sum) | sha256sum | cut -d' ' -f1)
 if [[ "$(cat install/.src-hash 2>/dev/null)" != "$src_hash" ]]; then
   say "colcon build (src/ changed)"
   (

@@ -25,7 +25,7 @@ import numpy as np
 from bracing_analysis.bag import read_series, resolve_bag
 from bracing_analysis.ratios import RATIO_FLOOR, ratio_text
 from bracing_analysis.series import BagSeries, scenario_name
-from bracing_analysis.summary import SUMMARY_KEYS, compute_summary
+from bracing_analysis.summary import SUMMARY_KEYS, compute_summary, heading
 from bracing_core.contact_roles import BRACED, by_role
 from bracing_core.numbers import cell, markdown_table, number
 
@@ -34,21 +34,6 @@ if TYPE_CHECKING:
 
 COMPARE_MD = "compare.md"
 
-ROWS: dict[str, tuple[str, str]] = {
-    "hand_rms_error_m": ("hand RMS error (t >= 2 s)", "m"),
-    "hand_max_error_m": ("hand max error (t >= 2 s)", "m"),
-    "brace_rms_error_m": ("brace RMS error", "m"),
-    "normal_force_rms_error_n": ("normal force RMS error", "N"),
-    "energy_consumed_j": ("energy consumed", "J"),
-    "copper_loss_j": ("copper loss", "J"),
-    "constraint_residual_max_m": ("max constraint residual", "m"),
-    "sim_time_s": ("sim time", "s"),
-    "wall_time_s": ("wall time", "s"),
-    "real_time_factor": ("real-time factor", ""),
-    "max_penetration_m": ("max penetration", "m"),
-    "input_mode": ("input mode", ""),
-    "bracing": ("bracing", ""),
-}
 TABLE_KEYS = (*SUMMARY_KEYS, "max_penetration_m", "input_mode", "bracing")
 """compare.md's rows: summary.json's single values (each run's summary.json has the per-contact ones)."""
 
@@ -96,7 +81,7 @@ def comparison_table(labels: Sequence[str], summaries: Sequence[dict[str, Any]],
     head += [f"{labels[k]} / {labels[baseline]}" for k in others]
     rows = []
     for key in TABLE_KEYS:
-        label, unit = ROWS.get(key, (key, ""))
+        label, unit = heading(key)
         cells = [f"{label} [{unit}]" if unit else label]
         cells += [cell(s.get(key), bools=("True", "False")) for s in summaries]
         for k in others:  # a ratio of names (input mode, bracing) means nothing: left empty

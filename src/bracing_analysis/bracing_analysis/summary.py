@@ -62,6 +62,31 @@ SUMMARY_EXTRA_KEYS = (
 )
 """summary.json's keys after SUMMARY_KEYS (added later: tools that read SUMMARY_KEYS by position keep working)."""
 
+LABELS: dict[str, str] = {
+    "hand_rms_error_m": "hand RMS error (t >= 2 s)",
+    "hand_max_error_m": "hand max error (t >= 2 s)",
+    "brace_rms_error_m": "brace RMS error",
+    "normal_force_rms_error_n": "normal force RMS error",
+    "energy_consumed_j": "energy consumed",
+    "copper_loss_j": "copper loss",
+    "motor_temperature_max_c": "hottest motor max temp",
+    "constraint_residual_max_m": "max constraint residual",
+    "sim_time_s": "sim time",
+    "wall_time_s": "wall time",
+    "real_time_factor": "real-time factor",
+    "max_penetration_m": "max penetration",
+    "input_mode": "input mode",
+}
+"""The metrics' names in the tables that set runs side by side (compare.md, make run's)."""
+UNITS = {"m": "m", "n": "N", "j": "J", "s": "s", "c": "degC"}
+"""The units of summary.json's keys, by their names' suffix (``_m``, ``_n``, ...)."""
+
+
+def heading(key: str) -> tuple[str, str]:
+    """``key``'s label in a table (LABELS, or the key itself) and its unit ("" where its name has none)."""
+    return LABELS.get(key, key), UNITS.get(key.rpartition("_")[2], "")
+
+
 OUTCOME_KEYS_DOC = (
     "`status` is `ok` for a run that ran to its end, `failed` for one the simulator stopped (a divergence: "
     "bracing-pair exits 3); a failed run still writes every key, measured up to the failure, and its bag holds "

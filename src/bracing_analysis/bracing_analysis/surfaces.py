@@ -10,6 +10,7 @@ finds them for the animation. A bag without them is drawn as before: each surfac
 
 from __future__ import annotations
 
+import argparse
 import json
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
@@ -87,6 +88,11 @@ def read_scenario(files: Sequence[str | Path]) -> dict[str, Shape]:
 def shapes_from_values(values: schema.Values) -> dict[str, Shape]:
     """Every contact's surface from the simulator's typed values (``schema.read``)."""
     return {name: shape_from_values(own) for name, own in values.contacts.items()}
+
+
+def add_params_file_option(parser: argparse.ArgumentParser, text: str) -> None:
+    """``--params-file FILE`` (repeatable, into ``params_files``): the files :func:`read_scenario` reads."""
+    parser.add_argument("--params-file", dest="params_files", action="append", default=[], metavar="FILE", help=text)
 
 
 def shape_of(surfaces: Mapping[str, Shape], contact: str) -> Shape | None:

@@ -14,6 +14,7 @@ from typing import Any
 
 from bracing_analysis.bag import BagReadError
 from bracing_analysis.ratios import ratio_text, temperature_saving_text
+from bracing_analysis.summary import SUMMARY_KEYS, heading
 from bracing_bringup.run_plan import RunOptions
 from bracing_bringup.supervision import run_pair
 from bracing_core.numbers import number
@@ -25,18 +26,15 @@ RATIOS = (("braced", "free_space"), ("braced", "passive"))
 BASELINE = "free_space"
 """compare.md divides by this run: its ratios are the paper's headline (braced / free space)."""
 
-ROWS: list[tuple[str, str, str]] = [
-    ("hand_rms_error_m", "hand RMS error (t >= 2 s)", "m"),
-    ("hand_max_error_m", "hand max error (t >= 2 s)", "m"),
-    ("brace_rms_error_m", "brace RMS error", "m"),
-    ("normal_force_rms_error_n", "normal force RMS error", "N"),
-    ("energy_consumed_j", "energy consumed", "J"),
-    ("copper_loss_j", "copper loss", "J"),
-    ("motor_temperature_max_c", "hottest motor max temp", "degC"),
-    ("constraint_residual_max_m", "max constraint residual", "m"),
-    ("max_penetration_m", "max penetration", "m"),
-    ("real_time_factor", "real-time factor", ""),
-]
+ROWS = (
+    *SUMMARY_KEYS[:6],
+    "motor_temperature_max_c",
+    "constraint_residual_max_m",
+    "max_penetration_m",
+    "real_time_factor",
+)
+"""The table's rows, summary.json's keys: its errors and energies (SUMMARY_KEYS' first six), the hottest motor, the
+contacts' residual and depth, the speed (labels and units: ``summary.heading``)."""
 
 
 def table(summaries: dict[str, dict[str, Any]]) -> str:
@@ -45,7 +43,8 @@ def table(summaries: dict[str, dict[str, Any]]) -> str:
     columns = [summaries[run.name] for run in runs]
     rule = "-" * (28 + 13 * len(runs))
     lines = [f"{'':28s}" + "".join(f" {run.column:>12s}" for run in runs), rule]
-    for key, label, unit in ROWS:
+    for key in ROWS:
+        label, unit = heading(key)
         cells = "".join(f" {s[key]:12.4g}" if number(s.get(key)) else f" {'n/a':>12s}" for s in columns)
         lines.append(f"{label + (f' [{unit}]' if unit else ''):28s}{cells}")
     lines.append(rule)

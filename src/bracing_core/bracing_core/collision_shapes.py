@@ -8,27 +8,11 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Protocol
 
+from bracing_core.contact_config import ContactConfig
 from bracing_core.contact_roles import kept_out_name
 from bracing_core.contacts import Contact, Plane, Sphere, Surface
 from bracing_core.meshes import resolved_description
 from bracing_core.params import ConfigError
-
-
-class ContactConfig(Protocol):
-    """What these rules read of a ``contact_config.ContactConfig`` (a protocol: config imports this module)."""
-
-    @property
-    def name(self) -> str: ...
-    @property
-    def frame(self) -> str: ...
-    @property
-    def surface(self) -> Surface: ...
-    @property
-    def friction(self) -> float: ...
-    @property
-    def friction_model(self) -> str: ...
-    @property
-    def point(self) -> str: ...
 
 
 class SharedConfig(Protocol):

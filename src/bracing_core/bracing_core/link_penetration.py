@@ -106,6 +106,26 @@ class LinkPenetration:
         return reports, warnings
 
 
+_DRIVE_ARRAYS = (
+    "added_inertia",
+    "damping",
+    "torque_constant",
+    "resistance",
+    "inductance",
+    "reflected_damping",
+    "thermal_resistance",
+    "heat_capacity",
+)
+"""engine.Drive's per-joint arrays."""
+
+
+def bare_drive(joints: int) -> engine.Drive:
+    """A drive that adds nothing to the links (torque input, no motor terms): the geometry's alone."""
+    zeros = np.zeros(joints)
+    arrays = dict.fromkeys(_DRIVE_ARRAYS, zeros)
+    return engine.Drive(voltage=False, thermal=False, ambient=20.0, temperature_coefficient=0.0, **arrays)
+
+
 def deepest_over_postures(
     description: str, joint_names: Sequence[str], positions: NDArray[np.float64], surfaces: Sequence[Surface]
 ) -> dict[str, float]:
@@ -117,23 +137,8 @@ def deepest_over_postures(
     with tempfile.TemporaryDirectory(prefix="bracing-links-") as folder:
         urdf = Path(folder) / "robot.urdf"
         urdf.write_text(description, encoding="utf-8")
-        zeros = np.zeros(len(joint_names))
-        drive = engine.Drive(
-            voltage=False,
-            added_inertia=zeros,
-            damping=zeros,
-            torque_constant=zeros,
-            resistance=zeros,
-            inductance=zeros,
-            reflected_damping=zeros,
-            thermal=False,
-            thermal_resistance=zeros,
-            heat_capacity=zeros,
-            ambient=20.0,
-            temperature_coefficient=0.0,
-        )
         robot = engine.Robot(urdf_path=str(urdf), gravity=np.zeros(3), collision_description=description)
-        dynamics = engine.Dynamics(robot, drive, [], 1e-4, 0.0)
+        dynamics = engine.Dynamics(robot, bare_drive(len(joint_names)), [], 1e-4, 0.0)
     measured = [engine_surface(surface) for surface in surfaces]
     order = [list(joint_names).index(name) for name in dynamics.joint_names]
     links = list(dynamics.measure_links(np.zeros(len(joint_names)), measured).links)

@@ -36,6 +36,34 @@ time; the two nodes alone 2.61x) for a bag closed ~0.4 s sooner after a 10 s run
 step stays under 10 % this way."""
 
 
+TUNINGS: tuple[tuple[str, type, float, str], ...] = (
+    (
+        "--batch",
+        float,
+        0.005,
+        "after writing, let messages gather for this long before waiting again [s] (default 0.005): "
+        "one wake-up per batch instead of one per message leaves the CPU to the nodes",
+    ),
+    ("--niceness", int, 0, "add this to the process's nice value (bracing-pair uses 10)"),
+    (
+        "--expect-states",
+        int,
+        0,
+        "the states of a lockstep run: close the bag as soon as every topic has its messages "
+        "(default 0: only when stopped)",
+    ),
+    ("--drain-idle", float, 0.2, "on stop, keep receiving until idle this long [s] (default 0.2)"),
+    (
+        "--drain-timeout",
+        float,
+        60.0,
+        "on stop, drain for at most this long [s] (default 60: a recorder that fell behind on a busy "
+        "machine may hold many messages in its queues, all acknowledged to their publishers)",
+    ),
+)
+"""The recorder's numeric options: flag, type, default, help."""
+
+
 def _parse(argv: Sequence[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog="bracing-recorder",
@@ -49,13 +77,9 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
         action="store_true",
         help="also record ground_truth/joint_states and ground_truth/motor_state (a simulator with sensors.*)",
     )
-    parser.add_argument(
-        "--params-file",
-        dest="params_files",
-        action="append",
-        default=[],
-        metavar="FILE",
-        help="a params file the nodes run with (repeat for each, in order): its contact surfaces go into the bag's "
+    surfaces.add_params_file_option(
+        parser,
+        "a params file the nodes run with (repeat for each, in order): its contact surfaces go into the bag's "
         "metadata, and the markers draw spheres and cylinders as such",
     )
     parser.add_argument(
@@ -63,16 +87,6 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
         default=None,
         metavar="NAME",
         help="the scenario's name, kept in the bag's metadata for the report (default: the first params file's name)",
-    )
-    parser.add_argument(
-        "--batch",
-        type=float,
-        default=0.005,
-        help="after writing, let messages gather for this long before waiting again [s] (default 0.005): "
-        "one wake-up per batch instead of one per message leaves the CPU to the nodes",
-    )
-    parser.add_argument(
-        "--niceness", type=int, default=0, help="add this to the process's nice value (bracing-pair uses 10)"
     )
     parser.add_argument(
         "--no-scene",
@@ -85,23 +99,8 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
         help="take the per-state topics from the nodes' record_batch (their record_batch parameter > 0; "
         "bracing-pair sets both) instead of subscribing to each: one DDS delivery per batch, not per message",
     )
-    parser.add_argument(
-        "--expect-states",
-        type=int,
-        default=0,
-        help="the states of a lockstep run: close the bag as soon as every topic has its messages "
-        "(default 0: only when stopped)",
-    )
-    parser.add_argument(
-        "--drain-idle", type=float, default=0.2, help="on stop, keep receiving until idle this long [s] (default 0.2)"
-    )
-    parser.add_argument(
-        "--drain-timeout",
-        type=float,
-        default=60.0,
-        help="on stop, drain for at most this long [s] (default 60: a recorder that fell behind on a busy "
-        "machine may hold many messages in its queues, all acknowledged to their publishers)",
-    )
+    for flag, kind, default, text in TUNINGS:
+        parser.add_argument(flag, type=kind, default=default, help=text)
     return parser.parse_args(list(argv))
 
 

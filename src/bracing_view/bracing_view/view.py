@@ -33,7 +33,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from bracing_analysis.surfaces import Shape, read_scenario
+from bracing_analysis.surfaces import Shape, add_params_file_option, read_scenario
 from bracing_core.contact_roles import KEPT_OUT, LINK_PENETRATION_TOPIC, role
 from bracing_core.kinematics import LinkPoses
 from bracing_core.overrides import SIMULATOR
@@ -517,13 +517,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="live: subscribe to the run's data once the simulator steps (bracing-pair: see Live)",
     )
     parser.add_argument("--exit-after", type=float, default=None, help="stop after this many seconds of wall time")
-    parser.add_argument(
-        "--params-file",
-        dest="params_files",
-        action="append",
-        default=[],
-        metavar="FILE",
-        help="live: the scenario's params file(s), for the contact surfaces' geometry (a bag has them)",
+    add_params_file_option(
+        parser, "live: the scenario's params file(s), for the contact surfaces' geometry (a bag has them)"
     )
     argv = list(sys.argv[1:] if argv is None else argv)
     ours = argv[: argv.index("--ros-args")] if "--ros-args" in argv else argv  # rclpy reads the rest
