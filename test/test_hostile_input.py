@@ -16,8 +16,6 @@ from __future__ import annotations
 
 import math
 import signal
-import subprocess
-import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -31,7 +29,7 @@ from lockstep_driver import JOINTS, known_command
 from rclpy.context import Context
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
-from ros_helpers import hold_test_domain, isolated_env, node_argv, params_file, start
+from ros_helpers import NodeProcess, hold_test_domain, isolated_env, node_argv, params_file, start
 from sensor_msgs.msg import JointState
 from test_fuzz import Peer, start_peer
 
@@ -208,54 +206,6 @@ def _take_until_interrupted(waiter: SubscriptionWaiter, publisher: Any, message:
 
 
 # -- over DDS: the node's output as it comes -----------------------------------------------------------
-@dataclass
-class NodeProcess:
-    """A node process and its output lines, each with its arrival time (monotonic)."""
-
-    process: subprocess.Popen[str]
-    lines: list[tuple[float, str]] = field(default_factory=list)
-    interrupted: bool = False  # SIGINT sent (once: a second would interrupt its stop)
-
-    def __post_init__(self) -> None:
-        self._reader = threading.Thread(target=self._read, daemon=True)
-        self._reader.start()
-
-    def _read(self) -> None:
-        assert self.process.stdout is not None
-        for line in self.process.stdout:
-            self.lines.append((time.monotonic(), line))
-
-    def text(self) -> str:
-        return "".join(line for _, line in self.lines)
-
-    def wait_for(self, words: str, timeout: float) -> str | None:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            for _, line in list(self.lines):
-                if words in line:
-                    return line
-            time.sleep(0.05)
-        return None
-
-    def between(self, words: str, since: float, until: float) -> list[str]:
-        return [line for t, line in list(self.lines) if since <= t <= until and words in line]
-
-    def interrupt(self) -> None:
-        if not self.interrupted and self.process.poll() is None:
-            self.process.send_signal(signal.SIGINT)
-        self.interrupted = True
-
-    def stop(self) -> int:
-        self.interrupt()
-        try:
-            self.process.wait(30)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            self.process.wait(10)
-        self._reader.join(10)
-        return self.process.returncode
-
-
 @dataclass
 class Harness:
     node: NodeProcess
