@@ -8,8 +8,8 @@ message (a length mismatch keyed by its numbers printed 488 warnings a second). 
 rclpy converts a taken message ends the node as a KeyboardInterrupt, not a RuntimeError.
 
 Over DDS the test process is a real rclpy peer (test_fuzz's) of a node process in a domain of its
-own; the node's output is read as it comes, each line with its arrival time. Floods are bounded in
-count (each until the log shows what it must, or a give-up).
+own; the node's output is read as it comes, each line with its arrival time. A flood lasts until the
+log shows what it must (or gives up after FLOOD_GIVE_UP_S).
 """
 
 from __future__ import annotations
