@@ -31,7 +31,8 @@ python ros2_control_peer.py path T_PUB PATH_JSON BRACE_DY
     the stamps of the controller's echoes (``taken``: the state each target was taken with).
 python ros2_control_peer.py sim-clock
     the forward controller's side of a use_sim_time run: publishes /clock (frozen at 5 s for 1 s of wall
-    time, then 10 ms a tick for 50 ticks) and joint_states, and counts the commands in each phase.
+    time, then 10 ms a tick for 50 ticks, each once the tick before was answered or after
+    TICK_ANSWER_WAIT_S) and joint_states, and counts the commands in each phase.
 python ros2_control_peer.py constant-effort TAU_JSON
     JointStateTopicSystem holding one effort command (TAU_JSON, robot.joint_names order): sends it until
     the run ends, recording /clock, /robot_joint_states and motor_state.
@@ -274,6 +275,11 @@ def path_and_brace(node: rclpy.node.Node, t_pub: float, poses: list[list[float]]
     return {"sent": sent, "rows": rows, "taken": taken}
 
 
+TICK_ANSWER_WAIT_S = 1.0
+"""[s] wall time an advancing /clock tick waits for its command before the next tick (lockstep: a loaded
+machine slows the run, never merges two ticks into one timer call)."""
+
+
 def sim_clock(node: rclpy.node.Node) -> dict[str, object]:
     from rosgraph_msgs.msg import Clock
 
@@ -293,8 +299,9 @@ def sim_clock(node: rclpy.node.Node) -> dict[str, object]:
             state = JointState(name=JOINTS, position=q, velocity=[0.0] * 4)
             state.header.stamp = _time_msg(t_now)
             states.publish(state)
-            end = time.monotonic() + period
-            while time.monotonic() < end:
+            answered = len(commands) + 1
+            end = time.monotonic() + (period if not step else TICK_ANSWER_WAIT_S)
+            while time.monotonic() < end and not (step and len(commands) >= answered):
                 rclpy.spin_once(node, timeout_sec=0.005)
         end = time.monotonic() + 0.2
         while time.monotonic() < end:

@@ -7,7 +7,9 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -87,6 +89,58 @@ def run(argv: list[str], env: dict[str, str] | None = None, timeout: float = 60)
             f"{stdout[-5000:]}\n{stderr[-20000:]}"
         ) from None
     return subprocess.CompletedProcess(argv, process.returncode, stdout, stderr)
+
+
+@dataclass
+class NodeProcess:
+    """A node process and its output lines, each with its arrival time (monotonic)."""
+
+    process: subprocess.Popen[str]
+    lines: list[tuple[float, str]] = field(default_factory=list)
+    interrupted: bool = False  # SIGINT sent (once: a second would interrupt its stop)
+
+    def __post_init__(self) -> None:
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        assert self.process.stdout is not None
+        for line in self.process.stdout:
+            self.lines.append((time.monotonic(), line))
+
+    def text(self) -> str:
+        return "".join(line for _, line in self.lines)
+
+    def wait_for(self, words: str, timeout: float, after: str | None = None) -> str | None:
+        """The first line with ``words`` (after the line ``after``, if given) within ``timeout`` [s]."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            lines = [line for _, line in list(self.lines)]
+            if after is not None:
+                lines = lines[lines.index(after) + 1 :] if after in lines else []
+            for line in lines:
+                if words in line:
+                    return line
+            time.sleep(0.05)
+        return None
+
+    def between(self, words: str, since: float, until: float) -> list[str]:
+        return [line for t, line in list(self.lines) if since <= t <= until and words in line]
+
+    def interrupt(self) -> None:
+        if not self.interrupted and self.process.poll() is None:
+            self.process.send_signal(signal.SIGINT)
+        self.interrupted = True
+
+    def stop(self) -> int:
+        self.interrupt()
+        try:
+            self.process.wait(30)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait(10)
+        self._reader.join(10)
+        return self.process.returncode
 
 
 def drive(

@@ -352,8 +352,9 @@ def test_hand_path_and_brace_target_mid_run_recorded_and_drawn(tmp_path: Path) -
 def test_effort_forward_under_use_sim_time_follows_clock(tmp_path: Path) -> None:
     """effort_forward with use_sim_time at control_rate 100 Hz: while /clock stands still (1 s of wall
     time) at most one command goes out (the jump from 0 to 5 s); while it advances 10 ms a tick for 50
-    ticks (1 s of wall time, 0.5 s of sim time), one per tick: 50 (+-2 at the phase edges). A wall-clock
-    timer would send ~100 in each."""
+    ticks (0.5 s of sim time; each tick once the one before was answered, however long a loaded machine
+    takes), one per tick: 50 (+-2 at the phase edges). A wall-clock timer would send ~100 in the frozen
+    second; a timer of another period, or one that merged ticks, other than 50."""
     ctl = {"input_mode": "torque", "command_output": "effort_forward", "control_rate": 100.0, "use_sim_time": True}
     env = isolated_env()
     process = start(node_argv("bracing_controller.node", params_file(tmp_path, "bracing_controller", ctl)), env)
