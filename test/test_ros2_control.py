@@ -391,6 +391,10 @@ def test_free_run_voltage_drive_under_joint_state_efforts(tmp_path: Path) -> Non
     assert len(late) > 90, log
     constant = build_scenario(with_controller=False).plant.motors.reflected_constant  # K_m [N m/A], link side
     np.testing.assert_allclose(late * constant, np.tile(tau, (len(late), 1)), rtol=0.01, atol=0.0)
-    assert len(seen["efforts"]) == len(clock)  # the state on /robot_joint_states, once per step
+    # The state on /robot_joint_states, once per step: every step from the first one heard to the last (free_run
+    # waits for no subscriber, so a loaded machine may match this one a few steps after /clock's).
+    stamps = np.array([effort[0] for effort in seen["efforts"]])
+    assert len(stamps) > len(clock) // 2, log
+    np.testing.assert_allclose(stamps, clock[len(clock) - len(stamps) :], rtol=0, atol=1e-12)
     energy = np.array(seen["energy"])
     assert energy[-1, 1] >= energy[-1, 2] > 0.0
