@@ -130,7 +130,6 @@ class ControllerNode(Node):
         the simulator starts stepping when this subscription appears (it waits for it), so no
         state is answered before the answers have somewhere to be recorded.
         """
-        state_sub = self.create_subscription(JointState, "joint_states", self.on_state, SUBSCRIBE_QOS, raw=True)
         measurements = self.core.measurements
         if measurements is not None:
             # the executor (spun between states) and the waiter (while a state waits) both hand them to the core
@@ -147,7 +146,11 @@ class ControllerNode(Node):
                     self.create_subscription(MotorState, "motor_state", self.on_temperature, SUBSCRIBE_QOS, raw=True)
                 )
             self.measurement_waiter = SubscriptionWaiter(self, subs)
-        return state_sub
+        # joint_states last: the simulator steps once it matches this reader, and Fast DDS announces a
+        # participant's endpoints in order on a reliable channel, so by then its contact_wrench and motor_state
+        # writers have matched the readers above (created after it, step 0's reports could go out before they
+        # matched and be lost: state 1 answered without them, 1 run in a loaded fresh-clone CI)
+        return self.create_subscription(JointState, "joint_states", self.on_state, SUBSCRIBE_QOS, raw=True)
 
     def take_measurements(self, timeout_sec: float) -> None:
         """The force and temperature reports that have come (waiting up to ``timeout_sec`` for one)."""
