@@ -184,11 +184,12 @@ def write_bag_directly(path: Path, n: int, contacts: tuple[str, ...]) -> None:
     writer.close()
 
 
-def publisher_main(namespace: str, contacts: str, n: int, period: float, wait_go: bool) -> None:
-    """Run in a subprocess: publish n synthetic steps of every topic.
+def publisher_main(namespace: str, contacts: str, n: int, period: float, wait_go: bool, runs: int = 1) -> None:
+    """Run in a subprocess: publish n synthetic steps of every topic, ``runs`` times over (as a simulator
+    reset after each run: robot_description once).
 
     Prints "matched" once every topic has a subscriber (then, with `wait_go`, waits for
-    a line on stdin), "sent" after the last publish and "published" once all is acked.
+    a line on stdin before each run), "sent" after each run's last publish and "published" once all is acked.
     """
     import rclpy
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -215,14 +216,15 @@ def publisher_main(namespace: str, contacts: str, n: int, period: float, wait_go
             sys.exit(3)
         rclpy.spin_once(node, timeout_sec=0.02)
     print("matched", flush=True)
-    if wait_go:
-        sys.stdin.readline()
-    for k in range(n):
-        for topic, msg in make_step(k, names).items():
-            pubs[topic].publish(msg)
-        if period > 0:
-            time.sleep(period)
-    print("sent", flush=True)
+    for _ in range(runs):
+        if wait_go:
+            sys.stdin.readline()
+        for k in range(n):
+            for topic, msg in make_step(k, names).items():
+                pubs[topic].publish(msg)
+            if period > 0:
+                time.sleep(period)
+        print("sent", flush=True)
     for p in pubs.values():
         p.wait_for_all_acked(rclpy.duration.Duration(seconds=5.0))
     print("published", flush=True)
@@ -394,6 +396,7 @@ def start_publisher(
     n: int,
     period: float,
     wait_go: bool = False,
+    runs: int = 1,
 ) -> Proc:
     # Fast DDS's default 3 s writer heartbeat would delay any retransmission (and the
     # final acknowledgements) by up to 3 s; 20 ms keeps delivery prompt and the test fast.
@@ -402,7 +405,7 @@ def start_publisher(
     env = {**env, "FASTRTPS_DEFAULT_PROFILES_FILE": str(profile)}
     code = (
         "import test_recorder_report as t; "
-        f"t.publisher_main({namespace!r}, {','.join(contacts)!r}, {n}, {period}, {wait_go})"
+        f"t.publisher_main({namespace!r}, {','.join(contacts)!r}, {n}, {period}, {wait_go}, {runs})"
     )
     pub = Proc([sys.executable, "-c", code], env)
     procs.append(pub)

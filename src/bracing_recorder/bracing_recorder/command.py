@@ -8,7 +8,8 @@ import os
 import signal
 import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
 
@@ -21,6 +22,7 @@ from bracing_analysis import surfaces
 from bracing_core.typestore import bracing_typestore
 from bracing_msgs.msg import RunStatus
 from bracing_recorder.bag_notes import command_limit_notes, scenario_surfaces, scene_notes, task_notes
+from bracing_recorder.bag_switch import BagRequest, BagRequests
 from bracing_recorder.recorder import BAG_VERSION, Recorder, expected_counts
 from bracing_ros.fastdds import use_fastdds_profile
 from bracing_ros.lifetime import report_faults, stop_with_parent
@@ -99,9 +101,18 @@ def _parse(argv: Sequence[str]) -> argparse.Namespace:
         help="take the per-state topics from the nodes' record_batch (their record_batch parameter > 0; "
         "bracing-pair sets both) instead of subscribing to each: one DDS delivery per batch, not per message",
     )
+    parser.add_argument(
+        "--stay",
+        action="store_true",
+        help="with --expect-states: once a bag is closed, wait for the next (its output parameter set: "
+        "bracing_recorder.bag_switch) instead of exiting; SIGINT or SIGTERM ends it",
+    )
     for flag, kind, default, text in TUNINGS:
         parser.add_argument(flag, type=kind, default=default, help=text)
-    return parser.parse_args(list(argv))
+    args = parser.parse_args(list(argv))
+    if args.stay and not args.expect_states:
+        parser.error("--stay needs --expect-states (a bag closes by itself only once it has every message)")
+    return args
 
 
 class StopRequest:
@@ -133,15 +144,22 @@ def _write_task_metadata(writer: Writer, params_files: list[str], ground_truth: 
         writer.set_custom_data(key, value)
 
 
-def _record_until_stopped(node: Recorder, args: argparse.Namespace, stop: StopRequest, contacts: list[str]) -> bool:
-    """Record until a stop signal, or until every expected message is in; True in the latter case."""
+def _record_until_stopped(
+    node: Recorder,
+    args: argparse.Namespace,
+    stop: StopRequest,
+    contacts: list[str],
+    expect_states: int,
+    serve: Callable[[], None] = lambda: None,
+) -> bool:
+    """Record until a stop signal, or until every expected message (of ``expect_states``) is in; True in
+    the latter case. ``serve`` is called between takes (--stay: the next bag's requests answered)."""
     idle = False
     wanted = (
-        expected_counts(contacts, args.expect_states, node.get_namespace(), args.ground_truth)
-        if args.expect_states
-        else None
+        expected_counts(contacts, expect_states, node.get_namespace(), args.ground_truth) if expect_states else None
     )
     while not stop.requested:
+        serve()
         got = node.record(0.0 if idle and node.scene_backlog else 0.1)
         idle = not got
         if got and wanted is not None and node.simulator_done and node.has_every_message(wanted):
@@ -168,7 +186,16 @@ def _drain(node: Recorder, args: argparse.Namespace, stop: StopRequest, complete
         pass
 
 
-def _close(writer: Writer, node: Recorder | None, status: StatusPublisher | None, output: Path) -> None:
+def _close(writer: Writer | None, node: Recorder | None, status: StatusPublisher | None, output: Path) -> None:
+    if writer is not None:  # None: stopped between two bags (--stay)
+        _close_bag(writer, node, status, output)
+    if node is not None:
+        node.destroy_node()
+    if rclpy.ok():
+        rclpy.shutdown()
+
+
+def _close_bag(writer: Writer, node: Recorder | None, status: StatusPublisher | None, output: Path) -> None:
     writer.close()
     print(f"recorder closed the bag at {time.time():.6f}", flush=True)
     if status is not None:
@@ -180,10 +207,56 @@ def _close(writer: Writer, node: Recorder | None, status: StatusPublisher | None
         states = node.counts.get("/tf", 0)
         cost = f", {node.scene_time / states * 1e6:.0f} us of CPU per state" if states else ""
         print(f"recorder derived {node.derived} messages (/tf, /tf_static, contact_markers){cost}", flush=True)
-    if node is not None:
-        node.destroy_node()
-    if rclpy.ok():
-        rclpy.shutdown()
+
+
+@dataclass
+class _OpenBag:
+    """The bag being recorded: its writer (None between two bags) and what it was asked for."""
+
+    writer: Writer | None
+    request: BagRequest
+
+
+def _record_bags(
+    node: Recorder, status: StatusPublisher, bag: _OpenBag, args: argparse.Namespace, stop: StopRequest
+) -> None:
+    """Record ``bag`` and, with --stay, each next one asked for (``bag_switch``), until stopped; ``bag``
+    is the one still open when it ends (its writer None if none is)."""
+    requests = BagRequests(node, bag.request) if args.stay else None
+    try:
+        _record_each_bag(node, status, bag, args, stop, requests)
+    finally:
+        if requests is not None:
+            requests.destroy()
+
+
+def _record_each_bag(
+    node: Recorder,
+    status: StatusPublisher,
+    bag: _OpenBag,
+    args: argparse.Namespace,
+    stop: StopRequest,
+    requests: BagRequests | None,
+) -> None:
+    """``_record_bags``' loop: a bag until it is complete (or the stop), then, with ``requests``, the next."""
+    contacts = [c.strip() for c in args.contacts.split(",") if c.strip()]
+    while bag.writer is not None:
+        status.say(RunStatus.READY)
+        print(f"recorder subscribed at {time.time():.6f}", flush=True)
+        print("recorder ready", flush=True)
+        _write_task_metadata(bag.writer, list(bag.request.params_files), args.ground_truth)
+        serve = requests.serve if requests is not None else lambda: None
+        complete = _record_until_stopped(node, args, stop, contacts, bag.request.expect_states, serve)
+        _drain(node, args, stop, complete)
+        if requests is None or stop.requested:
+            return
+        _close_bag(bag.writer, node, status, bag.request.output)
+        bag.writer = None
+        following = requests.wait(lambda: stop.requested)
+        if following is not None:
+            shapes = scenario_surfaces(list(following.params_files))
+            bag.request, bag.writer = following, _open_writer(following.output, following.scenario or None, shapes)
+            node.next_bag(bag.writer, shapes)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -211,7 +284,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         os.nice(args.niceness)
     use_fastdds_profile()  # the nodes' discovery settings: matched at once when started together
     rclpy.init(args=["recorder", *full], signal_handler_options=SignalHandlerOptions.NO)
+    first = BagRequest(output, tuple(args.params_files), scenario or "", args.expect_states)
     writer = _open_writer(output, scenario, shapes)
+    bag = _OpenBag(writer, first)
     node: Recorder | None = None
     status: StatusPublisher | None = None
     try:
@@ -226,14 +301,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             from_batches=args.from_batches,
         )
         status = StatusPublisher(node)  # what bracing-pair follows
-        status.say(RunStatus.READY)
-        print(f"recorder subscribed at {time.time():.6f}", flush=True)
-        print("recorder ready", flush=True)
-        _write_task_metadata(writer, args.params_files, args.ground_truth)
-        complete = _record_until_stopped(node, args, stop, contacts)
-        _drain(node, args, stop, complete)
+        _record_bags(node, status, bag, args, stop)
     finally:
-        _close(writer, node, status, output)
+        _close(bag.writer, node, status, bag.request.output)
     return 0
 
 

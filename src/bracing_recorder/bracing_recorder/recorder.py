@@ -47,7 +47,10 @@ written under its own topic, exactly as if it had come on it, without one DDS de
 (``bracing_core.record_batch`` says why). A batch that cannot be unpacked is left out whole, with
 an error line, and a gap in a node's batch sequence is reported as lost.
 
-Prints ``recorder ready`` on stdout once every subscription exists. SIGINT or SIGTERM
+With ``--stay`` (and ``--expect-states``) a closed bag is followed by the next one asked for, in the same
+process (``bag_switch``): runs that reuse their nodes reuse their recorder too.
+
+Prints ``recorder ready`` on stdout once every subscription exists (and again as each next bag opens). SIGINT or SIGTERM
 stops it: pending messages are drained (until nothing arrives for ``--drain-idle``
 seconds, at most ``--drain-timeout`` seconds) and the bag is closed cleanly.
 """
@@ -192,15 +195,10 @@ class Recorder(Node):
         from_batches: bool = False,
     ) -> None:
         super().__init__(RECORDER_NODE, namespace=namespace)
-        self.writer = writer
         self.typestore = typestore
         self._contacts = list(contacts)
-        self.counts: dict[str, int] = {}
-        self.received = 0
-        self.derived = 0
-        self.scene_time = 0.0  # [s] of CPU spent deriving /tf and markers (what the lockstep loop shares)
-        self.last_receive = time.monotonic()
-        self._recorded: dict[str, tuple[Connection, str]] = {}  # resolved topic: its connection, its role
+        self._scene_wanted = scene
+        self._recorded_table: list[tuple[str, str, str]] = []  # resolved topic, type name, role: in connection order
         self._topic_of: dict[Subscription, str] = {}  # the recorded topics subscribed to one by one
         self._roles: dict[Subscription, str] = {}  # what the scene makes of a subscription's messages
         self._subscribe_recorded(contacts, ground_truth, from_batches)
@@ -212,18 +210,62 @@ class Recorder(Node):
         if from_batches:
             self._batches = self.create_subscription(RecordBatch, RECORD_BATCH_TOPIC, _never_called, RECORD_QOS)
             subscriptions.append(self._batches)
-        self._sim_time_ns = 0  # the last /clock recorded: when a target arrived, on the bag's time axis
         self._waiter = SubscriptionWaiter(self, subscriptions)
-        self.scene = SceneBuilder(typestore, contacts, shapes) if scene else None
-        self._scene_inputs: deque[tuple[str, bytes]] = deque()
         self._scene_roles = {"joint_states", "contacts", "description", *(f"contact_wrench/{c}" for c in contacts)}
+        self.simulator_heard = False  # a simulator speaks on run_status (its CONFIGURED is kept for late subscribers)
+        self.description: bytes | None = None  # the robot_description received (latched: delivered once)
+        self._open_bag(writer, shapes)
+
+    def _open_bag(self, writer: Writer, shapes: Mapping[str, surfaces.Shape] | None) -> None:
+        """Record into ``writer`` from now on, its connections added in the order a new recorder adds them
+        (the recorded topics, then the scene's); every count and the scene from the start."""
+        self.writer = writer
+        self.counts: dict[str, int] = {}
+        self.received = 0
+        self.derived = 0
+        self.scene_time = 0.0  # [s] of CPU spent deriving /tf and markers (what the lockstep loop shares)
+        self.last_receive = time.monotonic()
+        self._recorded: dict[str, tuple[Connection, str]] = {}  # resolved topic: its connection, its role
+        for resolved, type_name, role in self._recorded_table:
+            qos = [LATCHED] if role == "description" else []
+            connection = writer.add_connection(resolved, type_name, typestore=self.typestore, offered_qos_profiles=qos)
+            self._recorded[resolved] = (connection, role)
+            self.counts[resolved] = 0
+        self._optional_connections: dict[str, Connection] = {}
+        self._events_connection: Connection | None = None
+        self._status_connection: Connection | None = None
+        self._target_connections: dict[Subscription, Connection] = {}
+        self.simulator_finished = False  # its FINISHED status came: nothing more from it
+        self._sim_time_ns = 0  # the last /clock recorded: when a target arrived, on the bag's time axis
+        self.scene = SceneBuilder(self.typestore, self._contacts, shapes) if self._scene_wanted else None
+        self._scene_inputs: deque[tuple[str, bytes]] = deque()
         self._scene_connections: dict[str, Connection] = {}
-        if scene:
-            self._add_scene_connections(contacts)
+        if self.scene is not None:
+            self._add_scene_connections(self._contacts)
+
+    def next_bag(self, writer: Writer, shapes: Mapping[str, surfaces.Shape] | None = None) -> None:
+        """Go on recording into ``writer`` (a new bag; the last one closed, its scene derived) as a recorder
+        started now would: the same connections, the counts and the scene from the start, and the robot
+        description the simulator latched (delivered once, to the first bag) written first again."""
+        self._open_bag(writer, shapes)
+        if self.description is not None:
+            self._write(self.resolve_topic_name(DESCRIPTION_TOPIC), self.description)
+            self.received = 1
+
+    def skip(self, timeout_sec: float) -> int:
+        """Between bags: take what comes (waiting up to ``timeout_sec``) without writing it (no bag is open),
+        keeping the batches' sequence and the simulator's FINISHED; the count taken."""
+        taken = self._waiter.take_all(timeout_sec)
+        for sub, data in taken:
+            if sub is self._batches:
+                self._next_batch[data.node] = data.sequence + 1
+            elif sub is self._status:
+                self._record_status(data, write=False)
+        return len(taken)
 
     def _subscribe_recorded(self, contacts: Sequence[str], ground_truth: bool, from_batches: bool) -> None:
-        """The recorded topics, each with its bag connection from the start; subscribed to one by one
-        unless they come in batches (robot_description always is: once, latched)."""
+        """The recorded topics (each with its bag connection from the start: ``_open_bag``); subscribed to one
+        by one unless they come in batches (robot_description always is: once, latched)."""
         table = [
             (topic, msg_type, type_name, topic) for topic, msg_type, type_name in topic_table(contacts, ground_truth)
         ]
@@ -236,19 +278,13 @@ class Recorder(Node):
                 sub = self.create_subscription(msg_type, topic, _never_called, RECORD_QOS, raw=True)
                 self._topic_of[sub] = resolved
                 self._roles[sub] = role
-            qos = [LATCHED] if role == "description" else []
-            connection = self.writer.add_connection(
-                resolved, type_name, typestore=self.typestore, offered_qos_profiles=qos
-            )
-            self._recorded[resolved] = (connection, role)
-            self.counts[resolved] = 0
+            self._recorded_table.append((resolved, type_name, role))
 
     def _subscribe_optional(self, from_batches: bool) -> None:
         """The per-state topics only some configurations publish (``topics.OPTIONAL_STATE_TOPICS``): each
         enters the bag with its first message (subscribed to one by one unless they come in batches)."""
         self._optional: dict[str, str] = {}  # resolved topic: its type name
         self._optional_of: dict[Subscription, str] = {}
-        self._optional_connections: dict[str, Connection] = {}
         for topic, type_name in OPTIONAL_STATE_TOPICS:
             resolved = self.resolve_topic_name(topic)
             self._optional[resolved] = type_name
@@ -273,17 +309,12 @@ class Recorder(Node):
         self._events = self.create_subscription(
             ParameterEvent, PARAMETER_EVENTS_TOPIC, _never_called, PARAMETER_EVENTS_QOS, raw=True
         )
-        self._events_connection: Connection | None = None
         self._roles[self._events] = "parameter_events"
         self._controller = self.resolve_topic_name(CONTROLLER_NODE)  # its fully qualified name
         # The run's warnings, from run_status (see ``_record_status``).
         self._status = self.create_subscription(RunStatus, STATUS_TOPIC, _never_called, STATUS_QOS, raw=True)
-        self._status_connection: Connection | None = None
         self._roles[self._status] = "run_status"
-        self.simulator_heard = False  # a simulator speaks on run_status (its CONFIGURED is kept for late subscribers)
-        self.simulator_finished = False  # its FINISHED status came: nothing more from it
         self._targets: dict[Subscription, str] = {}
-        self._target_connections: dict[Subscription, Connection] = {}
         commands = [*target_topics(self._contacts), *target_verdict_topics(self._contacts), *COMMAND_TOPICS]
         for topic, type_name in commands:
             sub = self.create_subscription(
@@ -334,7 +365,9 @@ class Recorder(Node):
         is negative: mcap's log time is unsigned; a negative /clock ended the recorder with OverflowError)."""
         connection, role = self._recorded[topic]
         stamp = 0 if role == "description" else max(cdr_stamp_ns(data), 0)
-        if role == "/clock":
+        if role == "description":
+            self.description = data  # for the next bag (``next_bag``)
+        elif role == "/clock":
             self._sim_time_ns = stamp
         self.writer.write(connection, stamp, data)
         self.counts[topic] += 1
@@ -382,9 +415,9 @@ class Recorder(Node):
         self.counts[self._events_connection.topic] += 1
         return True
 
-    def _record_status(self, data: bytes) -> bool:
-        """Write a run_status message if it is a warning (stamped with its sim time, 0 if it has none);
-        note the simulator's FINISHED. Whether it was written."""
+    def _record_status(self, data: bytes, write: bool = True) -> bool:
+        """Write a run_status message if it is a warning (stamped with its sim time, 0 if it has none) and
+        ``write``; note the simulator's FINISHED. Whether it was written."""
         try:
             status: Any = self.typestore.deserialize_cdr(data, RUN_STATUS)
         except (SerdeError, ValueError, IndexError, KeyError):
@@ -392,7 +425,7 @@ class Recorder(Node):
         if status.node == SIMULATOR:
             self.simulator_heard = True
             self.simulator_finished |= status.event == status.FINISHED
-        if status.event != status.WARNING:
+        if status.event != status.WARNING or not write:
             return False
         if self._status_connection is None:
             topic = self._status.topic_name
