@@ -336,6 +336,7 @@ class SimulatorConfig:
     divergence_speed: float
     wait_for_recorder: bool
     log_throttle_period: float
+    wait_for_reset: bool = False  # lockstep: at the run's end, wait for reset_simulation instead of exiting
     max_message_elements: int = 10000  # the most names, values or poses a subscribed message may carry
     max_name_length: int = 256  # [characters] the longest name a subscribed message may carry
     record_batch: int = 0  # states per bracing_msgs/RecordBatch to the recorder; 0: off

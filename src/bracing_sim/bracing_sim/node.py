@@ -8,7 +8,9 @@ Lockstep (default): publish state k, wait for the command stamped with state k's
 held. Real-time: a wall-clock timer steps with the latest command.
 With ``use_sim_time`` it follows its own /clock, each message checked first (``bracing_ros.sim_clock``).
 Service ``reset_simulation`` (std_srvs/srv/Empty, as gazebo_ros names it): back to the initial state
-(``SimulatorStepper.reset``), answered between steps.
+(``SimulatorStepper.reset``), answered between steps; the run's start warnings are said again. With
+``wait_for_reset`` a lockstep simulator stays at its run's end, and a reset starts the next run: one process
+for a sequence of runs (their recorder ``bracing-recorder --stay``).
 """
 
 from __future__ import annotations
@@ -87,12 +89,14 @@ class SimulatorNode(Node):
             )
         for line in self.core.start_lines():
             self.log.info(line)
-        self.core.say(([missing_warning(missing_meshes)] if missing_meshes else []) + self.core.watch.start())
+        self.start_warnings = [missing_warning(missing_meshes)] if missing_meshes else []
+        self.core.say(self.start_warnings + self.core.watch.start())
         self.create_service(Empty, "reset_simulation", self.on_reset_simulation)
         self.status.say(RunStatus.CONFIGURED, self.sim.time)
 
     def on_reset_simulation(self, _request: Empty.Request, response: Empty.Response) -> Empty.Response:
         self.core.reset()
+        self.core.say(self.start_warnings + self.core.watch.start())  # a new run: warned as the first was
         return response
 
     # -- messages in ----------------------------------------------------------------
@@ -177,7 +181,21 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
     since = time.monotonic()
     wait_for_peers(node, executor)  # the publishers' matched events wake the executor at once
     node.log.info(f"lockstep: stepping (subscribers matched in {time.monotonic() - since:.3f} s)")
-    node.status.say(RunStatus.STEPPING, node.sim.time)
+    first = True
+    while True:
+        node.status.say(RunStatus.STEPPING, node.sim.time)
+        step_run(node, executor, first)
+        first = False
+        if not node.config.wait_for_reset:
+            return
+        node.log.info("wait_for_reset: the run is over; reset_simulation starts the next")
+        while node.core.done():  # a reset sends the initial state again: the next run has begun
+            executor.spin_once(timeout_sec=0.1)
+
+
+def step_run(node: SimulatorNode, executor: SingleThreadedExecutor, first: bool) -> None:
+    """One lockstep run to its end (the final state's reports, FINISHED), from its initial state: sent here
+    if ``first``, else by the reset that began the run."""
     assert node.command_sub is not None  # lockstep: motor_command (joint_commands does not lockstep)
     waiter, core, work = SubscriptionWaiter(node, node.command_sub), node.core, WorkTimer()
 
@@ -189,8 +207,9 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
             node.on_command(msg)
 
     node.topics.state_out = work.mark  # the controller's wait ends there; the step's reports follow
-    core.send_state()
-    node.topics.sent()
+    if first:
+        core.send_state()
+        node.topics.sent()
     while not core.done():
         work.begin()
         if node.sim.steps_taken % 100 == 0:

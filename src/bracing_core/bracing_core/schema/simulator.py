@@ -236,6 +236,13 @@ SIMULATOR: tuple[Param, ...] = (
         "publish the first state only once every topic has a subscriber (bracing-pair sets true)",
     ),
     Param(
+        "wait_for_reset",
+        Kind.BOOL,
+        False,
+        "lockstep: at the run's end, stay and wait for reset_simulation (the next run, from the initial state) "
+        "instead of exiting; SIGINT ends it",
+    ),
+    Param(
         "record_batch",
         Kind.INTEGER,
         0,

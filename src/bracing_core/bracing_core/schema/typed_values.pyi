@@ -89,6 +89,7 @@ class SimulatorValues(Section):
     min_subscribers: int
     min_status_subscribers: int
     wait_for_recorder: bool
+    wait_for_reset: bool
     record_batch: int
     divergence_residual: float
     divergence_speed: float
