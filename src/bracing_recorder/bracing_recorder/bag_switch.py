@@ -31,8 +31,7 @@ SCENARIO = "scenario"
 EXPECT_STATES = "expect_states"
 NEXT_BAG_NODE = "bracing_recorder_next_bag"
 SERVE_PERIOD_S = 0.2
-"""[s] wall between two looks at the parameter requests while a bag records (each ~0.1 ms: the run's
-steps come first)."""
+"""[s] wall between two looks at the parameter requests while a bag records: recording comes first."""
 
 
 @dataclass(frozen=True)
