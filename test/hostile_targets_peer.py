@@ -18,7 +18,8 @@ python hostile_targets_peer.py X Y Z FLOOD_DY
 python hostile_targets_peer.py effort X Y Z
     Against a controller with command_output effort_forward: publishes joint_states (the paper's start,
     stamped 10 s) as joint_state_broadcaster would, sends a hand_path in the past (poses at 0.05 and
-    0.1 s), then, once it is refused, the hand target (X, Y, Z); records the verdicts (3 s at most).
+    0.1 s) once the controller answers one with a command, then, once the path is refused, the hand target
+    (X, Y, Z); records the verdicts (EFFORT_GIVE_UP_S at most).
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from ros2_control_peer import _follow_run, _stamp, _time_msg
 from bracing_msgs.msg import ControllerState
 
 T_START = 0.2  # [s] sim time of the first step
+EFFORT_GIVE_UP_S = 60.0  # [s] effort: the wait for both verdicts, which only ends a hang
 REPEATS = 100
 FLOOD_STATES, FLOOD_PER_STATE = 50, 40
 BAD_FLOOD_STATES, BAD_FLOOD_PER_STATE = 20, 20
@@ -68,6 +70,7 @@ def effort() -> None:
     """See the module docstring (``effort``)."""
     from rclpy.qos import qos_profile_system_default
     from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64MultiArray
 
     target = [float(v) for v in sys.argv[2:5]]
     rclpy.init()
@@ -76,19 +79,26 @@ def effort() -> None:
     point_pub = node.create_publisher(PointStamped, "hand_target", 10)
     path_pub = node.create_publisher(Path, "hand_path", 10)
     verdicts: list[list[str]] = []
-    node.create_subscription(
-        DiagnosticStatus, "hand_path/refused", lambda m: verdicts.append(["refused", m.message]), 10
-    )
-    node.create_subscription(PointStamped, "hand_target/accepted", lambda m: verdicts.append(["accepted", ""]), 10)
+    commands: list[Float64MultiArray] = []
+    heard = [
+        node.create_subscription(
+            DiagnosticStatus, "hand_path/refused", lambda m: verdicts.append(["refused", m.message]), 10
+        ),
+        node.create_subscription(PointStamped, "hand_target/accepted", lambda m: verdicts.append(["accepted", ""]), 10),
+        node.create_subscription(Float64MultiArray, "effort_controller/commands", commands.append, 10),
+    ]
     q = [-0.6283185307179586, -1.8849555921538759, 2.5132741228718345, -1.2566370614359172]
     state = JointState(name=["joint1", "joint2", "joint3", "joint4"], position=q, velocity=[0.0] * 4)
     state.header.stamp.sec = 10
-    while min(pub.get_subscription_count() for pub in (states, point_pub, path_pub)) < 1:
+    while (
+        min(pub.get_subscription_count() for pub in (states, point_pub, path_pub)) < 1
+        or min(sub.get_publisher_count() for sub in heard) < 1
+    ):
         rclpy.spin_once(node, timeout_sec=0.05)
-    end, sent = time.monotonic() + 3.0, 0
-    while time.monotonic() < end and len(verdicts) < 2:
+    give_up, sent = time.monotonic() + EFFORT_GIVE_UP_S, 0
+    while time.monotonic() < give_up and len(verdicts) < 2:
         states.publish(state)
-        if sent == 0 and time.monotonic() > end - 2.7:
+        if sent == 0 and commands:  # the controller answers a state: its time is the states' 10 s
             path_pub.publish(path_msg([(0.05, target), (0.1, target)]))
             sent = 1
         elif sent == 1 and verdicts:

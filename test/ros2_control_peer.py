@@ -23,7 +23,8 @@ python ros2_control_peer.py effort-controller N
     effort_controller/commands (SystemDefaultsQoS, refusing as the controller does) and publishes
     states on joint_states as the broadcaster does (SystemDefaultsQoS, NaN efforts) and as a
     SensorDataQoS publisher would, then one with NaN, then one missing a joint, and collects the
-    accepted Float64MultiArray commands after each.
+    accepted Float64MultiArray commands of each case, each until the controller shows it took its
+    states (its own posture's command; a refused state's warning on /rosout, then the next posture's).
 python ros2_control_peer.py path T_PUB PATH_JSON BRACE_DY
     a script at t >= T_PUB sending a nav_msgs/Path on hand_path (PATH_JSON: [[t, x, y, z], ...], each
     pose stamped t [s] in the controller's time, frame world) and the elbow's brace point moved by
@@ -74,6 +75,12 @@ from bracing_msgs.msg import ControllerState
 
 JOINTS = ["joint1", "joint2", "joint3", "joint4"]
 SHUFFLED = [2, 0, 3, 1]
+EFFORT_POSTURES = [
+    [-0.6283185307179586 + 0.01 * k, -1.8849555921538759, 2.5132741228718345, -1.2566370614359172] for k in range(5)
+]
+"""effort-controller: the paper's start (the first) and four postures near it, each case's own: a command
+tells which state it answers (postures 0-3 good, 4 the state missing a joint)."""
+CASE_GIVE_UP_S = 60.0  # [s] effort-controller: each case's wait for what ends it, which only ends a hang
 RELIABLE_1 = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=1,
@@ -141,36 +148,61 @@ def forward_controller(node: rclpy.node.Node, joints: int) -> tuple[list[list[fl
 
 
 def effort_controller(node: rclpy.node.Node, _: int) -> dict[str, object]:
+    """The commands heard in each case, each case lasting until the controller shows it took its states:
+    good states' commands (the broadcaster's), a command from the sensor-data publisher's posture, and
+    for a refused state its warning on /rosout, then a good state at the next posture until its command
+    comes (whatever came before it in flight is the earlier postures')."""
+    from rcl_interfaces.msg import Log
+
     commands, refused = forward_controller(node, len(JOINTS))
+    logged: list[str] = []
+    rosout = node.create_subscription(Log, "/rosout", lambda m: logged.append(m.msg), 100)
     broadcaster = node.create_publisher(JointState, "joint_states", qos_profile_system_default)
     sensor_data = node.create_publisher(JointState, "joint_states", qos_profile_sensor_data)
-    while broadcaster.get_subscription_count() < 1 or sensor_data.get_subscription_count() < 1:
+    while min(broadcaster.get_subscription_count(), sensor_data.get_subscription_count()) < 1 or (
+        rosout.get_publisher_count() < 2  # this node's and the controller's
+    ):
         rclpy.spin_once(node, timeout_sec=0.05)
-    q = [-0.6283185307179586, -1.8849555921538759, 2.5132741228718345, -1.2566370614359172]
-    good = JointState(
-        name=[JOINTS[j] for j in SHUFFLED], position=[q[j] for j in SHUFFLED], velocity=[0.0] * 4, effort=[math.nan] * 4
-    )
-    good.header.frame_id = "base_link"
-    bad_nan = JointState(name=JOINTS, position=[math.nan, *q[1:]], velocity=[0.0] * 4)
-    missing = JointState(name=JOINTS[:3], position=q[:3], velocity=[0.0] * 3)
+
+    def good(k: int) -> JointState:
+        q = EFFORT_POSTURES[k]
+        msg = JointState(name=[JOINTS[j] for j in SHUFFLED], position=[q[j] for j in SHUFFLED])
+        msg.velocity, msg.effort, msg.header.frame_id = [0.0] * 4, [math.nan] * 4, "base_link"
+        return msg
+
+    def until(pub: Any, msg: JointState, done: Callable[[], bool]) -> None:
+        give_up = time.monotonic() + CASE_GIVE_UP_S
+        while not done() and time.monotonic() < give_up:
+            pub.publish(msg)
+            rclpy.spin_once(node, timeout_sec=0.01)
+
+    def new_command() -> bool:  # one no earlier case's state gives
+        return any(not any(np.allclose(c, k, rtol=0, atol=1e-9) for k in known) for c in commands)
+
+    def warned(words: str) -> Callable[[], bool]:
+        return lambda: any(words in line for line in logged)
+
+    q4 = EFFORT_POSTURES[4]
+    bad_nan = JointState(name=JOINTS, position=[math.nan, *q4[1:]], velocity=[0.0] * 4)
+    missing = JointState(name=JOINTS[:3], position=q4[:3], velocity=[0.0] * 3)
     seen: dict[str, list[list[float]]] = {}
-    cases = (("broadcaster", broadcaster, good), ("sensor_data", sensor_data, good))
-    for label, pub, msg in (*cases, ("nan", broadcaster, bad_nan), ("missing", broadcaster, missing)):
+    known: list[list[float]] = []
+    until(broadcaster, good(0), lambda: len(commands) >= 5)
+    seen["broadcaster"], known = list(commands), [commands[-1]] if commands else []
+    for label, pub, bad, posture in (
+        ("sensor_data", sensor_data, None, 1),
+        ("nan", broadcaster, bad_nan, 2),
+        ("missing", broadcaster, missing, 3),
+    ):
         commands.clear()
-        end = time.monotonic() + 1.0
-        while time.monotonic() < end:
-            pub.publish(msg)
-            rclpy.spin_once(node, timeout_sec=0.01)
-        time.sleep(0.1)
-        commands.clear()  # whatever the previous state left in flight
-        end = time.monotonic() + 0.5
-        while time.monotonic() < end:
-            pub.publish(msg)
-            rclpy.spin_once(node, timeout_sec=0.01)
+        if bad is not None:
+            until(pub, bad, warned("joint_states refused: non-finite" if label == "nan" else "missing joints"))
+        until(pub, good(posture), new_command)
         seen[label] = list(commands)
+        known += [c for c in commands if c not in known]
     infos = node.get_publishers_info_by_topic("/effort_controller/commands")
     reliability = [str(i.qos_profile.reliability.name) for i in infos]
-    return {"commands": seen, "refused": refused, "publisher_reliability": reliability}
+    return {"commands": seen, "refused": refused, "publisher_reliability": reliability, "postures": EFFORT_POSTURES}
 
 
 def _follow_run(

@@ -99,10 +99,14 @@ def start_peer(env: dict[str, str], name: str) -> Peer:
     return Peer(context, node, executor)
 
 
-def stop(peer: Peer, process: subprocess.Popen[str]) -> str:
+def close_peer(peer: Peer) -> None:
     peer.executor.shutdown()
     peer.node.destroy_node()
     rclpy.try_shutdown(context=peer.context)
+
+
+def stop(peer: Peer, process: subprocess.Popen[str]) -> str:
+    close_peer(peer)
     if process.poll() is None:
         process.terminate()
     return process.communicate(timeout=30)[0]

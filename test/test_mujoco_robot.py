@@ -17,12 +17,17 @@ compared with our engine's on the same scenario, torque input, 2 s. Tolerances, 
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
-from ros_helpers import REPO_ROOT, isolated_env, node_argv, pair_argv, params_file, start
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from ros_helpers import REPO_ROOT, NodeProcess, isolated_env, node_argv, pair_argv, params_file, start
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from test_fuzz import close_peer, start_peer
 
 from bracing_analysis.bag import read_series
 from bracing_analysis.wrench_contacts import contacts_from_wrenches
@@ -82,42 +87,40 @@ def test_pair_on_mujoco_keeps_the_elbow_on_the_floor_at_the_desired_force(tmp_pa
     assert len(table["rows"]) == 6 and all(len(row) == 3 for row in table["rows"])
 
 
-PEER = """
-import math, sys, time
-import rclpy
-from rclpy.qos import QoSProfile, ReliabilityPolicy
-from std_msgs.msg import Float64MultiArray
-rclpy.init()
-node = rclpy.create_node("bad_commander")
-reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-pub = node.create_publisher(Float64MultiArray, "effort_controller/commands", reliable)
-end = time.monotonic() + 20
-while pub.get_subscription_count() < 1 and time.monotonic() < end:
-    rclpy.spin_once(node, timeout_sec=0.05)
-pub.publish(Float64MultiArray(data=[1.0, 2.0, 3.0]))
-pub.publish(Float64MultiArray(data=[math.nan, 0.0, 0.0, 0.0]))
-pub.publish(Float64MultiArray(data=[0.0, 0.0, math.inf, 0.0]))
-end = time.monotonic() + 2
-while time.monotonic() < end:
-    rclpy.spin_once(node, timeout_sec=0.05)
-"""
-
-
 def test_mujoco_robot_refuses_a_wrong_length_and_a_non_finite_command(tmp_path: Path) -> None:
-    """One error per kind (rate-limited), naming what was wrong; the held (zero) command stays."""
-    alone = {"wait_for_recorder": False, "min_subscribers": 0, "min_status_subscribers": 0, "duration": 0.02}
+    """One error per kind (rate-limited: the same kind within log_throttle_period counted, not repeated),
+    naming what was wrong; the held (zero) command stays. The robot steps once joint_states has a subscriber
+    (min_subscribers 1), which the peer makes only after the robot's log shows both refusals: its 0.02 s run
+    comes after them, however slowly either process starts."""
+    alone = {
+        "wait_for_recorder": False,
+        "min_subscribers": 1,
+        "min_status_subscribers": 0,
+        "duration": 0.02,
+        "log_throttle_period": 3600.0,  # the inf (a second non-finite) within it, whatever the machine's pace
+    }
     env = isolated_env()
-    node = start(node_argv("bracing_mujoco.mujoco_robot", params_file(tmp_path, "bracing_simulator", alone)), env)
+    argv = node_argv("bracing_mujoco.mujoco_robot", params_file(tmp_path, "bracing_simulator", alone))
+    robot = NodeProcess(start(argv, env))
+    peer = start_peer(env, "bad_commander")
     try:
-        peer = subprocess.run([sys.executable, "-c", PEER], env=env, capture_output=True, text=True, timeout=60)
-        assert peer.returncode == 0, peer.stderr
-        node.wait(30)
+        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        pub = peer.node.create_publisher(Float64MultiArray, "effort_controller/commands", reliable)
+        assert peer.spin_until(lambda: pub.get_subscription_count() >= 1, 60.0), robot.text()[-3000:]
+        for data in ([1.0, 2.0, 3.0], [math.nan, 0.0, 0.0, 0.0], [0.0, 0.0, math.inf, 0.0]):
+            pub.publish(Float64MultiArray(data=data))
+        for refused in ("3 values for 4 joints", "non-finite value at index 0 (nan)"):
+            assert robot.wait_for(f"effort_controller/commands refused: {refused}", 60.0), robot.text()[-3000:]
+        peer.listen(JointState, "joint_states", lambda m: m.effort)  # the robot's run starts
+        states = peer.received["joint_states"]
+        last = 20_000_000  # [ns] the run's last state's stamp (0.02 s)
+        assert peer.spin_until(lambda: states and states[-1].header.stamp.nanosec == last, 60.0), robot.text()[-3000:]
+        robot.process.wait(60)  # it ends by itself
     finally:
-        if node.poll() is None:
-            node.terminate()
-        log = node.communicate(timeout=20)[0]
-    assert node.returncode == 0, log
-    assert "effort_controller/commands refused: 3 values for 4 joints" in log
-    assert "effort_controller/commands refused: non-finite value at index 0 (nan)" in log
-    assert "index 2 (inf)" not in log  # the same kind within log_throttle_period: counted, not repeated
+        close_peer(peer)
+        code = robot.stop()
+    log = robot.text()
+    assert code == 0, log
+    assert "index 2 (inf)" not in log
     assert "finished at t = 0.020000 s" in log
+    assert all(not any(state.effort) for state in states), states[-1:]  # the held zero command, from the first

@@ -6,17 +6,16 @@ from __future__ import annotations
 import json
 import os
 import signal
-import sqlite3
 import subprocess
 import sys
-import time
-from contextlib import closing
 from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
+from ctrl_c import main_interrupted_after
 from ros_helpers import PAPER_YAML, isolated_env, pair_argv, run
 
+from bracing_experiments import optimize as optimize_cli
 from bracing_experiments import optimize_search
 from bracing_experiments.executors import LocalExecutor
 from bracing_experiments.optimize_report import BEST_YAML, TRIALS_PARQUET
@@ -102,42 +101,20 @@ def test_best_yaml_reproduces_its_trial_through_bracing_pair(tmp_path: Path) -> 
         assert summary[key] == expected[key], key  # bit for bit: the law's time is the stamp on both paths
 
 
-def _finished_trials(db: Path) -> int:
-    """Trials the command has recorded, read through a read-only connection: opening the study (optuna's
-    storage) while the command creates the file raced it to write the schema, and the command lost
-    (sqlalchemy IntegrityError on alembic_version, seen in CI)."""
-    if not db.is_file():
-        return 0
-    try:
-        with closing(sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=1.0)) as connection:
-            query = "SELECT COUNT(DISTINCT trial_id) FROM trial_user_attributes WHERE key = 'status'"
-            return int(connection.execute(query).fetchone()[0])
-    except sqlite3.OperationalError:  # no schema yet, or the file is busy
-        return 0
-
-
-def test_ctrl_c_keeps_finished_trials_and_the_same_command_resumes(tmp_path: Path) -> None:
+def test_ctrl_c_keeps_finished_trials_and_the_same_command_resumes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The command, Ctrl-C'd once its third trial is told (a SIGINT to its process then, whatever the
+    machine's pace): exit 130, exactly those three trials kept, and the same command with 4 more trials
+    runs 4, keeping the three as they were."""
     args = ["--vary", f"{FORCE}=0:40", "--minimize", "energy_consumed_j", "--workers", "1", "--duration", "0.5"]
-    proc = subprocess.Popen(
-        _cli(tmp_path, *args, "--trials", "40"), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
-    )
-    try:
-        deadline = time.monotonic() + 120
-        while True:
-            assert proc.poll() is None, proc.communicate()
-            assert time.monotonic() < deadline, "no trial finished"
-            if _finished_trials(tmp_path / "study.db") >= 3:
-                break
-            time.sleep(0.2)
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 130, err
+    argv = _cli(tmp_path, *args, "--trials", "40")[3:]
+    code, told = main_interrupted_after(optimize_cli.main, argv, monkeypatch, optimize_search, "_record", 3)
+    err = capsys.readouterr().err
+    assert code == 130 and "interrupted" in err, err
     problem = build_problem(PAPER_YAML, [f"{FORCE}=0:40"], ["energy_consumed_j"], duration=0.5)
     before = {t.number: (t.params, t.values) for t in open_study(problem, tmp_path).trials if "status" in t.user_attrs}
-    assert 3 <= len(before) < 40
+    assert sorted(before) == [trial.number for _, trial, _, _ in told] and len(before) == 3
     table = pq.read_table(tmp_path / TRIALS_PARQUET).to_pylist()
     assert {row["trial"] for row in table if row["status"] != "interrupted"} == set(before)
 

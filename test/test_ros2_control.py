@@ -195,7 +195,9 @@ def test_controller_sends_a_forward_controllers_float64multiarray(tmp_path: Path
     """effort_forward: one value per joint in a shuffled effort_command_joints order (the law's torque
     for the state, joints matched by name), a reliable publisher; a NaN state or one missing a joint
     gets no command (and a warning). States come as joint_state_broadcaster sends them (SystemDefaultsQoS,
-    NaN efforts: a joint without an effort state interface) and from a SensorDataQoS publisher."""
+    NaN efforts: a joint without an effort state interface) and from a SensorDataQoS publisher. Each case
+    lasts until the controller shows it took its states (ros2_control_peer.effort_controller): its
+    commands are then those of the postures sent so far, and its own posture's among them."""
     order = ["joint3", "joint1", "joint4", "joint2"]
     ctl = {
         "input_mode": "torque",
@@ -210,21 +212,28 @@ def test_controller_sends_a_forward_controllers_float64multiarray(tmp_path: Path
     finally:
         log = _stop(process)
     commands = seen["commands"]
-    assert commands["broadcaster"], log
     assert seen["publisher_reliability"] == ["RELIABLE"]
     from bracing_core.controller_config import ControllerConfig
     from bracing_core.law import DecoupledController
 
     law = DecoupledController(ControllerConfig.from_params(node_params("bracing_controller", own=ctl, shared={})))
-    q0 = np.array([-0.6283185307179586, -1.8849555921538759, 2.5132741228718345, -1.2566370614359172])
-    tau = law.update(0.0, q0, np.zeros(4)).command
-    expected = [tau[JOINTS.index(j)] for j in order]
-    for command in commands["broadcaster"] + commands["sensor_data"]:
-        assert len(command) == 4
-        np.testing.assert_allclose(command, expected, rtol=0, atol=1e-12)
-    assert commands["sensor_data"], log  # a SensorDataQoS publisher is served too
+    expected = []  # each good posture's command, in the order the controller took them
+    for q in seen["postures"][:4]:
+        tau = law.update(0.0, np.array(q), np.zeros(4)).command
+        expected.append(np.array([tau[JOINTS.index(j)] for j in order]))
+
+    def posture(command: list[float]) -> int:
+        """Which good posture's state the command answers (-1: none)."""
+        matches = [k for k, tau in enumerate(expected) if np.allclose(command, tau, rtol=0, atol=1e-12)]
+        return matches[0] if matches else -1
+
+    answered = {case: [posture(c) for c in got] for case, got in commands.items()}
+    assert answered["broadcaster"] and set(answered["broadcaster"]) == {0}, (answered, log)
+    assert 1 in answered["sensor_data"], (answered, log)  # a SensorDataQoS publisher is served too
+    assert 2 in answered["nan"] and 3 in answered["missing"], (answered, log)  # each case ran to its end
+    for case, last in (("sensor_data", 1), ("nan", 2), ("missing", 3)):
+        assert set(answered[case]) <= set(range(last + 1)), (case, answered, log)  # no command from a bad state
     assert seen["refused"] == []  # nothing the forward controller drops or errors on
-    assert commands["nan"] == [] and commands["missing"] == [], log
     assert "joint_states refused: non-finite position or velocity" in log
     assert "joint_states refused: missing joints ['joint4']" in log
 

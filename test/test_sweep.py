@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from ctrl_c import main_interrupted_after
 
 from bracing_bringup.pair import parse_args
 from bracing_bringup.run_plan import command_line
@@ -31,6 +32,7 @@ from bracing_core.overrides import (
 )
 from bracing_core.params import ConfigError
 from bracing_core.rollout import build_scenario, run_closed_loop
+from bracing_experiments import sweep
 from bracing_experiments.executors import STOP_REQUESTED, DaskExecutor, LocalExecutor
 from bracing_experiments.experiment import STATUS_FAILED, STATUS_OK, RunOutcome, execute_run
 from bracing_experiments.running import RESULTS_CSV, RESULTS_PARQUET, ROW_FILE, ResultsStore, run_sweep
@@ -186,30 +188,26 @@ def _sweep_cli(output: Path, *extra: str) -> list[str]:
     ]
 
 
-def test_ctrl_c_keeps_every_finished_row_and_the_same_command_resumes(tmp_path: Path) -> None:
+def test_ctrl_c_keeps_every_finished_row_and_the_same_command_resumes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The command, Ctrl-C'd once its second row is saved (a SIGINT to its process then, whatever the
+    machine's pace): exit 130, exactly those two rows in the table, and the same command again runs the
+    other six, keeping the two."""
     sets = ["--set", "contacts.elbow.desired_normal_force=4,6,8,10,12,14,16,18", "--duration", "2", "--workers", "1"]
-    proc = subprocess.Popen(_sweep_cli(tmp_path, *sets), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 120
-        while len(list(tmp_path.glob(f"runs/*/{ROW_FILE}"))) < 2:
-            assert proc.poll() is None, proc.communicate()
-            assert time.monotonic() < deadline, "no runs finished"
-            time.sleep(0.05)
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 130, err
+    argv = _sweep_cli(tmp_path, *sets)
+    code, saved = main_interrupted_after(sweep.main, argv[3:], monkeypatch, ResultsStore, "save", 2)
+    err = capsys.readouterr().err
+    assert code == 130, err
     finished = {p.parent.name for p in tmp_path.glob(f"runs/*/{ROW_FILE}")}
-    assert 2 <= len(finished) < 8, "interrupt too late to test anything"
+    assert finished == {outcome.row["run_id"] for (outcome,) in saved} and len(finished) == 2
     table = pq.read_table(tmp_path / RESULTS_PARQUET).to_pylist()
     assert {row["run_id"] for row in table} == finished  # every finished row is in the table
     assert "interrupted" in err
 
-    done = subprocess.run(_sweep_cli(tmp_path, *sets), capture_output=True, text=True, timeout=300)
+    done = subprocess.run(argv, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
-    assert f"{8 - len(finished)} run now, {len(finished)} done before" in done.stdout
+    assert "6 run now, 2 done before" in done.stdout
     table = pq.read_table(tmp_path / RESULTS_PARQUET).to_pylist()
     assert len(table) == 8 and len({row["run_id"] for row in table}) == 8
     assert all(row["status"] == STATUS_OK for row in table)

@@ -207,18 +207,13 @@ void bind_drive(nb::module_& m) {
           "temperature_coefficient"_a,
           "resistance: R_20 at 20 degC; thermal: R(T) = R_20 (1 + alpha (T - 20)), C_th dT/dt = R(T) i^2 - (T - "
           "ambient) / R_th")
-      .def_ro("voltage", &Drive::voltage)
-      .def_ro("added_inertia", &Drive::added_inertia, "Mc - M (J_m, or zeros)")
-      .def_ro("damping", &Drive::damping, "Dc")
-      .def_ro("torque_constant", &Drive::torque_constant, "K_m [N m / A]")
-      .def_ro("resistance", &Drive::resistance, "R_20 [ohm], at 20 degC")
-      .def_ro("inductance", &Drive::inductance, "L [H]")
-      .def_ro("reflected_damping", &Drive::reflected_damping, "D_m")
-      .def_ro("thermal", &Drive::thermal)
-      .def_ro("thermal_resistance", &Drive::thermal_resistance, "R_th, winding to ambient [K/W]")
-      .def_ro("heat_capacity", &Drive::heat_capacity, "C_th [J/K]")
-      .def_ro("ambient", &Drive::ambient, "T_a [degC]")
-      .def_ro("temperature_coefficient", &Drive::temperature_coefficient, "alpha [1/K]");
+      BRACING_RO(Drive, voltage) BRACING_RO_DOC(Drive, added_inertia, "Mc - M (J_m, or zeros)")
+      BRACING_RO_DOC(Drive, damping, "Dc") BRACING_RO_DOC(Drive, torque_constant, "K_m [N m / A]")
+      BRACING_RO_DOC(Drive, resistance, "R_20 [ohm], at 20 degC") BRACING_RO_DOC(Drive, inductance, "L [H]")
+      BRACING_RO_DOC(Drive, reflected_damping, "D_m") BRACING_RO(Drive, thermal)
+      BRACING_RO_DOC(Drive, thermal_resistance, "R_th, winding to ambient [K/W]")
+      BRACING_RO_DOC(Drive, heat_capacity, "C_th [J/K]") BRACING_RO_DOC(Drive, ambient, "T_a [degC]")
+      BRACING_RO_DOC(Drive, temperature_coefficient, "alpha [1/K]");
 }
 
 // The model's answer (Dynamics.evaluate, Simulator.step), every array a view of one copy.
@@ -227,25 +222,22 @@ void bind_answer(nb::module_& m) {
       .def_ro("acceleration", &Answer::ddq, "ddq [rad/s^2 or m/s^2]")
       .def_ro("current_rate", &Answer::di, "di/dt [A/s] (zeros in torque mode)")
       .def_ro("normal_force", &Answer::force, "f_n per contact [N], on the robot along +normal (zero where not held)")
-      .def_ro("effort", &Answer::effort, "the link-side motor torque tau [N m]")
-      .def_ro("friction_power", &Answer::friction_power)
-      .def_ro("constraint_power", &Answer::constraint_power)
-      .def_ro("positions", &Answer::positions, "p x 3")
-      .def_ro("jacobians", &Answer::jacobians, "3p x n: contact j's translational Jacobian in rows 3j..3j+2")
-      .def_ro("normal_jacobian", &Answer::normal_jacobian, "p x n")
-      .def_ro("tangent_jacobian", &Answer::tangent_jacobian, "p x n")
-      .def_ro("drift", &Answer::drift, "gamma = n . (dJ dq) + v^T H v")
-      .def_ro("residual", &Answer::residual, "C: the signed distance to the surface [m]")
+      BRACING_RO_DOC(Answer, effort, "the link-side motor torque tau [N m]")
+      BRACING_RO(Answer, friction_power) BRACING_RO(Answer, constraint_power) BRACING_RO_DOC(Answer, positions, "p x 3")
+      BRACING_RO_DOC(Answer, jacobians, "3p x n: contact j's translational Jacobian in rows 3j..3j+2")
+      BRACING_RO_DOC(Answer, normal_jacobian, "p x n") BRACING_RO_DOC(Answer, tangent_jacobian, "p x n")
+      BRACING_RO_DOC(Answer, drift, "gamma = n . (dJ dq) + v^T H v")
+      BRACING_RO_DOC(Answer, residual, "C: the signed distance to the surface [m]")
       .def_ro("slip_velocity", &Answer::slip, "p x 3: the contact points' tangential velocity [m/s]")
       .def_ro("slip_direction", &Answer::direction, "p x 3: slip / sqrt(|slip|^2 + eps^2)")
-      .def_ro("normals", &Answer::normals, "p x 3")
-      .def_ro("tangential_force", &Answer::tangential_force, "p x 3, the friction force on the robot [N]")
+      BRACING_RO_DOC(Answer, normals, "p x 3")
+      BRACING_RO_DOC(Answer, tangential_force, "p x 3, the friction force on the robot [N]")
       .def_ro("friction_force", &Answer::friction, "|f_t| of a Coulomb contact, mu f_n of a regularised one [N]")
-      .def_ro("rolling_velocity", &Answer::rolling_velocity,
-              "a differential drive's rolling rows A v [m/s] (the wheels' forward slip, the left one's lateral)")
-      .def_ro("rolling_force", &Answer::rolling_force, "the rolling rows' forces [N]")
-      .def_ro("held", &ModalAnswer::held, "per contact: holding a normal force")
-      .def_ro("sticking", &ModalAnswer::sticking, "per contact: a held Coulomb contact that sticks")
+      BRACING_RO_DOC(Answer, rolling_velocity,
+                     "a differential drive's rolling rows A v [m/s] (the wheels' forward slip, the left one's lateral)")
+      BRACING_RO_DOC(Answer, rolling_force, "the rolling rows' forces [N]")
+      BRACING_RO_DOC(ModalAnswer, held, "per contact: holding a normal force")
+      BRACING_RO_DOC(ModalAnswer, sticking, "per contact: a held Coulomb contact that sticks")
       .def_prop_ro("contact_count", [](const ModalAnswer& a) { return a.residual.size(); });
 }
 
@@ -293,20 +285,19 @@ void bind_dynamics(nb::module_& m) {
           },
           "q"_a, "surfaces"_a, "every link with collision shapes against each surface at q");
   nb::class_<LinkMeasurement>(m, "LinkMeasurement")
-      .def_ro("links", &LinkMeasurement::links, "the links with collision shapes")
-      .def_ro("distance", &LinkMeasurement::distance,
-              "surfaces * links: C at each link's point nearest surface s (row s * links + k) [m], < 0 inside")
-      .def_ro("points", &LinkMeasurement::points, "that point, world [m]")
-      .def_ro("normals", &LinkMeasurement::normals, "the surface's normal there");
+      BRACING_RO_DOC(LinkMeasurement, links, "the links with collision shapes")
+      BRACING_RO_DOC(LinkMeasurement, distance,
+                     "surfaces * links: C at each link's point nearest surface s (row s * links + k) [m], < 0 inside")
+      BRACING_RO_DOC(LinkMeasurement, points, "that point, world [m]")
+      BRACING_RO_DOC(LinkMeasurement, normals, "the surface's normal there");
 }
 
 // A simulator's contact modes and events.
 void bind_modes_and_events(nb::module_& m) {
   nb::class_<ContactModes>(m, "ContactModes")
-      .def_ro("held", &ContactModes::held)
-      .def_ro("sticking", &ContactModes::sticking)
-      .def_ro("slide", &ContactModes::slide, "p x 3: a sliding Coulomb contact's held slip direction d")
-      .def_ro("pushing", &ContactModes::pushing, "p: the sign of f_n held over a step (+1 pushing)");
+      BRACING_RO(ContactModes, held) BRACING_RO(ContactModes, sticking)
+      BRACING_RO_DOC(ContactModes, slide, "p x 3: a sliding Coulomb contact's held slip direction d")
+      BRACING_RO_DOC(ContactModes, pushing, "p: the sign of f_n held over a step (+1 pushing)");
   nb::class_<TimedEvent>(m, "ContactEvent",
                          "a unilateral contact letting go (release) or landing (touchdown); a Coulomb contact "
                          "starting to stick (stick) or to slide (slip), located inside a step")
@@ -316,11 +307,10 @@ void bind_modes_and_events(nb::module_& m) {
             new (event) TimedEvent{time, std::move(contact), kind, energy_loss};
           },
           nb::kw_only(), "time"_a, "contact"_a, "kind"_a, "energy_loss"_a = 0.0)
-      .def_ro("time", &TimedEvent::time, "[s]: its step's start as the controller reads the stamp, plus the offset")
-      .def_ro("contact", &TimedEvent::contact, "the contact's name")
-      .def_ro("kind", &TimedEvent::kind)
-      .def_ro("energy_loss", &TimedEvent::energy_loss,
-              "[J] lost: a touchdown's impact, the tangential impulse that makes a contact stick");
+      BRACING_RO_DOC(TimedEvent, time, "[s]: its step's start as the controller reads the stamp, plus the offset")
+      BRACING_RO_DOC(TimedEvent, contact, "the contact's name") BRACING_RO(TimedEvent, kind)
+      BRACING_RO_DOC(TimedEvent, energy_loss,
+                     "[J] lost: a touchdown's impact, the tangential impulse that makes a contact stick");
 }
 
 // The integrator's state and a step's outcome.
@@ -333,14 +323,13 @@ void bind_state(nb::module_& m) {
                               std::move(energy)};
           },
           nb::kw_only(), "position"_a, "velocity"_a, "current"_a, "temperature"_a, "energy"_a)
-      .def_ro("position", &State::position, "q [rad or m]")
-      .def_ro("velocity", &State::velocity, "dq [rad/s or m/s]")
-      .def_ro("current", &State::current, "i [A] (zeros in torque mode)")
-      .def_ro("temperature", &State::temperature, "the windings' T [degC]")
-      .def_ro("energy", &State::energy, "the energy integrals [J], in EnergySlot order");
+      BRACING_RO_DOC(State, position, "q [rad or m]") BRACING_RO_DOC(State, velocity, "dq [rad/s or m/s]")
+      BRACING_RO_DOC(State, current, "i [A] (zeros in torque mode)")
+      BRACING_RO_DOC(State, temperature, "the windings' T [degC]")
+      BRACING_RO_DOC(State, energy, "the energy integrals [J], in EnergySlot order");
   nb::class_<StepResult>(m, "StepResult", "a step's outcome (Simulator.step)")
-      .def_ro("status", &StepResult::status)
-      .def_ro("answer", &StepResult::answer, "the model's answer at the step's start; None unless status is ok");
+      BRACING_RO(StepResult, status)
+      BRACING_RO_DOC(StepResult, answer, "the model's answer at the step's start; None unless status is ok");
 }
 
 // The integrator.
@@ -391,8 +380,7 @@ void bind_simulator(nb::module_& m) {
       .def_rw("steady_start", &Simulator::steady_start,
               "voltage input: the first step starts its windings at its command's steady current")
       .def("hold_current", &Simulator::hold_current, "u"_a, "the windings at their steady current under u, now")
-      .def_ro("failed_joint", &Simulator::failed_joint)
-      .def_ro("failed_position", &Simulator::failed_position)
+      BRACING_RO(Simulator, failed_joint) BRACING_RO(Simulator, failed_position)
       .def_prop_ro("event_count", [](const Simulator& s) { return s.events().size(); })
       .def("events_since", &timed_events, "first"_a, "t0_ns"_a,
            "the events from `first` on, timed from t0_ns [ns], the stamp of the state before the first step")

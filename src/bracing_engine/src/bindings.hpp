@@ -18,8 +18,10 @@
 namespace nb = nanobind;
 using namespace nb::literals;
 
-// A member of Type bound read-only under its own name (the runs of plain fields, several to a line).
+// A member of Type bound read-only under its own name (the runs of plain fields, several to a line), and the
+// same with its docstring (units, shapes).
 #define BRACING_RO(Type, field) .def_ro(#field, &Type::field)
+#define BRACING_RO_DOC(Type, field, doc) .def_ro(#field, &Type::field, doc)
 
 namespace bracing_engine::bindings {
 

@@ -115,13 +115,11 @@ void bind_law(nb::module_& m) {
   nb::class_<LawOutput>(m, "LawOutput")
       .def_rw("command", &LawOutput::command, "v [V] or tau [N m], model order (a drive's base command adds to it)")
       .def_rw("torque", &LawOutput::torque, "tau of eq. 38 [N m]")
-      .def_ro("hand_desired", &LawOutput::hand_desired)
-      .def_ro("hand_actual", &LawOutput::hand_actual)
-      .def_ro("brace_desired", &LawOutput::brace_desired, "b x 3")
-      .def_ro("brace_actual", &LawOutput::brace_actual, "b x 3")
-      .def_ro("force_command", &LawOutput::force_command, "f_cmd per brace [N] (f_nd without feedback)")
-      .def_ro("orientation_error", &LawOutput::orientation_error, "the hand frame's log(R_d R^T) [rad], world axes")
-      .def_ro("damped", &LawOutput::damped);
+      BRACING_RO(LawOutput, hand_desired) BRACING_RO(LawOutput, hand_actual)
+      BRACING_RO_DOC(LawOutput, brace_desired, "b x 3") BRACING_RO_DOC(LawOutput, brace_actual, "b x 3")
+      BRACING_RO_DOC(LawOutput, force_command, "f_cmd per brace [N] (f_nd without feedback)")
+      BRACING_RO_DOC(LawOutput, orientation_error, "the hand frame's log(R_d R^T) [rad], world axes")
+      BRACING_RO(LawOutput, damped);
   nb::class_<Law>(m, "Law")
       .def(nb::init<const LawSpec&>(), "spec"_a)
       .def(
