@@ -118,14 +118,15 @@ class BulkMcapWriter(McapWriter):
         self.message_start_time = min(earliest, self.message_start_time)
         self.message_end_time = max(latest, self.message_end_time)
         present, first_at, counts = np.unique(channels, return_index=True, return_counts=True)
+        entries = np.stack([stamps_ns, record_start], axis=1).astype("<u8")
         for k in np.argsort(first_at, kind="stable"):  # the index's channels in the order of their first message
-            mine = channels == present[k]
-            entries = zip(stamps_ns[mine].tolist(), record_start[mine].tolist(), strict=True)
-            chunk.msgs[int(present[k])].extend(entries)
+            # one (n, 2) array of (log time, offset) among write's (log time, offset) tuples: see close_chunk
+            chunk.msgs[int(present[k])].append(entries[channels == present[k]])  # type: ignore[arg-type]
             self.channel_stats[int(present[k])] += int(counts[k])
 
     def close_chunk(self) -> None:
-        """``McapWriter.close_chunk``, each channel's message index written as one array."""
+        """``McapWriter.close_chunk``, each channel's message index written in one piece (its entries are
+        ``write``'s (log time, offset) tuples and ``_append``'s arrays of them)."""
         chunk = self.chunk
         rec = BytesIO()
         write_uint64(rec, chunk.message_start_time)
@@ -142,10 +143,11 @@ class BulkMcapWriter(McapWriter):
         offsets: list[tuple[int, int]] = []
         for cid, msgs in chunk.msgs.items():
             offsets.append((cid, self.bio.tell()))
+            index = b"".join(np.asarray(entry, "<u8").tobytes() for entry in msgs)  # (log time, offset) each
             rec = BytesIO()
             write_uint16(rec, cid)
-            write_uint32(rec, len(msgs) * 16)
-            rec.write(np.array(msgs, "<u8").tobytes())  # (log time, offset) per message
+            write_uint32(rec, len(index))
+            rec.write(index)
             write_record(self.bio, 0x07, rec)
         rec = BytesIO()
         for value in (chunk.message_start_time, chunk.message_end_time, chunk_start, chunk_end - chunk_start):
@@ -181,6 +183,8 @@ class BagWriter(Writer):
             raise RuntimeError("the bag is not open")
         if not len(end):
             return
+        if stamps_ns.min() < 0:
+            raise ValueError(f"a message stamped {stamps_ns.min()} ns: an MCAP log time is unsigned")
         self.storage.write_batch(channels, stamps_ns, data, end)
         present, counts = np.unique(channels, return_counts=True)
         for channel, count in zip(present.tolist(), counts.tolist(), strict=True):

@@ -44,7 +44,9 @@ FINISHED (after its last warning: one writer, in order).
 With ``--from-batches`` the per-state topics come in ``bracing_msgs/RecordBatch`` samples on
 ``record_batch`` (the nodes' ``record_batch`` parameter; bracing-pair sets both): each message is
 written under its own topic, exactly as if it had come on it, without one DDS delivery per message
-(``bracing_core.record_batch`` says why). A batch that cannot be unpacked is left out whole, with
+(``bracing_core.record_batch`` says why); a batch's messages go into the bag in one piece, the bag byte for
+byte the one written message by message (``bag_batch``: rosbags' per-message Python was most of the
+recorder's CPU per state). A batch that cannot be unpacked is left out whole, with
 an error line, and a gap in a node's batch sequence is reported as lost.
 
 Prints ``recorder ready`` on stdout once every subscription exists. SIGINT or SIGTERM
@@ -391,10 +393,10 @@ class Recorder(Node):
         if "/clock" in roles and len(clocks := np.flatnonzero(topic_of == roles.index("/clock"))):
             self._sim_time_ns = int(stamps[clocks[-1]])
         if self.scene is not None:
-            scene = np.array([role in self._scene_roles for role in roles])
-            ends = end.tolist()
-            for k in np.flatnonzero(scene[topic_of]).tolist():
-                self._scene_inputs.append((roles[topic_of[k]], raw[ends[k - 1] if k else 0 : ends[k]]))
+            wanted = np.flatnonzero(np.array([role in self._scene_roles for role in roles])[topic_of])
+            spans = zip(starts[wanted].tolist(), end[wanted].tolist(), strict=True)
+            inputs = zip([roles[i] for i in topic_of[wanted].tolist()], [raw[a:b] for a, b in spans], strict=True)
+            self._scene_inputs.extend(inputs)
 
     def _first_optional(self, topics: list[str], topic_of: np.ndarray) -> list[tuple[int, str]]:
         """(message index, topic) of the first message of each optional topic not yet in the bag, in order."""
@@ -520,12 +522,17 @@ class Recorder(Node):
             print(f"recorder: error: no /tf or contact_markers from here on: {exc}", file=sys.stderr, flush=True)
             self.scene = None
             self._scene_inputs.clear()
-        write, connections, counts = self.writer.write, self._scene_connections, self.counts
-        for item in derived:
-            connection = connections.get(item.key)
-            if connection is not None:
-                write(connection, item.stamp_ns, item.data)
-                counts[connection.topic] += 1
+        kept = [(self._scene_connections[item.key], item) for item in derived if item.key in self._scene_connections]
+        if kept:
+            data = b"".join(item.data for _, item in kept)
+            self.writer.write_batch(
+                np.array([connection.id for connection, _ in kept], np.uint16),
+                np.maximum([item.stamp_ns for _, item in kept], 0),  # as the recorded messages' (mcap's is unsigned)
+                np.frombuffer(data, np.uint8),
+                np.cumsum([len(item.data) for _, item in kept]),
+            )
+        for connection, _ in kept:
+            self.counts[connection.topic] += 1
         self.derived += len(derived)
         self.scene_time += time.thread_time() - start
 
