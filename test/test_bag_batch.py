@@ -172,7 +172,7 @@ def test_the_recorders_batches_make_the_bag_of_their_messages_one_by_one(tmp_pat
     ).read_bytes()
 
 
-def test_a_batch_with_a_message_too_short_for_its_stamp_is_left_out(
+def test_a_batch_with_a_message_too_short_for_its_stamp_is_left_out_and_an_empty_one_is_harmless(
     tmp_path: Path, rclpy_default: None, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from bracing_recorder.recorder import Recorder
@@ -188,6 +188,9 @@ def test_a_batch_with_a_message_too_short_for_its_stamp_is_left_out(
         "a record_batch from /bracing_simulator left out: message 0: 5 bytes, no header stamp"
         in capsys.readouterr().err
     )
+    batch.sequence, batch.data, batch.end, batch.topic_of = 1, array("B"), array("I"), array("H")
+    assert recorder._record_batch(batch) == 0  # an empty batch: nothing to write, nothing refused
+    assert "left out" not in capsys.readouterr().err
     assert recorder.counts["/joint_states"] == 0
     writer.close()
     recorder.destroy_node()

@@ -54,7 +54,9 @@ STAMPED_MIN_BYTES = 12
 
 def message_starts(end: np.ndarray) -> np.ndarray:
     """Where each message starts, of messages back to back ending at ``end`` (the first at 0)."""
-    return np.concatenate(([0], end[:-1])).astype(np.int64)
+    start = np.zeros(len(end), np.int64)
+    start[1:] = end[:-1]
+    return start
 
 
 def header_stamps_ns(data: np.ndarray, start: np.ndarray) -> np.ndarray:
