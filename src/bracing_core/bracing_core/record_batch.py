@@ -15,6 +15,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
 
 class BatchError(ValueError):
     """A received batch that cannot be unpacked (says what is wrong with it)."""
@@ -68,20 +70,37 @@ class BatchPacker:
         return batch
 
 
-def unpack(topics: Sequence[str], topic_of: Sequence[int], end: Sequence[int], data: bytes) -> list[tuple[str, bytes]]:
-    """(topic, CDR bytes) of each message of a received batch, in order; ``BatchError`` if its fields
-    do not fit together (nothing of such a batch is used)."""
+def batch_layout(
+    topics: Sequence[str], topic_of: Sequence[int], end: Sequence[int], data_size: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """A received batch's ``topic_of`` and ``end`` as int64 arrays, checked against its ``topics`` and its
+    ``data_size`` bytes of data; ``BatchError`` (what is wrong with its first bad message) if they do not fit
+    together (nothing of such a batch is used)."""
     if len(topic_of) != len(end):
         raise BatchError(f"{len(topic_of)} topic indices for {len(end)} messages")
-    start, messages = 0, []
+    index = np.asarray(topic_of, np.int64)
+    stop = np.asarray(end, np.int64)
+    start = np.concatenate(([0], stop[:-1]))
+    bad_index = (index < 0) | (index >= len(topics))
+    bad_stop = (stop <= start) | (stop > data_size)
+    bad = np.flatnonzero(bad_index | bad_stop)
+    if len(bad):
+        k = int(bad[0])
+        if bad_index[k]:
+            raise BatchError(f"message {k}: topic index {index[k]}, but the batch names {len(topics)} topics")
+        raise BatchError(f"message {k}: its bytes end at {stop[k]}, after {start[k]} (data holds {data_size})")
+    used = int(stop[-1]) if len(stop) else 0
+    if used != data_size:
+        raise BatchError(f"{data_size - used} bytes of data after the last message")
+    return index, stop
+
+
+def unpack(topics: Sequence[str], topic_of: Sequence[int], end: Sequence[int], data: bytes) -> list[tuple[str, bytes]]:
+    """(topic, CDR bytes) of each message of a received batch, in order; ``BatchError`` if its fields
+    do not fit together (``batch_layout``)."""
+    index, stop = batch_layout(topics, topic_of, end, len(data))
     view = memoryview(data)
-    for k, (index, stop) in enumerate(zip(topic_of, end, strict=True)):
-        if not 0 <= index < len(topics):
-            raise BatchError(f"message {k}: topic index {index}, but the batch names {len(topics)} topics")
-        if not start < stop <= len(data):
-            raise BatchError(f"message {k}: its bytes end at {stop}, after {start} (data holds {len(data)})")
-        messages.append((topics[index], bytes(view[start:stop])))
-        start = stop
-    if start != len(data):
-        raise BatchError(f"{len(data) - start} bytes of data after the last message")
-    return messages
+    return [
+        (topics[i], bytes(view[a:b]))
+        for i, a, b in zip(index.tolist(), [0, *stop[:-1].tolist()], stop.tolist(), strict=True)
+    ]

@@ -16,11 +16,11 @@ from types import FrameType
 import rclpy
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
-from rosbags.rosbag2 import StoragePlugin, Writer
 
 from bracing_analysis import surfaces
 from bracing_core.typestore import bracing_typestore
 from bracing_msgs.msg import RunStatus
+from bracing_recorder.bag_batch import BagWriter
 from bracing_recorder.bag_notes import command_limit_notes, scenario_surfaces, scene_notes, task_notes
 from bracing_recorder.bag_switch import BagRequest, BagRequests
 from bracing_recorder.recorder import BAG_VERSION, Recorder, expected_counts
@@ -130,15 +130,15 @@ class StopRequest:
         self.requested = True
 
 
-def _open_writer(output: Path, scenario: str | None, shapes: Mapping[str, surfaces.Shape]) -> Writer:
-    writer = Writer(output, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
+def _open_writer(output: Path, scenario: str | None, shapes: Mapping[str, surfaces.Shape]) -> BagWriter:
+    writer = BagWriter(output, version=BAG_VERSION)
     for key, value in scene_notes(scenario, shapes).items():
         writer.set_custom_data(key, value)
     writer.open()
     return writer
 
 
-def _write_task_metadata(writer: Writer, params_files: list[str], ground_truth: bool) -> None:
+def _write_task_metadata(writer: BagWriter, params_files: list[str], ground_truth: bool) -> None:
     """Read while the nodes start (custom_data is written when the bag closes): off the start's path."""
     for key, value in {**task_notes(params_files, ground_truth), **command_limit_notes(params_files)}.items():
         writer.set_custom_data(key, value)
@@ -186,7 +186,7 @@ def _drain(node: Recorder, args: argparse.Namespace, stop: StopRequest, complete
         pass
 
 
-def _close(writer: Writer | None, node: Recorder | None, status: StatusPublisher | None, output: Path) -> None:
+def _close(writer: BagWriter | None, node: Recorder | None, status: StatusPublisher | None, output: Path) -> None:
     if writer is not None:  # None: stopped between two bags (--stay)
         _close_bag(writer, node, status, output)
     if node is not None:
@@ -195,14 +195,16 @@ def _close(writer: Writer | None, node: Recorder | None, status: StatusPublisher
         rclpy.shutdown()
 
 
-def _close_bag(writer: Writer, node: Recorder | None, status: StatusPublisher | None, output: Path) -> None:
+def _close_bag(writer: BagWriter, node: Recorder | None, status: StatusPublisher | None, output: Path) -> None:
     writer.close()
     print(f"recorder closed the bag at {time.time():.6f}", flush=True)
     if status is not None:
         status.say(RunStatus.BAG_CLOSED)
         status.flush()  # bracing-pair has it before this process ends
     total = node.received if node is not None else 0
-    print(f"recorder wrote {total} messages to {output}", flush=True)
+    states = node.counts.get("/clock", 0) if node is not None else 0
+    cost = f", {node.record_time / states * 1e6:.0f} us of CPU per state" if node is not None and states else ""
+    print(f"recorder wrote {total} messages to {output}{cost}", flush=True)
     if node is not None and node.derived:
         states = node.counts.get("/tf", 0)
         cost = f", {node.scene_time / states * 1e6:.0f} us of CPU per state" if states else ""
@@ -213,7 +215,7 @@ def _close_bag(writer: Writer, node: Recorder | None, status: StatusPublisher | 
 class _OpenBag:
     """The bag being recorded: its writer (None between two bags) and what it was asked for."""
 
-    writer: Writer | None
+    writer: BagWriter | None
     request: BagRequest
 
 

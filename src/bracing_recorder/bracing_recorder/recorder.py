@@ -44,7 +44,9 @@ FINISHED (after its last warning: one writer, in order).
 With ``--from-batches`` the per-state topics come in ``bracing_msgs/RecordBatch`` samples on
 ``record_batch`` (the nodes' ``record_batch`` parameter; bracing-pair sets both): each message is
 written under its own topic, exactly as if it had come on it, without one DDS delivery per message
-(``bracing_core.record_batch`` says why). A batch that cannot be unpacked is left out whole, with
+(``bracing_core.record_batch`` says why); a batch's messages go into the bag in one piece, the bag byte for
+byte the one written message by message (``bag_batch``: rosbags' per-message Python was most of the
+recorder's CPU per state). A batch that cannot be unpacked is left out whole, with
 an error line, and a gap in a node's batch sequence is reported as lost.
 
 With ``--stay`` (and ``--expect-states``) a closed bag is followed by the next one asked for, in the same
@@ -65,6 +67,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, Literal
 
+import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PointStamped, PoseStamped, TwistStamped, Vector3Stamped, WrenchStamped
 from nav_msgs.msg import Odometry
@@ -73,7 +76,6 @@ from rcl_interfaces.msg import ParameterEvent
 from rclpy.node import Node
 from rclpy.subscription import Subscription
 from rosbags.interfaces import Connection, Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
-from rosbags.rosbag2 import Writer
 from rosbags.serde import SerdeError
 from rosbags.typesys.store import Typestore
 from rosgraph_msgs.msg import Clock
@@ -83,7 +85,7 @@ from std_msgs.msg import String
 from bracing_analysis import surfaces
 from bracing_core.kinematics import DescriptionError
 from bracing_core.overrides import SIMULATOR
-from bracing_core.record_batch import BatchError, unpack
+from bracing_core.record_batch import BatchError, batch_layout
 from bracing_core.stamps import cdr_stamp_ns
 from bracing_core.typestore import BRACING_MSGS as BRACING_MSGS  # re-exported: the typestore lives in bracing_core
 from bracing_core.typestore import (
@@ -107,6 +109,7 @@ from bracing_core.typestore import (
 )
 from bracing_core.typestore import bracing_msgs_dir as bracing_msgs_dir
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState, RecordBatch, RunStatus
+from bracing_recorder.bag_batch import STAMPED_MIN_BYTES, BagWriter, header_stamps_ns, message_starts
 from bracing_recorder.scene import Derived, SceneBuilder
 from bracing_recorder.topics import (
     COMMAND_TOPICS,
@@ -184,7 +187,7 @@ class Recorder(Node):
 
     def __init__(
         self,
-        writer: Writer,
+        writer: BagWriter,
         typestore: Typestore,
         *,
         namespace: str = "",
@@ -216,7 +219,7 @@ class Recorder(Node):
         self.description: bytes | None = None  # the robot_description received (latched: delivered once)
         self._open_bag(writer, shapes)
 
-    def _open_bag(self, writer: Writer, shapes: Mapping[str, surfaces.Shape] | None) -> None:
+    def _open_bag(self, writer: BagWriter, shapes: Mapping[str, surfaces.Shape] | None) -> None:
         """Record into ``writer`` from now on, its connections added in the order a new recorder adds them
         (the recorded topics, then the scene's); every count and the scene from the start."""
         self.writer = writer
@@ -224,6 +227,7 @@ class Recorder(Node):
         self.received = 0
         self.derived = 0
         self.scene_time = 0.0  # [s] of CPU spent deriving /tf and markers (what the lockstep loop shares)
+        self.record_time = 0.0  # [s] of CPU spent taking and writing messages (what the lockstep loop shares)
         self.last_receive = time.monotonic()
         self._recorded: dict[str, tuple[Connection, str]] = {}  # resolved topic: its connection, its role
         for resolved, type_name, role in self._recorded_table:
@@ -243,7 +247,7 @@ class Recorder(Node):
         if self.scene is not None:
             self._add_scene_connections(self._contacts)
 
-    def next_bag(self, writer: Writer, shapes: Mapping[str, surfaces.Shape] | None = None) -> None:
+    def next_bag(self, writer: BagWriter, shapes: Mapping[str, surfaces.Shape] | None = None) -> None:
         """Go on recording into ``writer`` (a new bag; the last one closed, its scene derived) as a recorder
         started now would: the same connections, the counts and the scene from the start, and the robot
         description the simulator latched (delivered once, to the first bag) written first again."""
@@ -337,6 +341,7 @@ class Recorder(Node):
 
     def record(self, timeout_sec: float) -> int:
         """Write every message available now, waiting up to ``timeout_sec``; the count of samples taken."""
+        start = time.thread_time()  # the wait costs no CPU; the take (rclpy's deserialising) does
         taken = self._waiter.take_all(timeout_sec)
         written = 0
         for sub, data in taken:
@@ -358,6 +363,7 @@ class Recorder(Node):
         if taken:
             self.received += written
             self.last_receive = time.monotonic()
+        self.record_time += time.thread_time() - start
         return len(taken)
 
     def _write(self, topic: str, data: bytes) -> None:
@@ -375,27 +381,83 @@ class Recorder(Node):
             self._scene_inputs.append((role, data))
 
     def _record_batch(self, batch: RecordBatch) -> int:
-        """Write a RecordBatch's messages, each under its own topic; the count written (0 for a batch
-        that cannot be unpacked, or that names a topic this recorder does not record)."""
+        """Write a RecordBatch's messages, each under its own topic, in bulk (``bag_batch``); the count
+        written (0 for a batch that cannot be unpacked, or that names a topic this recorder does not record)."""
         expected = self._next_batch.get(batch.node, 0)
         if batch.sequence != expected:
             lost = f"{batch.sequence - expected} batch(es)" if batch.sequence > expected else "a batch out of order"
             print(f"recorder: error: {lost} from {batch.node} lost (sequence {batch.sequence})", file=sys.stderr)
         self._next_batch[batch.node] = batch.sequence + 1
+        raw = bytes(batch.data)
         try:
-            messages = unpack(batch.topics, batch.topic_of, batch.end, batch.data)
+            topic_of, end = batch_layout(batch.topics, batch.topic_of, batch.end, len(raw))
             unknown = sorted({t for t in batch.topics if t not in self._recorded and t not in self._optional})
             if unknown:
                 raise BatchError(f"it names topics this recorder does not record: {', '.join(unknown)}")
+            sizes = end - message_starts(end)
+            if len(short := np.flatnonzero(sizes < STAMPED_MIN_BYTES)):
+                raise BatchError(f"message {short[0]}: {sizes[short[0]]} bytes, no header stamp")
         except BatchError as exc:
             print(f"recorder: error: a record_batch from {batch.node} left out: {exc}", file=sys.stderr, flush=True)
             return 0
-        for topic, data in messages:
-            if topic in self._optional:
-                self._write_optional(topic, data)
-            else:
-                self._write(topic, data)
-        return len(messages)
+        self._write_batch(list(batch.topics), topic_of, raw, end)
+        return len(end)
+
+    def _write_batch(self, topics: list[str], topic_of: np.ndarray, raw: bytes, end: np.ndarray) -> None:
+        """A batch's messages (``topics[topic_of[k]]``, back to back in ``raw`` up to ``end``) into the bag in
+        bulk, as ``_write`` and ``_write_optional`` would one by one (an optional topic's connection added
+        at its first message, as there), at their header stamps; their counts, the last /clock, the scene's inputs."""
+        data = np.frombuffer(raw, np.uint8)
+        starts = message_starts(end)
+        stamps = np.maximum(header_stamps_ns(data, starts), 0)
+        first = 0
+        for at, topic in self._first_optional(topics, topic_of):
+            self._write_span(topics, topic_of[first:at], stamps[first:at], data, end[:at], first)
+            self._optional_connections[topic] = self.writer.add_connection(
+                topic, self._optional[topic], typestore=self.typestore
+            )
+            self.counts[topic] = 0
+            first = at
+        self._write_span(topics, topic_of[first:], stamps[first:], data, end, first)
+        for index, count in enumerate(np.bincount(topic_of, minlength=len(topics)).tolist()):
+            if count:
+                self.counts[topics[index]] += count
+        roles = [self._recorded[t][1] if t in self._recorded else "" for t in topics]
+        if "/clock" in roles and len(clocks := np.flatnonzero(topic_of == roles.index("/clock"))):
+            self._sim_time_ns = int(stamps[clocks[-1]])
+        if self.scene is not None:
+            wanted = np.flatnonzero(np.array([role in self._scene_roles for role in roles])[topic_of])
+            spans = zip(starts[wanted].tolist(), end[wanted].tolist(), strict=True)
+            inputs = zip([roles[i] for i in topic_of[wanted].tolist()], [raw[a:b] for a, b in spans], strict=True)
+            self._scene_inputs.extend(inputs)
+
+    def _first_optional(self, topics: list[str], topic_of: np.ndarray) -> list[tuple[int, str]]:
+        """(message index, topic) of the first message of each optional topic not yet in the bag, in order."""
+        firsts = []
+        for index, topic in enumerate(topics):
+            if topic in self._optional and topic not in self._optional_connections:
+                at = np.flatnonzero(topic_of == index)
+                if len(at):
+                    firsts.append((int(at[0]), topic))
+        return sorted(firsts)
+
+    def _write_span(
+        self, topics: list[str], topic_of: np.ndarray, stamps: np.ndarray, data: np.ndarray, end: np.ndarray, first: int
+    ) -> None:
+        """A batch's messages from ``first`` up to the last of ``end`` into the bag (``topic_of`` and ``stamps``
+        theirs), every topic among them in the bag."""
+        # an optional topic not in the bag yet has no message here (0 stands for its connection)
+        ids = np.array([self._connection_id(t) for t in topics], np.uint16)
+        base = int(end[first - 1]) if first else 0
+        self.writer.write_batch(ids[topic_of], stamps, data[base:], end[first:] - base)
+
+    def _connection_id(self, topic: str) -> int:
+        """The bag connection id of a recorded or optional topic (resolved name; 0: an optional one not yet
+        in the bag)."""
+        if topic in self._recorded:
+            return self._recorded[topic][0].id
+        connection = self._optional_connections.get(topic)
+        return connection.id if connection is not None else 0
 
     def _record_event(self, data: bytes) -> bool:
         """Write a /parameter_events message if it is worth the bag: the run's controller changing a value.
@@ -493,12 +555,17 @@ class Recorder(Node):
             print(f"recorder: error: no /tf or contact_markers from here on: {exc}", file=sys.stderr, flush=True)
             self.scene = None
             self._scene_inputs.clear()
-        write, connections, counts = self.writer.write, self._scene_connections, self.counts
-        for item in derived:
-            connection = connections.get(item.key)
-            if connection is not None:
-                write(connection, item.stamp_ns, item.data)
-                counts[connection.topic] += 1
+        kept = [(self._scene_connections[item.key], item) for item in derived if item.key in self._scene_connections]
+        if kept:
+            data = b"".join(item.data for _, item in kept)
+            self.writer.write_batch(
+                np.array([connection.id for connection, _ in kept], np.uint16),
+                np.maximum([item.stamp_ns for _, item in kept], 0),  # as the recorded messages' (mcap's is unsigned)
+                np.frombuffer(data, np.uint8),
+                np.cumsum([len(item.data) for _, item in kept]),
+            )
+        for connection, _ in kept:
+            self.counts[connection.topic] += 1
         self.derived += len(derived)
         self.scene_time += time.thread_time() - start
 
