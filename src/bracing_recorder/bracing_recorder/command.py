@@ -203,8 +203,9 @@ def _close_bag(writer: BagWriter, node: Recorder | None, status: StatusPublisher
         status.flush()  # bracing-pair has it before this process ends
     total = node.received if node is not None else 0
     states = node.counts.get("/clock", 0) if node is not None else 0
-    cost = f", {node.record_time / states * 1e6:.0f} us of CPU per state" if node is not None and states else ""
-    print(f"recorder wrote {total} messages to {output}{cost}", flush=True)
+    print(f"recorder wrote {total} messages to {output}", flush=True)  # a line of its own: tools wait for it
+    if node is not None and states:
+        print(f"recorder took and wrote them in {node.record_time / states * 1e6:.0f} us of CPU per state", flush=True)
     if node is not None and node.derived:
         states = node.counts.get("/tf", 0)
         cost = f", {node.scene_time / states * 1e6:.0f} us of CPU per state" if states else ""
