@@ -6,6 +6,7 @@ from __future__ import annotations
 import ast
 import dataclasses
 import functools
+import re
 import subprocess
 import sys
 import time
@@ -112,7 +113,7 @@ def test_each_default_is_the_one_the_configuration_uses() -> None:
     for param in schema.SIMULATOR:
         if param.default is not schema.REQUIRED and not isinstance(param.default, schema.PerJoint):
             # a dotted name is a field of a section's own record (plant_error.mass_scale: config.plant_error.mass_scale)
-            assert functools.reduce(getattr, param.name.split("."), config) == param.default, param.name
+            assert functools.reduce(getattr, param.name.split("."), config) == schema.typed_default(param), param.name
 
 
 def conforms(value: Any, param: schema.Param) -> bool:
@@ -174,11 +175,21 @@ def test_the_values_stub_mypy_reads_is_the_schemas() -> None:
     """schema/typed_values.pyi declares every derived class with its fields' types (mypy checks their uses)."""
     assert values_stubs.STUB.read_text() == values_stubs.stub_text(), "stale: run python tools/values_stubs.py"
     stub = values_stubs.STUB.read_text()
-    assert "class SimulatorValuesRobot(Section):\n    urdf: str\n" in stub
+    assert "class SharedValuesRobot(Section):\n    urdf: str\n" in stub
+    assert "class SimulatorValues(SharedValues):\n    initial_position: tuple[float, ...]\n" in stub
     assert "class ContactValuesForceFeedback(Section):\n    kp: float\n" in stub
-    declared = stub.count("\n    ")
-    derived = sum(len(schema.flat_names(kind)) for kind in (*schema.NODE_VALUES.values(), schema.CONTACT_VALUES))
-    assert declared >= derived  # every leaf, plus a field per group
+    assert stub.count("class SharedValuesRobot(") == 1  # the shared sections once, each node's class deriving
+    classes = {kind for root in (*schema.NODE_VALUES.values(), schema.CONTACT_VALUES) for kind in _classes(root)}
+    assert stub.count("\nclass ") == len(classes)  # each class once
+    derived = sum(len(leaves) + len(groups) for leaves, groups in map(schema.own_fields, classes))
+    assert len(re.findall(r"^    \w+: ", stub, re.MULTILINE)) == derived  # each class's own leaves and groups
+
+
+def _classes(kind: type[schema.Section]) -> set[type[schema.Section]]:
+    """``kind``, its base's and its groups' classes, nested ones included."""
+    if kind is schema.Section:
+        return set()
+    return {kind, *_classes(kind.__bases__[0]), *(nested for sub in kind.sections.values() for nested in _classes(sub))}
 
 
 def test_retune_applies_gains_forces_and_voltage_gain_from_the_next_update() -> None:
