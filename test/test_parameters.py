@@ -20,6 +20,7 @@ from conftest import CONFIG_DIR, PAPER_YAML, node_params
 from ros_helpers import isolated_env, node_argv, start
 
 from bracing_core import schema
+from bracing_core.config import SimulatorConfig
 from bracing_core.controller_config import ControllerConfig
 from bracing_core.law import DecoupledController
 
@@ -107,8 +108,6 @@ def test_each_default_is_the_one_the_configuration_uses() -> None:
     for param in schema.SIMULATOR:
         if param.default is not schema.REQUIRED and not isinstance(param.default, schema.PerJoint):
             params.pop(param.name, None)
-    from bracing_core.config import SimulatorConfig
-
     config = SimulatorConfig.from_params(params, [CONFIG_DIR])
     for param in schema.SIMULATOR:
         if param.default is not schema.REQUIRED and not isinstance(param.default, schema.PerJoint):
@@ -295,3 +294,33 @@ def test_parameter_services_list_describe_get_and_set(controller_node: Any) -> N
     process.terminate()
     log = process.communicate(timeout=30)[0]
     assert "retuned (from the next update): hand.kp = [150.0, 150.0]" in log
+
+
+def test_the_shared_and_path_sections_are_one_class_each() -> None:
+    """Both nodes' shared sections are one class (their base), as are the hand's and each brace's path; a section
+    that gives its base's parameter another type is refused."""
+    simulator, controller = schema.NODE_VALUES["simulator"], schema.NODE_VALUES["controller"]
+    assert simulator.__bases__ == controller.__bases__ == (schema.SHARED_VALUES,)
+    assert simulator.sections["robot"] is controller.sections["robot"] is schema.SHARED_VALUES.sections["robot"]
+    hand_path = controller.sections["hand"].sections["trajectory"]
+    brace_path = schema.CONTACT_VALUES.sections["trajectory"]
+    assert hand_path.__bases__ == brace_path.__bases__ == (schema.TRAJECTORY_VALUES,)
+    assert schema.own_fields(hand_path) == (["point"], []) and schema.own_fields(brace_path) == ([], [])
+    assert (hand_path.params["type"].default, brace_path.params["type"].default) == ("circle", "hold")
+    retyped = schema.Param("period", schema.Kind.STRING, "slow", "a path's period, as a word")
+    with pytest.raises(ValueError, match="period already a field of TrajectoryValues"):
+        schema.section_class("Odd", [retyped], schema.TRAJECTORY_VALUES)
+
+
+@pytest.mark.parametrize("section", ["sensors", "plant_error"])
+def test_exact_sensing_and_no_plant_error_are_the_schema_defaults(section: str) -> None:
+    """sensors.exact and plant_error.none hold at the schema's defaults (the seed alone keeps the sensors exact) and
+    not once any other of their parameters differs from its default."""
+    config = SimulatorConfig.from_params(node_params("bracing_simulator"), [CONFIG_DIR])
+    values = getattr(config, section)
+    at_default = values.exact if section == "sensors" else values.none
+    assert at_default
+    for field, param in values.params.items():
+        changed = dataclasses.replace(values, **{field: "other.urdf" if field == "urdf" else param.default + 1})
+        still = changed.exact if section == "sensors" else changed.none
+        assert still is (field == "noise_seed"), field

@@ -3,7 +3,9 @@
 Each section of flat names becomes a frozen dataclass: one field per parameter, typed from its kind, and one
 field per dotted group, itself such a class (``robot.urdf`` is ``values.robot.urdf``, a contact's
 ``force_feedback.kp`` is ``contact.force_feedback.kp``). The classes are made from the tables, so adding a
-parameter to the schema adds its field: there is no second list of names to keep in step.
+parameter to the schema adds its field: there is no second list of names to keep in step. Parameters that
+several sections have are one class, their base: both nodes' shared ones (``SharedValues``), a task's path
+(``TrajectoryValues``: the hand's and each brace's).
 """
 
 from __future__ import annotations
@@ -28,8 +30,8 @@ _TYPES: dict[Kind, Any] = {
 class Section:
     """A section of parameters, typed: a frozen dataclass made by :func:`section_class`."""
 
-    params: ClassVar[dict[str, Param]]  # field -> its Param (the leaves of this section)
-    sections: ClassVar[dict[str, type[Section]]]  # field -> the class of its dotted group
+    params: ClassVar[dict[str, Param]] = {}  # field -> its Param (the leaves of this section)
+    sections: ClassVar[dict[str, type[Section]]] = {}  # field -> the class of its dotted group
 
     if TYPE_CHECKING:  # the fields are made from the tables at import
         __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[Any]]]
@@ -67,10 +69,10 @@ def _split(params: Sequence[Param]) -> tuple[dict[str, Param], dict[str, list[Pa
 
 def _check_base(name: str, base: type[Section], leaves: Mapping[str, Param], groups: Mapping[str, Any]) -> None:
     """A section may give its base's parameters their own defaults, of the same type; any other field is new."""
-    inherited: dict[str, Param] = getattr(base, "params", {})
+    inherited = base.params
     retyped = [f for f, p in leaves.items() if f in inherited and value_type(p) != value_type(inherited[f])]
-    clash = sorted(set(groups) & (inherited.keys() | getattr(base, "sections", {}).keys()))
-    clash += sorted(set(leaves) & getattr(base, "sections", {}).keys())
+    clash = sorted(set(groups) & (inherited.keys() | base.sections.keys()))
+    clash += sorted(set(leaves) & base.sections.keys())
     if retyped or clash:
         raise ValueError(f"{name}: {', '.join(retyped + clash)} already a field of {base.__name__}")
 
@@ -84,7 +86,7 @@ def section_class(
     group by its path."""
     leaves, groups = _split(params)
     _check_base(name, base, leaves, groups)
-    inherited: dict[str, Param] = getattr(base, "params", {})
+    inherited = base.params
     sections = {
         group: section_class(name + _class_name(group), members, bases.get(group, Section), _under(bases, group))
         for group, members in groups.items()
@@ -93,8 +95,8 @@ def section_class(
     fields += [(group, kind) for group, kind in sections.items()]
     namespace = {
         "params": inherited | leaves,
-        "sections": getattr(base, "sections", {}) | sections,
-        "__doc__": f"{name}: {', '.join([*inherited, *getattr(base, 'sections', {}), *(f for f, _ in fields)])}",
+        "sections": base.sections | sections,
+        "__doc__": f"{name}: {', '.join([*inherited, *base.sections, *(f for f, _ in fields)])}",
     }
     return dataclasses.make_dataclass(name, fields, bases=(base,), frozen=True, namespace=namespace)
 
@@ -106,9 +108,9 @@ def _under(bases: Mapping[str, type[Section]], group: str) -> dict[str, type[Sec
 
 def own_fields(kind: type[Section]) -> tuple[list[str], list[str]]:
     """The parameter fields and the group fields ``kind`` declares itself (not its base's)."""
-    base = kind.__bases__[0]
-    leaves = [field for field in kind.params if field not in getattr(base, "params", {})]
-    return leaves, [group for group in kind.sections if group not in getattr(base, "sections", {})]
+    base: type[Section] = kind.__mro__[1]  # section_class's one base
+    leaves = [field for field in kind.params if field not in base.params]
+    return leaves, [group for group in kind.sections if group not in base.sections]
 
 
 def build(kind: type[Section], flat: Mapping[str, Any], prefix: str = "") -> Section:
