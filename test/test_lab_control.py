@@ -138,11 +138,11 @@ def test_integral_gains_are_tunable_and_reset_forgets_the_integral() -> None:
         sim.step(controller.update(sim.time, sim.position, sim.velocity).command)
     assert not np.any(controller.engine.task_integral(0))
     config = controller.config
-    controller.retune(replace(config, hand=replace(config.hand, ki=(1000.0, 1000.0))))
+    controller.retune(replace(config, hand_task=replace(config.hand_task, ki=(1000.0, 1000.0))))
     answer = controller.update(sim.time, sim.position, sim.velocity)
     error = answer.hand_desired - answer.hand_actual
     assert controller.engine.task_integral(0)[1:] == pytest.approx(error[1:] * 1e-3, abs=1e-15)
-    controller.retune(replace(config, hand=replace(config.hand, ki=(1000.0, 0.0))))
+    controller.retune(replace(config, hand_task=replace(config.hand_task, ki=(1000.0, 0.0))))
     controller.update(sim.time + 1e-3, sim.position, sim.velocity)
     assert controller.engine.task_integral(0)[2] == 0.0 and controller.engine.task_integral(0)[1] != 0.0
     controller.reset()

@@ -262,7 +262,7 @@ def law(
     assert sc.controller is not None
     config = sc.controller.config
     shared, model = config.shared, oracle.model
-    hand = config.hand
+    hand = config.hand_task
     tasks = []
     for frame, axes, kp, kd, trajectory in [
         (hand.frame, hand.axes, hand.kp, hand.kd, hand.trajectory),

@@ -6,6 +6,7 @@ from __future__ import annotations
 import ast
 import dataclasses
 import functools
+import re
 import subprocess
 import sys
 import time
@@ -19,6 +20,7 @@ from conftest import CONFIG_DIR, PAPER_YAML, node_params
 from ros_helpers import isolated_env, node_argv, start
 
 from bracing_core import schema
+from bracing_core.config import SimulatorConfig
 from bracing_core.controller_config import ControllerConfig
 from bracing_core.law import DecoupledController
 
@@ -106,13 +108,11 @@ def test_each_default_is_the_one_the_configuration_uses() -> None:
     for param in schema.SIMULATOR:
         if param.default is not schema.REQUIRED and not isinstance(param.default, schema.PerJoint):
             params.pop(param.name, None)
-    from bracing_core.config import SimulatorConfig
-
     config = SimulatorConfig.from_params(params, [CONFIG_DIR])
     for param in schema.SIMULATOR:
         if param.default is not schema.REQUIRED and not isinstance(param.default, schema.PerJoint):
             # a dotted name is a field of a section's own record (plant_error.mass_scale: config.plant_error.mass_scale)
-            assert functools.reduce(getattr, param.name.split("."), config) == param.default, param.name
+            assert functools.reduce(getattr, param.name.split("."), config) == schema.typed_default(param), param.name
 
 
 def conforms(value: Any, param: schema.Param) -> bool:
@@ -174,11 +174,21 @@ def test_the_values_stub_mypy_reads_is_the_schemas() -> None:
     """schema/typed_values.pyi declares every derived class with its fields' types (mypy checks their uses)."""
     assert values_stubs.STUB.read_text() == values_stubs.stub_text(), "stale: run python tools/values_stubs.py"
     stub = values_stubs.STUB.read_text()
-    assert "class SimulatorValuesRobot(Section):\n    urdf: str\n" in stub
+    assert "class SharedValuesRobot(Section):\n    urdf: str\n" in stub
+    assert "class SimulatorValues(SharedValues):\n    initial_position: tuple[float, ...]\n" in stub
     assert "class ContactValuesForceFeedback(Section):\n    kp: float\n" in stub
-    declared = stub.count("\n    ")
-    derived = sum(len(schema.flat_names(kind)) for kind in (*schema.NODE_VALUES.values(), schema.CONTACT_VALUES))
-    assert declared >= derived  # every leaf, plus a field per group
+    assert stub.count("class SharedValuesRobot(") == 1  # the shared sections once, each node's class deriving
+    classes = {kind for root in (*schema.NODE_VALUES.values(), schema.CONTACT_VALUES) for kind in _classes(root)}
+    assert stub.count("\nclass ") == len(classes)  # each class once
+    derived = sum(len(leaves) + len(groups) for leaves, groups in map(schema.own_fields, classes))
+    assert len(re.findall(r"^    \w+: ", stub, re.MULTILINE)) == derived  # each class's own leaves and groups
+
+
+def _classes(kind: type[schema.Section]) -> set[type[schema.Section]]:
+    """``kind``, its base's and its groups' classes, nested ones included."""
+    if kind is schema.Section:
+        return set()
+    return {kind, *_classes(kind.__bases__[0]), *(nested for sub in kind.sections.values() for nested in _classes(sub))}
 
 
 def test_retune_applies_gains_forces_and_voltage_gain_from_the_next_update() -> None:
@@ -284,3 +294,33 @@ def test_parameter_services_list_describe_get_and_set(controller_node: Any) -> N
     process.terminate()
     log = process.communicate(timeout=30)[0]
     assert "retuned (from the next update): hand.kp = [150.0, 150.0]" in log
+
+
+def test_the_shared_and_path_sections_are_one_class_each() -> None:
+    """Both nodes' shared sections are one class (their base), as are the hand's and each brace's path; a section
+    that gives its base's parameter another type is refused."""
+    simulator, controller = schema.NODE_VALUES["simulator"], schema.NODE_VALUES["controller"]
+    assert simulator.__bases__ == controller.__bases__ == (schema.SHARED_VALUES,)
+    assert simulator.sections["robot"] is controller.sections["robot"] is schema.SHARED_VALUES.sections["robot"]
+    hand_path = controller.sections["hand"].sections["trajectory"]
+    brace_path = schema.CONTACT_VALUES.sections["trajectory"]
+    assert hand_path.__bases__ == brace_path.__bases__ == (schema.TRAJECTORY_VALUES,)
+    assert schema.own_fields(hand_path) == (["point"], []) and schema.own_fields(brace_path) == ([], [])
+    assert (hand_path.params["type"].default, brace_path.params["type"].default) == ("circle", "hold")
+    retyped = schema.Param("period", schema.Kind.STRING, "slow", "a path's period, as a word")
+    with pytest.raises(ValueError, match="period already a field of TrajectoryValues"):
+        schema.section_class("Odd", [retyped], schema.TRAJECTORY_VALUES)
+
+
+@pytest.mark.parametrize("section", ["sensors", "plant_error"])
+def test_exact_sensing_and_no_plant_error_are_the_schema_defaults(section: str) -> None:
+    """sensors.exact and plant_error.none hold at the schema's defaults (the seed alone keeps the sensors exact) and
+    not once any other of their parameters differs from its default."""
+    config = SimulatorConfig.from_params(node_params("bracing_simulator"), [CONFIG_DIR])
+    values = getattr(config, section)
+    at_default = values.exact if section == "sensors" else values.none
+    assert at_default
+    for field, param in values.params.items():
+        changed = dataclasses.replace(values, **{field: "other.urdf" if field == "urdf" else param.default + 1})
+        still = changed.exact if section == "sensors" else changed.none
+        assert still is (field == "noise_seed"), field

@@ -168,7 +168,7 @@ def test_in_process_runs_read_a_scenario_as_the_nodes_do(tmp_path: Path) -> None
     assert all(isinstance(v, float) for v in controller["hand.trajectory.center"])
     assert load_params_file(config, "bracing_simulator")["step"] == 0.001  # PyYAML read the text "1e-3"
     scenario = build_scenario(config)
-    assert scenario.controller is not None and scenario.controller.config.hand.axes == (1, 2)  # y, z
+    assert scenario.controller is not None and scenario.controller.config.hand_task.axes == (1, 2)  # y, z
 
 
 def test_set_values_are_read_as_the_nodes_read_them() -> None:

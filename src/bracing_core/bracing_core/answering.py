@@ -109,18 +109,18 @@ def task_targets(law: DecoupledController) -> TaskTargets:
     specs = [
         TaskSpec(
             "hand_target",
-            config.hand.axes,
+            config.hand_task.axes,
             frame_reach(plant.robot.model, plant.frame_id(config.hand.frame, "hand.frame")),
         )
     ]
     for c in config.shared.braced_contacts:
         reach = frame_reach(plant.robot.model, plant.frame_id(c.frame, f"contacts.{c.name}.frame"))
         specs.append(TaskSpec(f"brace_target/{c.name}", c.brace_axes, reach))
-    limits = TargetLimits(config.max_message_elements, config.max_name_length, config.target_max_horizon)
+    limits = TargetLimits(config.max_message_elements, config.max_name_length, config.targets.max_horizon)
     orientation = OrientationSpec(
-        config.orientation.axes, config.target_max_angular_velocity, config.target_max_angular_acceleration
+        config.orientation.axes, config.targets.max_angular_velocity, config.targets.max_angular_acceleration
     )
-    return TaskTargets(specs, config.target_max_velocity, config.target_max_acceleration, limits, orientation)
+    return TaskTargets(specs, config.targets.max_velocity, config.targets.max_acceleration, limits, orientation)
 
 
 @dataclass(frozen=True)

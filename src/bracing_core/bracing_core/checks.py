@@ -260,7 +260,8 @@ def out_of_reach(
 
 def reach_warnings(config: ControllerConfig, plant: Plant) -> list[str]:
     """A warning for the hand's and each brace's target path where it leaves the reach of its frame."""
-    tasks = [("hand", "hand.trajectory", config.hand.frame, config.hand.axes, config.hand.trajectory)]
+    hand = config.hand_task
+    tasks = [("hand", "hand.trajectory", hand.frame, hand.axes, hand.trajectory)]
     for c in config.shared.braced_contacts:
         parameter = f"contacts.{c.name}.target" if c.trajectory.kind == "hold" else f"contacts.{c.name}.trajectory"
         tasks.append((f"brace point {c.name!r}", parameter, c.frame, c.brace_axes, c.trajectory))

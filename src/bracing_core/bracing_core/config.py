@@ -10,9 +10,9 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
@@ -41,6 +41,11 @@ from bracing_core.schema import Section, Values
 from bracing_core.sensing import PlantError, SensorConfig
 from bracing_core.simulator import Simulator
 from bracing_core.types import Vector
+
+if TYPE_CHECKING:
+    from bracing_core.schema.typed_values import SimulatorValues
+else:  # the class the schema derives (tools/values_stubs.py declares it to mypy)
+    SimulatorValues = schema.NODE_VALUES["simulator"]
 
 
 def surface_key(surface: Surface) -> tuple[Any, ...]:
@@ -312,41 +317,14 @@ class Plant:
 
 
 @dataclass(frozen=True)
-class SimulatorConfig:
-    """The simulator node's configuration: the shared plant, then one field per parameter of
-    ``schema.SIMULATOR`` (units and meaning there)."""
+class SimulatorConfig(SimulatorValues):
+    """The simulator node's configuration: its typed values (a field per parameter of ``schema.SIMULATOR`` and
+    the shared ones, units and meaning there; ``motor_drive.*``: the current loop, ``bracing_core.drive``), the
+    plant error with its URDF resolved, the sensors, and the shared plant built from them."""
 
+    plant_error: PlantError
+    sensors: SensorConfig
     shared: SharedConfig
-    initial_position: tuple[float, ...]
-    initial_velocity: tuple[float, ...]
-    step: float
-    substeps: int
-    duration: float
-    baumgarte: float
-    slip_epsilon: float
-    contact_tolerance: float
-    project_initial_position: bool
-    stepping: str
-    real_time_factor: float
-    command_timeout: float
-    watchdog_policy: str
-    min_subscribers: int
-    min_status_subscribers: int
-    divergence_residual: float
-    divergence_speed: float
-    wait_for_recorder: bool
-    log_throttle_period: float
-    wait_for_reset: bool = False  # lockstep: at the run's end, wait for reset_simulation instead of exiting
-    max_message_elements: int = 10000  # the most names, values or poses a subscribed message may carry
-    max_name_length: int = 256  # [characters] the longest name a subscribed message may carry
-    record_batch: int = 0  # states per bracing_msgs/RecordBatch to the recorder; 0: off
-    initial_current: str = "zero"  # voltage input: zero | steady (the first command's steady current)
-    plant_error: PlantError = field(default_factory=PlantError)
-    sensors: SensorConfig = field(default_factory=SensorConfig)
-    command_source: str = "motor_command"  # | joint_commands (ros2_control's JointStateTopicSystem)
-    joint_commands_topic: str = "/robot_joint_commands"
-    joint_states_topic: str = "/robot_joint_states"
-    motor_drive: DriveConfig = field(default_factory=lambda: DriveConfig())
 
     @classmethod
     def from_params(cls, params: Params, search_dirs: Sequence[Path] = ()) -> SimulatorConfig:
@@ -354,9 +332,8 @@ class SimulatorConfig:
         return cls.from_values(schema.read("simulator", params), search_dirs)
 
     @classmethod
-    def from_values(cls, values: Values, search_dirs: Sequence[Path] = ()) -> SimulatorConfig:
+    def from_values(cls, values: Values[SimulatorValues], search_dirs: Sequence[Path] = ()) -> SimulatorConfig:
         given = values.params
-        own = schema.node_fields(values)
         if given.command_source == "joint_commands" and given.stepping == "lockstep":
             raise ConfigError(
                 "command_source: joint_commands does not lockstep (a ros2_control loop never waits for a simulator): "
@@ -364,23 +341,12 @@ class SimulatorConfig:
             )
         error = given.plant_error
         urdf = str(resolve_file(error.urdf, "plant_error.urdf", search_dirs)) if error.urdf else error.urdf
-        drive = given.motor_drive
-        return cls(
-            shared=SharedConfig.from_values(values, search_dirs),
-            plant_error=PlantError(**schema.fields_of(error) | {"urdf": urdf}),
-            sensors=SensorConfig.from_values(values),
-            motor_drive=DriveConfig(drive.bandwidth, list(drive.kp), list(drive.ki)),
-            **own,
-        )
-
-
-@dataclass(frozen=True)
-class DriveConfig:
-    """motor_drive.*: the current loop that turns a joint_commands effort into a voltage (``bracing_core.drive``)."""
-
-    bandwidth: float = 100.0  # [rad/s]
-    kp: list[float] = field(default_factory=list)  # [V/A], robot.joint_names order; empty: L * bandwidth
-    ki: list[float] = field(default_factory=list)  # [V/(A s)]; empty: R_20 * bandwidth
+        derived = {
+            "plant_error": PlantError(**schema.fields_of(error) | {"urdf": urdf}),
+            "sensors": SensorConfig.from_values(values),
+            "shared": SharedConfig.from_values(values, search_dirs),
+        }
+        return cls(**schema.fields_of(given) | derived)
 
 
 def with_plant_error(shared: SharedConfig, error: PlantError) -> SharedConfig:

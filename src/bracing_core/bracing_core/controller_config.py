@@ -6,6 +6,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from bracing_core import schema
 from bracing_core.base import BASE_JOINTS
@@ -13,6 +14,11 @@ from bracing_core.config import SharedConfig
 from bracing_core.contact_config import axes_indices, trajectory_from_values
 from bracing_core.params import ConfigError, Params
 from bracing_core.trajectory import TrajectoryConfig
+
+if TYPE_CHECKING:
+    from bracing_core.schema.typed_values import ControllerValues
+else:  # the class the schema derives (tools/values_stubs.py declares it to mypy)
+    ControllerValues = schema.NODE_VALUES["controller"]
 
 
 @dataclass(frozen=True)
@@ -50,44 +56,19 @@ class OrientationConfig:
 
 
 @dataclass(frozen=True)
-class ControllerConfig:
+class ControllerConfig(ControllerValues):
+    """The controller node's configuration: its typed values (a field per parameter of ``schema.CONTROLLER`` and
+    the shared ones, units and meaning there), and what is built from them: the shared plant, the hand task
+    (axes as world indices, its path) and the orientation task (the target normalised)."""
+
     shared: SharedConfig
-    hand: HandTaskConfig
-    voltage_gain: tuple[float, ...]  # K_V diagonal, robot.joint_names order
-    gravity_compensation: bool  # add g(q) to l (not in the paper)
-    damping_lambda: float  # damped-inverse regularisation for a near-singular B
-    null_space: str  # paper: B^+ (the paper's eq. 38) | dynamically_consistent: B^# = Mc B^T (B Mc B^T)^-1
-    wait_for_recorder: bool  # answer the first state only once a recorder subscribes to both outputs
-    log_throttle_period: float  # [s] wall; at most one report per kind of bad input per period
-    thermal_compensation: bool = False  # voltage_law.thermal_compensation: v = K_V tau R(T) / R_20
-    back_emf_compensation: bool = False  # voltage_law.back_emf_compensation: v = R tau / K_m + K_m dq
-    posture_kp: tuple[float, ...] = ()  # null_space_posture.kp, robot.joint_names order (empty: zeros)
-    posture_kd: tuple[float, ...] = ()  # null_space_posture.kd
-    posture_rest: tuple[float, ...] = ()  # null_space_posture.rest; empty: the first measured position
-    command_output: str = "motor_command"  # | effort_forward (std_msgs/Float64MultiArray, ros2_control)
-    effort_command_topic: str = "effort_controller/commands"
-    effort_command_joints: tuple[str, ...] = ()  # the published order; empty: robot.joint_names
-    control_rate: float = 1000.0  # [Hz] effort_forward's timer
-    state_timeout: float = 0.0  # [s] node's clock; effort_forward: zeros, not a command, from an older state; 0 off
-    target_max_velocity: float = 0.05  # [m/s] targets.max_velocity
-    target_max_acceleration: float = 0.2  # [m/s^2] targets.max_acceleration
-    target_max_angular_velocity: float = 0.5  # [rad/s] targets.max_angular_velocity
-    target_max_angular_acceleration: float = 2.0  # [rad/s^2] targets.max_angular_acceleration
-    target_max_horizon: float = 3600.0  # [s] targets.max_horizon: a hand_path's last pose at most this after now
-    max_message_elements: int = 10000  # the most names, values or poses a subscribed message may carry
-    max_name_length: int = 256  # [characters] the longest name a subscribed message may carry
-    record_batch: int = 0  # answers per bracing_msgs/RecordBatch to the recorder; 0: off
-    gains: str = "stiffness"  # | acceleration: task gains times the task-space inertia (units 1/s^2, 1/s, 1/s^3)
-    orientation: OrientationConfig = OrientationConfig()  # hand.orientation.*
-    base_command: str = "task"  # | cmd_vel: the base follows cmd_vel (bracing_core.mobile_base)
-    cmd_vel_timeout: float = 0.5  # [s] node's clock; 0: off
-    base_velocity_kd: float = 100.0  # [N s/m or N m s/rad] the base actuators' velocity loop
-    base_velocity_ki: float = 0.0  # [N/m or N m/rad] its integral gain (0: none)
+    hand_task: HandTaskConfig
+    orientation: OrientationConfig  # hand.orientation.*
 
     @property
     def task_dimension(self) -> int:
         braces = sum(len(c.brace_axes) for c in self.shared.braced_contacts)
-        return len(self.hand.axes) + len(self.orientation.axes) + braces
+        return len(self.hand_task.axes) + len(self.orientation.axes) + braces
 
     @classmethod
     def from_params(cls, params: Params, search_dirs: Sequence[Path] = ()) -> ControllerConfig:
@@ -96,7 +77,7 @@ class ControllerConfig:
         return cls.from_values(schema.read("controller", params), search_dirs)
 
     @classmethod
-    def from_values(cls, values: schema.Values, search_dirs: Sequence[Path] = ()) -> ControllerConfig:
+    def from_values(cls, values: schema.Values[ControllerValues], search_dirs: Sequence[Path] = ()) -> ControllerConfig:
         shared = SharedConfig.from_values(values, search_dirs)
         n = len([name for name in shared.joint_names if name not in shared.locked_joints])  # the moving ones
         p = len(shared.braced_contacts)
@@ -107,22 +88,11 @@ class ControllerConfig:
         voltage_gain = given.voltage_gain
         if any(k <= 0.0 for k in voltage_gain):
             raise ConfigError(f"voltage_gain: K_V must be positive definite, got {list(voltage_gain)}")
-        own = schema.node_fields(values)  # every top-level parameter is the field of its name
         config = cls(
+            **schema.fields_of(given),
             shared=shared,
-            hand=hand,
-            thermal_compensation=given.voltage_law.thermal_compensation,
-            back_emf_compensation=given.voltage_law.back_emf_compensation,
-            posture_kp=given.null_space_posture.kp,
-            posture_kd=given.null_space_posture.kd,
-            posture_rest=given.null_space_posture.rest,
-            target_max_velocity=given.targets.max_velocity,
-            target_max_acceleration=given.targets.max_acceleration,
-            target_max_angular_velocity=given.targets.max_angular_velocity,
-            target_max_angular_acceleration=given.targets.max_angular_acceleration,
-            target_max_horizon=given.targets.max_horizon,
+            hand_task=hand,
             orientation=OrientationConfig.from_values(values),
-            **own | {"effort_command_joints": tuple(given.effort_command_joints)},
         )
         check_effort_forward(config)
         check_base_command(config)

@@ -126,7 +126,7 @@ def task_jacobian(plant: Plant, config: ControllerConfig, q: np.ndarray) -> np.n
         jacobian = pin.getFrameJacobian(model, data, plant.frame_id(frame, parameter), pin.LOCAL_WORLD_ALIGNED)
         return np.asarray(jacobian[:3])
 
-    stacked = [rows(config.hand.frame, "hand.frame")[list(config.hand.axes)]]
+    stacked = [rows(config.hand_task.frame, "hand.frame")[list(config.hand_task.axes)]]
     for c in config.shared.braced_contacts:
         translation = rows(c.frame, f"contacts.{c.name}.frame")
         stacked.append(translation[list(c.brace_axes)])
@@ -264,7 +264,7 @@ def _cause(
 
 def _damped(config: ControllerConfig, plant: Plant, joint: str) -> bool:
     """Whether ``joint`` has a null-space posture damping (null_space_posture.kd > 0)."""
-    if not config.posture_kd:
+    if not config.null_space_posture.kd:
         return False
-    kd = plant.to_model_order(config.posture_kd)
+    kd = plant.to_model_order(config.null_space_posture.kd)
     return bool(kd[list(plant.joint_names).index(joint)] > 0.0)

@@ -92,7 +92,7 @@ class DecoupledController:
         self.mode = config.shared.input_mode
         contacts = config.shared.braced_contacts
         self.desired_normal_force = np.array([c.desired_normal_force for c in contacts], dtype=float)
-        hand = config.hand
+        hand, posture = config.hand_task, config.null_space_posture
         self.plant.frame_id(hand.frame, "hand.frame")  # a ConfigError naming the parameter
         braces = [
             engine.BracedContact(
@@ -114,12 +114,12 @@ class DecoupledController:
             damping_lambda=config.damping_lambda,
             dynamically_consistent=config.null_space == "dynamically_consistent",
             slip_epsilon=float(self.contact_set.slip_epsilon),
-            thermal_compensation=config.thermal_compensation,
+            thermal_compensation=config.voltage_law.thermal_compensation,
             command_limit=self.plant.command_limit,
-            back_emf_compensation=config.back_emf_compensation,
-            posture_kp=self.plant.to_model_order(config.posture_kp),
-            posture_kd=self.plant.to_model_order(config.posture_kd),
-            posture_rest=self.plant.to_model_order(config.posture_rest) if config.posture_rest else np.zeros(0),
+            back_emf_compensation=config.voltage_law.back_emf_compensation,
+            posture_kp=self.plant.to_model_order(posture.kp),
+            posture_kd=self.plant.to_model_order(posture.kd),
+            posture_rest=self.plant.to_model_order(posture.rest) if posture.rest else np.zeros(0),
             acceleration_gains=config.gains == "acceleration",
             orientation=orientation_task(config.orientation),
         )
@@ -133,13 +133,13 @@ class DecoupledController:
         contacts = config.shared.braced_contacts
         self.desired_normal_force[:] = [c.desired_normal_force for c in contacts]
         self.engine.retune(
-            axis_gains(config.hand.axes, config.hand.kp),
-            axis_gains(config.hand.axes, config.hand.kd),
+            axis_gains(config.hand_task.axes, config.hand_task.kp),
+            axis_gains(config.hand_task.axes, config.hand_task.kd),
             [axis_gains(c.brace_axes, c.kp) for c in contacts],
             [axis_gains(c.brace_axes, c.kd) for c in contacts],
             self.desired_normal_force,
             self.plant.to_model_order(config.voltage_gain),
-            integral_gains(config.hand.axes, config.hand.ki),
+            integral_gains(config.hand_task.axes, config.hand_task.ki),
             [integral_gains(c.brace_axes, c.ki) for c in contacts],
         )
 
@@ -189,8 +189,8 @@ class DecoupledController:
     def _rank_tasks(self) -> list[_RankTask]:
         """The configured tasks in the engine's order (the hand, its orientation, each brace)."""
         config = self.config
-        tasks = [_RankTask("hand.axes", config.hand.frame, config.hand.axes, HAND_TASK, 0)]
-        tasks.append(_RankTask("hand.orientation.axes", config.hand.frame, config.orientation.axes, HAND_TASK, 3))
+        tasks = [_RankTask("hand.axes", config.hand_task.frame, config.hand_task.axes, HAND_TASK, 0)]
+        tasks.append(_RankTask("hand.orientation.axes", config.hand_task.frame, config.orientation.axes, HAND_TASK, 3))
         contacts = config.shared.braced_contacts
         tasks += [
             _RankTask(f"contacts.{c.name}.brace_axes", c.frame, c.brace_axes, brace_task(k), 0)

@@ -5,9 +5,7 @@ without loading pinocchio or the engine.
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from bracing_core import schema
@@ -15,25 +13,20 @@ from bracing_core.schema import Values
 
 if TYPE_CHECKING:
     import bracing_engine as engine
-    from bracing_core.schema.typed_values import SimulatorValues
+    from bracing_core.schema.typed_values import SimulatorValues, SimulatorValuesPlantError, SimulatorValuesSensors
+else:  # the classes the schema derives (tools/values_stubs.py declares them to mypy)
+    SimulatorValuesPlantError = schema.NODE_VALUES["simulator"].sections["plant_error"]
+    SimulatorValuesSensors = schema.NODE_VALUES["simulator"].sections["sensors"]
 
 
-@dataclass(frozen=True)
-class PlantError:
-    """plant_error.*: how the simulated plant differs from the scenario (the controller's model)."""
-
-    mass_scale: float = 1.0
-    friction_scale: float = 1.0
-    torque_constant_scale: float = 1.0
-    resistance_scale: float = 1.0
-    inductance_scale: float = 1.0
-    rotor_inertia_scale: float = 1.0
-    urdf: str = ""  # the plant's own URDF (resolved path); empty: robot.urdf
+class PlantError(SimulatorValuesPlantError):
+    """plant_error.*: how the simulated plant differs from the scenario (the controller's model); a field per
+    parameter of ``schema.PLANT_ERROR``, urdf the plant's own URDF resolved (empty: robot.urdf)."""
 
     @property
     def none(self) -> bool:
         """The plant is the scenario's: every number as it was."""
-        return self == PlantError()
+        return schema.at_defaults(self)
 
 
 GROUND_TRUTH = "ground_truth/"
@@ -42,19 +35,9 @@ GROUND_TRUTH = "ground_truth/"
 received and what was true."""
 
 
-@dataclass(frozen=True)
-class SensorConfig:
-    """sensors.*: what the simulator publishes as measured (units in the names; schema.SENSORS)."""
-
-    noise_seed: int = 0
-    encoder_counts_per_rev: int = 0
-    position_noise_rad: float = 0.0
-    velocity_filter_hz: float = 0.0
-    velocity_noise_rad_s: float = 0.0
-    force_noise_n: float = 0.0
-    force_bias_n: float = 0.0
-    current_noise_a: float = 0.0
-    command_latency_steps: int = 0
+class SensorConfig(SimulatorValuesSensors):
+    """sensors.*: what the simulator publishes as measured; a field per parameter of ``schema.SENSORS`` (units in
+    the names)."""
 
     @classmethod
     def from_values(cls, values: Values[SimulatorValues]) -> SensorConfig:
@@ -64,7 +47,7 @@ class SensorConfig:
     @property
     def exact(self) -> bool:
         """Exact and instant (the paper's sensing): the seed alone changes nothing."""
-        return dataclasses.replace(self, noise_seed=0) == SensorConfig()
+        return schema.at_defaults(self, but=("noise_seed",))
 
     def engine(self, step: float, prismatic: Sequence[bool]) -> engine.Sensors:
         """The engine's sensors for joints that are ``prismatic`` (not on the encoder's angular grid)."""

@@ -19,6 +19,8 @@ from bracing_core.schema.reading import (
     CONTACT_VALUES,
     NODE_PARAMETERS,
     NODE_VALUES,
+    SHARED_VALUES,
+    TRAJECTORY_VALUES,
     Values,
     all_names,
     check_known,
@@ -33,14 +35,24 @@ from bracing_core.schema.reading import (
     get_int,
     get_str,
     get_strs,
-    node_fields,
     node_schema,
     read,
     read_value,
 )
 from bracing_core.schema.shared import LOG_THROTTLE_PERIOD, MAX_MESSAGE_ELEMENTS, MAX_NAME_LENGTH, SHARED
 from bracing_core.schema.simulator import PLANT_ERROR, SENSORS, SIMULATOR
-from bracing_core.schema.typed import Section, build, fields_of, flat_names, lookup, section_class, value_type
+from bracing_core.schema.typed import (
+    Section,
+    at_defaults,
+    build,
+    fields_of,
+    flat_names,
+    lookup,
+    own_fields,
+    section_class,
+    typed_default,
+    value_type,
+)
 
 __all__ = [
     "ABSENT",
@@ -56,13 +68,16 @@ __all__ = [
     "REQUIRED",
     "SENSORS",
     "SHARED",
+    "SHARED_VALUES",
     "SIMULATOR",
+    "TRAJECTORY_VALUES",
     "Kind",
     "Param",
     "PerJoint",
     "Section",
     "Values",
     "all_names",
+    "at_defaults",
     "build",
     "check_known",
     "contact_fields",
@@ -79,13 +94,14 @@ __all__ = [
     "get_str",
     "get_strs",
     "lookup",
-    "node_fields",
     "node_schema",
+    "own_fields",
     "read",
     "read_value",
     "reference_markdown",
     "section_class",
     "trajectory_params",
+    "typed_default",
     "value_type",
 ]
 

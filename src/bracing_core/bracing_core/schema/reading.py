@@ -11,10 +11,10 @@ from bracing_core.numbers import number
 from bracing_core.params import ConfigError, Params
 from bracing_core.schema.contact import CONTACT
 from bracing_core.schema.controller import CONTROLLER
-from bracing_core.schema.param import ABSENT, REQUIRED, Kind, Param, PerJoint
+from bracing_core.schema.param import ABSENT, REQUIRED, Kind, Param, PerJoint, trajectory_params
 from bracing_core.schema.shared import SHARED
 from bracing_core.schema.simulator import SIMULATOR
-from bracing_core.schema.typed import Section, build, fields_of, lookup, section_class
+from bracing_core.schema.typed import Section, build, lookup, section_class
 
 if TYPE_CHECKING:  # the classes as mypy sees them (tools/values_stubs.py writes them from the schema)
     from bracing_core.schema.typed_values import ContactValues, ControllerValues, SimulatorValues
@@ -218,11 +218,19 @@ def _read_floats(param: Param, name: str, params: Params, read: Mapping[str, Any
     return value
 
 
+SHARED_VALUES = section_class("SharedValues", SHARED)
+"""The typed values both nodes read from the ``/**`` section: a field per :data:`SHARED` entry, the base of each
+node's class."""
+TRAJECTORY_VALUES = section_class("TrajectoryValues", trajectory_params("", "hold", "a task's desired path"))
+"""A task's path (``trajectory_params``): the base of the hand's (``hand.trajectory``) and each brace's."""
 NODE_VALUES: dict[str, type[Section]] = {
-    node: section_class(f"{node.title()}Values", node_schema(node)) for node in NODE_PARAMETERS
+    node: section_class(
+        f"{node.title()}Values", NODE_PARAMETERS[node], SHARED_VALUES, {"hand.trajectory": TRAJECTORY_VALUES}
+    )
+    for node in NODE_PARAMETERS
 }
-"""Each node's typed values: a field per global parameter (dotted groups nested), derived from its schema."""
-CONTACT_VALUES = section_class("ContactValues", CONTACT)
+"""Each node's typed values: the shared ones, then a field per parameter of its own (dotted groups nested)."""
+CONTACT_VALUES = section_class("ContactValues", CONTACT, bases={"trajectory": TRAJECTORY_VALUES})
 """A contact's typed values: a field per :data:`CONTACT` entry (a node's unread ones hold their default)."""
 
 
@@ -241,12 +249,6 @@ class Values(Generic[P]):
         for contact, own in self.contacts.items():
             out += [(contact_name(contact, p.name), p, lookup(own, p.name)) for p in contact_fields(self.node)]
         return out
-
-
-def node_fields(values: Values) -> dict[str, Any]:
-    """The node's own top-level parameters (not the shared ones, no dotted group) by name: the fields of its
-    configuration class that are named as the parameters are (``SimulatorConfig``, ``ControllerConfig``)."""
-    return fields_of(values.params, [p.name for p in NODE_PARAMETERS[values.node] if "." not in p.name])
 
 
 def contact_values(own: Mapping[str, Any]) -> Section:

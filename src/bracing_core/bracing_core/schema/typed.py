@@ -3,7 +3,9 @@
 Each section of flat names becomes a frozen dataclass: one field per parameter, typed from its kind, and one
 field per dotted group, itself such a class (``robot.urdf`` is ``values.robot.urdf``, a contact's
 ``force_feedback.kp`` is ``contact.force_feedback.kp``). The classes are made from the tables, so adding a
-parameter to the schema adds its field: there is no second list of names to keep in step.
+parameter to the schema adds its field: there is no second list of names to keep in step. Parameters that
+several sections have are one class, their base: both nodes' shared ones (``SharedValues``), a task's path
+(``TrajectoryValues``: the hand's and each brace's).
 """
 
 from __future__ import annotations
@@ -28,10 +30,11 @@ _TYPES: dict[Kind, Any] = {
 class Section:
     """A section of parameters, typed: a frozen dataclass made by :func:`section_class`."""
 
-    params: ClassVar[dict[str, Param]]  # field -> its Param (the leaves of this section)
-    sections: ClassVar[dict[str, type[Section]]]  # field -> the class of its dotted group
+    params: ClassVar[dict[str, Param]] = {}  # field -> its Param (the leaves of this section)
+    sections: ClassVar[dict[str, type[Section]]] = {}  # field -> the class of its dotted group
 
     if TYPE_CHECKING:  # the fields are made from the tables at import
+        __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[Any]]]
 
         def __getattr__(self, name: str) -> Any: ...
 
@@ -51,8 +54,8 @@ def _class_name(path: str) -> str:
     return "".join(part.title().replace("_", "") for part in path.replace(".", "_").split("_")) or "Values"
 
 
-def section_class(name: str, params: Sequence[Param]) -> type[Section]:
-    """A frozen dataclass named ``name`` with a field per parameter of ``params`` and per dotted group."""
+def _split(params: Sequence[Param]) -> tuple[dict[str, Param], dict[str, list[Param]]]:
+    """``params`` as this section's own parameters (by field) and its dotted groups' (by group, names shortened)."""
     leaves: dict[str, Param] = {}
     groups: dict[str, list[Param]] = {}
     for param in params:
@@ -61,11 +64,53 @@ def section_class(name: str, params: Sequence[Param]) -> type[Section]:
             groups.setdefault(head, []).append(dataclasses.replace(param, name=rest))
         else:
             leaves[head] = param
-    sections = {group: section_class(name + _class_name(group), members) for group, members in groups.items()}
-    fields = [(field, value_type(param)) for field, param in leaves.items()]
+    return leaves, groups
+
+
+def _check_base(name: str, base: type[Section], leaves: Mapping[str, Param], groups: Mapping[str, Any]) -> None:
+    """A section may give its base's parameters their own defaults, of the same type; any other field is new."""
+    inherited = base.params
+    retyped = [f for f, p in leaves.items() if f in inherited and value_type(p) != value_type(inherited[f])]
+    clash = sorted(set(groups) & (inherited.keys() | base.sections.keys()))
+    clash += sorted(set(leaves) & base.sections.keys())
+    if retyped or clash:
+        raise ValueError(f"{name}: {', '.join(retyped + clash)} already a field of {base.__name__}")
+
+
+def section_class(
+    name: str, params: Sequence[Param], base: type[Section] = Section, bases: Mapping[str, type[Section]] = {}
+) -> type[Section]:
+    """A frozen dataclass named ``name`` with a field per parameter of ``params`` and per dotted group, after the
+    fields of ``base``: a class made once for parameters several sections have (both nodes' shared ones, a task's
+    path), whose parameters ``params`` may list again with their own defaults. ``bases``: the base of a dotted
+    group by its path."""
+    leaves, groups = _split(params)
+    _check_base(name, base, leaves, groups)
+    inherited = base.params
+    sections = {
+        group: section_class(name + _class_name(group), members, bases.get(group, Section), _under(bases, group))
+        for group, members in groups.items()
+    }
+    fields = [(field, value_type(param)) for field, param in leaves.items() if field not in inherited]
     fields += [(group, kind) for group, kind in sections.items()]
-    namespace = {"params": leaves, "sections": sections, "__doc__": f"{name}: {', '.join(f for f, _ in fields)}"}
-    return dataclasses.make_dataclass(name, fields, bases=(Section,), frozen=True, namespace=namespace)
+    namespace = {
+        "params": inherited | leaves,
+        "sections": base.sections | sections,
+        "__doc__": f"{name}: {', '.join([*inherited, *base.sections, *(f for f, _ in fields)])}",
+    }
+    return dataclasses.make_dataclass(name, fields, bases=(base,), frozen=True, namespace=namespace)
+
+
+def _under(bases: Mapping[str, type[Section]], group: str) -> dict[str, type[Section]]:
+    """The entries of ``bases`` inside ``group``, by their path there."""
+    return {path[len(group) + 1 :]: kind for path, kind in bases.items() if path.startswith(group + ".")}
+
+
+def own_fields(kind: type[Section]) -> tuple[list[str], list[str]]:
+    """The parameter fields and the group fields ``kind`` declares itself (not its base's)."""
+    base: type[Section] = kind.__mro__[1]  # section_class's one base
+    leaves = [field for field in kind.params if field not in base.params]
+    return leaves, [group for group in kind.sections if group not in base.sections]
 
 
 def build(kind: type[Section], flat: Mapping[str, Any], prefix: str = "") -> Section:
@@ -88,7 +133,17 @@ def flat_names(kind: type[Section], prefix: str = "") -> list[str]:
     return names
 
 
-def fields_of(section: Section, names: Sequence[str] | None = None) -> dict[str, Any]:
-    """``section``'s parameter fields (``names``, or every leaf) by name: the keyword arguments of a config
-    class whose fields are the section's (``PlantError``, ``SensorConfig``)."""
-    return {name: getattr(section, name) for name in (section.params if names is None else names)}
+def fields_of(section: Section) -> dict[str, Any]:
+    """Every field of ``section`` (parameters and groups) by name: the keyword arguments of a class derived from
+    its class (``SimulatorConfig``, ``PlantError``) that takes them as they were read."""
+    return {field.name: getattr(section, field.name) for field in dataclasses.fields(section)}
+
+
+def at_defaults(section: Section, but: Sequence[str] = ()) -> bool:
+    """Whether every parameter field of ``section`` (``but`` those) holds its schema default."""
+    return all(getattr(section, f) == typed_default(p) for f, p in section.params.items() if f not in but)
+
+
+def typed_default(param: Param) -> Any:
+    """``param``'s default (a value, not REQUIRED or PerJoint) as :func:`read` gives it: a list as a tuple."""
+    return tuple(param.default) if isinstance(param.default, list) else param.default
