@@ -150,7 +150,8 @@ RECORDED_ARRAYS = (
 class RunResult(engine.Recording):
     """A closed-loop run (``run_recorded``): the engine's Recording, filled by its rollout (everything the
     nodes would publish in lockstep per state k = 0..N, N steps and the final state as in a bag: read-only
-    views of the engine's memory, no copy), and what the run says beyond its numbers.
+    views of the engine's memory, no copy), and what the run says beyond its numbers. A subclass, not a
+    holder: ``run.position`` reads as the engine's, typed by its stubs.
 
     The arrays are the engine's: ``position`` (N+1, n) in model joint order (``joint_names``),
     ``brace_desired`` (N+1, b, 3) of the braced contacts (``braced_names``), ``contact_position`` (N+1, p, 3)
