@@ -23,12 +23,12 @@ from bracing_analysis.report import write_report
 from bracing_analysis.series import BagSeries
 from bracing_analysis.summary import compute_summary
 from bracing_core.failures import FAILED, OK, History, diagnose, stiff_circuit
-from bracing_core.rollout import Recording, run_recorded
+from bracing_core.rollout import RunResult, run_recorded
 
 FAR = {"hand.trajectory.type": "hold", "hand.trajectory.point": [0.0, 2.6, 0.6]}  # the arm reaches 2.0 m
 
 
-def wrist_run(tmp_path: Path, ctl: dict[str, object], duration: float = 1.0) -> Recording:
+def wrist_run(tmp_path: Path, ctl: dict[str, object], duration: float = 1.0) -> RunResult:
     shared, sim, own = wrist_params(tmp_path, ctl)
     return run_recorded(build_scenario(shared, sim=sim, ctl=own), duration, keep_failure=True)
 

@@ -18,7 +18,7 @@ from ros_helpers import PAPER_YAML, pair_argv, run
 
 from bracing_core import rollout
 from bracing_core.params import ConfigError
-from bracing_core.rollout import Recording, run_recorded
+from bracing_core.rollout import RunResult, run_recorded
 from bracing_experiments.experiment import execute_run, summarize
 from bracing_experiments.sweep import build_specs
 
@@ -39,7 +39,7 @@ def hand_start(config: str = "paper_4link.yaml", sim: dict[str, Any] | None = No
     return np.asarray(scenario.controller.engine.task_positions(scenario.sim.position)[0])
 
 
-def moved_hand(target: np.ndarray, gains: dict[str, Any], duration: float = 8.0) -> Recording:
+def moved_hand(target: np.ndarray, gains: dict[str, Any], duration: float = 8.0) -> RunResult:
     """The paper arm, torque input with gravity compensation, its hand moved to ``target`` by a waypoint."""
     ctl = {
         **HELD,

@@ -30,7 +30,7 @@ from bracing_analysis.bag import read_series
 from bracing_analysis.series import BagSeries
 from bracing_analysis.summary import flat_summary
 from bracing_core.overrides import route
-from bracing_core.rollout import Recording, Scenario, build_scenario, run_recorded
+from bracing_core.rollout import RunResult, Scenario, build_scenario, run_recorded
 from bracing_experiments.executors import LocalExecutor
 from bracing_experiments.experiment import execute_run, series_from_recording
 from bracing_experiments.optimize_report import BEST_YAML
@@ -81,7 +81,7 @@ def differing(pair: np.ndarray, in_process: np.ndarray) -> str | None:
     return f"first at row {int(rows[0])} of {len(a)}, at most {float(np.nanmax(np.abs(a - b))):.3e}"
 
 
-def series_differences(bag: BagSeries, recording: Recording) -> dict[str, str]:
+def series_differences(bag: BagSeries, recording: RunResult) -> dict[str, str]:
     """Each series of the pair's bag that is not the same bits as the in-process recording's."""
     rec = series_from_recording(recording)
     found = {name: differing(getattr(bag, name), getattr(rec, name)) for name in SERIES}

@@ -30,7 +30,7 @@ from bracing_core.measurements import Measurements
 from bracing_core.model import RobotModel
 from bracing_core.motors import MotorParams
 from bracing_core.params import ConfigError
-from bracing_core.rollout import Recording, run_recorded
+from bracing_core.rollout import RunResult, run_recorded
 from bracing_core.simulator import Simulator
 
 sys.path.insert(0, str(REPO_ROOT / "tools"))
@@ -42,7 +42,7 @@ FEEDBACK = {"contacts.elbow.force_feedback.kp": 0.3, "contacts.elbow.force_feedb
 kp < 1 keeps the one-step-delayed proportional loop stable (torque input: f_n answers f_cmd at once)."""
 
 
-def late_force_rms(recording: Recording, since: float) -> float:
+def late_force_rms(recording: RunResult, since: float) -> float:
     window = recording.time >= since - 1e-12
     error = recording.normal_force[window, 0] - recording.desired_normal_force[0]
     return float(np.sqrt(np.mean(error**2)))
@@ -142,7 +142,7 @@ NOISY = {
 }
 
 
-def noisy_run(seed: int, duration: float = 0.3) -> Recording:
+def noisy_run(seed: int, duration: float = 0.3) -> RunResult:
     sim = {**NOISY, "sensors.noise_seed": seed}
     return run_recorded(build_scenario({"input_mode": "torque"}, sim=sim, ctl=FEEDBACK), duration)
 

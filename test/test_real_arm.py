@@ -20,7 +20,7 @@ from ros_helpers import pair_argv, run
 
 from bracing_core.checks import NULL_SPACE_SPEED, null_space_warning
 from bracing_core.config import circuit_substeps
-from bracing_core.rollout import Recording, run_recorded
+from bracing_core.rollout import RunResult, run_recorded
 from bracing_core.simulator import JointLimitError
 
 
@@ -38,13 +38,13 @@ def geared(inductance: float = 1e-4) -> dict[str, Any]:
 BEMF = {"voltage_law.back_emf_compensation": True}
 
 
-def hand_rms(recording: Recording, since: float = 2.0) -> float:
+def hand_rms(recording: RunResult, since: float = 2.0) -> float:
     window = recording.time >= since - 1e-12
     error = np.linalg.norm(recording.hand_desired[window] - recording.hand_actual[window], axis=1)
     return float(np.sqrt(np.mean(error**2)))
 
 
-def force_rms(recording: Recording, since: float = 2.0) -> float:
+def force_rms(recording: RunResult, since: float = 2.0) -> float:
     window = recording.time >= since - 1e-12
     return float(np.sqrt(np.mean((recording.normal_force[window, 0] - recording.desired_normal_force[0]) ** 2)))
 
@@ -161,7 +161,7 @@ def wrist_params(tmp_path: Path, ctl: dict[str, Any]) -> tuple[dict[str, Any], d
     return {**shared, **motors, "input_mode": "torque"}, sim, own
 
 
-def wrist_arm(tmp_path: Path, ctl: dict[str, Any]) -> Recording:
+def wrist_arm(tmp_path: Path, ctl: dict[str, Any]) -> RunResult:
     shared, sim, own = wrist_params(tmp_path, ctl)
     return run_recorded(build_scenario(shared, sim=sim, ctl=own), 3.0)
 

@@ -16,7 +16,7 @@ from rosbags.highlevel import AnyReader
 
 from bracing_analysis.bag import read_series
 from bracing_analysis.figures import plot_figure
-from bracing_core.rollout import Recording, run_recorded
+from bracing_core.rollout import RunResult, run_recorded
 
 DURATION_S = 2.2  # hand errors count from t = 2 s
 COUNTS = 4096
@@ -37,7 +37,7 @@ def by_stamp(messages: list[object]) -> list[object]:
 
 
 @pytest.fixture(scope="module")
-def sensed_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, list[object]], Recording]:
+def sensed_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, list[object]], RunResult]:
     output = tmp_path_factory.mktemp("sensed") / "run"
     sets = [f"--set={key}={value}" for key, value in {**SIM, **CTL}.items()]
     done = run(
@@ -52,7 +52,7 @@ def sensed_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str
     return output, messages, reference
 
 
-def test_the_pair_runs_the_rollouts_loop(sensed_run: tuple[Path, dict[str, list[object]], Recording]) -> None:
+def test_the_pair_runs_the_rollouts_loop(sensed_run: tuple[Path, dict[str, list[object]], RunResult]) -> None:
     """What the controller received (joint_states) and what was true (ground_truth/joint_states) are the
     rollout's measured and true positions: the same noise, the same delay line, the same force fed back
     (the controller answers state k + 1 with the force report of step k, as the rollout does). Not bit
@@ -72,7 +72,7 @@ def test_the_pair_runs_the_rollouts_loop(sensed_run: tuple[Path, dict[str, list[
 
 
 def test_the_wrench_topic_carries_the_sensor_and_contacts_the_truth(
-    sensed_run: tuple[Path, dict[str, list[object]], Recording],
+    sensed_run: tuple[Path, dict[str, list[object]], RunResult],
 ) -> None:
     _, messages, reference = sensed_run
     wrench = np.array([[m.wrench.force.z] for m in by_stamp(messages["/contact_wrench/elbow"])])[:, 0]  # type: ignore[attr-defined]
@@ -83,7 +83,7 @@ def test_the_wrench_topic_carries_the_sensor_and_contacts_the_truth(
     assert float(offset.std()) == pytest.approx(0.5, rel=0.1)
 
 
-def test_the_summary_judges_the_truth(sensed_run: tuple[Path, dict[str, list[object]], Recording]) -> None:
+def test_the_summary_judges_the_truth(sensed_run: tuple[Path, dict[str, list[object]], RunResult]) -> None:
     """The controller believes the hand where the measured q put it; the summary's hand error is the true one
     (the rollout's), and the force error the true force's."""
     output, messages, reference = sensed_run
@@ -98,7 +98,7 @@ def test_the_summary_judges_the_truth(sensed_run: tuple[Path, dict[str, list[obj
     assert 0.0 < np.max(np.abs(believed - reference.hand_actual)) < 0.01  # a count's worth at the hand, not the truth
 
 
-def test_the_report_draws_measured_beside_true(sensed_run: tuple[Path, dict[str, list[object]], Recording]) -> None:
+def test_the_report_draws_measured_beside_true(sensed_run: tuple[Path, dict[str, list[object]], RunResult]) -> None:
     """The hand and brace figures draw what the controller believed (dotted) beside the truth."""
     output, _, reference = sensed_run
     series = read_series(output / "bag")

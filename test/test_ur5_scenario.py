@@ -23,7 +23,7 @@ from ros_helpers import bag_joint_positions, pair_argv, run
 from bracing_core.meshes import find_package, mesh_uris, resolved_description
 from bracing_core.params import ConfigError, resolve_file
 from bracing_core.rcl_yaml import load_params_file
-from bracing_core.rollout import Recording, build_scenario, run_recorded
+from bracing_core.rollout import RunResult, build_scenario, run_recorded
 
 UR5 = CONFIG_DIR / "ur5_table.yaml"
 TURN_S = 5.0  # one turn of the circle (hand.trajectory.period)
@@ -31,29 +31,29 @@ F_ND = 10.0  # [N], contacts.wrist.desired_normal_force
 SETTLED_S = 2.0  # summary.json's window for the hand's errors (bracing_analysis.summary.HAND_ERROR_T_MIN_S)
 
 
-def ur5(mode: str, sim: dict[str, object] | None = None, ctl: dict[str, object] | None = None) -> Recording:
+def ur5(mode: str, sim: dict[str, object] | None = None, ctl: dict[str, object] | None = None) -> RunResult:
     scenario = build_scenario(UR5, shared={"input_mode": mode}, sim=sim, ctl=ctl)
     return run_recorded(scenario, TURN_S)
 
 
-def hand_rms_m(rec: Recording, since: float = 0.0) -> float:
+def hand_rms_m(rec: RunResult, since: float = 0.0) -> float:
     window = rec.time >= since - 1e-9
     return float(np.sqrt(np.mean(np.sum((rec.hand_desired[window] - rec.hand_actual[window]) ** 2, axis=1))))
 
 
-def orientation_rms_rad(rec: Recording, since: float = 0.0) -> float:
+def orientation_rms_rad(rec: RunResult, since: float = 0.0) -> float:
     """|log(R_d R^T)| over every axis, the free pitch included (as summary.json's)."""
     window = rec.time >= since - 1e-9
     return float(np.sqrt(np.mean(np.sum(rec.hand_orientation_error[window] ** 2, axis=1))))
 
 
 @pytest.fixture(scope="module")
-def torque() -> Recording:
+def torque() -> RunResult:
     return ur5("torque")
 
 
 @pytest.fixture(scope="module")
-def voltage() -> Recording:
+def voltage() -> RunResult:
     return ur5("voltage")
 
 
@@ -83,7 +83,7 @@ def test_a_package_urdf_that_is_not_installed_is_refused_saying_where_it_was_loo
         resolve_file("package://example-robot-data/robots/none.urdf", "robot.urdf")
 
 
-def test_torque_input_tracks_the_circle_and_holds_the_tool(torque: Recording) -> None:
+def test_torque_input_tracks_the_circle_and_holds_the_tool(torque: RunResult) -> None:
     """Issue target: hand RMS <= 3 mm, orientation RMS <= 5 mrad, here over the whole turn (the start
     included). Measured: 2.47 mm and 2.16 mrad over the turn, 0.03 mm and 0.54 mrad from 2 s. The start
     is the largest part: the wrist sticks on the table (Coulomb, mu 0.3) for ~0.6 s, the law models no
@@ -105,17 +105,17 @@ def test_torque_input_tracks_the_circle_and_holds_the_tool(torque: Recording) ->
     assert np.all(np.abs(torque.command) <= limits + 1e-9)
 
 
-def rec_is_full(rec: Recording) -> bool:
+def rec_is_full(rec: RunResult) -> bool:
     return bool(rec.time[-1] == pytest.approx(TURN_S))
 
 
-def force_figures(rec: Recording) -> tuple[float, float, float]:
+def force_figures(rec: RunResult) -> tuple[float, float, float]:
     """(max f_n [N], fraction of steps in contact, f_n's RMS error [N]) of the wrist over the run."""
     f_n = rec.normal_force[:, 0]
     return float(np.max(f_n)), float(np.mean(rec.active[:, 0])), float(np.sqrt(np.mean((f_n - F_ND) ** 2)))
 
 
-def test_voltage_input_with_the_recommended_settings_keeps_its_brace(voltage: Recording) -> None:
+def test_voltage_input_with_the_recommended_settings_keeps_its_brace(voltage: RunResult) -> None:
     """Issue target, voltage input with the file's settings (initial_current steady, start_ramp 0.5 s,
     back-EMF compensation, force feedback kp 0.3, ki 100 /s from checks.force_feedback_gains(0.2 ms, 1 ms)):
     f_n never above 1.5 f_nd, the contact active >= 99 % of the run, force RMS <= 1 N. Measured: 10.1 N

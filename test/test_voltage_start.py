@@ -29,7 +29,7 @@ from test_real_arm import geared
 
 from bracing_analysis.bag import read_series
 from bracing_core.checks import force_feedback_gains
-from bracing_core.rollout import Recording, run_recorded
+from bracing_core.rollout import RunResult, run_recorded
 
 F_ND = 10.0  # [N] the paper's brace
 INVERTED = {"voltage_law.back_emf_compensation": True, "gravity_compensation": True}
@@ -39,16 +39,16 @@ RAMP = {"hand.trajectory.start_ramp": 0.5}
 
 def servo_run(
     sim: dict[str, Any], ctl: dict[str, Any], shared: dict[str, Any] | None = None, t: float = 1.0
-) -> Recording:
+) -> RunResult:
     return run_recorded(build_scenario({**geared(), **(shared or {})}, sim=sim, ctl={**INVERTED, **ctl}), t)
 
 
-def first_steps_force(recording: Recording, t: float = 0.1) -> float:
+def first_steps_force(recording: RunResult, t: float = 0.1) -> float:
     """[N] the largest normal force over the first ``t`` seconds."""
     return float(np.max(recording.normal_force[recording.time < t, 0]))
 
 
-def shoulder_torque(recording: Recording, t: float = 0.1) -> float:
+def shoulder_torque(recording: RunResult, t: float = 0.1) -> float:
     """[N m] the largest link-side motor torque K_m i on the shoulder over the first ``t`` seconds (K_m = 10)."""
     return float(np.max(np.abs(recording.current[recording.time < t, 0]))) * 10.0
 
@@ -109,7 +109,7 @@ def test_the_derived_gains_hold_a_geared_arm_on_its_table_where_kp_1_sits_on_its
     kp, ki = force_feedback_gains(1e-4 / 0.5, 1e-3)
     heavy = {**STEADY, "plant_error.mass_scale": 1.2}
 
-    def braced(kp: float, ki: float) -> Recording:
+    def braced(kp: float, ki: float) -> RunResult:
         gains = {"contacts.elbow.force_feedback.kp": kp, "contacts.elbow.force_feedback.ki": ki}
         return servo_run(heavy, RAMP, shared={"contacts.elbow.unilateral": True, **gains}, t=3.0)
 

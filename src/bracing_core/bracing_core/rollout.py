@@ -4,7 +4,7 @@ in C++, no return to Python between steps), for tests, benchmarks, sweeps and st
 
     scenario = build_scenario("config/paper_4link.yaml", shared={"input_mode": "torque"})
     run = run_closed_loop(scenario, duration=10.0)
-    recording = run_recorded(build_scenario(...), duration=10.0)  # + everything a bag would hold
+    run = run_recorded(build_scenario(...), duration=10.0)  # + everything a bag would hold (RunResult)
 
 ``shared`` overrides go to both nodes' parameters (the /** section of the file), ``sim``
 and ``ctl`` to one of them; the step loop is the lockstep protocol of the nodes: the
@@ -14,7 +14,7 @@ controller answers state k, the simulator steps with that command held.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -121,70 +121,64 @@ class ClosedLoop:
 
 def run_closed_loop(scenario: Scenario, duration: float) -> ClosedLoop:
     """The closed loop for ``duration`` seconds (rows: the N states stepped from)."""
-    recording = run_recorded(scenario, duration, divergence_checks=False)
-    steps = recording.time.size - 1
+    run = run_recorded(scenario, duration, divergence_checks=False)
+    steps = run.time.size - 1
     return ClosedLoop(
-        recording.time[:steps],
-        recording.position[:steps],
-        recording.velocity[:steps],
-        recording.current[:steps],
-        recording.command[:steps],
-        recording.normal_force[:steps],
-        recording.desired_normal_force,
-        recording.residual[:steps],
-        np.linalg.norm(recording.hand_desired[:steps] - recording.hand_actual[:steps], axis=1),
+        run.time[:steps],
+        run.position[:steps],
+        run.velocity[:steps],
+        run.current[:steps],
+        run.command[:steps],
+        run.normal_force[:steps],
+        run.desired_normal_force,
+        run.residual[:steps],
+        np.linalg.norm(run.hand_desired[:steps] - run.hand_actual[:steps], axis=1),
         scenario.sim.position,
         scenario.sim.energy,
     )
 
 
-@dataclass
-class Recording:
-    """Everything the nodes would publish in lockstep, per state k = 0..N (N steps and the final
-    state, as in a bag): the controller's answer to state k and the simulator's reports of step k
-    (forces at its start under that answer, energies up to its start)."""
+# The recorded arrays in the order an .npz holds them (RunResult.arrays).
+RECORDED_ARRAYS = (
+    "time", "position", "velocity", "current", "temperature", "command", "hand_desired", "hand_actual",
+    "brace_desired", "brace_actual", "contact_position", "slip_velocity", "normal_force", "friction_force",
+    "residual", "active", "desired_normal_force", "force_command", "measured_position", "measured_velocity",
+    "energy_consumed", "energy_net", "copper_loss", "hand_orientation_error", "command_limit", "rolling_residual",
+)
 
-    time: np.ndarray  # (N+1,) [s]
-    position: np.ndarray  # (N+1, n) [rad], model joint order
-    velocity: np.ndarray  # (N+1, n) [rad/s]
-    current: np.ndarray  # (N+1, n) [A]
-    temperature: np.ndarray  # (N+1, n) [degC], the motor windings; (N+1, 0) where the thermal model does not apply
-    command: np.ndarray  # (N+1, n) [V] or [N m]
-    hand_desired: np.ndarray  # (N+1, 3) [m]
-    hand_actual: np.ndarray  # (N+1, 3) [m]
-    brace_desired: np.ndarray  # (N+1, b, 3) [m], the b braced contacts (braced_names)
-    brace_actual: np.ndarray  # (N+1, b, 3) [m]
-    contact_position: np.ndarray  # (N+1, p, 3) [m], the simulator's p contact points (contact_names)
-    slip_velocity: np.ndarray  # (N+1, p, 3) [m/s]
-    normal_force: np.ndarray  # (N+1, p) [N]
-    friction_force: np.ndarray  # (N+1, p) [N]
-    residual: np.ndarray  # (N+1, p) [m]
-    active: np.ndarray  # (N+1, p) bool
-    desired_normal_force: np.ndarray  # (b,) [N]
-    force_command: np.ndarray  # (N+1, b) [N]: f_cmd, the force the law asked for (f_nd without force feedback)
-    measured_position: np.ndarray  # (N+1, n) what the controller read ((N+1, 0) with exact sensors)
-    measured_velocity: np.ndarray  # (N+1, n)
-    energy_consumed: np.ndarray  # (N+1,) [J]
-    energy_net: np.ndarray  # (N+1,) [J]
-    copper_loss: np.ndarray  # (N+1,) [J]
-    contact_names: tuple[str, ...]  # the simulator's contacts (obstacles and collision frames too)
-    braced_names: tuple[str, ...]  # the controller's: the contacts it keeps a force on
-    joint_names: tuple[str, ...]  # model order (the columns of position, ...)
-    input_mode: str
-    warnings: tuple[str, ...] = ()  # the simulator's warnings about the run (watch.RunWatch), as its node says them
-    # the hand frame's orientation error log(R_d R^T) [rad], world axes; (N+1, 0) without an orientation task
-    hand_orientation_error: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
-    # each joint's |command| saturation (model order, 0: none) the simulator applied to ``command``
-    command_limit: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    status: str = "ok"  # summary.json's: ok | failed (run_recorded's keep_failure)
-    error: str | None = None  # what stopped the run, what ran away (failures.diagnose)
-    hint: str | None = None  # what to change, for a known cause (failures)
-    # a differential drive's rolling residual max |A v| per state [m/s] (the engine's rolling rows); empty: none
-    rolling_residual: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+class RunResult(engine.Recording):
+    """A closed-loop run (``run_recorded``): the engine's Recording, filled by its rollout (everything the
+    nodes would publish in lockstep per state k = 0..N, N steps and the final state as in a bag: read-only
+    views of the engine's memory, no copy), and what the run says beyond its numbers. A subclass, not a
+    holder: ``run.position`` reads as the engine's, typed by its stubs.
+
+    The arrays are the engine's: ``position`` (N+1, n) in model joint order (``joint_names``),
+    ``brace_desired`` (N+1, b, 3) of the braced contacts (``braced_names``), ``contact_position`` (N+1, p, 3)
+    of the simulator's contacts (``contact_names``), ``temperature`` with no columns where the thermal model
+    does not apply, ``measured_position`` with no rows under exact sensors (``bracing_engine.Recording``).
+    """
+
+    def __init__(
+        self,
+        contact_names: tuple[str, ...],
+        braced_names: tuple[str, ...],
+        joint_names: tuple[str, ...],
+        input_mode: str,
+    ) -> None:
+        super().__init__()
+        self.contact_names = contact_names  # the simulator's contacts (obstacles and collision frames too)
+        self.braced_names = braced_names  # the controller's: the contacts it keeps a force on
+        self.joint_names = joint_names  # model order (the columns of position, ...)
+        self.input_mode = input_mode
+        self.warnings: tuple[str, ...] = ()  # the simulator's about the run (watch.RunWatch), as its node says them
+        self.status = "ok"  # summary.json's: ok | failed (run_recorded's keep_failure)
+        self.error: str | None = None  # what stopped the run, what ran away (failures.diagnose)
+        self.hint: str | None = None  # what to change, for a known cause (failures)
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Every field as an array (for an .npz; the names as string arrays, no pickles)."""
-        out = {name: value for name, value in vars(self).items() if isinstance(value, np.ndarray)}
+        out = {name: getattr(self, name) for name in RECORDED_ARRAYS}
         out["contact_names"] = np.array(self.contact_names, dtype=str)
         out["braced_names"] = np.array(self.braced_names, dtype=str)
         out["joint_names"] = np.array(self.joint_names, dtype=str)
@@ -194,16 +188,16 @@ class Recording:
 
 def run_recorded(
     scenario: Scenario, duration: float, divergence_checks: bool = True, keep_failure: bool = False
-) -> Recording:
+) -> RunResult:
     """The lockstep loop of the nodes, recording what they publish (the engine's rollout).
 
     Stops where the simulator node refuses to go on (``divergence_checks``, with the scenario's
     simulator configuration): DivergenceError for a non-finite state or force, a joint faster
     than ``divergence_speed`` or a held contact further than ``divergence_residual`` off its surface;
-    with ``keep_failure`` the recording up to there instead, and the recording's ``status``, ``error``
+    with ``keep_failure`` the recording up to there instead, and the result's ``status``, ``error``
     and ``hint`` as bracing-pair's summary.json has them (``failures``), for a run that ends well too.
     The simulator's warnings about the run (``watch.RunWatch`` over the recorded states, as the node
-    watches the states it reports) are the recording's ``warnings`` (none without the scenario's
+    watches the states it reports) are the result's ``warnings`` (none without the scenario's
     simulator configuration).
     """
     sim, controller = scenario.sim, scenario.controller
@@ -216,68 +210,28 @@ def run_recorded(
     if scenario.sim_config is not None:
         watch = RunWatch(scenario.plant, scenario.sim_config, sim, at_start=sim.steps_taken == 0)
     events = len(sim.events)
+    plant = scenario.plant
+    run = RunResult(
+        tuple(plant.contact_set.names), tuple(controller.contact_set.names), tuple(plant.joint_names), plant.mode.value
+    )
     # the commands saturated as the simulator node saturates them (motors.voltage_limit / torque_limit)
-    limit = scenario.plant.command_limit
-    out = sim.rollout(controller.engine, steps, *limits, scenario.sensors(), limit, keep_failure=True)
-    error = sim.rollout_error(out, *limits)
+    sim.rollout(controller.engine, steps, *limits, scenario.sensors(), plant.command_limit, keep_failure=True, out=run)
+    error = sim.rollout_error(run, *limits)
     if error is not None and not keep_failure:
         raise error
-    rows, p, braced = out.time.size, len(scenario.plant.contact_set), len(controller.contact_set)
     warnings: list[str] = []
     if watch is not None:
         watch.events(sim.events[events:])
         warnings = watch.start()
         # the node says a link's warning as the state goes out, before the watch's on the states around it
-        warnings += link_warnings(scenario, out.time, out.position)
-        warnings += watch.states(out.time, out.active, out.normal_force, out.residual)
+        warnings += link_warnings(scenario, run.time, run.position)
+        warnings += watch.states(run.time, run.active, run.normal_force, run.residual)
         warnings += [] if error is not None else watch.finish()
-    outcome = _outcome(scenario, out, error, warnings) if keep_failure else Failure("ok", None, None)
-    return Recording(
-        time=out.time,
-        position=out.position,
-        velocity=out.velocity,
-        current=out.current,
-        # as motor_state carries it: no columns where the thermal model does not apply
-        temperature=out.temperature if scenario.plant.thermal else np.zeros((rows, 0)),
-        command=out.command,
-        hand_desired=out.hand_desired,
-        hand_actual=out.hand_actual,
-        brace_desired=out.brace_desired.reshape(rows, braced, 3),
-        brace_actual=out.brace_actual.reshape(rows, braced, 3),
-        contact_position=out.contact_position.reshape(rows, p, 3),
-        slip_velocity=out.slip_velocity.reshape(rows, p, 3),
-        normal_force=out.normal_force,
-        friction_force=out.friction_force,
-        residual=out.residual,
-        active=out.active.astype(bool),
-        desired_normal_force=controller.desired_normal_force.copy(),
-        force_command=out.force_command,
-        measured_position=out.measured_position,
-        measured_velocity=out.measured_velocity,
-        energy_consumed=out.energy_consumed,
-        energy_net=out.energy_net,
-        copper_loss=out.copper_loss,
-        contact_names=tuple(scenario.plant.contact_set.names),
-        braced_names=tuple(controller.contact_set.names),
-        joint_names=tuple(scenario.plant.joint_names),
-        input_mode=scenario.plant.mode.value,
-        warnings=tuple(warnings),
-        command_limit=scenario.plant.command_limit,
-        hand_orientation_error=out.orientation_error if controller.config.orientation.axes else np.zeros((rows, 0)),
-        status=outcome.status,
-        error=outcome.error,
-        hint=outcome.hint,
-        rolling_residual=_rolling_residual(sim, out.position, out.velocity),
-    )
-
-
-def _rolling_residual(sim: Simulator, position: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-    """max |A v| [m/s] of a differential drive's rolling rows at each recorded state (empty without them)."""
-    dynamics = sim.dynamics.engine
-    if not dynamics.rolling_rows:
-        return np.zeros(0)
-    states = zip(position, velocity, strict=True)
-    return np.array([np.max(np.abs(dynamics.terms(q, v).rolling_velocity)) for q, v in states])
+    run.warnings = tuple(warnings)
+    if keep_failure:
+        outcome = _outcome(scenario, run, error, warnings)
+        run.status, run.error, run.hint = outcome.status, outcome.error, outcome.hint
+    return run
 
 
 def _outcome(scenario: Scenario, out: engine.Recording, error: Exception | None, warnings: list[str]) -> Failure:

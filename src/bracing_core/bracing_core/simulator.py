@@ -210,6 +210,7 @@ class Simulator:
         sensors: engine.Sensors | None = None,
         command_limit: Vector | None = None,
         keep_failure: bool = False,
+        out: engine.Recording | None = None,
     ) -> engine.Recording:
         """The closed loop with ``law`` (a ``bracing_engine.Law``) for ``steps`` steps, in the engine:
         per state k = 0..steps what the nodes publish in lockstep (``bracing_engine.rollout``; the
@@ -219,11 +220,13 @@ class Simulator:
         with ``keep_failure`` it returns what it recorded up to such a failure instead (``rollout_error``
         says why it stopped; its arrays are cut to the rows filled).
         ``sensors``: what the law reads and when its commands land (None: exact and instant). ``command_limit``:
-        each joint's |command| saturation (model order, 0: none), as the simulator node applies it."""
+        each joint's |command| saturation (model order, 0: none), as the simulator node applies it. ``out``:
+        a fresh Recording to fill (``rollout.RunResult``; None: a new one)."""
         limit = np.zeros(0) if command_limit is None else np.asarray(command_limit, dtype=float)
+        out = engine.Recording() if out is None else out
         try:
-            out = engine.rollout(
-                law, self.engine, int(steps), self.t0_ns, divergence_speed, divergence_residual, sensors, limit
+            engine.rollout(
+                law, self.engine, int(steps), self.t0_ns, divergence_speed, divergence_residual, out, sensors, limit
             )
         except engine.SingularError as exc:
             raise np.linalg.LinAlgError(str(exc)) from None

@@ -6,14 +6,28 @@ namespace bracing_engine::bindings {
 
 namespace {
 
-// A recording cut to the rows the rollout filled.
-void keep_filled_rows(Recording& r) {
-  r.time.conservativeResize(r.rows);
-  for (RowMatrix* a : {&r.position, &r.velocity, &r.current, &r.temperature, &r.command, &r.hand_desired,
-                       &r.hand_actual, &r.brace_desired, &r.brace_actual, &r.contact_position, &r.slip_velocity,
-                       &r.normal_force, &r.friction_force, &r.residual, &r.active, &r.energy,
-                       &r.measured_position, &r.measured_velocity, &r.force_command, &r.orientation_error})
-    a->conservativeResize(std::min<Eigen::Index>(r.rows, a->rows()), Eigen::NoChange);
+using ReadOnlyPoints = nb::ndarray<nb::numpy, const double, nb::ndim<3>>;
+using ReadOnlyColumn = nb::ndarray<nb::numpy, const double, nb::ndim<1>>;
+
+// A recording's member as a read-only view of its memory, which it keeps alive (the policy below).
+template <typename Scalar>
+nb::ndarray<nb::numpy, const Scalar, nb::ndim<2>> matrix_view(
+    const Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& m) {
+  return {m.data(), {static_cast<size_t>(m.rows()), static_cast<size_t>(m.cols())}, nb::handle()};
+}
+
+ReadOnlyColumn vector_view(const Vector& v) { return {v.data(), {static_cast<size_t>(v.size())}, nb::handle()}; }
+
+// A rows x 3k member as (rows, k, 3).
+ReadOnlyPoints points_view(const RowMatrix& m) {
+  const auto rows = static_cast<size_t>(m.rows()), points = static_cast<size_t>(m.cols() / 3);
+  return ReadOnlyPoints(m.data(), {rows, points, 3}, nb::handle(), {static_cast<int64_t>(m.cols()), 3, 1});
+}
+
+// One column of a member.
+ReadOnlyColumn column_view(const RowMatrix& m, Eigen::Index column) {
+  return ReadOnlyColumn(m.data() + column, {static_cast<size_t>(m.rows())}, nb::handle(),
+                        {static_cast<int64_t>(m.cols())});
 }
 
 }  // namespace
@@ -214,49 +228,68 @@ void bind_sensors(nb::module_& m) {
 }
 
 // The closed loop and its recording.
-void bind_rollout(nb::module_& m) {
-  nb::class_<Recording>(m, "Recording", "per state k = 0..rows-1, as the nodes publish it in lockstep")
-      BRACING_RO(Recording, time) BRACING_RO(Recording, position) BRACING_RO(Recording, velocity)
-      BRACING_RO(Recording, current) BRACING_RO(Recording, temperature) BRACING_RO(Recording, command)
-      BRACING_RO(Recording, hand_desired) BRACING_RO(Recording, hand_actual)
-      .def_ro("brace_desired", &Recording::brace_desired, "rows x 3b")
-      .def_ro("brace_actual", &Recording::brace_actual, "rows x 3b")
-      .def_ro("contact_position", &Recording::contact_position, "rows x 3p")
-      .def_ro("slip_velocity", &Recording::slip_velocity, "rows x 3p")
-      BRACING_RO(Recording, normal_force) BRACING_RO(Recording, friction_force) BRACING_RO(Recording, residual)
-      .def_ro("active", &Recording::active, "1/0")
-      .def_prop_ro(
-          "energy_consumed", [](const Recording& r) { return Vector(r.energy.col(0)); },
-          "[J] consumed up to the step's start (EnergySlot.consumed)")
-      .def_prop_ro(
-          "energy_net", [](const Recording& r) { return Vector(r.energy.col(1)); }, "[J] net (EnergySlot.net)")
-      .def_prop_ro(
-          "copper_loss", [](const Recording& r) { return Vector(r.energy.col(2)); },
-          "[J] copper loss (EnergySlot.copper_loss)")
-      .def_ro("measured_position", &Recording::measured_position, "(0 rows without sensors)")
-      .def_ro("measured_velocity", &Recording::measured_velocity)
-      .def_ro("force_command", &Recording::force_command)
-      .def_ro("orientation_error", &Recording::orientation_error, "rows x 3: the hand's log(R_d R^T) [rad]")
+void bind_recording(nb::module_& m) {
+  constexpr auto view = nb::rv_policy::reference_internal;
+// A member bound as a read-only view (VIEW: matrix_view or vector_view) under its own name.
+#define RECORDING_VIEW(VIEW, field, doc) \
+  .def_prop_ro(#field, [](const Recording& r) { return VIEW(r.field); }, view, doc)
+  nb::class_<Recording>(m, "Recording", "per state k = 0..rows-1, as the nodes publish it in lockstep; arrays are "
+                                        "read-only views of its memory")
+      .def(nb::init<>(), "empty, for rollout to fill (rollout.RunResult derives from it)")
+      RECORDING_VIEW(vector_view, time, "(rows,) [s]")
+      RECORDING_VIEW(matrix_view, position, "(rows, n) [rad or m], model order")
+      RECORDING_VIEW(matrix_view, velocity, "(rows, n) [rad/s or m/s]")
+      RECORDING_VIEW(matrix_view, current, "(rows, n) [A]")
+      RECORDING_VIEW(matrix_view, command, "(rows, n) [V or N m], the law's (before saturation)")
+      RECORDING_VIEW(matrix_view, temperature, "(rows, n) [degC] the windings' (0 columns without a thermal drive)")
+      RECORDING_VIEW(matrix_view, hand_desired, "(rows, 3) [m]")
+      RECORDING_VIEW(matrix_view, hand_actual, "(rows, 3) [m]")
+      .def_prop_ro("brace_desired", [](const Recording& r) { return points_view(r.brace_desired); }, view,
+                   "(rows, b, 3) [m], the braced contacts'")
+      .def_prop_ro("brace_actual", [](const Recording& r) { return points_view(r.brace_actual); }, view,
+                   "(rows, b, 3) [m]")
+      .def_prop_ro("contact_position", [](const Recording& r) { return points_view(r.contact_position); }, view,
+                   "(rows, p, 3) [m], the simulator's contact points")
+      .def_prop_ro("slip_velocity", [](const Recording& r) { return points_view(r.slip_velocity); }, view,
+                   "(rows, p, 3) [m/s]")
+      RECORDING_VIEW(matrix_view, normal_force, "(rows, p) [N]")
+      RECORDING_VIEW(matrix_view, friction_force, "(rows, p) [N]")
+      RECORDING_VIEW(matrix_view, residual, "(rows, p) [m], each contact's C")
+      RECORDING_VIEW(matrix_view, active, "(rows, p) held")
+      .def_prop_ro("energy_consumed", [](const Recording& r) { return column_view(r.energy, 0); }, view,
+                   "[J] consumed up to the step's start (EnergySlot.consumed)")
+      .def_prop_ro("energy_net", [](const Recording& r) { return column_view(r.energy, 1); }, view,
+                   "[J] net (EnergySlot.net)")
+      .def_prop_ro("copper_loss", [](const Recording& r) { return column_view(r.energy, 2); }, view,
+                   "[J] copper loss (EnergySlot.copper_loss)")
+      RECORDING_VIEW(matrix_view, measured_position, "(rows, n) what the law read (0 rows without sensors)")
+      RECORDING_VIEW(matrix_view, measured_velocity, "(rows, n) (0 rows without sensors)")
+      RECORDING_VIEW(matrix_view, force_command, "(rows, b) [N]")
+      RECORDING_VIEW(matrix_view, hand_orientation_error,
+                     "(rows, 3): the hand's log(R_d R^T) [rad] (0 columns without the task)")
+      RECORDING_VIEW(vector_view, rolling_residual, "a differential drive's max |A v| [m/s] (empty: none)")
+      RECORDING_VIEW(vector_view, desired_normal_force, "(b,) the law's f_nd [N]")
+      RECORDING_VIEW(vector_view, command_limit, "the |command| saturation applied (per joint, 0: none)")
       .def_ro("step_status", &Recording::step_status, "not ok: the step from the last row's state was refused")
       .def_ro("refusal", &Recording::refusal, "not none: the node refuses the step after the last row")
       .def_ro("measured", &Recording::measured, "the refusal's speed, temperature or residual");
+#undef RECORDING_VIEW
+}
+
+void bind_rollout(nb::module_& m) {
+  bind_recording(m);
   m.def(
       "rollout",
       [](Law& law, Simulator& simulator, long steps, std::int64_t t0_ns, double divergence_speed, double divergence_residual,
-         Sensors* sensors, const Vector& command_limit) {
-        Recording r;
-        {
-          nb::gil_scoped_release release;
-          rollout(law, simulator, steps, t0_ns, divergence_speed, divergence_residual, r, sensors, command_limit);
-        }
-        keep_filled_rows(r);
-        return r;
+         Recording& out, Sensors* sensors, const Vector& command_limit) {
+        nb::gil_scoped_release release;
+        rollout(law, simulator, steps, t0_ns, divergence_speed, divergence_residual, out, sensors, command_limit);
       },
-      "law"_a, "simulator"_a, "steps"_a, "t0_ns"_a, "divergence_speed"_a, "divergence_residual"_a,
+      "law"_a, "simulator"_a, "steps"_a, "t0_ns"_a, "divergence_speed"_a, "divergence_residual"_a, "out"_a,
       "sensors"_a.none() = nb::none(), "command_limit"_a = Vector(),
-      "The closed loop for `steps` steps (and the final state's answer), all in C++: the Recording, stopped "
-      "early where a step is refused (step_status) or the node would refuse it (refusal); each applied |command| "
-      "saturated to command_limit (per joint, 0: none), the recording keeping the law's.");
+      "The closed loop for `steps` steps (and the final state's answer), all in C++, into `out` (a fresh "
+      "Recording): stopped early where a step is refused (step_status) or the node would refuse it (refusal); "
+      "each applied |command| saturated to command_limit (per joint, 0: none), the recording keeping the law's.");
 }
 
 }  // namespace bracing_engine::bindings

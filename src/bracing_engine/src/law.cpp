@@ -79,6 +79,8 @@ Law::~Law() = default;
 int Law::nv() const { return impl_->model.nv; }
 int Law::braces() const { return static_cast<int>(impl_->spec.braces.size()); }
 
+bool Law::orients() const { return !impl_->spec.orientation.axes.empty(); }
+
 Vector Law::desired_normal_force() const {
   Vector f(braces());
   for (int j = 0; j < braces(); ++j) f[j] = impl_->spec.braces[j].desired_normal_force;

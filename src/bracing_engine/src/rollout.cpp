@@ -38,17 +38,18 @@ void measure_report(Law& law, const Simulator& simulator, const std::vector<int>
   if (law.uses_temperature()) law.measure_temperature(temperature);
 }
 
-void size_recording(long rows, int n, int p, int b, bool sensed, Recording& out) {
+void size_recording(long rows, int n, int p, int b, bool sensed, bool thermal, bool orients, Recording& out) {
   out.time.setZero(rows);
-  for (RowMatrix* a : {&out.position, &out.velocity, &out.current, &out.temperature, &out.command})
-    a->setZero(rows, n);
+  for (RowMatrix* a : {&out.position, &out.velocity, &out.current, &out.command}) a->setZero(rows, n);
+  out.temperature.setZero(rows, thermal ? n : 0);  // as motor_state carries it: no columns without the model
   for (RowMatrix* a : {&out.measured_position, &out.measured_velocity}) a->setZero(sensed ? rows : 0, n);
   for (RowMatrix* a : {&out.hand_desired, &out.hand_actual, &out.energy}) a->setZero(rows, 3);
   for (RowMatrix* a : {&out.brace_desired, &out.brace_actual}) a->setZero(rows, 3 * b);
   for (RowMatrix* a : {&out.contact_position, &out.slip_velocity}) a->setZero(rows, 3 * p);
-  for (RowMatrix* a : {&out.normal_force, &out.friction_force, &out.residual, &out.active}) a->setZero(rows, p);
+  for (RowMatrix* a : {&out.normal_force, &out.friction_force, &out.residual}) a->setZero(rows, p);
+  out.active.setZero(rows, p);
   out.force_command.setZero(rows, b);
-  out.orientation_error.setZero(rows, 3);
+  out.hand_orientation_error.setZero(rows, orients ? 3 : 0);
   out.rows = 0;
   out.step_status = StepStatus::ok;
   out.refusal = Refusal::none;
@@ -79,14 +80,14 @@ void record_state(long k, double t, const Vector& y, const LawOutput& command, R
   out.position.row(k) = y.head(n).transpose();
   out.velocity.row(k) = y.segment(n, n).transpose();
   out.current.row(k) = y.segment(2 * n, n).transpose();
-  out.temperature.row(k) = y.segment(3 * n, n).transpose();
+  if (out.temperature.cols()) out.temperature.row(k) = y.segment(3 * n, n).transpose();
   out.command.row(k) = command.command.transpose();
   out.hand_desired.row(k) = command.hand_desired.transpose();
   out.hand_actual.row(k) = command.hand_actual.transpose();
   out.brace_desired.row(k) = Eigen::Map<const Vector>(command.brace_desired.data(), 3 * b).transpose();
   out.brace_actual.row(k) = Eigen::Map<const Vector>(command.brace_actual.data(), 3 * b).transpose();
   if (b) out.force_command.row(k) = command.force_command.transpose();
-  out.orientation_error.row(k) = command.orientation_error.transpose();
+  if (out.hand_orientation_error.cols()) out.hand_orientation_error.row(k) = command.orientation_error.transpose();
   const Eigen::Index energies = kStates * n;
   out.energy.row(k) << y[energies + energy::consumed], y[energies + energy::net], y[energies + energy::copper_loss];
 }
@@ -101,7 +102,7 @@ void record_report(long k, const Simulator& simulator, Recording& out) {
     out.normal_force(k, j) = report.force[j];
     out.friction_force(k, j) = report.friction[j];
     out.residual(k, j) = report.residual[j];
-    out.active(k, j) = simulator.report_modes().held[j] ? 1.0 : 0.0;
+    out.active(k, j) = simulator.report_modes().held[j];
   }
 }
 
@@ -113,14 +114,32 @@ Vector saturated(const Vector& command, const Vector& limit) {
   return out;
 }
 
-}  // namespace
+// The recording cut to the rows the rollout filled.
+void keep_filled_rows(Recording& r) {
+  r.time.conservativeResize(r.rows);
+  for (RowMatrix* a : {&r.position, &r.velocity, &r.current, &r.temperature, &r.command, &r.hand_desired,
+                       &r.hand_actual, &r.brace_desired, &r.brace_actual, &r.contact_position, &r.slip_velocity,
+                       &r.normal_force, &r.friction_force, &r.residual, &r.energy, &r.measured_position,
+                       &r.measured_velocity, &r.force_command, &r.hand_orientation_error})
+    a->conservativeResize(std::min<Eigen::Index>(r.rows, a->rows()), Eigen::NoChange);
+  r.active.conservativeResize(r.rows, Eigen::NoChange);
+}
 
-void rollout(Law& law, Simulator& simulator, long steps, std::int64_t t0_ns, double divergence_speed,
-             double divergence_residual, Recording& out, Sensors* sensors, const Vector& command_limit) {
-  const int n = simulator.nv(), p = simulator.dynamics().contact_count(), b = law.braces();
+// A differential drive's rolling residual max |A v| [m/s] at each recorded state (empty without one).
+void record_rolling_residual(const Dynamics& dynamics, Recording& out) {
+  out.rolling_residual.resize(dynamics.rolling_rows() ? out.rows : 0);
+  Answer terms;
+  for (Eigen::Index k = 0; k < out.rolling_residual.size(); ++k) {
+    dynamics.terms(out.position.row(k).transpose(), out.velocity.row(k).transpose(), terms);
+    out.rolling_residual[k] = terms.rolling_velocity.cwiseAbs().maxCoeff();
+  }
+}
+
+// The loop of rollout(): rows filled up to where it stops.
+void step_and_record(Law& law, Simulator& simulator, long steps, std::int64_t t0_ns, double divergence_speed,
+                     double divergence_residual, Recording& out, Sensors* sensors, const Vector& command_limit) {
+  const int n = simulator.nv();
   const long rows = steps + 1;
-  if (sensors && sensors->exact()) sensors = nullptr;  // the paper's exact, instant sensing: bit for bit as without
-  size_recording(rows, n, p, b, sensors != nullptr, out);
   const std::vector<int> braced = brace_rows(law, simulator);
   LawOutput command;
   const bool limited = command_limit.size() && command_limit.maxCoeff() > 0.0;
@@ -152,6 +171,20 @@ void rollout(Law& law, Simulator& simulator, long steps, std::int64_t t0_ns, dou
     out.refusal = simulator.refusal(divergence_speed, divergence_residual, out.measured);
     if (out.refusal != Refusal::none) return;
   }
+}
+
+}  // namespace
+
+void rollout(Law& law, Simulator& simulator, long steps, std::int64_t t0_ns, double divergence_speed,
+             double divergence_residual, Recording& out, Sensors* sensors, const Vector& command_limit) {
+  const int n = simulator.nv(), p = simulator.dynamics().contact_count(), b = law.braces();
+  if (sensors && sensors->exact()) sensors = nullptr;  // the paper's exact, instant sensing: bit for bit as without
+  size_recording(steps + 1, n, p, b, sensors != nullptr, simulator.dynamics().drive().thermal, law.orients(), out);
+  out.desired_normal_force = law.desired_normal_force();
+  out.command_limit = command_limit;
+  step_and_record(law, simulator, steps, t0_ns, divergence_speed, divergence_residual, out, sensors, command_limit);
+  keep_filled_rows(out);
+  record_rolling_residual(simulator.dynamics(), out);
 }
 
 }  // namespace bracing_engine

@@ -27,7 +27,7 @@ import numpy as np
 from bracing_analysis.series import BagSeries, ContactSeries
 from bracing_analysis.summary import compute_summary, flat_summary
 from bracing_core.checks import reach_warnings
-from bracing_core.rollout import Recording, build_scenario_from_params, run_recorded
+from bracing_core.rollout import RunResult, build_scenario_from_params, run_recorded
 
 STATUS_OK = "ok"
 STATUS_FAILED = "failed"
@@ -50,10 +50,10 @@ class RunSpec:
 class RunOutcome:
     row: dict[str, Any]
     summary: dict[str, Any] | None = None
-    arrays: bytes | None = None  # .npz of the Recording
+    arrays: bytes | None = None  # .npz of the RunResult
 
 
-def series_from_recording(rec: Recording) -> BagSeries:
+def series_from_recording(rec: RunResult) -> BagSeries:
     """The time series a bag of the same run holds, so that summary.compute_summary applies as is."""
     series = BagSeries(
         joint_t=rec.time,
@@ -98,7 +98,7 @@ def series_from_recording(rec: Recording) -> BagSeries:
     return series
 
 
-def summarize(rec: Recording, wall_time_s: float, warnings: Sequence[str] = ()) -> dict[str, Any]:
+def summarize(rec: RunResult, wall_time_s: float, warnings: Sequence[str] = ()) -> dict[str, Any]:
     """summary.json of an in-process run: summary.compute_summary on the recorded series (``warnings``:
     those found before the run), plus the largest force error (not in summary.json, which has the RMS)."""
     series = series_from_recording(rec)

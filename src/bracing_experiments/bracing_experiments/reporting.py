@@ -28,7 +28,7 @@ def resolve_scenario(name: str) -> Path:
 
 
 def run_arrays(store: ResultsStore, run_id: str) -> dict[str, np.ndarray] | None:
-    """A finished run's arrays (the Recording's, arrays.npz), or None."""
+    """A finished run's arrays (a RunResult's, arrays.npz), or None."""
     path = store.run_dir(run_id) / ARRAYS_FILE
     if not path.is_file():
         return None

@@ -163,6 +163,7 @@ class Law {
   int task_rank(const Vector& q0, const std::vector<std::pair<int, int>>& rows);
   int nv() const;
   int braces() const;
+  bool orients() const;  // an orientation task (its axes not empty)
   Vector desired_normal_force() const;
 
  private:
@@ -173,23 +174,29 @@ class Law {
   std::unique_ptr<Impl> impl_;
 };
 
-// What a closed-loop rollout records per state k = 0..steps (as the nodes publish it in lockstep).
+// What a closed-loop rollout records per state k = 0..steps (as the nodes publish it in lockstep), cut to the
+// rows filled.
 struct Recording {
+  using BoolRowMatrix = Eigen::Matrix<bool, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   Vector time;                                   // (N+1)
   RowMatrix position, velocity, current;         // (N+1) x n
-  RowMatrix temperature;                         // (N+1) x n: the windings' T [degC]
+  RowMatrix temperature;                         // (N+1) x n: the windings' T [degC]; 0 columns without a thermal drive
   RowMatrix command;                             // (N+1) x n
   RowMatrix hand_desired, hand_actual;           // (N+1) x 3
   RowMatrix brace_desired, brace_actual;         // (N+1) x 3b
   RowMatrix contact_position, slip_velocity;     // (N+1) x 3p
   RowMatrix normal_force, friction_force;        // (N+1) x p
-  RowMatrix residual, active;                    // (N+1) x p (active: 1/0)
+  RowMatrix residual;                            // (N+1) x p
+  BoolRowMatrix active;                          // (N+1) x p: held
   RowMatrix energy;                              // (N+1) x 3: consumed, net, copper loss up to the step's start
   // With sensors: what the controller received, (N+1) x n (0 rows without); hand_actual and brace_actual
   // then hold the true positions (the law's kinematics at the true q), not the law's measured ones.
   RowMatrix measured_position, measured_velocity;
   RowMatrix force_command;                       // (N+1) x b: f_cmd of each brace [N]
-  RowMatrix orientation_error;                   // (N+1) x 3: the hand frame's log(R_d R^T) [rad] (zeros without the task)
+  RowMatrix hand_orientation_error;              // (N+1) x 3: the hand frame's log(R_d R^T) [rad]; 0 columns without the task
+  Vector rolling_residual;                       // (N+1): a differential drive's max |A v| [m/s]; empty without one
+  Vector desired_normal_force;                   // b: the law's f_nd [N]
+  Vector command_limit;                          // the |command| saturation the rollout applied (per joint, 0: none)
   long rows = 0;                                 // rows filled
   StepStatus step_status = StepStatus::ok;       // not ok: the step from the last row's state was not taken
   Refusal refusal = Refusal::none;               // not none: the node refuses the step after the last row
