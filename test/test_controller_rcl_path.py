@@ -8,6 +8,8 @@ The hostile-input tests of the controller (test_fuzz, test_hostile_input) run on
 from __future__ import annotations
 
 import math
+import re
+import signal
 import struct
 from pathlib import Path
 
@@ -19,7 +21,7 @@ from rosbags.highlevel import AnyReader
 import bracing_engine as engine
 from bracing_controller.rcl_path import PATH_ENV
 from bracing_core.answering import StateError, joint_vectors
-from bracing_ros import wire
+from bracing_ros import stop_signal, wire
 
 RUN_S = 0.3
 """[s] of sim time a compared run lasts (300 states)."""
@@ -53,9 +55,18 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 
 def test_each_run_took_its_path(runs: dict[str, Path]) -> None:
+    """The Python path said so; the C++ path answered the states itself (the simulator's states have its
+    template's layout) and handed none over. A state may come while the node's executor serves its services
+    between states (the loop idle at the start or the end): the executor's callback answers it on the Python
+    path, as before."""
     for path, output in runs.items():
         log = (output / "logs" / "controller.log").read_text()
         assert PATH_LINES[path] in log, log[-3000:]
+    log = (runs["rcl"] / "logs" / "controller.log").read_text()
+    found = re.search(r"per-state path: (\d+) states answered in C\+\+ on rcl, (\d+) by the Python path", log)
+    assert found is not None, log[-3000:]
+    states = round(RUN_S * 1000) + 1
+    assert states - 3 <= int(found[1]) <= states and int(found[2]) == 0, found[0]
 
 
 def test_the_rcl_path_bag_equals_the_python_path_bag(runs: dict[str, Path]) -> None:
@@ -132,3 +143,19 @@ def test_a_template_s_layout_places_every_value_as_fill_does() -> None:
         assert all(b == 0 for b in data[end:offset])  # only alignment padding between them
         end = offset + length
     assert end == len(data)
+
+
+def test_a_stop_signal_inside_held_comes_at_its_end(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The C++ path's answer and its copy for the recorder are not cut apart by a stop signal: inside
+    ``stop_signal.held`` the signal's KeyboardInterrupt waits for the block's end; outside, it comes at once."""
+    monkeypatch.setattr(stop_signal, "_requested", False)
+    done = []
+    with pytest.raises(KeyboardInterrupt), stop_signal.held:
+        stop_signal.request_stop(signal.SIGINT, None)
+        done.append("kept")
+    assert done == ["kept"]
+    with pytest.raises(KeyboardInterrupt):
+        stop_signal.request_stop(signal.SIGINT, None)
+    with stop_signal.held:  # nothing pending: a quiet end
+        done.append("again")
+    assert done == ["kept", "again"]

@@ -299,6 +299,7 @@ def spin(node: ControllerNode) -> int:
     executor = StoppableExecutor()
     executor.add_node(node)
     answered, work, targets = 0, WorkTimer(), node.target_topics
+    rcl: RclPath | None = None
     try:
         wait_for_outputs(node, executor)
         state_sub = node.listen()
@@ -338,6 +339,8 @@ def spin(node: ControllerNode) -> int:
     except KeyboardInterrupt:
         if (line := work.line()) is not None:
             node.log.info(line)  # make bench's pair_step_breakdown_us
+        if rcl is not None:
+            node.log.info(rcl.line())
         # Stopped (bracing-pair stops the controller once the simulator is done): the last
         # answers must reach the recorder before this process and its publishers are gone.
         for k, (level, line) in enumerate(node.close(timeout_sec=10.0)):

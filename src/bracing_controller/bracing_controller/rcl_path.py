@@ -21,6 +21,7 @@ from bracing_core.message_limits import SizeError
 from bracing_core.step_timing import WorkTimer
 from bracing_core.types import Vector
 from bracing_rcl import ControllerPath, Layout, Outcome, Status
+from bracing_ros import stop_signal
 from bracing_ros.cdr_template import Template
 
 if TYPE_CHECKING:
@@ -107,6 +108,12 @@ class RclPath:
             layout(node.state_wire.template),
             keep_bytes=node.batch.publisher is not None,  # record_batch: the answer's bytes into the batch
         )
+        self.answered = 0  # states the C++ path answered
+        self.handed_over = 0  # states it took and the Python path handled
+
+    def line(self) -> str:
+        """The log line of what each path did."""
+        return f"per-state path: {self.answered} states answered in C++ on rcl, {self.handed_over} by the Python path"
 
     def answer_queued(self, work: WorkTimer) -> int:
         """Take every joint_states waiting and answer it (here, or on the Python path); how many were taken."""
@@ -114,16 +121,27 @@ class RclPath:
         taken = 0
         while True:
             alone = core.law_only and not node.target_topics.pending
-            outcome = self.path.take(core.previous_ns, alone)
+            with stop_signal.held:  # an answer published is kept for the recorder, even as the run stops
+                outcome = self.path.take(core.previous_ns, alone)
+                if outcome.status == Status.answered:
+                    self.answered += 1
+                    self.keep(outcome)
             if outcome.status == Status.empty:
                 return taken
             taken += 1
             work.begin(outcome.taken_at)
             if outcome.status == Status.python:
+                self.handed_over += 1
                 node.on_state(outcome.data or b"")
             else:
                 self.settle(outcome, work)
             work.end(outcome.written_s + node.batch.take_written())
+
+    def keep(self, outcome: Outcome) -> None:
+        """An answer's bytes into the record batch (record_batch), as ``ControllerNode.send`` keeps them."""
+        if outcome.command is not None and outcome.state is not None:
+            self.node.batch.keep(self.node.command_pub, outcome.command)
+            self.node.batch.keep(self.node.state_pub, outcome.state)
 
     def settle(self, outcome: Outcome, work: WorkTimer) -> None:
         """After the C++ path's law: an answer out (its bookkeeping, as ``ControllerNode.send``'s), or the law's
@@ -132,9 +150,6 @@ class RclPath:
         if outcome.status == Status.answered:
             work.mark(outcome.command_out_at)
             core.answered(stamp_ns, outcome.damped, lambda: watched(outcome))
-            if outcome.command is not None and outcome.state is not None:
-                node.batch.keep(node.command_pub, outcome.command)
-                node.batch.keep(node.state_pub, outcome.state)
             node.flow.sent()
             node.batch.state_done()
             core.previous_ns = stamp_ns
