@@ -2,7 +2,7 @@
 SHELL := /bin/bash
 .DEFAULT_GOAL := help
 IN_ENV := source env.sh &&
-PY_SRC := src/bracing_engine/bracing_engine src/bracing_core/bracing_core src/bracing_ros/bracing_ros src/bracing_sim/bracing_sim src/bracing_controller/bracing_controller src/bracing_analysis/bracing_analysis src/bracing_experiments/bracing_experiments src/bracing_recorder/bracing_recorder src/bracing_view/bracing_view src/bracing_mujoco/bracing_mujoco src/bracing_bringup/bracing_bringup
+PY_SRC := src/bracing_engine/bracing_engine src/bracing_core/bracing_core src/bracing_ros/bracing_ros src/bracing_sim/bracing_sim src/bracing_controller/bracing_controller src/bracing_rcl/bracing_rcl src/bracing_analysis/bracing_analysis src/bracing_experiments/bracing_experiments src/bracing_recorder/bracing_recorder src/bracing_view/bracing_view src/bracing_mujoco/bracing_mujoco src/bracing_bringup/bracing_bringup
 
 .PHONY: help setup test test-loaded test-slow lint typecheck docs docs-check pytest run bench lock clean
 

@@ -145,7 +145,9 @@ def drive_controller(node: rclpy.node.Node, path: str) -> dict[str, object]:
             if not state.get("no_wait"):
                 time.sleep(0.5)
             continue
-        msg = JointState(name=state["name"], position=state["position"], velocity=state["velocity"])
+        msg = JointState(
+            name=state["name"], position=state["position"], velocity=state["velocity"], effort=state.get("effort", [])
+        )
         msg.header.stamp.sec, msg.header.stamp.nanosec = k // 1000, (k % 1000) * 1_000_000  # t = k ms
         if "stamp" in state:
             msg.header.stamp.sec, msg.header.stamp.nanosec = state["stamp"]

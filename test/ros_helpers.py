@@ -39,6 +39,13 @@ def release_domains() -> None:
     _held.close()
 
 
+CONTROLLER_PATHS = ("rcl", "python")
+"""The controller node's per-state paths (bracing_controller.rcl_path: the C++ one on rcl, the Python one),
+chosen by the environment variable BRACING_CONTROLLER_PATH."""
+PATH_LINES = {"rcl": "per-state path: C++ on rcl", "python": "per-state path: Python (BRACING_CONTROLLER_PATH=python)"}
+"""What the controller logs of the path it takes."""
+
+
 def isolated_env(domain_id: int | None = None, **extra: str) -> dict[str, str]:
     """Environment for a child ROS process: localhost-only discovery, a domain of its own
     (held by this process until the test ends)."""
@@ -144,14 +151,18 @@ class NodeProcess:
 
 
 def drive(
-    node: list[str], driver_args: list[str], wait_for_node: bool = False, driver_timeout: str | None = None
+    node: list[str],
+    driver_args: list[str],
+    wait_for_node: bool = False,
+    driver_timeout: str | None = None,
+    **extra_env: str,
 ) -> tuple[subprocess.CompletedProcess[str], subprocess.Popen[str], str]:
-    """Start a node and run the lockstep driver against it in the same domain.
+    """Start a node (``extra_env`` in its environment) and run the lockstep driver against it in the same domain.
 
     Returns the driver's result, the node process and its log. With ``wait_for_node`` the
     node must finish by itself (else it is stopped once the driver is done).
     """
-    env = isolated_env()
+    env = isolated_env(**extra_env)
     process = start(node, env)
     try:
         driver_env = dict(env, DRIVER_TIMEOUT=driver_timeout) if driver_timeout else env

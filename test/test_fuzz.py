@@ -28,11 +28,12 @@ from lockstep_driver import JOINTS, known_command
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from ros_helpers import isolated_env, node_argv, params_file, start
+from ros_helpers import CONTROLLER_PATHS, PATH_LINES, isolated_env, node_argv, params_file, start
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from bracing_bringup.domains import hold_domain
+from bracing_controller.rcl_path import PATH_ENV
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState
 from bracing_ros.qos import STREAM_QOS
 
@@ -216,13 +217,14 @@ class ControllerHarness:
         )
 
 
-@pytest.fixture(scope="module")
-def controller() -> Iterator[ControllerHarness]:
+@pytest.fixture(scope="module", params=CONTROLLER_PATHS)
+def controller(request: pytest.FixtureRequest) -> Iterator[ControllerHarness]:
+    """The controller node on each of its per-state paths (the C++ one on rcl, the Python one)."""
     with hold_domain() as domain:
-        yield from _controller(isolated_env(domain.domain_id))
+        yield from _controller(isolated_env(domain.domain_id, **{PATH_ENV: request.param}), request.param)
 
 
-def _controller(domain_env: dict[str, str]) -> Iterator[ControllerHarness]:
+def _controller(domain_env: dict[str, str], path: str = "rcl") -> Iterator[ControllerHarness]:
     process = start(node_argv("bracing_controller.node"), domain_env)
     peer = start_peer(domain_env, "fuzz_controller_peer")
     peer.listen(MotorCommand, "motor_command", lambda m: m.value)
@@ -236,6 +238,7 @@ def _controller(domain_env: dict[str, str]) -> Iterator[ControllerHarness]:
     yield ControllerHarness(peer, process, state_pub)
     log = stop(peer, process)
     assert "Traceback" not in log, log[-3000:]
+    assert PATH_LINES[path] in log, log[-3000:]
 
 
 START = (np.array([-0.2, -0.6, 0.8, -0.4]) * math.pi).tolist()
@@ -260,7 +263,7 @@ def test_controller_survives_fuzzed_joint_states(controller: ControllerHarness, 
     # A valid state: answered, with finite numbers.
     stamp_ns = controller.next_stamp_ms * 10**6
     controller.next_stamp_ms += 1
-    valid = JointState(name=JOINTS, position=START, velocity=[0.0] * 4)
+    valid = JointState(name=JOINTS, position=START, velocity=[0.0] * 4, effort=[0.0] * 4)  # the simulator's layout
     valid.header.stamp.sec, valid.header.stamp.nanosec = sec_nanosec(stamp_ns)
     controller.state_pub.publish(valid)
     assert peer.spin_until(lambda: controller.answered(stamp_ns), 10.0), "no answer to a valid state"

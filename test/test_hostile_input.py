@@ -30,11 +30,21 @@ from lockstep_driver import JOINTS, known_command
 from rclpy.context import Context
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
-from ros_helpers import NodeProcess, hold_test_domain, isolated_env, node_argv, params_file, start
+from ros_helpers import (
+    CONTROLLER_PATHS,
+    PATH_LINES,
+    NodeProcess,
+    hold_test_domain,
+    isolated_env,
+    node_argv,
+    params_file,
+    start,
+)
 from sensor_msgs.msg import JointState
 from test_fuzz import Peer, close_peer, start_peer
 
 from bracing_bringup.domains import hold_domain
+from bracing_controller.rcl_path import PATH_ENV
 from bracing_core.answering import StateError, joint_vectors
 from bracing_core.dynamics import InputMode
 from bracing_core.message_limits import MessageLimits, SizeError, check_cdr_sizes, quote_names
@@ -406,13 +416,16 @@ def test_100k_duplicate_names_on_motor_command_do_not_stall_the_simulator(tmp_pa
 
 
 # -- the controller (joint_states) ---------------------------------------------------------------------
-def test_a_flood_of_length_mismatches_logs_one_line_per_kind_per_period(tmp_path: Path) -> None:
+@pytest.mark.parametrize("path", CONTROLLER_PATHS)
+def test_a_flood_of_length_mismatches_logs_one_line_per_kind_per_period(tmp_path: Path, path: str) -> None:
     """joint_states whose lengths disagree, every one with other numbers ("k names, k positions, k + 1
     velocities"), and huge ones (10^5 names) between them, until both kinds were reported and a length
     report counted some held back: one line per kind per second of the node's clock (before: one per
-    message, 488 a second), the count of those held back, and few bytes."""
+    message, 488 a second), the count of those held back, and few bytes; on each of the controller's
+    per-state paths."""
     argv = node_argv("bracing_controller.node")
-    ctl = _harness(isolated_env(), argv, ("joint_states", JointState, FLOOD_QOS), listen="motor_command")
+    env = isolated_env(**{PATH_ENV: path})
+    ctl = _harness(env, argv, ("joint_states", JointState, FLOOD_QOS), listen="motor_command")
     kinds = ("positions", "100000 elements")  # a length mismatch, too large
 
     def shown() -> bool:
@@ -433,7 +446,8 @@ def test_a_flood_of_length_mismatches_logs_one_line_per_kind_per_period(tmp_path
             ctl.spin(0.002)
         ctl.spin(0.5)  # what the node still had to read
     finally:
-        ctl.close()
+        log = ctl.close()
+    assert PATH_LINES[path] in log, log[-3000:]
     lines = ctl.node.between("joint_states ignored", 0.0, math.inf)
     assert shown(), (sent, lines[:6])
     assert_rate_limited(lines, kinds)

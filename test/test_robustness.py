@@ -13,7 +13,9 @@ import pytest
 from conftest import PAPER_YAML, build_scenario
 from lockstep_driver import JOINTS, known_command
 from ros_helpers import (
+    CONTROLLER_PATHS,
     DRIVER,
+    PATH_LINES,
     REPO_ROOT,
     NodeProcess,
     drive,
@@ -25,6 +27,7 @@ from ros_helpers import (
     start,
 )
 
+from bracing_controller.rcl_path import PATH_ENV
 from bracing_core.dynamics import InputMode
 from bracing_ros.commands import CommandError, command_vector
 
@@ -111,8 +114,12 @@ def test_command_vector_matches_by_name_and_validates() -> None:
             command_vector(names, values, mode, ["a", "b"], InputMode.VOLTAGE)
 
 
-def test_controller_ignores_malformed_joint_states(tmp_path: Path) -> None:
-    good = {"name": JOINTS, "position": (np.array([-0.2, -0.6, 0.8, -0.4]) * np.pi).tolist(), "velocity": [0.0] * 4}
+@pytest.mark.parametrize("path", CONTROLLER_PATHS)
+def test_controller_ignores_malformed_joint_states(tmp_path: Path, path: str) -> None:
+    """On each of the controller's per-state paths (the states in the simulator's layout, efforts and all: the
+    C++ path reads them itself)."""
+    position = (np.array([-0.2, -0.6, 0.8, -0.4]) * np.pi).tolist()
+    good = {"name": JOINTS, "position": position, "velocity": [0.0] * 4, "effort": [0.0] * 4}
     inputs = [
         good,
         {**good, "name": JOINTS[:3], "position": good["position"][:3], "velocity": [0.0] * 3},
@@ -123,7 +130,9 @@ def test_controller_ignores_malformed_joint_states(tmp_path: Path) -> None:
     ]
     states_file = tmp_path / "states.json"
     states_file.write_text(json.dumps(inputs))
-    driver, node, log = drive(node_argv("bracing_controller.node"), ["controller", str(states_file)])
+    argv = node_argv("bracing_controller.node")
+    driver, node, log = drive(argv, ["controller", str(states_file)], **{PATH_ENV: path})
+    assert PATH_LINES[path] in log, log[-3000:]
     assert node.returncode in (0, -15), "the controller died"  # stopped by the test, not by the input
     assert driver.returncode == 0, driver.stdout + driver.stderr + log
     answers = json.loads(driver.stdout.strip().splitlines()[-1])["answers"]

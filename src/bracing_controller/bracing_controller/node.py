@@ -25,6 +25,7 @@ from rclpy.time import Time
 from sensor_msgs.msg import JointState
 
 from bracing_controller.effort_forward import EffortForward
+from bracing_controller.rcl_path import RclPath, python_only
 from bracing_controller.targets import TargetTopics
 from bracing_core import schema
 from bracing_core.answering import Answer, StateAnswerer
@@ -298,6 +299,7 @@ def spin(node: ControllerNode) -> int:
     executor = StoppableExecutor()
     executor.add_node(node)
     answered, work, targets = 0, WorkTimer(), node.target_topics
+    rcl: RclPath | None = None
     try:
         wait_for_outputs(node, executor)
         state_sub = node.listen()
@@ -305,11 +307,18 @@ def spin(node: ControllerNode) -> int:
         # (py-spy).
         commands = [node.cmd_vel_sub] if node.cmd_vel_sub is not None else []
         waiter = SubscriptionWaiter(node, [state_sub, *targets.subscriptions, *commands])
+        rcl = answer_on_rcl(node, state_sub)
         node.log.info("answering joint_states")
         node.command_out = work.mark
         node.status.say(RunStatus.STEPPING)
         while True:
-            states, taken = 0, waiter.take_all(0.1)
+            if rcl is None:
+                states, taken = 0, waiter.take_all(0.1)
+            else:  # the C++ path takes the states (answering them), this loop the rest
+                ready = waiter.wait(0.1)
+                states = rcl.answer_queued(work) if state_sub in ready else 0
+                taken = waiter.take_ready([sub for sub in ready if sub is not state_sub])
+                answered += states
             for subscription, msg in taken:
                 if subscription is state_sub:
                     work.begin()
@@ -323,13 +332,15 @@ def spin(node: ControllerNode) -> int:
             answered += len(taken)  # states and targets alike: a flood of targets spins the executor no more
             if not states:
                 node.batch.flush()  # the stream paused (or ended): what waits goes to the recorder now
-            if not taken or answered >= 100:
+            if not (taken or states) or answered >= 100:
                 answered = 0
                 node.sync_clock()  # a parameter change is stamped with it
                 executor.spin_once(timeout_sec=0.0)  # parameter services and the like
     except KeyboardInterrupt:
         if (line := work.line()) is not None:
             node.log.info(line)  # make bench's pair_step_breakdown_us
+        if rcl is not None:
+            node.log.info(rcl.line())
         # Stopped (bracing-pair stops the controller once the simulator is done): the last
         # answers must reach the recorder before this process and its publishers are gone.
         for k, (level, line) in enumerate(node.close(timeout_sec=10.0)):
@@ -337,6 +348,13 @@ def spin(node: ControllerNode) -> int:
         return 0
     except ExternalShutdownException:
         return 0
+
+
+def answer_on_rcl(node: ControllerNode, state_sub: Subscription) -> RclPath | None:
+    """The C++ path on rcl for the states, if the run needs nothing it leaves out (``rcl_path``); which, logged."""
+    reason = python_only(node.core, node.effort is not None, node.orientation_pub is not None)
+    node.log.info(f"per-state path: {'Python (' + reason + ')' if reason else 'C++ on rcl'}")
+    return RclPath(node, state_sub) if reason is None else None
 
 
 def effort_tick(node: ControllerNode) -> None:

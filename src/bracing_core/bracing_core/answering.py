@@ -33,12 +33,9 @@ from bracing_core.mobile_base import BaseDrive, CmdVelRefused, keep_contact_forc
 from bracing_core.node_log import NodeLog, Refusal
 from bracing_core.numbers import all_finite
 from bracing_core.params import ConfigError
-from bracing_core.stamps import NS_PER_S
 from bracing_core.targets import OrientationSpec, TargetLimits, TaskSpec, TaskTargets
 from bracing_core.types import HAND_TASK, Vector, brace_task
 
-STAMP_RANGE_NS = (-(2**31) * NS_PER_S, 2**31 * NS_PER_S)
-"""The stamps an answer can carry (builtin_interfaces/Time: int32 seconds)."""
 NULL_SPACE_CHECK_EVERY = 20
 """States between two looks at the null space's speed (1 us each in the engine; a runaway lasts 100s of steps)."""
 MEASUREMENT_WAIT_S = 0.5
@@ -83,10 +80,10 @@ def joint_vectors(
             raise StateError("missing", f"missing joints {quote_names(missing)}")
         order = [index[j] for j in joint_names]
         q, dq = position[order], velocity[order]
-    if not (np.isfinite(q).all() and np.isfinite(dq).all()):
-        raise StateError("non-finite", "non-finite position or velocity")
-    if not STAMP_RANGE_NS[0] <= stamp_ns < STAMP_RANGE_NS[1]:  # a nanosec field >= 1e9 can push it out
-        raise StateError("stamp", f"stamp {stamp_ns} ns cannot be answered (builtin_interfaces/Time: int32 seconds)")
+    # finite, a stamp in builtin_interfaces/Time's range: the engine's check, which the rcl path makes too
+    refused = engine.state_refusal(stamp_ns, np.asarray(q, dtype=float), np.asarray(dq, dtype=float))
+    if refused is not None:
+        raise StateError(*refused)
     return q, dq
 
 
@@ -296,21 +293,48 @@ class StateAnswerer:
         try:
             out = self.law.update(t, q, dq)
         except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:  # absurd but finite q, dq
-            self.log.limited("error", "law", f"joint_states at t = {t:.6f} s ignored: the law failed on it ({exc})")
+            self.law_failed(stamp_ns, str(exc))
             return
         self.drive_base(stamp_ns, q, dq, out)
         compute_time = self.timer() - start
         desired_normal_force = self.law.desired_normal_force.copy()
         outputs = (out.command, out.hand_desired, out.hand_actual, desired_normal_force)
         if not all_finite(*outputs, out.brace_desired, out.brace_actual):
-            message = f"joint_states at t = {t:.6f} s ignored: the law's output is not finite"
-            self.log.limited("error", "command", message)
+            self.output_not_finite(stamp_ns)
             return
-        if out.damped:
-            self.log.limited("warning", "damped", "B is near-singular: using a damped inverse")
-        self.watch_null_space(out, dq, t)
+        self.answered(stamp_ns, out.damped, lambda: (out.hand_desired, out.hand_actual, dq))
         send(Answer(stamp_ns, out, desired_normal_force, compute_time))
         self.previous_ns = stamp_ns
+
+    def answered(self, stamp_ns: int, damped: bool, sample: Callable[[], tuple[Vector, Vector, Vector]]) -> None:
+        """What follows an answer to the state stamped ``stamp_ns``, before it is sent: a damped inverse said, the
+        null space watched (``sample``: the hand's desired and actual position and dq, when looked at)."""
+        if damped:
+            self.log.limited("warning", "damped", "B is near-singular: using a damped inverse")
+        self.watch_null_space(sample, engine.stamp_seconds(stamp_ns))
+
+    def law_failed(self, stamp_ns: int, error: str) -> None:
+        """The law raised ``error`` (ValueError or ArithmeticError) on the state stamped ``stamp_ns``: ignored."""
+        t = engine.stamp_seconds(stamp_ns)
+        self.log.limited("error", "law", f"joint_states at t = {t:.6f} s ignored: the law failed on it ({error})")
+
+    def output_not_finite(self, stamp_ns: int) -> None:
+        """The law's answer to the state stamped ``stamp_ns`` is not finite: ignored."""
+        message = f"joint_states at t = {engine.stamp_seconds(stamp_ns):.6f} s ignored: the law's output is not finite"
+        self.log.limited("error", "command", message)
+
+    @property
+    def law_only(self) -> bool:
+        """Whether the next state needs the law alone: no retune waiting, no measurement, no target followed
+        and no base driven (what the controller's rcl path answers by itself)."""
+        targets = self.targets
+        return (
+            self.retuned is None
+            and self.measurements is None
+            and self.base_drive is None
+            and not targets.goals
+            and targets.orientation_goal is None
+        )
 
     def follow_targets(self, t: float) -> None:
         """Feed the law each retargeted task's reference at t (hand_target, hand_path, brace_target/<contact>,
@@ -389,12 +413,14 @@ class StateAnswerer:
         reduced[:3, :3] += np.eye(3)  # the base's block: no motor, decoupled
         return np.linalg.solve(reduced, (normal @ motion).T).T
 
-    def watch_null_space(self, out: engine.LawOutput, dq: Vector, t: float) -> None:
-        """Every NULL_SPACE_CHECK_EVERY states, until said once: warn of joints running in the null space."""
+    def watch_null_space(self, sample: Callable[[], tuple[Vector, Vector, Vector]], t: float) -> None:
+        """Every NULL_SPACE_CHECK_EVERY states, until said once: warn of joints running in the null space
+        (``sample``: the hand's desired and actual position and dq of the state answered)."""
         self.answers += 1
         if self.null_space_warned or self.answers % NULL_SPACE_CHECK_EVERY:
             return
-        hand_error = float(np.linalg.norm(out.hand_desired - out.hand_actual))
+        hand_desired, hand_actual, dq = sample()
+        hand_error = float(np.linalg.norm(np.asarray(hand_desired) - np.asarray(hand_actual)))
         warning = null_space_warning(self.law.null_space_speed(dq), hand_error, t)
         if warning is not None:
             self.null_space_warned = True

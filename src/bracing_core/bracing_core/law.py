@@ -15,6 +15,7 @@ class describes the configured tasks, contacts and gains to it and wraps its ans
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -27,6 +28,9 @@ from bracing_core.dynamics import engine_contact, engine_drive, engine_robot
 from bracing_core.params import ConfigError
 from bracing_core.trajectory import TrajectoryConfig
 from bracing_core.types import HAND_TASK, TaskIndex, Vector, brace_task
+
+if TYPE_CHECKING:
+    from typing_extensions import CapsuleType
 
 
 def axis_gains(axes: tuple[int, ...], gains: tuple[float, ...]) -> Vector:
@@ -212,6 +216,11 @@ class DecoupledController:
     def uses_temperature(self) -> bool:
         """Thermal compensation applies (voltage input, thermal motors): the law reads ``measure_temperature``."""
         return bool(self.engine.uses_temperature)
+
+    def c_api(self) -> CapsuleType:
+        """The law's C ABI (``bracing_engine.law_api``, law_api.h): a capsule for bracing_rcl's C++ path, keeping
+        the law alive."""
+        return engine.law_api(self.engine)
 
     def null_space_speed(self, dq: Vector) -> float:
         """max |(I - J^+ J) dq| [rad/s or m/s], J the task rows at the last update's q: motion no task sees."""

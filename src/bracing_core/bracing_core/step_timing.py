@@ -34,8 +34,9 @@ class WorkTimer:
         self._paused_at = 0.0
         self._marked_at: float | None = None
 
-    def begin(self) -> None:
-        self._start, self._waited, self._marked_at = time.perf_counter(), 0.0, None
+    def begin(self, at: float | None = None) -> None:
+        """A step begins (``at``: when [s] on ``time.perf_counter``'s clock; None: now)."""
+        self._start, self._waited, self._marked_at = time.perf_counter() if at is None else at, 0.0, None
 
     def pause(self) -> None:
         self._paused_at = time.perf_counter()
@@ -43,9 +44,10 @@ class WorkTimer:
     def resume(self) -> None:
         self._waited += time.perf_counter() - self._paused_at
 
-    def mark(self) -> None:
+    def mark(self, at: float | None = None) -> None:
+        """The answer is out (``at``: when, as ``begin``'s)."""
         if self._marked_at is None:
-            self._marked_at = time.perf_counter()
+            self._marked_at = time.perf_counter() if at is None else at
 
     def end(self, written_s: float = 0.0) -> None:
         self._samples.append(time.perf_counter() - self._start - self._waited)

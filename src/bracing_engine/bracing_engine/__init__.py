@@ -42,8 +42,10 @@ from bracing_engine._engine import (
     StepStatus,
     Surface,
     Task,
+    law_api,
     rollout,
     stamp_seconds,
+    state_refusal,
 )
 
 if PINOCCHIO_VERSION != pinocchio.__version__:
@@ -82,6 +84,8 @@ __all__ = [
     "StepStatus",
     "Surface",
     "Task",
+    "law_api",
     "rollout",
     "stamp_seconds",
+    "state_refusal",
 ]

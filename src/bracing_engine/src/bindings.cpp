@@ -413,4 +413,5 @@ NB_MODULE(_engine, m) {
   bind_law(m);
   bind_sensors(m);
   bind_rollout(m);
+  bind_law_api(m);
 }

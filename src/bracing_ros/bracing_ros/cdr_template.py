@@ -9,6 +9,7 @@ The bytes are plain CDR (XCDR1) with the little-endian encapsulation header, as 
 
 from __future__ import annotations
 
+import re
 import struct
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -81,6 +82,28 @@ class Template:
             items += value
             items.append(chunk)
         return self._struct.pack(*items)
+
+    def layout(self) -> tuple[bytes, list[tuple[int, int]], list[int], str]:
+        """The template as offsets, for code that fills or reads it without ``struct`` (bracing_rcl's C++):
+        its bytes with every slot zero, the constant runs (offset, length), and each value's offset and
+        ``struct`` code, in ``fill``'s order."""
+        constants: list[tuple[int, int]] = []
+        offsets: list[int] = []
+        codes, offset = "", 0
+        for count_text, code in re.findall(r"(\d*)([a-zA-Z?])", self._struct.format[1:]):
+            count = int(count_text or 1)
+            if code == "s":
+                if count:
+                    constants.append((offset, count))
+                offset += count
+            elif code == "x":
+                offset += count
+            else:
+                size = struct.calcsize("<" + code)
+                offsets += range(offset, offset + size * count, size)
+                codes += code * count
+                offset += size * count
+        return self.data, constants, offsets, codes
 
     def read(self, data: bytes) -> list[tuple[Any, ...]] | None:
         """The slots' values if ``data`` has this layout (the same constants), else None.

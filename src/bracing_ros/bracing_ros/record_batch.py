@@ -46,6 +46,11 @@ class RecordBatchPublisher:
         if self._packer is not None:
             self._packer.add(self._index[id(publisher)], data)
 
+    def keep(self, publisher: Publisher, data: bytes) -> None:
+        """``data`` (CDR bytes), published on ``publisher`` elsewhere (bracing_rcl's C++): into the batch only."""
+        if self._packer is not None:
+            self._packer.add(self._index[id(publisher)], data)
+
     def state_done(self) -> None:
         """A state's messages are all in: the batch goes out once it holds ``states_per_batch``."""
         if self._packer is not None and self._packer.state_done():

@@ -20,13 +20,37 @@ from rclpy.executors import SingleThreadedExecutor
 T = TypeVar("T")
 
 _requested = False  # a stop signal has come (never reset: the process is ending)
+_held = False  # inside ``held``: a stop signal waits for its end
+_pending = False  # a stop signal came inside ``held``
 
 
 def request_stop(signum: int, frame: object) -> None:
-    """The handler of SIGINT and SIGTERM: the process is to stop (``KeyboardInterrupt``)."""
-    global _requested
+    """The handler of SIGINT and SIGTERM: the process is to stop (``KeyboardInterrupt``; inside ``held``, at
+    its end)."""
+    global _requested, _pending
     _requested = True
+    if _held:
+        _pending = True
+        return
     raise KeyboardInterrupt()
+
+
+class _Held:
+    def __enter__(self) -> None:
+        global _held
+        _held = True
+
+    def __exit__(self, *exc: object) -> None:
+        global _held, _pending
+        _held = False
+        if _pending:
+            _pending = False
+            raise KeyboardInterrupt()
+
+
+held = _Held()
+"""``with held:`` a few steps that must not be cut apart by a stop signal (a message published and its copy
+kept for the recorder): its KeyboardInterrupt comes at the end of the block. Never around a wait."""
 
 
 def install() -> None:

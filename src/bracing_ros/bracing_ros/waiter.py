@@ -39,6 +39,10 @@ class SubscriptionWaiter:
 
     def take_all(self, timeout_sec: float) -> list[tuple[Subscription, Any]]:
         """(subscription, message) for every message available now, waiting up to ``timeout_sec``."""
+        return self.take_ready(self.wait(timeout_sec))
+
+    def wait(self, timeout_sec: float) -> list[Subscription]:
+        """The subscriptions with a message now, waiting up to ``timeout_sec`` (nothing taken: ``take_ready``)."""
         wait_set = self._wait_set
         wait_set.clear_entities()
         for subscription in self._subscriptions:
@@ -48,10 +52,11 @@ class SubscriptionWaiter:
         if not self._context.ok():
             raise ExternalShutdownException()
         ready = wait_set.get_ready_entities("subscription")
-        return self._take_ready([sub for sub in self._subscriptions if sub.handle.pointer in ready])
+        return [sub for sub in self._subscriptions if sub.handle.pointer in ready]
 
     @staticmethod
-    def _take_ready(subscriptions: list[Subscription]) -> list[tuple[Subscription, Any]]:
+    def take_ready(subscriptions: list[Subscription]) -> list[tuple[Subscription, Any]]:
+        """(subscription, message) for every message of ``subscriptions`` available now."""
         messages = []
         for subscription in subscriptions:
             handle = subscription.handle

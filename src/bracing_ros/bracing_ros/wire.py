@@ -77,7 +77,7 @@ from bracing_core.typestore import (
     VECTOR3_STAMPED,
     bracing_typestore,
 )
-from bracing_ros.cdr_template import PER_MESSAGE, PerMessage, derive_template
+from bracing_ros.cdr_template import PER_MESSAGE, PerMessage, Template, derive_template
 
 
 class DecodeError(ValueError):
@@ -119,6 +119,10 @@ class MotorCommandEncoder:
 
     def __init__(self, names: Sequence[str], mode: int) -> None:
         self._template = derive_template(MOTOR_COMMAND, _motor_command_spec(names, mode))
+
+    @property
+    def template(self) -> Template:
+        return self._template
 
     def encode(self, stamp_ns: int, value: Vector) -> bytes:
         return self._template.fill(sec_nanosec(stamp_ns), value.tolist())
@@ -179,6 +183,10 @@ class ControllerStateEncoder:
     def __init__(self, contact_names: Sequence[str], command_length: int, frame_id: str = "world") -> None:
         spec = _controller_state_spec(contact_names, command_length, frame_id)
         self._template = derive_template(CONTROLLER_STATE, spec)
+
+    @property
+    def template(self) -> Template:
+        return self._template
 
     def encode(
         self,
@@ -256,6 +264,10 @@ class _TemplateDecoder:
         self._typename, self._limits = typename, limits
         self._template = derive_template(typename, spec)
         bracing_typestore().get_msgdef(typename)  # the general reader's code, generated now
+
+    @property
+    def template(self) -> Template:
+        return self._template
 
     def _values(self, data: bytes) -> list[tuple[Any, ...]] | None:
         """The slots' values, or None for another layout (checked against ``limits``)."""

@@ -1,0 +1,166 @@
+"""The controller's per-state path on rcl (``bracing_rcl``, C++): when the node takes it, and what the node does
+around each state it answers (the bookkeeping of ``ControllerNode.answer``'s Python path).
+
+The lockstep loop takes it when the run needs nothing it leaves out: no force or temperature measurement (force
+feedback, thermal compensation), no orientation task (its orientation_error topic), no base following cmd_vel
+(and not effort_forward, which has a loop of its own); ``BRACING_CONTROLLER_PATH=python`` keeps the Python path.
+Per state it answers alone only what needs the law alone (``StateAnswerer.law_only``, no target waiting to be
+applied); any other state, and one it does not read or that the check refuses, it hands to the Python path as
+its bytes. Both paths make the same check (the engine's ``state_refusal``), run the same law and write the same
+bytes (the templates of ``bracing_ros.wire``).
+"""
+
+from __future__ import annotations
+
+import os
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+
+from bracing_core.message_limits import SizeError
+from bracing_core.step_timing import WorkTimer
+from bracing_core.types import Vector
+from bracing_rcl import ControllerPath, Layout, Outcome, Status
+from bracing_ros import stop_signal
+from bracing_ros.cdr_template import Template
+
+if TYPE_CHECKING:
+    from rclpy.publisher import Publisher
+    from rclpy.subscription import Subscription
+
+    from bracing_controller.targets import TargetTopics
+    from bracing_core.answering import StateAnswerer
+    from bracing_core.node_log import NodeLog
+    from bracing_ros import wire
+    from bracing_ros.ack_window import AckWindow
+    from bracing_ros.record_batch import RecordBatchPublisher
+
+
+class AnsweringNode(Protocol):
+    """What the C++ path uses of the controller node (``bracing_controller.node.ControllerNode``)."""
+
+    @property
+    def core(self) -> StateAnswerer: ...
+    @property
+    def target_topics(self) -> TargetTopics: ...
+    @property
+    def batch(self) -> RecordBatchPublisher: ...
+    @property
+    def flow(self) -> AckWindow: ...
+    @property
+    def log(self) -> NodeLog: ...
+    @property
+    def command_pub(self) -> Publisher: ...
+    @property
+    def state_pub(self) -> Publisher: ...
+    @property
+    def state_reader(self) -> wire.JointStateDecoder: ...
+    @property
+    def command_wire(self) -> wire.MotorCommandEncoder: ...
+    @property
+    def state_wire(self) -> wire.ControllerStateEncoder: ...
+    def on_state(self, data: bytes) -> None: ...
+
+
+PATH_ENV = "BRACING_CONTROLLER_PATH"
+"""The environment variable that chooses the controller's per-state path: "rcl" (the default) or "python"."""
+PATHS = ("rcl", "python")
+
+
+def python_only(core: StateAnswerer, effort_forward: bool, orientation: bool) -> str | None:
+    """Why the run needs the Python path for every state (None: the rcl path can take it); ``effort_forward``,
+    ``orientation``: whether the node runs effort_forward, an orientation task."""
+    choice = os.environ.get(PATH_ENV, "rcl")
+    if choice not in PATHS:
+        return f"{PATH_ENV}={choice!r} is neither of {', '.join(PATHS)}"
+    reasons = {
+        f"{PATH_ENV}=python": choice == "python",
+        "effort_forward": effort_forward,
+        "force or temperature measurements": core.measurements is not None,
+        "an orientation task": orientation,
+        "base_command cmd_vel": core.base_drive is not None,
+    }
+    try:
+        core.limits.check_count("name", len(core.joint_names))
+    except SizeError:
+        reasons["more joints than max_message_elements"] = True
+    found = [reason for reason, applies in reasons.items() if applies]
+    return ", ".join(found) if found else None
+
+
+def layout(template: Template) -> Layout:
+    """A message template as the C++ path takes it."""
+    return Layout(*template.layout())
+
+
+class RclPath:
+    """The node's joint_states answered by ``bracing_rcl.ControllerPath`` (see the module docstring)."""
+
+    def __init__(self, node: AnsweringNode, state_sub: Subscription) -> None:
+        self.node = node
+        self.path = ControllerPath(
+            node.core.law.c_api(),
+            state_sub.handle.pointer,
+            node.command_pub.handle.pointer,
+            node.state_pub.handle.pointer,
+            layout(node.state_reader.template),
+            layout(node.command_wire.template),
+            layout(node.state_wire.template),
+            keep_bytes=node.batch.publisher is not None,  # record_batch: the answer's bytes into the batch
+        )
+        self.answered = 0  # states the C++ path answered
+        self.handed_over = 0  # states it took and the Python path handled
+
+    def line(self) -> str:
+        """The log line of what each path did."""
+        return f"per-state path: {self.answered} states answered in C++ on rcl, {self.handed_over} by the Python path"
+
+    def answer_queued(self, work: WorkTimer) -> int:
+        """Take every joint_states waiting and answer it (here, or on the Python path); how many were taken."""
+        node, core = self.node, self.node.core
+        taken = 0
+        while True:
+            alone = core.law_only and not node.target_topics.pending
+            with stop_signal.held:  # an answer published is kept for the recorder, even as the run stops
+                outcome = self.path.take(core.previous_ns, alone)
+                if outcome.status == Status.answered:
+                    self.answered += 1
+                    self.keep(outcome)
+            if outcome.status == Status.empty:
+                return taken
+            taken += 1
+            work.begin(outcome.taken_at)
+            if outcome.status == Status.python:
+                self.handed_over += 1
+                node.on_state(outcome.data or b"")
+            else:
+                self.settle(outcome, work)
+            work.end(outcome.written_s + node.batch.take_written())
+
+    def keep(self, outcome: Outcome) -> None:
+        """An answer's bytes into the record batch (record_batch), as ``ControllerNode.send`` keeps them."""
+        if outcome.command is not None and outcome.state is not None:
+            self.node.batch.keep(self.node.command_pub, outcome.command)
+            self.node.batch.keep(self.node.state_pub, outcome.state)
+
+    def settle(self, outcome: Outcome, work: WorkTimer) -> None:
+        """After the C++ path's law: an answer out (its bookkeeping, as ``ControllerNode.send``'s), or the law's
+        failure said."""
+        node, core, stamp_ns = self.node, self.node.core, outcome.stamp_ns
+        if outcome.status == Status.answered:
+            work.mark(outcome.command_out_at)
+            core.answered(stamp_ns, outcome.damped, lambda: watched(outcome))
+            node.flow.sent()
+            node.batch.state_done()
+            core.previous_ns = stamp_ns
+        elif outcome.status == Status.law_failed:
+            core.law_failed(stamp_ns, outcome.message)
+        elif outcome.status == Status.not_finite:
+            core.output_not_finite(stamp_ns)
+        else:  # the law raised something else: as ControllerNode.on_state's last line of defence says it
+            node.log.limited("error", "internal", f"joint_states ignored: {outcome.message}")
+
+
+def watched(outcome: Outcome) -> tuple[Vector, Vector, Vector]:
+    """What the null-space watch looks at of an answer: the hand's desired and actual position, dq."""
+    return np.array(outcome.hand_desired), np.array(outcome.hand_actual), np.array(outcome.dq)

@@ -1,0 +1,275 @@
+// The controller node's per-state path on rcl's C API: take a joint_states, check it, run the law, publish the
+// motor_command and then the controller_state, with the GIL released. Its messages are the byte templates
+// bracing_ros.cdr_template derives from the definitions (handed over as Layouts); the check and the law are the
+// engine's (its C ABI, law_api.h: one implementation for both of the node's paths). A state this path does not
+// answer itself (another layout, a refusal, a new run, a pending retune or target) goes back to Python as its
+// bytes, to the node's Python path.
+#include <nanobind/nanobind.h>
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/pair.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
+#include <rcl/error_handling.h>
+#include <rcl/rcl.h>
+#include <rmw/serialized_message.h>
+#include <time.h>
+
+#include <cstdint>
+#include <cstring>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "bracing_engine/law_api.h"
+
+namespace nb = nanobind;
+using namespace nb::literals;
+
+namespace {
+
+constexpr std::int64_t kNsPerS = 1000000000;
+
+double monotonic_s() {  // CLOCK_MONOTONIC: time.perf_counter's and time.monotonic's clock on Linux
+  timespec now{};
+  clock_gettime(CLOCK_MONOTONIC, &now);
+  return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
+}
+
+void check(rcl_ret_t ret, const char* what) {
+  if (ret == RCL_RET_OK) return;
+  std::string text = std::string(what) + " failed: " + rcl_get_error_string().str;
+  rcl_reset_error();
+  throw std::runtime_error(text);
+}
+
+// A message's byte template: its bytes with every slot zero, the constant runs a message of this layout
+// repeats, and where each value of the slots goes. The values are a header stamp (int32 sec, uint32
+// nanosec) then float64s.
+class Layout {
+ public:
+  Layout(nb::bytes bytes, std::vector<std::pair<std::uint32_t, std::uint32_t>> constants,
+         std::vector<std::uint32_t> offsets, std::string codes)
+      : bytes_(static_cast<const std::uint8_t*>(bytes.data()),
+               static_cast<const std::uint8_t*>(bytes.data()) + bytes.size()),
+        constants_(std::move(constants)), offsets_(std::move(offsets)) {
+    if (codes.size() != offsets_.size() || codes.size() < 2 || codes.compare(0, 2, "iI") != 0 ||
+        codes.find_first_not_of('d', 2) != std::string::npos) {
+      throw std::invalid_argument("a layout's values are a stamp (iI) then float64s, not " + codes);
+    }
+    for (const auto& [offset, length] : constants_) {
+      if (std::size_t{offset} + length > bytes_.size()) throw std::invalid_argument("a constant run past the end");
+    }
+    for (std::size_t k = 0; k < offsets_.size(); ++k) {
+      if (std::size_t{offsets_[k]} + (k < 2 ? 4 : 8) > bytes_.size()) throw std::invalid_argument("a value past the end");
+    }
+  }
+  std::size_t values() const { return offsets_.size() - 2; }  // the float64s
+  // Whether data has this layout (the same constants; bytes past its end ignored, as rclpy's messages carry).
+  bool matches(const std::uint8_t* data, std::size_t size) const {
+    if (size < bytes_.size()) return false;
+    for (const auto& [offset, length] : constants_) {
+      if (std::memcmp(data + offset, bytes_.data() + offset, length) != 0) return false;
+    }
+    return true;
+  }
+  std::int64_t stamp_ns(const std::uint8_t* data) const {
+    std::int32_t sec;
+    std::uint32_t nanosec;
+    std::memcpy(&sec, data + offsets_[0], 4);
+    std::memcpy(&nanosec, data + offsets_[1], 4);
+    return std::int64_t{sec} * kNsPerS + nanosec;
+  }
+  double value(const std::uint8_t* data, std::size_t k) const {
+    double v;
+    std::memcpy(&v, data + offsets_[2 + k], 8);
+    return v;
+  }
+  // The message stamped stamp_ns (sec, nanosec as rclpy's Time.to_msg: nanosec in [0, 1e9)) with values.
+  void fill(std::vector<std::uint8_t>& out, std::int64_t stamp_ns, const std::vector<double>& values) const {
+    out = bytes_;
+    std::int64_t sec = stamp_ns / kNsPerS, nanosec = stamp_ns % kNsPerS;
+    if (nanosec < 0) sec -= 1, nanosec += kNsPerS;
+    const auto sec32 = static_cast<std::int32_t>(sec);
+    const auto nanosec32 = static_cast<std::uint32_t>(nanosec);
+    std::memcpy(out.data() + offsets_[0], &sec32, 4);
+    std::memcpy(out.data() + offsets_[1], &nanosec32, 4);
+    for (std::size_t k = 0; k < values.size(); ++k) std::memcpy(out.data() + offsets_[2 + k], &values[k], 8);
+  }
+
+ private:
+  std::vector<std::uint8_t> bytes_;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> constants_;
+  std::vector<std::uint32_t> offsets_;
+};
+
+enum class Status { empty, python, answered, law_failed, law_internal, not_finite };
+
+// What one take did, for the node's Python side (its bookkeeping, its log).
+struct Outcome {
+  Status status = Status::empty;
+  std::int64_t stamp_ns = 0;
+  std::optional<nb::bytes> data, command, state;  // python: the state's bytes; answered: the answer's (batching)
+  double taken_at = 0.0, command_out_at = 0.0, done_at = 0.0;  // [s] CLOCK_MONOTONIC
+  double written_s = 0.0;  // [s] in rcl_publish (the DDS writes)
+  bool damped = false;
+  std::vector<double> hand_desired, hand_actual, dq;  // answered: for the null-space watch
+  std::string message;  // law_failed, law_internal: the exception's
+};
+
+class ControllerPath {
+ public:
+  ControllerPath(nb::capsule law_api, std::uintptr_t state_subscription, std::uintptr_t command_publisher,
+                 std::uintptr_t state_publisher, const Layout& joint_state, const Layout& command,
+                 const Layout& controller_state, bool keep_bytes)
+      : law_api_(law_api), api_(static_cast<const BracingLawApi*>(law_api.data())),
+        subscription_(reinterpret_cast<const rcl_subscription_t*>(state_subscription)),
+        command_publisher_(reinterpret_cast<const rcl_publisher_t*>(command_publisher)),
+        state_publisher_(reinterpret_cast<const rcl_publisher_t*>(state_publisher)), joint_state_(joint_state),
+        command_(command), controller_state_(controller_state), keep_bytes_(keep_bytes) {
+    if (std::strcmp(law_api.name(), BRACING_LAW_API_CAPSULE) != 0 || api_->version != BRACING_LAW_API_VERSION) {
+      throw std::invalid_argument("not the engine's law_api (or another version of it)");
+    }
+    const std::size_t n = static_cast<std::size_t>(api_->joints), b = static_cast<std::size_t>(api_->braces);
+    if (joint_state_.values() != 3 * n || command_.values() != n || controller_state_.values() != 7 + n + 7 * b) {
+      throw std::invalid_argument("the layouts do not fit the law's joints and braces");
+    }
+    q_.resize(n), dq_.resize(n), command_values_.resize(n), state_values_.resize(controller_state_.values());
+    rcutils_allocator_t allocator = rcutils_get_default_allocator();
+    check(rmw_serialized_message_init(&taken_, 0, &allocator), "rmw_serialized_message_init");
+  }
+  ~ControllerPath() { (void)rmw_serialized_message_fini(&taken_); }
+  ControllerPath(const ControllerPath&) = delete;
+  ControllerPath& operator=(const ControllerPath&) = delete;
+
+  // Take the next joint_states, if one is there, and answer it when `answer` and it needs nothing else
+  // (its layout the template's, the check passed, not before previous_ns: else its bytes back).
+  Outcome take(std::optional<std::int64_t> previous_ns, bool answer) {
+    Outcome out;
+    {
+      nb::gil_scoped_release unlocked;
+      rmw_message_info_t info = rmw_get_zero_initialized_message_info();
+      const rcl_ret_t ret = rcl_take_serialized_message(subscription_, &taken_, &info, nullptr);
+      if (ret == RCL_RET_SUBSCRIPTION_TAKE_FAILED) return out;
+      check(ret, "rcl_take_serialized_message");
+      out.taken_at = monotonic_s();
+      out.status = answer ? respond(previous_ns, out) : Status::python;
+    }
+    if (out.status == Status::python) {
+      out.data = nb::bytes(reinterpret_cast<const char*>(taken_.buffer), taken_.buffer_length);
+    } else if (out.status == Status::answered && keep_bytes_) {
+      out.command = nb::bytes(reinterpret_cast<const char*>(command_bytes_.data()), command_bytes_.size());
+      out.state = nb::bytes(reinterpret_cast<const char*>(state_bytes_.data()), state_bytes_.size());
+    }
+    return out;
+  }
+
+ private:
+  // Decode, check, answer and publish (without the GIL).
+  Status respond(std::optional<std::int64_t> previous_ns, Outcome& out) {
+    const std::uint8_t* data = taken_.buffer;
+    if (!joint_state_.matches(data, taken_.buffer_length)) return Status::python;
+    const std::int64_t stamp_ns = joint_state_.stamp_ns(data);
+    const std::size_t n = q_.size();
+    for (std::size_t k = 0; k < n; ++k) q_[k] = joint_state_.value(data, k), dq_[k] = joint_state_.value(data, n + k);
+    char kind[8], message[8];  // only whether: the Python path says why
+    if (api_->state_refusal(stamp_ns, q_.data(), dq_.data(), static_cast<int>(n), kind, message, sizeof kind)) {
+      return Status::python;
+    }
+    if (previous_ns && stamp_ns < *previous_ns) return Status::python;  // a new run: the Python path restarts
+    out.stamp_ns = stamp_ns;
+    return law_answer(stamp_ns, out);
+  }
+
+  Status law_answer(std::int64_t stamp_ns, Outcome& out) {
+    const std::size_t n = q_.size(), b = static_cast<std::size_t>(api_->braces);
+    double* s = state_values_.data();  // hand_desired, hand_actual, f_nd, brace_desired, brace_actual, command, time
+    BracingLawAnswer answer{command_values_.data(), s, s + 3, s + 6, s + 6 + b, s + 6 + 4 * b, 0.0, 0};
+    char error[512] = "";
+    const int status = api_->answer(api_, stamp_ns, q_.data(), dq_.data(), &answer, error, sizeof error);
+    if (status != BRACING_ANSWERED) {
+      out.message = error;
+      return status == BRACING_LAW_FAILED ? Status::law_failed
+             : status == BRACING_NOT_FINITE ? Status::not_finite
+                                             : Status::law_internal;
+    }
+    out.damped = answer.damped != 0;
+    out.hand_desired.assign(s, s + 3), out.hand_actual.assign(s + 3, s + 6), out.dq = dq_;
+    std::memcpy(s + 6 + 7 * b, command_values_.data(), n * sizeof(double));
+    s[6 + 7 * b + n] = answer.compute_time_s;
+    command_.fill(command_bytes_, stamp_ns, command_values_);
+    out.written_s += publish(command_publisher_, command_bytes_, "motor_command");
+    out.command_out_at = monotonic_s();
+    controller_state_.fill(state_bytes_, stamp_ns, state_values_);
+    out.written_s += publish(state_publisher_, state_bytes_, "controller_state");
+    out.done_at = monotonic_s();
+    return Status::answered;
+  }
+
+  // [s] the write's time.
+  static double publish(const rcl_publisher_t* publisher, std::vector<std::uint8_t>& bytes, const char* topic) {
+    const double start = monotonic_s();
+    rcl_serialized_message_t message = rmw_get_zero_initialized_serialized_message();
+    message.buffer = bytes.data();
+    message.buffer_length = message.buffer_capacity = bytes.size();
+    message.allocator = rcutils_get_default_allocator();
+    const rcl_ret_t ret = rcl_publish_serialized_message(publisher, &message, nullptr);
+    if (ret != RCL_RET_OK) {
+      std::string text = std::string("publishing ") + topic + " failed: " + rcl_get_error_string().str;
+      rcl_reset_error();
+      throw std::runtime_error(text);
+    }
+    return monotonic_s() - start;
+  }
+
+  nb::capsule law_api_;  // keeps the law alive
+  const BracingLawApi* api_;
+  const rcl_subscription_t* subscription_;
+  const rcl_publisher_t* command_publisher_;
+  const rcl_publisher_t* state_publisher_;
+  Layout joint_state_, command_, controller_state_;
+  bool keep_bytes_;
+  rcl_serialized_message_t taken_ = rmw_get_zero_initialized_serialized_message();
+  std::vector<double> q_, dq_, command_values_, state_values_;
+  std::vector<std::uint8_t> command_bytes_, state_bytes_;
+};
+
+}  // namespace
+
+NB_MODULE(_rcl, m) {
+  m.doc() = "The controller node's per-state path on rcl's C API (bracing_rcl.ControllerPath)";
+  nb::enum_<Status>(m, "Status", "what one ControllerPath.take did")
+      .value("empty", Status::empty, "no joint_states was there")
+      .value("python", Status::python, "taken, not answered: its bytes are for the node's Python path")
+      .value("answered", Status::answered, "motor_command and controller_state published")
+      .value("law_failed", Status::law_failed, "the law raised ValueError or ArithmeticError's like: message")
+      .value("law_internal", Status::law_internal, "the law raised another exception: message '<type>: <text>'")
+      .value("not_finite", Status::not_finite, "the law's output is not finite: nothing sent");
+  nb::class_<Layout>(m, "Layout", "a message's byte template (bracing_ros.cdr_template.Template.layout)")
+      .def(nb::init<nb::bytes, std::vector<std::pair<std::uint32_t, std::uint32_t>>, std::vector<std::uint32_t>,
+                    std::string>(),
+           "bytes"_a, "constants"_a, "offsets"_a, "codes"_a);
+  nb::class_<Outcome>(m, "Outcome", "what one take did")
+      .def_ro("status", &Outcome::status)
+      .def_ro("stamp_ns", &Outcome::stamp_ns, "[ns] the state's stamp (answered and the law's outcomes)")
+      .def_ro("data", &Outcome::data, "python: the state's CDR bytes")
+      .def_ro("command", &Outcome::command, "answered, keeping bytes: motor_command's")
+      .def_ro("state", &Outcome::state, "answered, keeping bytes: controller_state's")
+      .def_ro("taken_at", &Outcome::taken_at, "[s] CLOCK_MONOTONIC (time.perf_counter's on Linux): taken")
+      .def_ro("command_out_at", &Outcome::command_out_at, "[s] the command published")
+      .def_ro("done_at", &Outcome::done_at, "[s] the controller_state published")
+      .def_ro("written_s", &Outcome::written_s, "[s] in rcl_publish")
+      .def_ro("damped", &Outcome::damped, "the law used a damped inverse")
+      .def_ro("hand_desired", &Outcome::hand_desired, "answered: the hand's desired position [m]")
+      .def_ro("hand_actual", &Outcome::hand_actual, "answered: the hand's position [m]")
+      .def_ro("dq", &Outcome::dq, "answered: the state's joint velocities, the law's order")
+      .def_ro("message", &Outcome::message, "law_failed, law_internal: what the law raised");
+  nb::class_<ControllerPath>(m, "ControllerPath", "the controller's per-state path on rcl")
+      .def(nb::init<nb::capsule, std::uintptr_t, std::uintptr_t, std::uintptr_t, const Layout&, const Layout&,
+                    const Layout&, bool>(),
+           "law_api"_a, "state_subscription"_a, "command_publisher"_a, "state_publisher"_a, "joint_state"_a,
+           "command"_a, "controller_state"_a, "keep_bytes"_a)
+      .def("take", &ControllerPath::take, "previous_ns"_a.none(), "answer"_a,
+           "take the next joint_states and answer it if `answer` and it needs nothing else");
+}
