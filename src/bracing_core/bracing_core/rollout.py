@@ -144,7 +144,7 @@ RECORDED_ARRAYS = (
     "brace_desired", "brace_actual", "contact_position", "slip_velocity", "normal_force", "friction_force",
     "residual", "active", "desired_normal_force", "force_command", "measured_position", "measured_velocity",
     "energy_consumed", "energy_net", "copper_loss", "hand_orientation_error", "command_limit", "rolling_residual",
-)
+)  # fmt: skip
 
 
 class RunResult(engine.Recording):
