@@ -1,4 +1,10 @@
-# A package's nanobind module installed with its type stubs (include()d after nanobind is found).
+# A package's nanobind module (include()d by its CMakeLists.txt after ament_cmake_python): nanobind as the
+# venv's wheel has it, and the module installed with its type stubs.
+find_package(Python 3.11 COMPONENTS Interpreter Development.Module REQUIRED)
+execute_process(
+  COMMAND "${Python_EXECUTABLE}" -m nanobind --cmake_dir
+  OUTPUT_STRIP_TRAILING_WHITESPACE OUTPUT_VARIABLE nanobind_ROOT)
+find_package(nanobind CONFIG REQUIRED)
 
 # Install ``target`` (a nanobind module) into the package's Python directory beside the package's Python
 # sources, with the .pyi nanobind's stub generator writes from the built module (mypy checks every call
