@@ -39,26 +39,18 @@ if TYPE_CHECKING:
 class AnsweringNode(Protocol):
     """What the C++ path uses of the controller node (``bracing_controller.node.ControllerNode``)."""
 
+    core: StateAnswerer
+    target_topics: TargetTopics
+    batch: RecordBatchPublisher
+    flow: AckWindow
+    command_pub: Publisher
+    state_pub: Publisher
+    state_reader: wire.JointStateDecoder
+    command_wire: wire.MotorCommandEncoder
+    state_wire: wire.ControllerStateEncoder
+
     @property
-    def core(self) -> StateAnswerer: ...
-    @property
-    def target_topics(self) -> TargetTopics: ...
-    @property
-    def batch(self) -> RecordBatchPublisher: ...
-    @property
-    def flow(self) -> AckWindow: ...
-    @property
-    def log(self) -> NodeLog: ...
-    @property
-    def command_pub(self) -> Publisher: ...
-    @property
-    def state_pub(self) -> Publisher: ...
-    @property
-    def state_reader(self) -> wire.JointStateDecoder: ...
-    @property
-    def command_wire(self) -> wire.MotorCommandEncoder: ...
-    @property
-    def state_wire(self) -> wire.ControllerStateEncoder: ...
+    def log(self) -> NodeLog: ...  # read-only: the node's is a NodeLog's subclass
     def on_state(self, data: bytes) -> None: ...
 
 
