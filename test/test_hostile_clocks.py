@@ -312,12 +312,14 @@ def test_effort_forward_sends_zeros_once_its_state_is_older_than_state_timeout(t
     process = start(node_argv("bracing_controller.node", params_file(tmp_path, "bracing_controller", ctl)), env)
     peer = start_peer(env, "robot_side")
     received = _commands(peer)
+    # a writer of its own for the negative tick, matched before it is sent (a late match loses it)
+    negative = peer.node.create_publisher(Clock, "/clock", RELIABLE)
     run = [(5.0 + k * TICK, k < 30) for k in range(60)]  # states for 0.3 s, then none for 0.3 s
     run += [(5.6 + k * TICK, True) for k in range(20)]  # states again
     reset = [(1.0 + k * TICK, k >= 10) for k in range(30)]  # back to 1 s; states from 1.1 s
     try:
         seen = _clock_ticks(peer, received, run)
-        negative = peer.node.create_publisher(Clock, "/clock", RELIABLE)
+        assert peer.spin_until(lambda: negative.get_subscription_count() >= 1, 60)
         negative.publish(Clock(clock=Time(sec=-1, nanosec=0)))
         seen_reset = _clock_ticks(peer, received, reset)
         alive = process.poll() is None
