@@ -166,7 +166,7 @@ class ControllerPath {
           "rcl_wait_set_init");
   }
   ~ControllerPath() {
-    (void)rcl_wait_set_fini(&wait_set_);
+    if (rcl_wait_set_fini(&wait_set_) != RCL_RET_OK) rcl_reset_error();  // nothing more to do at the end
     (void)rmw_serialized_message_fini(&taken_);
   }
   ControllerPath(const ControllerPath&) = delete;
