@@ -67,6 +67,9 @@ def test_each_run_took_its_path(runs: dict[str, Path]) -> None:
     assert found is not None, log[-3000:]
     states = round(RUN_S * 1000) + 1
     assert states - 3 <= int(found[1]) <= states and int(found[2]) == 0, found[0]
+    # the C++ path waits for the states itself: it says how soon each was taken once DDS had it
+    landed = re.search(r"taken after landing \[us\]: p50 ([0-9.]+), p99 ([0-9.]+), max ([0-9.]+)", log)
+    assert landed is not None and 0.0 < float(landed[1]) <= float(landed[2]) <= float(landed[3]), log[-3000:]
 
 
 def test_the_rcl_path_bag_equals_the_python_path_bag(runs: dict[str, Path]) -> None:

@@ -55,3 +55,15 @@ def test_the_wait_for_the_peer_is_not_work_and_the_line_reads_back(monkeypatch: 
         "mean": 20.0, "p50": 20.0, "p99": 29.8, "steps": 2.0,
     }  # fmt: skip
     assert read_work_line("finished at t = 1.0 s") is None
+
+
+def test_a_step_timed_elsewhere_ends_when_it_says(monkeypatch: pytest.MonkeyPatch) -> None:
+    # The controller's C++ path: begun at the take (20 us), ended at its return to the wait (35 us), with
+    # the clock already at 900 us (the Python bookkeeping after several states): 15 us, not 880.
+    monkeypatch.setattr(step_timing.time, "perf_counter", lambda: 900e-6)
+    timer = WorkTimer()
+    timer.begin(20e-6)
+    timer.mark(30e-6)
+    timer.end(at=35e-6)
+    line = timer.line()
+    assert line is not None and "p50 15.0" in line and "until the answer is out: mean 10.0" in line, line

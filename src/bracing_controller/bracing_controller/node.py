@@ -307,17 +307,16 @@ def spin(node: ControllerNode) -> int:
         # (py-spy).
         commands = [node.cmd_vel_sub] if node.cmd_vel_sub is not None else []
         waiter = SubscriptionWaiter(node, [state_sub, *targets.subscriptions, *commands])
-        rcl = answer_on_rcl(node, state_sub)
+        rcl = answer_on_rcl(node, state_sub, [*targets.subscriptions, *commands])
         node.log.info("answering joint_states")
         node.command_out = work.mark
         node.status.say(RunStatus.STEPPING)
         while True:
             if rcl is None:
                 states, taken = 0, waiter.take_all(0.1)
-            else:  # the C++ path takes the states (answering them), this loop the rest
-                ready = waiter.wait(0.1)
-                states = rcl.answer_queued(work) if state_sub in ready else 0
-                taken = waiter.take_ready([sub for sub in ready if sub is not state_sub])
+            else:  # the C++ path waits for the states and answers them, this loop takes the rest
+                states, ready = rcl.serve(work, max(100 - answered, 1))
+                taken = waiter.take_ready(ready)
                 answered += states
             for subscription, msg in taken:
                 if subscription is state_sub:
@@ -350,11 +349,12 @@ def spin(node: ControllerNode) -> int:
         return 0
 
 
-def answer_on_rcl(node: ControllerNode, state_sub: Subscription) -> RclPath | None:
-    """The C++ path on rcl for the states, if the run needs nothing it leaves out (``rcl_path``); which, logged."""
+def answer_on_rcl(node: ControllerNode, state_sub: Subscription, others: list[Subscription]) -> RclPath | None:
+    """The C++ path on rcl for the states (waiting with ``others`` too), if the run needs nothing it leaves out
+    (``rcl_path``); which, logged."""
     reason = python_only(node.core, node.effort is not None, node.orientation_pub is not None)
     node.log.info(f"per-state path: {'Python (' + reason + ')' if reason else 'C++ on rcl'}")
-    return RclPath(node, state_sub) if reason is None else None
+    return RclPath(node, state_sub, others) if reason is None else None
 
 
 def effort_tick(node: ControllerNode) -> None:

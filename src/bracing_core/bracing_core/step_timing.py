@@ -49,8 +49,9 @@ class WorkTimer:
         if self._marked_at is None:
             self._marked_at = time.perf_counter() if at is None else at
 
-    def end(self, written_s: float = 0.0) -> None:
-        self._samples.append(time.perf_counter() - self._start - self._waited)
+    def end(self, written_s: float = 0.0, at: float | None = None) -> None:
+        """The step ends (``at``: when, as ``begin``'s; None: now)."""
+        self._samples.append((time.perf_counter() if at is None else at) - self._start - self._waited)
         self._writes.append(written_s)
         if self._marked_at is not None:  # the waits come before the answer is taken, so before the mark
             self._to_mark.append(self._marked_at - self._start - self._waited)
