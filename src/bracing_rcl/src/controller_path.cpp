@@ -23,86 +23,21 @@
 #include <vector>
 
 #include "bracing_engine/law_api.h"
+#include "common.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
 
 namespace {
 
-constexpr std::int64_t kNsPerS = 1000000000;
+using bracing_rcl::check;
+using bracing_rcl::Layout;
 
 double monotonic_s() {  // CLOCK_MONOTONIC: time.perf_counter's and time.monotonic's clock on Linux
   timespec now{};
   clock_gettime(CLOCK_MONOTONIC, &now);
   return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
 }
-
-void check(rcl_ret_t ret, const char* what) {
-  if (ret == RCL_RET_OK) return;
-  std::string text = std::string(what) + " failed: " + rcl_get_error_string().str;
-  rcl_reset_error();
-  throw std::runtime_error(text);
-}
-
-// A message's byte template: its bytes with every slot zero, the constant runs a message of this layout
-// repeats, and where each value of the slots goes. The values are a header stamp (int32 sec, uint32
-// nanosec) then float64s.
-class Layout {
- public:
-  Layout(nb::bytes bytes, std::vector<std::pair<std::uint32_t, std::uint32_t>> constants,
-         std::vector<std::uint32_t> offsets, std::string codes)
-      : bytes_(static_cast<const std::uint8_t*>(bytes.data()),
-               static_cast<const std::uint8_t*>(bytes.data()) + bytes.size()),
-        constants_(std::move(constants)), offsets_(std::move(offsets)) {
-    if (codes.size() != offsets_.size() || codes.size() < 2 || codes.compare(0, 2, "iI") != 0 ||
-        codes.find_first_not_of('d', 2) != std::string::npos) {
-      throw std::invalid_argument("a layout's values are a stamp (iI) then float64s, not " + codes);
-    }
-    for (const auto& [offset, length] : constants_) {
-      if (std::size_t{offset} + length > bytes_.size()) throw std::invalid_argument("a constant run past the end");
-    }
-    for (std::size_t k = 0; k < offsets_.size(); ++k) {
-      if (std::size_t{offsets_[k]} + (k < 2 ? 4 : 8) > bytes_.size()) throw std::invalid_argument("a value past the end");
-    }
-  }
-  std::size_t values() const { return offsets_.size() - 2; }  // the float64s
-  // Whether data has this layout (the same constants; bytes past its end ignored, as rclpy's messages carry).
-  bool matches(const std::uint8_t* data, std::size_t size) const {
-    if (size < bytes_.size()) return false;
-    for (const auto& [offset, length] : constants_) {
-      if (std::memcmp(data + offset, bytes_.data() + offset, length) != 0) return false;
-    }
-    return true;
-  }
-  std::int64_t stamp_ns(const std::uint8_t* data) const {
-    std::int32_t sec;
-    std::uint32_t nanosec;
-    std::memcpy(&sec, data + offsets_[0], 4);
-    std::memcpy(&nanosec, data + offsets_[1], 4);
-    return std::int64_t{sec} * kNsPerS + nanosec;
-  }
-  double value(const std::uint8_t* data, std::size_t k) const {
-    double v;
-    std::memcpy(&v, data + offsets_[2 + k], 8);
-    return v;
-  }
-  // The message stamped stamp_ns (sec, nanosec as rclpy's Time.to_msg: nanosec in [0, 1e9)) with values.
-  void fill(std::vector<std::uint8_t>& out, std::int64_t stamp_ns, const std::vector<double>& values) const {
-    out = bytes_;
-    std::int64_t sec = stamp_ns / kNsPerS, nanosec = stamp_ns % kNsPerS;
-    if (nanosec < 0) sec -= 1, nanosec += kNsPerS;
-    const auto sec32 = static_cast<std::int32_t>(sec);
-    const auto nanosec32 = static_cast<std::uint32_t>(nanosec);
-    std::memcpy(out.data() + offsets_[0], &sec32, 4);
-    std::memcpy(out.data() + offsets_[1], &nanosec32, 4);
-    for (std::size_t k = 0; k < values.size(); ++k) std::memcpy(out.data() + offsets_[2 + k], &values[k], 8);
-  }
-
- private:
-  std::vector<std::uint8_t> bytes_;
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> constants_;
-  std::vector<std::uint32_t> offsets_;
-};
 
 enum class Status { empty, python, answered, law_failed, law_internal, not_finite };
 
@@ -238,7 +173,7 @@ class ControllerPath {
 }  // namespace
 
 NB_MODULE(_rcl, m) {
-  m.doc() = "The controller node's per-state path on rcl's C API (bracing_rcl.ControllerPath)";
+  m.doc() = "The nodes' per-state paths on rcl's C API (bracing_rcl.ControllerPath, bracing_rcl.CommandPath)";
   nb::enum_<Status>(m, "Status", "what one ControllerPath.take did")
       .value("empty", Status::empty, "no joint_states was there")
       .value("python", Status::python, "taken, not answered: its bytes are for the node's Python path")
@@ -272,4 +207,5 @@ NB_MODULE(_rcl, m) {
            "command"_a, "controller_state"_a, "keep_bytes"_a)
       .def("take", &ControllerPath::take, "previous_ns"_a.none(), "answer"_a,
            "take the next joint_states and answer it if `answer` and it needs nothing else");
+  bracing_rcl::bind_simulator_path(m);
 }
