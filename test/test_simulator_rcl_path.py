@@ -7,13 +7,22 @@ The simulator's hostile-input tests (test_fuzz, test_hostile_input, test_robustn
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
 import pytest
-from ros_helpers import SIMULATOR_PATH_LINES, isolated_env, pair_argv, run
+import rclpy
+from rclpy.context import Context
+from rclpy.qos import QoSProfile
+from rclpy.serialization import deserialize_message
+from ros_helpers import SIMULATOR_PATH_LINES, hold_test_domain, isolated_env, pair_argv, run
 from test_controller_rcl_path import NOT_COMPARED, RUN_S, recorded
 
+from bracing_msgs.msg import MotorCommand
+from bracing_rcl import CommandPath, CommandStatus, Layout
+from bracing_ros import wire
+from bracing_ros.waiter import SubscriptionWaiter
 from bracing_sim.rcl_path import PATH_ENV
 
 
@@ -51,3 +60,49 @@ def test_the_rcl_path_bag_equals_the_python_path_bag(runs: dict[str, Path]) -> N
         assert len(rcl[topic]) == len(python[topic]) >= 1, topic
         assert rcl[topic] == python[topic], topic
     assert len(rcl["/joint_states"]) == round(RUN_S * 1000) + 1
+
+
+def command(names: list[str], values: list[float], mode: int = MotorCommand.VOLTAGE) -> MotorCommand:
+    msg = MotorCommand(mode=mode, name=names, value=values)
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 3, 250_000_000
+    return msg
+
+
+def test_the_command_path_reads_only_what_needs_no_word(monkeypatch: pytest.MonkeyPatch) -> None:
+    """CommandPath on a real rcl subscription in this process: a command with the template's layout, finite and
+    within the limits is read (its stamp and values exactly); every other one comes back as its bytes (the
+    message sent) for the Python path: the joints shuffled, a NaN, a value over its joint's limit, another mode,
+    too few joints."""
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    names, limit = ["joint1", "joint2", "joint3", "joint4"], [5.0, 0.0, 5.0, 5.0]  # joint2: no limit
+    template = wire.MotorCommandDecoder(names, MotorCommand.VOLTAGE).template
+    good = command(names, [1.5, -300.0, 5.0, -0.25])
+    handed_over = [
+        command([names[k] for k in (3, 0, 2, 1)], [-0.25, 1.5, 5.0, -300.0]),
+        command(names, [1.5, math.nan, 0.0, 0.0]),
+        command(names, [1.5, 0.0, 5.000001, 0.0]),
+        command(names, [1.5, 0.0, 0.0, 0.0], MotorCommand.TORQUE),
+        command(names[:3], [1.5, 0.0, 0.0]),
+    ]
+    context = Context()
+    rclpy.init(context=context, domain_id=hold_test_domain())
+    try:
+        node = rclpy.create_node("command_path_test", context=context)
+        qos = QoSProfile(depth=100)
+        subscription = node.create_subscription(MotorCommand, "motor_command", lambda _: None, qos, raw=True)
+        publisher = node.create_publisher(MotorCommand, "motor_command", qos)
+        path = CommandPath(subscription.handle.pointer, Layout(*template.layout()), limit)
+        waiter = SubscriptionWaiter(node, subscription)
+        taken = []
+        for msg in [good, *handed_over]:
+            publisher.publish(msg)
+            assert waiter.wait(10.0), "the command did not come"
+            taken.append(path.take())
+            assert path.take().status == CommandStatus.empty
+    finally:
+        rclpy.try_shutdown(context=context)
+    assert taken[0].status == CommandStatus.taken and taken[0].data is None
+    assert taken[0].stamp_ns == 3_250_000_000 and taken[0].values == [1.5, -300.0, 5.0, -0.25]
+    for take, msg in zip(taken[1:], handed_over, strict=True):
+        assert take.status == CommandStatus.python and take.values == []
+        assert take.data is not None and repr(deserialize_message(take.data, MotorCommand)) == repr(msg)  # NaN too

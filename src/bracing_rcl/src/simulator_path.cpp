@@ -74,7 +74,10 @@ class CommandPath {
     out.values.resize(n);
     for (std::size_t k = 0; k < n; ++k) {
       const double v = command_.value(data, k);
-      if (!std::isfinite(v) || (limit_[k] > 0.0 && std::fabs(v) > limit_[k])) return false;
+      if (!std::isfinite(v) || (limit_[k] > 0.0 && std::fabs(v) > limit_[k])) {
+        out.values.clear();
+        return false;
+      }
       out.values[k] = v;
     }
     out.stamp_ns = command_.stamp_ns(data);
