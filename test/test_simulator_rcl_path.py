@@ -23,7 +23,7 @@ from bracing_msgs.msg import MotorCommand
 from bracing_rcl import CommandPath, CommandStatus, Layout
 from bracing_ros import wire
 from bracing_ros.waiter import SubscriptionWaiter
-from bracing_sim.rcl_path import PATH_ENV
+from bracing_sim.rcl_path import PATH_ENV, STATE_PATH_LINE
 
 
 @pytest.fixture(scope="module")
@@ -40,13 +40,16 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 
 def test_each_run_took_its_path(runs: dict[str, Path]) -> None:
-    """The Python path said so; the C++ path read the commands itself (the controller's have the template's
-    layout) and handed none over. A command may come while the node's executor serves its services (every
-    100 steps): the executor's callback takes it on the Python path, as before."""
+    """The Python path said so; the C++ path wrote joint_states and /clock and read the commands itself (the
+    controller's have the template's layout) and handed none over. A command may come while the node's
+    executor serves its services (every 100 steps): the executor's callback takes it on the Python path, as
+    before."""
     for path, output in runs.items():
         log = (output / "logs" / "simulator.log").read_text()
         assert SIMULATOR_PATH_LINES[path] in log, log[-3000:]
     log = (runs["rcl"] / "logs" / "simulator.log").read_text()
+    assert STATE_PATH_LINE in log, log[-3000:]
+    assert STATE_PATH_LINE not in (runs["python"] / "logs" / "simulator.log").read_text()
     found = re.search(r"motor_command path: (\d+) read in C\+\+ on rcl, (\d+) by the Python path", log)
     assert found is not None, log[-3000:]
     commands = round(RUN_S * 1000) + 1  # one per state, the final one's too

@@ -4,10 +4,30 @@ check and the law are the engine's, one implementation for both of the node's pa
 motor_command and then the controller_state on rclpy publishers' rcl handles, with the GIL released. What
 it does not answer itself goes back to the node's Python path as bytes (``Status.python``). ``CommandPath``
 takes the simulator's motor_commands likewise: read in C++ when they need no word said, else their bytes
-for the simulator's Python path (``CommandStatus.python``)."""
+for the simulator's Python path (``CommandStatus.python``); ``StatePath`` publishes its joint_states and /clock."""
 
 import rclpy  # noqa: F401  first: it loads the rcl and rmw libraries this module links
 
-from bracing_rcl._rcl import CommandPath, CommandStatus, CommandTake, ControllerPath, Layout, Outcome, Status
+from bracing_rcl._rcl import (
+    CommandPath,
+    CommandStatus,
+    CommandTake,
+    ControllerPath,
+    Layout,
+    Outcome,
+    StatePath,
+    StateSent,
+    Status,
+)
 
-__all__ = ["CommandPath", "CommandStatus", "CommandTake", "ControllerPath", "Layout", "Outcome", "Status"]
+__all__ = [
+    "CommandPath",
+    "CommandStatus",
+    "CommandTake",
+    "ControllerPath",
+    "Layout",
+    "Outcome",
+    "StatePath",
+    "StateSent",
+    "Status",
+]

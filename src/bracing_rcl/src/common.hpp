@@ -6,6 +6,7 @@
 #include <nanobind/nanobind.h>
 #include <rcl/error_handling.h>
 #include <rcl/rcl.h>
+#include <time.h>
 
 #include <cstdint>
 #include <cstring>
@@ -19,6 +20,13 @@ namespace bracing_rcl {
 namespace nb = nanobind;
 
 constexpr std::int64_t kNsPerS = 1000000000;
+
+// [s] CLOCK_MONOTONIC: time.perf_counter's and time.monotonic's clock on Linux.
+inline double monotonic_s() {
+  timespec now{};
+  clock_gettime(CLOCK_MONOTONIC, &now);
+  return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
+}
 
 // An rcl call's failure as an exception (nanobind: a RuntimeError) with rcl's message.
 inline void check(rcl_ret_t ret, const char* what) {

@@ -32,12 +32,7 @@ namespace {
 
 using bracing_rcl::check;
 using bracing_rcl::Layout;
-
-double monotonic_s() {  // CLOCK_MONOTONIC: time.perf_counter's and time.monotonic's clock on Linux
-  timespec now{};
-  clock_gettime(CLOCK_MONOTONIC, &now);
-  return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
-}
+using bracing_rcl::monotonic_s;
 
 enum class Status { empty, python, answered, law_failed, law_internal, not_finite };
 

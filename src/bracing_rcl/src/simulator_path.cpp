@@ -4,6 +4,7 @@
 // Any other message (another layout or order, a non-finite or saturated value) goes back to Python as its
 // bytes, to the node's Python path, which says why it refuses or saturates it: one implementation of each
 // refusal. The stamp is the stepping policy's to judge (SimulatorStepper.offer) on both paths.
+// And the state out: joint_states and /clock written from their templates and published, without the GIL.
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/vector.h>
@@ -90,6 +91,66 @@ class CommandPath {
   rcl_serialized_message_t taken_ = rmw_get_zero_initialized_serialized_message();
 };
 
+// What one StatePath.publish sent: its bytes (for the record batch), and the writes' time.
+struct StateSent {
+  std::optional<nb::bytes> joint_state, clock;  // keeping bytes: the messages published
+  double written_s = 0.0;                       // [s] in rcl_publish
+};
+
+class StatePath {
+ public:
+  StatePath(std::uintptr_t joint_publisher, std::uintptr_t clock_publisher, const Layout& joint_state,
+            const Layout& clock, bool keep_bytes)
+      : joint_publisher_(reinterpret_cast<const rcl_publisher_t*>(joint_publisher)),
+        clock_publisher_(reinterpret_cast<const rcl_publisher_t*>(clock_publisher)), joint_state_(joint_state),
+        clock_(clock), keep_bytes_(keep_bytes) {
+    if (joint_state_.values() % 3 != 0 || clock_.values() != 0) throw std::invalid_argument("not a state's layouts");
+  }
+
+  // joint_states (position, velocity, effort) then /clock, stamped stamp_ns.
+  StateSent publish(std::int64_t stamp_ns, const std::vector<double>& position, const std::vector<double>& velocity,
+                    const std::vector<double>& effort) {
+    const std::size_t n = joint_state_.values() / 3;
+    if (position.size() != n || velocity.size() != n || effort.size() != n) {
+      throw std::invalid_argument("a state's vectors do not fit its layout");
+    }
+    StateSent out;
+    {
+      nb::gil_scoped_release unlocked;
+      values_.assign(position.begin(), position.end());
+      values_.insert(values_.end(), velocity.begin(), velocity.end());
+      values_.insert(values_.end(), effort.begin(), effort.end());
+      joint_state_.fill(joint_bytes_, stamp_ns, values_);
+      out.written_s += write(joint_publisher_, joint_bytes_, "joint_states");
+      clock_.fill(clock_bytes_, stamp_ns, {});
+      out.written_s += write(clock_publisher_, clock_bytes_, "/clock");
+    }
+    if (keep_bytes_) {
+      out.joint_state = nb::bytes(reinterpret_cast<const char*>(joint_bytes_.data()), joint_bytes_.size());
+      out.clock = nb::bytes(reinterpret_cast<const char*>(clock_bytes_.data()), clock_bytes_.size());
+    }
+    return out;
+  }
+
+ private:
+  static double write(const rcl_publisher_t* publisher, std::vector<std::uint8_t>& bytes, const char* topic) {
+    const double start = monotonic_s();
+    rcl_serialized_message_t message = rmw_get_zero_initialized_serialized_message();
+    message.buffer = bytes.data();
+    message.buffer_length = message.buffer_capacity = bytes.size();
+    message.allocator = rcutils_get_default_allocator();
+    check(rcl_publish_serialized_message(publisher, &message, nullptr), topic);
+    return monotonic_s() - start;
+  }
+
+  const rcl_publisher_t* joint_publisher_;
+  const rcl_publisher_t* clock_publisher_;
+  Layout joint_state_, clock_;
+  bool keep_bytes_;
+  std::vector<double> values_;
+  std::vector<std::uint8_t> joint_bytes_, clock_bytes_;
+};
+
 }  // namespace
 
 void bind_simulator_path(nb::module_& m) {
@@ -105,6 +166,15 @@ void bind_simulator_path(nb::module_& m) {
   nb::class_<CommandPath>(m, "CommandPath", "the simulator's motor_command path on rcl")
       .def(nb::init<std::uintptr_t, const Layout&, std::vector<double>>(), "subscription"_a, "command"_a, "limit"_a)
       .def("take", &CommandPath::take, "take the next motor_command and read it if it needs nothing else");
+  nb::class_<StateSent>(m, "StateSent", "what one StatePath.publish sent")
+      .def_ro("joint_state", &StateSent::joint_state, "keeping bytes: joint_states' CDR bytes")
+      .def_ro("clock", &StateSent::clock, "keeping bytes: /clock's CDR bytes")
+      .def_ro("written_s", &StateSent::written_s, "[s] in rcl_publish");
+  nb::class_<StatePath>(m, "StatePath", "the simulator's state out on rcl: joint_states and /clock")
+      .def(nb::init<std::uintptr_t, std::uintptr_t, const Layout&, const Layout&, bool>(), "joint_publisher"_a,
+           "clock_publisher"_a, "joint_state"_a, "clock"_a, "keep_bytes"_a)
+      .def("publish", &StatePath::publish, "stamp_ns"_a, "position"_a, "velocity"_a, "effort"_a,
+           "joint_states then /clock stamped stamp_ns, published");
 }
 
 }  // namespace bracing_rcl

@@ -46,7 +46,7 @@ from bracing_ros.sim_clock import guard_clock
 from bracing_ros.status import StatusPublisher
 from bracing_ros.stop_signal import StoppableExecutor
 from bracing_ros.waiter import SubscriptionWaiter
-from bracing_sim.rcl_path import RclCommands, commands_on_rcl
+from bracing_sim.rcl_path import STATE_PATH_LINE, RclCommands, commands_on_rcl
 from bracing_sim.topics import SimulatorTopics
 
 FLUSH_AT_FAILURE_S = 10.0
@@ -86,6 +86,8 @@ class SimulatorNode(Node):
         self.command_rcl: RclCommands | None = None  # motor_command taken in C++ (bracing_sim.rcl_path)
         if self.command_sub is not None:
             self.command_rcl = commands_on_rcl(self, self.command_sub)
+        if self.topics.state_path is not None:
+            self.log.info(STATE_PATH_LINE)
         if config.command_source == "joint_commands":
             loop = f", current loop {config.motor_drive.bandwidth:g} rad/s" if self.core.drive is not None else ""
             self.log.info(
