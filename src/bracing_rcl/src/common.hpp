@@ -6,6 +6,7 @@
 #include <nanobind/nanobind.h>
 #include <rcl/error_handling.h>
 #include <rcl/rcl.h>
+#include <rmw/serialized_message.h>
 #include <time.h>
 
 #include <cstdint>
@@ -34,6 +35,31 @@ inline void check(rcl_ret_t ret, const char* what) {
   std::string text = std::string(what) + " failed: " + rcl_get_error_string().str;
   rcl_reset_error();
   throw std::runtime_error(text);
+}
+
+// Take the next message's CDR bytes into `taken`; whether one was there.
+inline bool take_bytes(const rcl_subscription_t* subscription, rcl_serialized_message_t& taken) {
+  rmw_message_info_t info = rmw_get_zero_initialized_message_info();
+  const rcl_ret_t ret = rcl_take_serialized_message(subscription, &taken, &info, nullptr);
+  if (ret == RCL_RET_SUBSCRIPTION_TAKE_FAILED) return false;
+  check(ret, "rcl_take_serialized_message");
+  return true;
+}
+
+// Publish a message's CDR bytes on an rcl publisher; [s] the write's time.
+inline double publish_bytes(const rcl_publisher_t* publisher, std::vector<std::uint8_t>& bytes, const char* topic) {
+  const double start = monotonic_s();
+  rcl_serialized_message_t message = rmw_get_zero_initialized_serialized_message();
+  message.buffer = bytes.data();
+  message.buffer_length = message.buffer_capacity = bytes.size();
+  message.allocator = rcutils_get_default_allocator();
+  const rcl_ret_t ret = rcl_publish_serialized_message(publisher, &message, nullptr);
+  if (ret != RCL_RET_OK) {
+    std::string text = std::string("publishing ") + topic + " failed: " + rcl_get_error_string().str;
+    rcl_reset_error();
+    throw std::runtime_error(text);
+  }
+  return monotonic_s() - start;
 }
 
 // A message's byte template: its bytes with every slot zero, the constant runs a message of this layout

@@ -33,6 +33,8 @@ namespace {
 using bracing_rcl::check;
 using bracing_rcl::Layout;
 using bracing_rcl::monotonic_s;
+using bracing_rcl::publish_bytes;
+using bracing_rcl::take_bytes;
 
 enum class Status { empty, python, answered, law_failed, law_internal, not_finite };
 
@@ -79,10 +81,7 @@ class ControllerPath {
     Outcome out;
     {
       nb::gil_scoped_release unlocked;
-      rmw_message_info_t info = rmw_get_zero_initialized_message_info();
-      const rcl_ret_t ret = rcl_take_serialized_message(subscription_, &taken_, &info, nullptr);
-      if (ret == RCL_RET_SUBSCRIPTION_TAKE_FAILED) return out;
-      check(ret, "rcl_take_serialized_message");
+      if (!take_bytes(subscription_, taken_)) return out;
       out.taken_at = monotonic_s();
       out.status = answer ? respond(previous_ns, out) : Status::python;
     }
@@ -129,28 +128,12 @@ class ControllerPath {
     std::memcpy(s + 6 + 7 * b, command_values_.data(), n * sizeof(double));
     s[6 + 7 * b + n] = answer.compute_time_s;
     command_.fill(command_bytes_, stamp_ns, command_values_);
-    out.written_s += publish(command_publisher_, command_bytes_, "motor_command");
+    out.written_s += publish_bytes(command_publisher_, command_bytes_, "motor_command");
     out.command_out_at = monotonic_s();
     controller_state_.fill(state_bytes_, stamp_ns, state_values_);
-    out.written_s += publish(state_publisher_, state_bytes_, "controller_state");
+    out.written_s += publish_bytes(state_publisher_, state_bytes_, "controller_state");
     out.done_at = monotonic_s();
     return Status::answered;
-  }
-
-  // [s] the write's time.
-  static double publish(const rcl_publisher_t* publisher, std::vector<std::uint8_t>& bytes, const char* topic) {
-    const double start = monotonic_s();
-    rcl_serialized_message_t message = rmw_get_zero_initialized_serialized_message();
-    message.buffer = bytes.data();
-    message.buffer_length = message.buffer_capacity = bytes.size();
-    message.allocator = rcutils_get_default_allocator();
-    const rcl_ret_t ret = rcl_publish_serialized_message(publisher, &message, nullptr);
-    if (ret != RCL_RET_OK) {
-      std::string text = std::string("publishing ") + topic + " failed: " + rcl_get_error_string().str;
-      rcl_reset_error();
-      throw std::runtime_error(text);
-    }
-    return monotonic_s() - start;
   }
 
   nb::capsule law_api_;  // keeps the law alive

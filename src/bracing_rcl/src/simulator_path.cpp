@@ -53,10 +53,7 @@ class CommandPath {
     CommandTake out;
     {
       nb::gil_scoped_release unlocked;
-      rmw_message_info_t info = rmw_get_zero_initialized_message_info();
-      const rcl_ret_t ret = rcl_take_serialized_message(subscription_, &taken_, &info, nullptr);
-      if (ret == RCL_RET_SUBSCRIPTION_TAKE_FAILED) return out;
-      check(ret, "rcl_take_serialized_message");
+      if (!take_bytes(subscription_, taken_)) return out;
       out.status = read(out) ? CommandStatus::taken : CommandStatus::python;
     }
     if (out.status == CommandStatus::python) {
@@ -121,9 +118,9 @@ class StatePath {
       values_.insert(values_.end(), velocity.begin(), velocity.end());
       values_.insert(values_.end(), effort.begin(), effort.end());
       joint_state_.fill(joint_bytes_, stamp_ns, values_);
-      out.written_s += write(joint_publisher_, joint_bytes_, "joint_states");
+      out.written_s += publish_bytes(joint_publisher_, joint_bytes_, "joint_states");
       clock_.fill(clock_bytes_, stamp_ns, {});
-      out.written_s += write(clock_publisher_, clock_bytes_, "/clock");
+      out.written_s += publish_bytes(clock_publisher_, clock_bytes_, "/clock");
     }
     if (keep_bytes_) {
       out.joint_state = nb::bytes(reinterpret_cast<const char*>(joint_bytes_.data()), joint_bytes_.size());
@@ -133,16 +130,6 @@ class StatePath {
   }
 
  private:
-  static double write(const rcl_publisher_t* publisher, std::vector<std::uint8_t>& bytes, const char* topic) {
-    const double start = monotonic_s();
-    rcl_serialized_message_t message = rmw_get_zero_initialized_serialized_message();
-    message.buffer = bytes.data();
-    message.buffer_length = message.buffer_capacity = bytes.size();
-    message.allocator = rcutils_get_default_allocator();
-    check(rcl_publish_serialized_message(publisher, &message, nullptr), topic);
-    return monotonic_s() - start;
-  }
-
   const rcl_publisher_t* joint_publisher_;
   const rcl_publisher_t* clock_publisher_;
   Layout joint_state_, clock_;
