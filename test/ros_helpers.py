@@ -44,6 +44,14 @@ CONTROLLER_PATHS = ("rcl", "python")
 chosen by the environment variable BRACING_CONTROLLER_PATH."""
 PATH_LINES = {"rcl": "per-state path: C++ on rcl", "python": "per-state path: Python (BRACING_CONTROLLER_PATH=python)"}
 """What the controller logs of the path it takes."""
+SIMULATOR_PATHS = ("rcl", "python")
+"""The simulator's motor_command paths (bracing_sim.rcl_path: read in C++ on rcl, or by the Python path), chosen
+by the environment variable BRACING_SIMULATOR_PATH."""
+SIMULATOR_PATH_LINES = {
+    "rcl": "motor_command path: C++ on rcl",
+    "python": "motor_command path: Python (BRACING_SIMULATOR_PATH=python)",
+}
+"""What the simulator logs of the path it takes."""
 
 
 def isolated_env(domain_id: int | None = None, **extra: str) -> dict[str, str]:

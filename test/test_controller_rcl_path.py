@@ -11,6 +11,7 @@ import math
 import re
 import signal
 import struct
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -41,17 +42,22 @@ def recorded(bag: Path) -> dict[str, list[tuple[int, bytes]]]:
     return topics
 
 
-@pytest.fixture(scope="module")
-def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """A pair run of the paper's arm on each path."""
+def pair_runs(tmp_path_factory: pytest.TempPathFactory, env_name: str, paths: Iterable[str]) -> dict[str, Path]:
+    """A pair run of the paper's arm (RUN_S) with ``env_name`` set to each of ``paths``: its output directory."""
     out = {}
-    for path in PATH_LINES:
+    for path in paths:
         output = tmp_path_factory.mktemp(f"pair-{path}") / "run"
-        env = isolated_env(**{PATH_ENV: path})
+        env = isolated_env(**{env_name: path})
         done = run(pair_argv(output, "--duration", str(RUN_S), "--no-animation"), env=env, timeout=300)
         assert done.returncode == 0, done.stdout + done.stderr
         out[path] = output
     return out
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """A pair run of the paper's arm on each path."""
+    return pair_runs(tmp_path_factory, PATH_ENV, PATH_LINES)
 
 
 def test_each_run_took_its_path(runs: dict[str, Path]) -> None:
@@ -72,13 +78,18 @@ def test_each_run_took_its_path(runs: dict[str, Path]) -> None:
     assert landed is not None and 0.0 < float(landed[1]) <= float(landed[2]) <= float(landed[3]), log[-3000:]
 
 
-def test_the_rcl_path_bag_equals_the_python_path_bag(runs: dict[str, Path]) -> None:
+def same_bags(runs: dict[str, Path]) -> dict[str, list[tuple[int, bytes]]]:
+    """The rcl run's bag, found equal to the Python run's on every compared topic, message for message."""
     rcl, python = (recorded(runs[path] / "bag") for path in ("rcl", "python"))
     assert set(rcl) == set(python)
     for topic in sorted(set(python) - NOT_COMPARED):
         assert len(rcl[topic]) == len(python[topic]) >= 1, topic
         assert rcl[topic] == python[topic], topic
-    commands = rcl["/motor_command"]
+    return rcl
+
+
+def test_the_rcl_path_bag_equals_the_python_path_bag(runs: dict[str, Path]) -> None:
+    commands = same_bags(runs)["/motor_command"]
     assert len(commands) == round(RUN_S * 1000) + 1, len(commands)  # every state answered
 
 

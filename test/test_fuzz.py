@@ -28,7 +28,16 @@ from lockstep_driver import JOINTS, known_command
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from ros_helpers import CONTROLLER_PATHS, PATH_LINES, isolated_env, node_argv, params_file, start
+from ros_helpers import (
+    CONTROLLER_PATHS,
+    PATH_LINES,
+    SIMULATOR_PATH_LINES,
+    SIMULATOR_PATHS,
+    isolated_env,
+    node_argv,
+    params_file,
+    start,
+)
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
@@ -36,6 +45,7 @@ from bracing_bringup.domains import hold_domain
 from bracing_controller.rcl_path import PATH_ENV
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState
 from bracing_ros.qos import STREAM_QOS
+from bracing_sim.rcl_path import PATH_ENV as SIMULATOR_PATH_ENV
 
 EXAMPLES = int(os.environ.get("BRACING_FUZZ_EXAMPLES", "200"))
 FUZZ_SETTINGS = settings(
@@ -127,14 +137,18 @@ class SimHarness:
         return int(state.header.stamp.sec) * 10**9 + int(state.header.stamp.nanosec)
 
 
-@pytest.fixture(scope="module")
-def simulator(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SimHarness]:
+@pytest.fixture(scope="module", params=SIMULATOR_PATHS)
+def simulator(tmp_path_factory: pytest.TempPathFactory, request: pytest.FixtureRequest) -> Iterator[SimHarness]:
+    """The simulator taking motor_command on each path (bracing_sim.rcl_path)."""
     # A domain held for the fixture's life (the per-test release of ros_helpers would end it early).
     with hold_domain() as domain:
-        yield from _simulator(tmp_path_factory, isolated_env(domain.domain_id))
+        env = isolated_env(domain.domain_id, **{SIMULATOR_PATH_ENV: request.param})
+        yield from _simulator(tmp_path_factory, env, request.param)
 
 
-def _simulator(tmp_path_factory: pytest.TempPathFactory, domain_env: dict[str, str]) -> Iterator[SimHarness]:
+def _simulator(
+    tmp_path_factory: pytest.TempPathFactory, domain_env: dict[str, str], path: str = "rcl"
+) -> Iterator[SimHarness]:
     tmp = tmp_path_factory.mktemp("fuzz-sim")
     overrides = {"duration": 0.0, "command_timeout": 0.05, "watchdog_policy": "zero"}
     process = start(node_argv("bracing_sim.node", params_file(tmp, "bracing_simulator", overrides)), domain_env)
@@ -150,6 +164,7 @@ def _simulator(tmp_path_factory: pytest.TempPathFactory, domain_env: dict[str, s
     yield harness
     log = stop(peer, process)
     assert "Traceback" not in log, log[-3000:]
+    assert SIMULATOR_PATH_LINES[path] in log, log[-3000:]
 
 
 def command(names: list[str], values: list[float], mode: int, stamp_ns: int) -> MotorCommand:

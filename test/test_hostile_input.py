@@ -33,6 +33,8 @@ from rclpy.serialization import serialize_message
 from ros_helpers import (
     CONTROLLER_PATHS,
     PATH_LINES,
+    SIMULATOR_PATH_LINES,
+    SIMULATOR_PATHS,
     NodeProcess,
     hold_test_domain,
     isolated_env,
@@ -54,6 +56,7 @@ from bracing_ros import stop_signal, wire
 from bracing_ros.commands import CommandError, command_vector, effort_vector
 from bracing_ros.qos import COMMAND_QOS, STREAM_QOS
 from bracing_ros.waiter import SubscriptionWaiter
+from bracing_sim.rcl_path import PATH_ENV as SIMULATOR_PATH_ENV
 
 FLOOD_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
@@ -391,8 +394,11 @@ def assert_rate_limited(lines: list[str], kinds: tuple[str, ...]) -> None:
 
 
 # -- the lockstep simulator (motor_command) -----------------------------------------------------------
+@pytest.mark.parametrize("path", SIMULATOR_PATHS)
 @pytest.mark.parametrize("max_elements", [10_000, 2 * HUGE], ids=["refused-by-size", "duplicate-check"])
-def test_100k_duplicate_names_on_motor_command_do_not_stall_the_simulator(tmp_path: Path, max_elements: int) -> None:
+def test_100k_duplicate_names_on_motor_command_do_not_stall_the_simulator(
+    tmp_path: Path, max_elements: int, path: str
+) -> None:
     """The next state comes after the valid command that follows 10^5 duplicate names (before: 131 s of
     stall; the wait gives up after 10 s), refused by its size (the default limit), or with the limit raised
     so that the names are decoded and checked (0.3 s to decode 10^5 names here, 20 ms to check them). How
@@ -401,7 +407,8 @@ def test_100k_duplicate_names_on_motor_command_do_not_stall_the_simulator(tmp_pa
     test_sizes_are_refused_from_the_length_fields_before_decoding."""
     params = {"max_message_elements": max_elements, "command_timeout": 30.0}
     argv = node_argv("bracing_sim.node", params_file(tmp_path, "bracing_simulator", params))
-    sim = _harness(isolated_env(), argv, ("motor_command", MotorCommand, FLOOD_QOS), ("joint_states", STREAM_QOS))
+    env = isolated_env(**{SIMULATOR_PATH_ENV: path})
+    sim = _harness(env, argv, ("motor_command", MotorCommand, FLOOD_QOS), ("joint_states", STREAM_QOS))
     try:
         assert sim.peer.spin_until(lambda: sim.states, 60.0), sim.node.text()[-3000:]
         bad = MotorCommand(mode=MotorCommand.VOLTAGE, name=["joint1"] * HUGE, value=[0.0] * HUGE)
@@ -413,6 +420,7 @@ def test_100k_duplicate_names_on_motor_command_do_not_stall_the_simulator(tmp_pa
         log = sim.close()
     refusal = "name: 100000 elements" if max_elements < HUGE else "duplicate joint names ['joint1']"
     assert f"motor_command rejected: {refusal}" in log, log[-3000:]
+    assert SIMULATOR_PATH_LINES[path] in log, log[-3000:]
 
 
 # -- the controller (joint_states) ---------------------------------------------------------------------

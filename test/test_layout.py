@@ -18,7 +18,7 @@ ALLOWED = {
     "bracing_engine": set(),
     "bracing_core": {"bracing_engine"},
     "bracing_ros": {"bracing_core", "bracing_msgs"},
-    "bracing_sim": {"bracing_core", "bracing_ros", "bracing_msgs"},
+    "bracing_sim": {"bracing_core", "bracing_ros", "bracing_msgs", "bracing_rcl"},
     "bracing_rcl": set(),
     "bracing_controller": {"bracing_core", "bracing_ros", "bracing_msgs", "bracing_rcl"},
     "bracing_analysis": {"bracing_core"},

@@ -17,6 +17,8 @@ from ros_helpers import (
     DRIVER,
     PATH_LINES,
     REPO_ROOT,
+    SIMULATOR_PATH_LINES,
+    SIMULATOR_PATHS,
     NodeProcess,
     drive,
     isolated_env,
@@ -30,13 +32,19 @@ from ros_helpers import (
 from bracing_controller.rcl_path import PATH_ENV
 from bracing_core.dynamics import InputMode
 from bracing_ros.commands import CommandError, command_vector
+from bracing_sim.rcl_path import PATH_ENV as SIMULATOR_PATH_ENV
 
 
-def _drive(tmp_path: Path, overrides: dict[str, object], driver_args: list[str]) -> tuple[list[dict], str]:
+def _drive(
+    tmp_path: Path, overrides: dict[str, object], driver_args: list[str], path: str = "rcl"
+) -> tuple[list[dict], str]:
+    """The lockstep driver against a simulator taking motor_command on ``path`` (``SIMULATOR_PATHS``)."""
     extra = params_file(tmp_path, "bracing_simulator", overrides)
-    driver, node, log = drive(node_argv("bracing_sim.node", extra), driver_args, wait_for_node=True)
+    env = {SIMULATOR_PATH_ENV: path}
+    driver, node, log = drive(node_argv("bracing_sim.node", extra), driver_args, wait_for_node=True, **env)
     assert driver.returncode == 0, driver.stdout + driver.stderr + log
     assert node.returncode == 0, log  # it finished by itself
+    assert SIMULATOR_PATH_LINES[path] in log, log
     return json.loads(driver.stdout.strip().splitlines()[-1])["states"], log
 
 
@@ -49,9 +57,20 @@ def _reference(commands: list[np.ndarray], limit: float = 0.0) -> list[np.ndarra
     return positions
 
 
-def test_malformed_commands_are_rejected_and_never_integrated(tmp_path: Path) -> None:
+def read_counts(log: str) -> tuple[int, int]:
+    """The commands the simulator's C++ path read, and those it handed to the Python path (its last log line)."""
+    found = re.search(r"motor_command path: (\d+) read in C\+\+ on rcl, (\d+) by the Python path", log)
+    assert found is not None, log
+    return int(found[1]), int(found[2])
+
+
+@pytest.mark.parametrize("path", SIMULATOR_PATHS)
+def test_malformed_commands_are_rejected_and_never_integrated(tmp_path: Path, path: str) -> None:
+    """Each malformed command refused with its reason on both paths: on the C++ path every one of the 10 a state
+    that are no command or not the template's layout (the driver's valid ones name the joints shuffled) is
+    handed to the Python path, which says why."""
     steps = 40
-    states, log = _drive(tmp_path, {"duration": (steps - 1) * 1e-3}, ["sim-bad", str(steps)])
+    states, log = _drive(tmp_path, {"duration": (steps - 1) * 1e-3}, ["sim-bad", str(steps)], path)
     reference = _reference([np.asarray(known_command(k)) for k in range(steps - 1)])
     assert len(states) == steps
     for state, expected in zip(states, reference, strict=True):
@@ -69,12 +88,19 @@ def test_malformed_commands_are_rejected_and_never_integrated(tmp_path: Path) ->
         "Invalid sequence length 4",  # the first bytes that are no command (the rest: same kind)
     ):
         assert reason in log or reason.replace("1 names", "4 names") in log, reason
+    if path == "rcl":
+        read, handed_over = read_counts(log)
+        assert handed_over >= 11 * (steps - 1), (read, handed_over)
 
 
-def test_over_limit_commands_are_saturated(tmp_path: Path) -> None:
+@pytest.mark.parametrize("path", SIMULATOR_PATHS)
+def test_over_limit_commands_are_saturated(tmp_path: Path, path: str) -> None:
     steps, scale, limit = 30, 50.0, 5.0
     states, log = _drive(
-        tmp_path, {"duration": (steps - 1) * 1e-3, "motors.voltage_limit": limit}, ["sim-scale", str(steps), str(scale)]
+        tmp_path,
+        {"duration": (steps - 1) * 1e-3, "motors.voltage_limit": limit},
+        ["sim-scale", str(steps), str(scale)],
+        path,
     )
     reference = _reference([scale * np.asarray(known_command(k)) for k in range(steps - 1)], limit)
     for state, expected in zip(states, reference, strict=True):
@@ -82,13 +108,15 @@ def test_over_limit_commands_are_saturated(tmp_path: Path) -> None:
     assert "saturated to +/-5.0" in log
 
 
+@pytest.mark.parametrize("path", SIMULATOR_PATHS)
 @pytest.mark.parametrize("policy", ["hold", "zero"])
-def test_lockstep_watchdog_applies_its_policy(tmp_path: Path, policy: str) -> None:
+def test_lockstep_watchdog_applies_its_policy(tmp_path: Path, policy: str, path: str) -> None:
     steps, skipped = 20, 7
     states, log = _drive(
         tmp_path,
         {"duration": (steps - 1) * 1e-3, "command_timeout": 0.3, "watchdog_policy": policy},
         ["sim-skip", str(steps), str(skipped)],
+        path,
     )
     commands = [np.asarray(known_command(k)) for k in range(steps - 1)]
     commands[skipped] = commands[skipped - 1] if policy == "hold" else np.zeros(4)
@@ -142,8 +170,11 @@ def test_controller_ignores_malformed_joint_states(tmp_path: Path, path: str) ->
     assert "joint_states ignored: not a sensor_msgs/msg/JointState: Invalid string length" in log
 
 
+@pytest.mark.parametrize("path", SIMULATOR_PATHS)
 @pytest.mark.parametrize("policy", ["hold", "zero"])
-def test_a_command_whose_step_is_not_finite_is_rejected_and_the_run_goes_on(tmp_path: Path, policy: str) -> None:
+def test_a_command_whose_step_is_not_finite_is_rejected_and_the_run_goes_on(
+    tmp_path: Path, policy: str, path: str
+) -> None:
     """1e300 V on every joint is finite and well-formed, but its step overflows: it is rejected
     like a malformed command (naming the joint and value), the state is not advanced on it,
     the watchdog's policy applies, and the run goes on to its end."""
@@ -152,6 +183,7 @@ def test_a_command_whose_step_is_not_finite_is_rejected_and_the_run_goes_on(tmp_
         tmp_path,
         {"duration": (steps - 1) * 1e-3, "command_timeout": 0.3, "watchdog_policy": policy},
         ["sim-absurd", str(steps), str(absurd)],
+        path,
     )
     commands = [np.asarray(known_command(k)) for k in range(steps - 1)]
     commands[absurd] = commands[absurd - 1] if policy == "hold" else np.zeros(4)

@@ -24,93 +24,25 @@
 #include <vector>
 
 #include "bracing_engine/law_api.h"
+#include "common.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
 
 namespace {
 
-constexpr std::int64_t kNsPerS = 1000000000;
-
-double monotonic_s() {  // CLOCK_MONOTONIC: time.perf_counter's and time.monotonic's clock on Linux
-  timespec now{};
-  clock_gettime(CLOCK_MONOTONIC, &now);
-  return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
-}
+using bracing_rcl::check;
+using bracing_rcl::kNsPerS;
+using bracing_rcl::Layout;
+using bracing_rcl::monotonic_s;
+using bracing_rcl::publish_bytes;
 
 // [ns] CLOCK_REALTIME: the clock of the middleware's reception timestamps (Fast DDS: the system clock).
 std::int64_t realtime_ns() {
   timespec now{};
   clock_gettime(CLOCK_REALTIME, &now);
-  return std::int64_t{now.tv_sec} * 1000000000 + now.tv_nsec;
+  return std::int64_t{now.tv_sec} * kNsPerS + now.tv_nsec;
 }
-
-void check(rcl_ret_t ret, const char* what) {
-  if (ret == RCL_RET_OK) return;
-  std::string text = std::string(what) + " failed: " + rcl_get_error_string().str;
-  rcl_reset_error();
-  throw std::runtime_error(text);
-}
-
-// A message's byte template: its bytes with every slot zero, the constant runs a message of this layout
-// repeats, and where each value of the slots goes. The values are a header stamp (int32 sec, uint32
-// nanosec) then float64s.
-class Layout {
- public:
-  Layout(nb::bytes bytes, std::vector<std::pair<std::uint32_t, std::uint32_t>> constants,
-         std::vector<std::uint32_t> offsets, std::string codes)
-      : bytes_(static_cast<const std::uint8_t*>(bytes.data()),
-               static_cast<const std::uint8_t*>(bytes.data()) + bytes.size()),
-        constants_(std::move(constants)), offsets_(std::move(offsets)) {
-    if (codes.size() != offsets_.size() || codes.size() < 2 || codes.compare(0, 2, "iI") != 0 ||
-        codes.find_first_not_of('d', 2) != std::string::npos) {
-      throw std::invalid_argument("a layout's values are a stamp (iI) then float64s, not " + codes);
-    }
-    for (const auto& [offset, length] : constants_) {
-      if (std::size_t{offset} + length > bytes_.size()) throw std::invalid_argument("a constant run past the end");
-    }
-    for (std::size_t k = 0; k < offsets_.size(); ++k) {
-      if (std::size_t{offsets_[k]} + (k < 2 ? 4 : 8) > bytes_.size()) throw std::invalid_argument("a value past the end");
-    }
-  }
-  std::size_t values() const { return offsets_.size() - 2; }  // the float64s
-  // Whether data has this layout (the same constants; bytes past its end ignored, as rclpy's messages carry).
-  bool matches(const std::uint8_t* data, std::size_t size) const {
-    if (size < bytes_.size()) return false;
-    for (const auto& [offset, length] : constants_) {
-      if (std::memcmp(data + offset, bytes_.data() + offset, length) != 0) return false;
-    }
-    return true;
-  }
-  std::int64_t stamp_ns(const std::uint8_t* data) const {
-    std::int32_t sec;
-    std::uint32_t nanosec;
-    std::memcpy(&sec, data + offsets_[0], 4);
-    std::memcpy(&nanosec, data + offsets_[1], 4);
-    return std::int64_t{sec} * kNsPerS + nanosec;
-  }
-  double value(const std::uint8_t* data, std::size_t k) const {
-    double v;
-    std::memcpy(&v, data + offsets_[2 + k], 8);
-    return v;
-  }
-  // The message stamped stamp_ns (sec, nanosec as rclpy's Time.to_msg: nanosec in [0, 1e9)) with values.
-  void fill(std::vector<std::uint8_t>& out, std::int64_t stamp_ns, const std::vector<double>& values) const {
-    out = bytes_;
-    std::int64_t sec = stamp_ns / kNsPerS, nanosec = stamp_ns % kNsPerS;
-    if (nanosec < 0) sec -= 1, nanosec += kNsPerS;
-    const auto sec32 = static_cast<std::int32_t>(sec);
-    const auto nanosec32 = static_cast<std::uint32_t>(nanosec);
-    std::memcpy(out.data() + offsets_[0], &sec32, 4);
-    std::memcpy(out.data() + offsets_[1], &nanosec32, 4);
-    for (std::size_t k = 0; k < values.size(); ++k) std::memcpy(out.data() + offsets_[2 + k], &values[k], 8);
-  }
-
- private:
-  std::vector<std::uint8_t> bytes_;
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> constants_;
-  std::vector<std::uint32_t> offsets_;
-};
 
 enum class Status { python, answered, law_failed, law_internal, not_finite };
 
@@ -278,28 +210,12 @@ class ControllerPath {
     std::memcpy(s + 6 + 7 * b, command_values_.data(), n * sizeof(double));
     s[6 + 7 * b + n] = answer.compute_time_s;
     command_.fill(command_bytes_, stamp_ns, command_values_);
-    out.written_s += publish(command_publisher_, command_bytes_, "motor_command");
+    out.written_s += publish_bytes(command_publisher_, command_bytes_, "motor_command");
     out.command_out_at = monotonic_s();
     controller_state_.fill(state_bytes_, stamp_ns, state_values_);
-    out.written_s += publish(state_publisher_, state_bytes_, "controller_state");
+    out.written_s += publish_bytes(state_publisher_, state_bytes_, "controller_state");
     out.done_at = monotonic_s();
     return Status::answered;
-  }
-
-  // [s] the write's time.
-  static double publish(const rcl_publisher_t* publisher, std::vector<std::uint8_t>& bytes, const char* topic) {
-    const double start = monotonic_s();
-    rcl_serialized_message_t message = rmw_get_zero_initialized_serialized_message();
-    message.buffer = bytes.data();
-    message.buffer_length = message.buffer_capacity = bytes.size();
-    message.allocator = rcutils_get_default_allocator();
-    const rcl_ret_t ret = rcl_publish_serialized_message(publisher, &message, nullptr);
-    if (ret != RCL_RET_OK) {
-      std::string text = std::string("publishing ") + topic + " failed: " + rcl_get_error_string().str;
-      rcl_reset_error();
-      throw std::runtime_error(text);
-    }
-    return monotonic_s() - start;
   }
 
   nb::capsule law_api_;  // keeps the law alive
@@ -320,7 +236,7 @@ class ControllerPath {
 }  // namespace
 
 NB_MODULE(_rcl, m) {
-  m.doc() = "The controller node's per-state path on rcl's C API (bracing_rcl.ControllerPath)";
+  m.doc() = "The nodes' per-state paths on rcl's C API (bracing_rcl.ControllerPath, bracing_rcl.CommandPath)";
   nb::enum_<Status>(m, "Status", "what ControllerPath.serve did with one state")
       .value("python", Status::python, "taken, not answered: its bytes are for the node's Python path")
       .value("answered", Status::answered, "motor_command and controller_state published")
@@ -361,4 +277,5 @@ NB_MODULE(_rcl, m) {
       .def("serve", &ControllerPath::serve, "previous_ns"_a.none(), "answer"_a, "limit"_a, "timeout_ns"_a,
            "wait for joint_states and answer them as they come, until `limit` are taken or one needs Python, "
            "another subscription has a message, the guard condition is triggered or timeout_ns [ns] passes");
+  bracing_rcl::bind_simulator_path(m);
 }

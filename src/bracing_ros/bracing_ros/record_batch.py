@@ -71,6 +71,10 @@ class RecordBatchPublisher:
         publisher.publish(data)
         self.written_s += time.perf_counter() - start
 
+    def written(self, seconds: float) -> None:
+        """``seconds`` in a publish made elsewhere (bracing_rcl's C++), counted in ``written_s``."""
+        self.written_s += seconds
+
     def take_written(self) -> float:
         """The time [s] spent in rclpy's publish (the DDS writes) since the last call."""
         written, self.written_s = self.written_s, 0.0

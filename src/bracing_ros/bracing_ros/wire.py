@@ -99,6 +99,10 @@ class JointStateEncoder:
     def __init__(self, names: Sequence[str], frame_id: str = "") -> None:
         self._template = derive_template(JOINT_STATE, _joint_state_spec(names, frame_id))
 
+    @property
+    def template(self) -> Template:
+        return self._template
+
     def encode(self, stamp_ns: int, position: Vector, velocity: Vector, effort: Vector) -> bytes:
         return self._template.fill(sec_nanosec(stamp_ns), position.tolist(), velocity.tolist(), effort.tolist())
 

@@ -33,6 +33,7 @@ from bracing_core.message_limits import MessageLimits, SizeError
 from bracing_core.simulator import DivergenceError
 from bracing_core.step_timing import WorkTimer
 from bracing_core.stepping import SimulatorStepper
+from bracing_core.types import Vector
 from bracing_msgs.msg import MotorCommand, RunStatus
 from bracing_ros import parameters, wire
 from bracing_ros.commands import MODE_CODES, CommandError, command_vector, effort_vector
@@ -45,6 +46,7 @@ from bracing_ros.sim_clock import guard_clock
 from bracing_ros.status import StatusPublisher
 from bracing_ros.stop_signal import StoppableExecutor
 from bracing_ros.waiter import SubscriptionWaiter
+from bracing_sim.rcl_path import STATE_PATH_LINE, RclCommands, commands_on_rcl
 from bracing_sim.topics import SimulatorTopics
 
 FLUSH_AT_FAILURE_S = 10.0
@@ -81,6 +83,11 @@ class SimulatorNode(Node):
         self.log = RosNodeLog(self, self.status, config.log_throttle_period)
         guard_clock(self, self.log)  # use_sim_time (its own /clock): a bad one refused, not fatal
         self.core = SimulatorStepper(config, self.plant, self.sim, self.log, self.topics)
+        self.command_rcl: RclCommands | None = None  # motor_command taken in C++ (bracing_sim.rcl_path)
+        if self.command_sub is not None:
+            self.command_rcl = commands_on_rcl(self, self.command_sub)
+        if self.topics.state_path is not None:
+            self.log.info(STATE_PATH_LINE)
         if config.command_source == "joint_commands":
             loop = f", current loop {config.motor_drive.bandwidth:g} rad/s" if self.core.drive is not None else ""
             self.log.info(
@@ -115,8 +122,16 @@ class SimulatorNode(Node):
         self.core.offer_effort(u, saturated)
 
     def on_command(self, data: bytes) -> None:
+        self.defended(lambda: self.take_command(data))
+
+    def on_read_command(self, stamp_ns: int, command: Vector) -> None:
+        """A motor_command the C++ path read (``bracing_sim.rcl_path``): in joint order, finite, within the limits."""
+        self.defended(lambda: self.core.offer(stamp_ns, command, False))
+
+    def defended(self, take: Callable[[], None]) -> None:
+        """``take`` a motor_command; whatever it raises is said, not raised."""
         try:
-            self.take_command(data)
+            take()
         except Exception as exc:  # the last line of defence: no message may stop the simulator
             self.log.limited("error", "internal", f"motor_command rejected: {type(exc).__name__}: {exc}")
 
@@ -137,6 +152,8 @@ class SimulatorNode(Node):
         """After the core's ``finish``: every subscriber has every message before this process ends."""
         self.topics.close()
         self.log.info(self.core.progress_line())
+        if self.command_rcl is not None:
+            self.log.info(self.command_rcl.line())
         self.log.info(f"finished at t = {self.sim.time:.6f} s")
         self.status.say(RunStatus.FINISHED, self.sim.time, self.core.real_time_achieved)
         self.status.flush()  # bracing-pair has it before this process ends
@@ -201,10 +218,13 @@ def step_run(node: SimulatorNode, executor: SingleThreadedExecutor, first: bool)
 
     def receive(timeout_s: float) -> None:
         work.pause()  # waiting for the controller is not this node's work
-        messages = waiter.take(timeout_s)
+        ready = waiter.wait(timeout_s)
         work.resume()
-        for msg in messages:
-            node.on_command(msg)
+        if ready and node.command_rcl is not None:
+            node.command_rcl.take_queued()
+        else:
+            for _, msg in waiter.take_ready(ready):
+                node.on_command(msg)
 
     node.topics.state_out = work.mark  # the controller's wait ends there; the step's reports follow
     if first:

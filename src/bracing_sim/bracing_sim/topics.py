@@ -37,6 +37,7 @@ from bracing_ros.matching import create_waking_publisher
 from bracing_ros.qos import COMMAND_QOS, DESCRIPTION_QOS, STREAM_QOS
 from bracing_ros.record_batch import RecordBatchPublisher
 from bracing_ros.status import StatusPublisher
+from bracing_sim.rcl_path import state_on_rcl
 
 
 class SimulatorTopics:
@@ -102,12 +103,24 @@ class SimulatorTopics:
         batched = self.batch.publisher
         self.recorder_pubs = self.data_pubs if batched is None else [batched, self.description_pub]
         self.status = status  # what bracing-pair follows (not a data topic: not in data_pubs)
+        # joint_states and /clock written in C++ on rcl when a state is those two alone (bracing_sim.rcl_path)
+        self.state_path = state_on_rcl(self, config, len(joint_names), batched is not None)
 
     def publish_description(self, description: str) -> None:
         self.description_pub.publish(String(data=description))
 
     def publish_state(self, state: StateOut) -> None:
         t_ns = state.t_ns
+        if self.state_path is not None:
+            vectors = (state.position.tolist(), state.velocity.tolist(), state.effort.tolist())
+            sent = self.state_path.publish(t_ns, *vectors)
+            self.batch.written(sent.written_s)
+            if sent.joint_state is not None and sent.clock is not None:
+                self.batch.keep(self.joint_pub, sent.joint_state)
+                self.batch.keep(self.clock_pub, sent.clock)
+            if self.state_out is not None:
+                self.state_out()
+            return
         send, truth = self.batch.publish, self.joint_wire.encode(t_ns, state.position, state.velocity, state.effort)
         if state.measured is None:
             send(self.joint_pub, truth)

@@ -1,0 +1,167 @@
+// The simulator node's command path on rcl's C API: take a motor_command and read it, with the GIL released,
+// when it has the layout of the MotorCommand byte template (bracing_ros.wire: the configured mode, the joints
+// by name in the simulator's order) and needs no word said: every value finite and within its joint's limit.
+// Any other message (another layout or order, a non-finite or saturated value) goes back to Python as its
+// bytes, to the node's Python path, which says why it refuses or saturates it: one implementation of each
+// refusal. The stamp is the stepping policy's to judge (SimulatorStepper.offer) on both paths.
+// And the state out: joint_states and /clock written from their templates and published, without the GIL.
+#include <nanobind/nanobind.h>
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/vector.h>
+#include <rcl/rcl.h>
+#include <rmw/serialized_message.h>
+
+#include <cmath>
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <utility>
+#include <vector>
+
+#include "common.hpp"
+
+namespace bracing_rcl {
+namespace {
+
+using namespace nb::literals;
+
+enum class CommandStatus { empty, python, taken };
+
+// What one take did.
+struct CommandTake {
+  CommandStatus status = CommandStatus::empty;
+  std::int64_t stamp_ns = 0;
+  std::vector<double> values;    // taken: the command, the simulator's joint order
+  std::optional<nb::bytes> data;  // python: the message's CDR bytes
+};
+
+class CommandPath {
+ public:
+  CommandPath(std::uintptr_t subscription, const Layout& command, std::vector<double> limit)
+      : subscription_(reinterpret_cast<const rcl_subscription_t*>(subscription)), command_(command),
+        limit_(std::move(limit)) {
+    if (command_.values() != limit_.size()) throw std::invalid_argument("the layout does not fit the joints' limits");
+    rcutils_allocator_t allocator = rcutils_get_default_allocator();
+    check(rmw_serialized_message_init(&taken_, 0, &allocator), "rmw_serialized_message_init");
+  }
+  ~CommandPath() { (void)rmw_serialized_message_fini(&taken_); }
+  CommandPath(const CommandPath&) = delete;
+  CommandPath& operator=(const CommandPath&) = delete;
+
+  // Take the next motor_command, if one is there: read here, or its bytes for the Python path.
+  CommandTake take() {
+    CommandTake out;
+    {
+      nb::gil_scoped_release unlocked;
+      if (!take_bytes(subscription_, taken_)) return out;
+      out.status = read(out) ? CommandStatus::taken : CommandStatus::python;
+    }
+    if (out.status == CommandStatus::python) {
+      out.data = nb::bytes(reinterpret_cast<const char*>(taken_.buffer), taken_.buffer_length);
+    }
+    return out;
+  }
+
+ private:
+  // Whether the message needs nothing of the Python path: the template's layout, each value finite and
+  // within its limit (0: none), as bracing_ros.commands applies it without a word.
+  bool read(CommandTake& out) const {
+    const std::uint8_t* data = taken_.buffer;
+    if (!command_.matches(data, taken_.buffer_length)) return false;
+    const std::size_t n = limit_.size();
+    out.values.resize(n);
+    for (std::size_t k = 0; k < n; ++k) {
+      const double v = command_.value(data, k);
+      if (!std::isfinite(v) || (limit_[k] > 0.0 && std::fabs(v) > limit_[k])) {
+        out.values.clear();
+        return false;
+      }
+      out.values[k] = v;
+    }
+    out.stamp_ns = command_.stamp_ns(data);
+    return true;
+  }
+
+  const rcl_subscription_t* subscription_;
+  Layout command_;
+  std::vector<double> limit_;
+  rcl_serialized_message_t taken_ = rmw_get_zero_initialized_serialized_message();
+};
+
+// What one StatePath.publish sent: its bytes (for the record batch), and the writes' time.
+struct StateSent {
+  std::optional<nb::bytes> joint_state, clock;  // keeping bytes: the messages published
+  double written_s = 0.0;                       // [s] in rcl_publish
+};
+
+class StatePath {
+ public:
+  StatePath(std::uintptr_t joint_publisher, std::uintptr_t clock_publisher, const Layout& joint_state,
+            const Layout& clock, bool keep_bytes)
+      : joint_publisher_(reinterpret_cast<const rcl_publisher_t*>(joint_publisher)),
+        clock_publisher_(reinterpret_cast<const rcl_publisher_t*>(clock_publisher)), joint_state_(joint_state),
+        clock_(clock), keep_bytes_(keep_bytes) {
+    if (joint_state_.values() % 3 != 0 || clock_.values() != 0) throw std::invalid_argument("not a state's layouts");
+  }
+
+  // joint_states (position, velocity, effort) then /clock, stamped stamp_ns.
+  StateSent publish(std::int64_t stamp_ns, const std::vector<double>& position, const std::vector<double>& velocity,
+                    const std::vector<double>& effort) {
+    const std::size_t n = joint_state_.values() / 3;
+    if (position.size() != n || velocity.size() != n || effort.size() != n) {
+      throw std::invalid_argument("a state's vectors do not fit its layout");
+    }
+    StateSent out;
+    {
+      nb::gil_scoped_release unlocked;
+      values_.assign(position.begin(), position.end());
+      values_.insert(values_.end(), velocity.begin(), velocity.end());
+      values_.insert(values_.end(), effort.begin(), effort.end());
+      joint_state_.fill(joint_bytes_, stamp_ns, values_);
+      out.written_s += publish_bytes(joint_publisher_, joint_bytes_, "joint_states");
+      clock_.fill(clock_bytes_, stamp_ns, {});
+      out.written_s += publish_bytes(clock_publisher_, clock_bytes_, "/clock");
+    }
+    if (keep_bytes_) {
+      out.joint_state = nb::bytes(reinterpret_cast<const char*>(joint_bytes_.data()), joint_bytes_.size());
+      out.clock = nb::bytes(reinterpret_cast<const char*>(clock_bytes_.data()), clock_bytes_.size());
+    }
+    return out;
+  }
+
+ private:
+  const rcl_publisher_t* joint_publisher_;
+  const rcl_publisher_t* clock_publisher_;
+  Layout joint_state_, clock_;
+  bool keep_bytes_;
+  std::vector<double> values_;
+  std::vector<std::uint8_t> joint_bytes_, clock_bytes_;
+};
+
+}  // namespace
+
+void bind_simulator_path(nb::module_& m) {
+  nb::enum_<CommandStatus>(m, "CommandStatus", "what one CommandPath.take did")
+      .value("empty", CommandStatus::empty, "no motor_command was there")
+      .value("python", CommandStatus::python, "taken, not read: its bytes are for the node's Python path")
+      .value("taken", CommandStatus::taken, "read: stamp_ns and values");
+  nb::class_<CommandTake>(m, "CommandTake", "what one CommandPath.take did")
+      .def_ro("status", &CommandTake::status)
+      .def_ro("stamp_ns", &CommandTake::stamp_ns, "taken: [ns] the command's stamp")
+      .def_ro("values", &CommandTake::values, "taken: the command, the simulator's joint order [V or N m]")
+      .def_ro("data", &CommandTake::data, "python: the message's CDR bytes");
+  nb::class_<CommandPath>(m, "CommandPath", "the simulator's motor_command path on rcl")
+      .def(nb::init<std::uintptr_t, const Layout&, std::vector<double>>(), "subscription"_a, "command"_a, "limit"_a)
+      .def("take", &CommandPath::take, "take the next motor_command and read it if it needs nothing else");
+  nb::class_<StateSent>(m, "StateSent", "what one StatePath.publish sent")
+      .def_ro("joint_state", &StateSent::joint_state, "keeping bytes: joint_states' CDR bytes")
+      .def_ro("clock", &StateSent::clock, "keeping bytes: /clock's CDR bytes")
+      .def_ro("written_s", &StateSent::written_s, "[s] in rcl_publish");
+  nb::class_<StatePath>(m, "StatePath", "the simulator's state out on rcl: joint_states and /clock")
+      .def(nb::init<std::uintptr_t, std::uintptr_t, const Layout&, const Layout&, bool>(), "joint_publisher"_a,
+           "clock_publisher"_a, "joint_state"_a, "clock"_a, "keep_bytes"_a)
+      .def("publish", &StatePath::publish, "stamp_ns"_a, "position"_a, "velocity"_a, "effort"_a,
+           "joint_states then /clock stamped stamp_ns, published");
+}
+
+}  // namespace bracing_rcl

@@ -1,0 +1,132 @@
+"""The simulator's motor_commands taken and its state sent on rcl (``bracing_rcl.CommandPath``, ``StatePath``,
+C++): when the node takes that path, and what it does with each command taken.
+
+A lockstep run on motor_command takes it, unless ``BRACING_SIMULATOR_PATH=python`` or the joints are more
+than max_message_elements (the Python path refuses such a command by its size). Per message the C++ path
+reads only one that needs no word said: the MotorCommand template's layout (the configured mode, the joints
+by name in the simulator's order), every value finite and within its joint's limit; its stamp and values go
+to the stepping policy (``SimulatorStepper.offer``, which judges the stamp on both paths). Any other message
+it hands to the node's Python path as its bytes, so each refusal and saturation is said by one
+implementation (``bracing_ros.commands``). When a state is joint_states and /clock alone (``state_on_rcl``)
+those two are written from their templates and published in C++ too (``bracing_rcl.StatePath``). The
+engine's step and the step's reports stay Python's.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+
+from bracing_core.message_limits import MessageLimits, SizeError
+from bracing_core.typestore import CLOCK
+from bracing_rcl import CommandPath, CommandStatus, Layout, StatePath
+from bracing_ros import wire
+from bracing_ros.cdr_template import PER_MESSAGE, derive_template
+
+if TYPE_CHECKING:
+    from rclpy.publisher import Publisher
+    from rclpy.subscription import Subscription
+
+    from bracing_core.config import SimulatorConfig
+    from bracing_core.node_log import NodeLog
+    from bracing_core.stepping import SimulatorStepper
+    from bracing_core.types import Vector
+
+PATH_ENV = "BRACING_SIMULATOR_PATH"
+"""The environment variable that chooses how the simulator takes motor_command: "rcl" (the default) or "python"."""
+PATHS = ("rcl", "python")
+STATE_PATH_LINE = "state path: joint_states and /clock written in C++ on rcl"
+"""What the node logs when ``state_on_rcl`` gives it a StatePath."""
+
+
+class CommandNode(Protocol):
+    """What the C++ path uses of the simulator node (``bracing_sim.node.SimulatorNode``)."""
+
+    config: SimulatorConfig
+    core: SimulatorStepper
+    limits: MessageLimits
+    joint_names: list[str]
+    command_reader: wire.MotorCommandDecoder
+
+    @property
+    def log(self) -> NodeLog: ...  # read-only: the node's is a NodeLog's subclass
+    def on_command(self, data: bytes) -> None: ...
+    def on_read_command(self, stamp_ns: int, command: Vector) -> None: ...
+
+
+def python_only(config: SimulatorConfig, limits: MessageLimits, joints: int) -> str | None:
+    """Why the run takes every motor_command on the Python path (None: the rcl path can take them)."""
+    choice = os.environ.get(PATH_ENV, "rcl")
+    if choice not in PATHS:
+        return f"{PATH_ENV}={choice!r} is neither of {', '.join(PATHS)}"
+    reasons = {
+        f"{PATH_ENV}=python": choice == "python",
+        f"command_source {config.command_source}": config.command_source != "motor_command",
+        f"stepping {config.stepping}": config.stepping != "lockstep",
+    }
+    try:
+        limits.check_count("name", joints)
+    except SizeError:
+        reasons["more joints than max_message_elements"] = True
+    found = [reason for reason, applies in reasons.items() if applies]
+    return ", ".join(found) if found else None
+
+
+class RclCommands:
+    """The node's motor_commands taken by ``bracing_rcl.CommandPath`` (see the module docstring)."""
+
+    def __init__(self, node: CommandNode, command_sub: Subscription) -> None:
+        self.node = node
+        limit = np.broadcast_to(np.asarray(node.core.limit, dtype=float), (len(node.joint_names),))
+        template = node.command_reader.template
+        self.path = CommandPath(command_sub.handle.pointer, Layout(*template.layout()), limit.tolist())
+        self.read = 0  # commands the C++ path read
+        self.handed_over = 0  # commands it took and the Python path read
+
+    def line(self) -> str:
+        """The log line of what each path did."""
+        return f"motor_command path: {self.read} read in C++ on rcl, {self.handed_over} by the Python path"
+
+    def take_queued(self) -> None:
+        """Take every motor_command waiting, to the stepping policy (read here, or on the Python path)."""
+        node = self.node
+        while (taken := self.path.take()).status != CommandStatus.empty:
+            if taken.status == CommandStatus.taken:
+                self.read += 1
+                node.on_read_command(taken.stamp_ns, np.array(taken.values))
+            else:
+                self.handed_over += 1
+                node.on_command(taken.data or b"")
+
+
+def commands_on_rcl(node: CommandNode, command_sub: Subscription) -> RclCommands | None:
+    """The C++ path on rcl for motor_command, if the run can take it (``python_only``); which, logged."""
+    reason = python_only(node.config, node.limits, len(node.joint_names))
+    node.log.info(f"motor_command path: {'Python (' + reason + ')' if reason else 'C++ on rcl'}")
+    return RclCommands(node, command_sub) if reason is None else None
+
+
+class StateTopics(Protocol):
+    """What the state path uses of the simulator's topics (``bracing_sim.topics.SimulatorTopics``)."""
+
+    joint_pub: Publisher
+    clock_pub: Publisher
+    joint_wire: wire.JointStateEncoder
+    truth_pubs: list[Publisher]
+    link_pubs: list[Publisher]
+    odom_pubs: list[Publisher]
+    joint_command_pubs: list[Publisher]
+
+
+def state_on_rcl(topics: StateTopics, config: SimulatorConfig, joints: int, keep_bytes: bool) -> StatePath | None:
+    """joint_states and /clock published in C++ on rcl (their templates) when a state is those two alone (exact
+    sensors, no collision geometry's links, no odom, not joint_commands) and motor_command is on rcl too;
+    ``keep_bytes``: record_batch (the state's bytes into the batch)."""
+    extra = topics.truth_pubs or topics.link_pubs or topics.odom_pubs or topics.joint_command_pubs
+    if extra or python_only(config, MessageLimits.of(config), joints) is not None:
+        return None
+    joint = Layout(*topics.joint_wire.template.layout())
+    clock = Layout(*derive_template(CLOCK, {"clock": PER_MESSAGE}).layout())
+    return StatePath(topics.joint_pub.handle.pointer, topics.clock_pub.handle.pointer, joint, clock, keep_bytes)
