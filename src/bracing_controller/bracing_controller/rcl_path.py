@@ -16,7 +16,6 @@ bytes (the templates of ``bracing_ros.wire``).
 
 from __future__ import annotations
 
-import os
 import time
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -24,12 +23,12 @@ import numpy as np
 from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerGuardCondition
 
-from bracing_core.message_limits import SizeError
 from bracing_core.step_timing import WorkTimer
 from bracing_core.types import Vector
 from bracing_rcl import ControllerPath, Layout, Outcome, Status
 from bracing_ros import stop_signal
 from bracing_ros.cdr_template import Template
+from bracing_ros.rcl_choice import python_only_reasons
 
 if TYPE_CHECKING:
     from rclpy.context import Context
@@ -66,7 +65,6 @@ class AnsweringNode(Protocol):
 
 PATH_ENV = "BRACING_CONTROLLER_PATH"
 """The environment variable that chooses the controller's per-state path: "rcl" (the default) or "python"."""
-PATHS = ("rcl", "python")
 WAIT_NS = 100_000_000
 """[ns] the longest wait for a state before the node's loop runs (its batch flushed, its executor spun)."""
 STATES_PER_SERVE = 10
@@ -77,22 +75,13 @@ simulator's turn (~10 x 4 us), long enough that the loop is not woken in Python 
 def python_only(core: StateAnswerer, effort_forward: bool, orientation: bool) -> str | None:
     """Why the run needs the Python path for every state (None: the rcl path can take it); ``effort_forward``,
     ``orientation``: whether the node runs effort_forward, an orientation task."""
-    choice = os.environ.get(PATH_ENV, "rcl")
-    if choice not in PATHS:
-        return f"{PATH_ENV}={choice!r} is neither of {', '.join(PATHS)}"
-    reasons = {
-        f"{PATH_ENV}=python": choice == "python",
+    own = {
         "effort_forward": effort_forward,
         "force or temperature measurements": core.measurements is not None,
         "an orientation task": orientation,
         "base_command cmd_vel": core.base_drive is not None,
     }
-    try:
-        core.limits.check_count("name", len(core.joint_names))
-    except SizeError:
-        reasons["more joints than max_message_elements"] = True
-    found = [reason for reason, applies in reasons.items() if applies]
-    return ", ".join(found) if found else None
+    return python_only_reasons(PATH_ENV, own, core.limits, len(core.joint_names))
 
 
 def layout(template: Template) -> Layout:

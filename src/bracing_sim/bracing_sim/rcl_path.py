@@ -14,16 +14,16 @@ engine's step and the step's reports stay Python's.
 
 from __future__ import annotations
 
-import os
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from bracing_core.message_limits import MessageLimits, SizeError
+from bracing_core.message_limits import MessageLimits
 from bracing_core.typestore import CLOCK
 from bracing_rcl import CommandPath, CommandStatus, Layout, StatePath
 from bracing_ros import wire
 from bracing_ros.cdr_template import PER_MESSAGE, derive_template
+from bracing_ros.rcl_choice import python_only_reasons
 
 if TYPE_CHECKING:
     from rclpy.publisher import Publisher
@@ -36,7 +36,6 @@ if TYPE_CHECKING:
 
 PATH_ENV = "BRACING_SIMULATOR_PATH"
 """The environment variable that chooses how the simulator takes motor_command: "rcl" (the default) or "python"."""
-PATHS = ("rcl", "python")
 STATE_PATH_LINE = "state path: joint_states and /clock written in C++ on rcl"
 """What the node logs when ``state_on_rcl`` gives it a StatePath."""
 
@@ -58,20 +57,11 @@ class CommandNode(Protocol):
 
 def python_only(config: SimulatorConfig, limits: MessageLimits, joints: int) -> str | None:
     """Why the run takes every motor_command on the Python path (None: the rcl path can take them)."""
-    choice = os.environ.get(PATH_ENV, "rcl")
-    if choice not in PATHS:
-        return f"{PATH_ENV}={choice!r} is neither of {', '.join(PATHS)}"
-    reasons = {
-        f"{PATH_ENV}=python": choice == "python",
+    own = {
         f"command_source {config.command_source}": config.command_source != "motor_command",
         f"stepping {config.stepping}": config.stepping != "lockstep",
     }
-    try:
-        limits.check_count("name", joints)
-    except SizeError:
-        reasons["more joints than max_message_elements"] = True
-    found = [reason for reason, applies in reasons.items() if applies]
-    return ", ".join(found) if found else None
+    return python_only_reasons(PATH_ENV, own, limits, joints)
 
 
 class RclCommands:
