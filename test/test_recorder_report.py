@@ -184,19 +184,29 @@ def write_bag_directly(path: Path, n: int, contacts: tuple[str, ...]) -> None:
     writer.close()
 
 
-def publisher_main(namespace: str, contacts: str, n: int, period: float, wait_go: bool, runs: int = 1) -> None:
+def publisher_main(
+    namespace: str, contacts: str, n: int, period: float, wait_go: bool, runs: int = 1, finish_on_go: bool = False
+) -> None:
     """Run in a subprocess: publish n synthetic steps of every topic, ``runs`` times over (as a simulator
-    reset after each run: robot_description once).
+    reset after each run: robot_description once), each run ended as the simulator ends one: FINISHED on
+    run_status (what a recorder with --expect-states waits for).
 
     Prints "matched" once every topic has a subscriber (then, with `wait_go`, waits for
     a line on stdin before each run), "sent" after each run's last publish and "published" once all is acked.
+    With `finish_on_go`, each run's FINISHED waits: "delivered <wall time>" once its messages are acked, then
+    a line on stdin, then "finished at <wall time>" as it is said.
     """
     import rclpy
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+    from bracing_core.overrides import SIMULATOR
+    from bracing_msgs.msg import RunStatus
+    from bracing_ros.status import StatusPublisher
+
     names = tuple(c for c in contacts.split(",") if c)
     rclpy.init()
     node = rclpy.create_node("synthetic_publisher", namespace=namespace)
+    status = StatusPublisher(rclpy.create_node(SIMULATOR, namespace=namespace))
     # As the nodes publish: reliable and transient-local (the recorder requests transient-local).
     qos = QoSProfile(
         history=HistoryPolicy.KEEP_ALL,
@@ -215,6 +225,7 @@ def publisher_main(namespace: str, contacts: str, n: int, period: float, wait_go
             print("publisher: recorder not discovered", flush=True)
             sys.exit(3)
         rclpy.spin_once(node, timeout_sec=0.02)
+    description.wait_for_all_acked(rclpy.duration.Duration(seconds=15.0))  # received, not only matched
     print("matched", flush=True)
     for _ in range(runs):
         if wait_go:
@@ -224,9 +235,17 @@ def publisher_main(namespace: str, contacts: str, n: int, period: float, wait_go
                 pubs[topic].publish(msg)
             if period > 0:
                 time.sleep(period)
+        if finish_on_go:
+            for p in pubs.values():
+                p.wait_for_all_acked(rclpy.duration.Duration(seconds=15.0))
+            print("delivered", flush=True)
+            sys.stdin.readline()
+            print(f"finished at {time.time():.6f}", flush=True)
+        status.say(RunStatus.FINISHED, (n - 1) * DT)
         print("sent", flush=True)
     for p in pubs.values():
         p.wait_for_all_acked(rclpy.duration.Duration(seconds=5.0))
+    status.flush()
     print("published", flush=True)
     node.destroy_node()
     rclpy.shutdown()
@@ -266,6 +285,9 @@ def batch_publisher_main(namespace: str, contacts: str, n: int, sent_file: str) 
             print("publisher: recorder not discovered", flush=True)
             sys.exit(3)
         rclpy.spin_once(node, timeout_sec=0.02)
+    # Matched here is not received there: the recorder's reader may match this writer later (its
+    # participant learns of it in turn), and only then asks for the latched description.
+    description.wait_for_all_acked(rclpy.duration.Duration(seconds=15.0))
     print("matched", flush=True)
     broken = RecordBatch(node="/intruder", sequence=0, topics=["/joint_states"])
     broken.topic_of, broken.end, broken.data = array("H", [0]), array("I", [8]), array("B", b"four")
@@ -397,6 +419,7 @@ def start_publisher(
     period: float,
     wait_go: bool = False,
     runs: int = 1,
+    finish_on_go: bool = False,
 ) -> Proc:
     # Fast DDS's default 3 s writer heartbeat would delay any retransmission (and the
     # final acknowledgements) by up to 3 s; 20 ms keeps delivery prompt and the test fast.
@@ -405,7 +428,7 @@ def start_publisher(
     env = {**env, "FASTRTPS_DEFAULT_PROFILES_FILE": str(profile)}
     code = (
         "import test_recorder_report as t; "
-        f"t.publisher_main({namespace!r}, {','.join(contacts)!r}, {n}, {period}, {wait_go}, {runs})"
+        f"t.publisher_main({namespace!r}, {','.join(contacts)!r}, {n}, {period}, {wait_go}, {runs}, {finish_on_go})"
     )
     pub = Proc([sys.executable, "-c", code], env)
     procs.append(pub)
@@ -526,6 +549,29 @@ def test_recorder_closes_the_bag_once_it_has_every_message(tmp_path: Path, procs
     assert set(data) == expected_topics("", CONTACTS)
     for topic, msgs in data.items():
         assert len(msgs) == (1 if topic.endswith(ONCE) else N_STEPS), topic
+
+
+def test_recorder_with_every_message_waits_for_the_simulators_finished(tmp_path: Path, procs: list[Proc]) -> None:
+    """--expect-states N: every message in is not yet the end of the run (the simulator's last warnings
+    come after its last state, and a reader of run_status may match late and hear nothing before);
+    the bag closes only after the simulator's FINISHED, held back here until every message was delivered."""
+    env = ros_env()
+    bag = tmp_path / "run" / "bag"
+    rec = start_recorder(procs, env, bag, "", CONTACTS, "--expect-states", str(N_STEPS))
+    pub = start_publisher(procs, env, tmp_path, "", CONTACTS, N_STEPS, period=0.0, finish_on_go=True)
+    pub.wait_line("delivered", timeout=30.0)
+    time.sleep(0.5)  # the recorder takes what was delivered (it polls every 0.1 s): without the rule it closes now
+    assert pub.popen.stdin is not None
+    pub.popen.stdin.write("go\n")
+    pub.popen.stdin.flush()
+    rc, err = rec.finish(timeout=30.0)
+    assert rc == 0, err
+    assert pub.finish(timeout=15.0)[0] == 0
+    said = float(next(line for line in pub.stdout if line.startswith("finished at "))[12:])
+    closed = float(next(line for line in rec.stdout if line.startswith("recorder closed the bag at "))[27:])
+    assert closed > said
+    data = read_bag(bag)
+    assert all(len(msgs) == (1 if topic.endswith(ONCE) else N_STEPS) for topic, msgs in data.items())
 
 
 def test_recorder_from_batches_writes_each_message_under_its_topic(tmp_path: Path, procs: list[Proc]) -> None:

@@ -293,7 +293,7 @@ def _conclude(pair: Pair, plan: RunPlan, outcome: _Outcome, wall: float, created
     recovered = _recover_recording(pair, plan, outcome, wall, message) if code != 0 else None
     if recovered is not None:
         summary, message = recovered
-    if code != 0 and timeline.at("simulator stepping") is None:
+    if code != 0 and not _stepped(timeline, outcome):
         # Nothing to keep from a run that never stepped: the same --output works again.
         _discard(out, created, keep_logs=True)
         if pair.interrupted:
@@ -306,6 +306,12 @@ def _conclude(pair: Pair, plan: RunPlan, outcome: _Outcome, wall: float, created
             timeline.mark(phase, stamp)
     timeline.write(out)
     return RunResult(code, out, wall, summary, message, pair.logs, timeline)
+
+
+def _stepped(timeline: Timeline, outcome: _Outcome) -> bool:
+    """Whether the simulator stepped: it said so on run_status, or it diverged (only a step diverges; a
+    simulator that diverges at once may exit before its STEPPING reaches this process)."""
+    return outcome.diverged or timeline.at("simulator stepping") is not None
 
 
 def _recorder_end(code: int | None) -> str:
@@ -325,7 +331,7 @@ def _recover_recording(
     from bracing_analysis.bag_recovery import RecoveryError, cut_files, recover_bag
 
     out = plan.options.output
-    if pair.timeline.at("simulator stepping") is None or not cut_files(out / "bag"):
+    if not _stepped(pair.timeline, outcome) or not cut_files(out / "bag"):
         return None
     from bracing_recorder.bag_notes import bag_notes_of_values
 

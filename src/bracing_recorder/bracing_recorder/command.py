@@ -51,8 +51,8 @@ TUNINGS: tuple[tuple[str, type, float, str], ...] = (
         "--expect-states",
         int,
         0,
-        "the states of a lockstep run: close the bag as soon as every topic has its messages "
-        "(default 0: only when stopped)",
+        "the states of a lockstep run: close the bag as soon as every topic has its messages and the "
+        "simulator has said FINISHED on run_status (default 0: only when stopped)",
     ),
     ("--drain-idle", float, 0.2, "on stop, keep receiving until idle this long [s] (default 0.2)"),
     (
@@ -162,7 +162,7 @@ def _record_until_stopped(
         serve()
         got = node.record(0.0 if idle and node.scene_backlog else 0.1)
         idle = not got
-        if got and wanted is not None and node.simulator_done and node.has_every_message(wanted):
+        if got and wanted is not None and node.simulator_finished and node.has_every_message(wanted):
             return True  # nothing more will come (the simulator's last warning came before FINISHED): no drain
         if node.scene_backlog and (idle or node.scene_backlog > MAX_SCENE_BACKLOG):
             node.derive(0.05)  # idle (nothing came for 0.1 s), or the queue would grow too large

@@ -38,8 +38,9 @@ sim time of the last state it answered with the old values (see bracing_controll
 The run's warnings are recorded from ``run_status``: its WARNING messages (what the simulator warns
 about, also in its log), stamped with their sim time; the topic is in the bag from the first warning
 (a run without any has none), and the summary reads them there. With ``--expect-states`` the bag is
-closed once every topic has its messages and, if a simulator speaks on run_status, once it has said
-FINISHED (after its last warning: one writer, in order).
+closed once every topic has its messages and the simulator has said FINISHED on run_status (after its last
+warning: one writer, in order). Only FINISHED says nothing more will come: a reader of run_status that
+matches the simulator's writer late hears nothing of it until then, and a 0.3 s run can end before that.
 
 With ``--from-batches`` the per-state topics come in ``bracing_msgs/RecordBatch`` samples on
 ``record_batch`` (the nodes' ``record_batch`` parameter; bracing-pair sets both): each message is
@@ -215,7 +216,6 @@ class Recorder(Node):
             subscriptions.append(self._batches)
         self._waiter = SubscriptionWaiter(self, subscriptions)
         self._scene_roles = {"joint_states", "contacts", "description", *(f"contact_wrench/{c}" for c in contacts)}
-        self.simulator_heard = False  # a simulator speaks on run_status (its CONFIGURED is kept for late subscribers)
         self.description: bytes | None = None  # the robot_description received (latched: delivered once)
         self._open_bag(writer, shapes)
 
@@ -485,7 +485,6 @@ class Recorder(Node):
         except (SerdeError, ValueError, IndexError, KeyError):
             return False
         if status.node == SIMULATOR:
-            self.simulator_heard = True
             self.simulator_finished |= status.event == status.FINISHED
         if status.event != status.WARNING or not write:
             return False
@@ -497,11 +496,6 @@ class Recorder(Node):
         self.writer.write(self._status_connection, max(stamp, 0), data)
         self.counts[self._status_connection.topic] += 1
         return True
-
-    @property
-    def simulator_done(self) -> bool:
-        """Nothing more to come from the simulator on run_status: it said FINISHED, or none speaks there."""
-        return self.simulator_finished or not self.simulator_heard
 
     def _record_target(self, sub: Subscription, data: bytes) -> None:
         """Write a target as it came, at the sim time of the last /clock recorded (the bag's time axis);

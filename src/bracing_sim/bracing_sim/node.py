@@ -274,6 +274,7 @@ def spin(node: SimulatorNode) -> int:
         print(f"{DIVERGED}{node.sim.time:.6f} s: {exc}", file=sys.stderr, flush=True)
         # Every state up to the failure reaches the recorder (the last batch too): the moment to see.
         node.topics.close(timeout_sec=FLUSH_AT_FAILURE_S)
+        node.status.flush(FLUSH_AT_FAILURE_S)  # its STEPPING and warnings too: bracing-pair keeps the bag by them
         return EXIT_DIVERGED
     except KeyboardInterrupt:  # stopped mid-run: what was sent still reaches the recorder, if it can soon
         node.topics.close(timeout_sec=2.0)
