@@ -42,13 +42,16 @@ def recorded(bag: Path) -> dict[str, list[tuple[int, bytes]]]:
     return topics
 
 
-def pair_runs(tmp_path_factory: pytest.TempPathFactory, env_name: str, paths: Iterable[str]) -> dict[str, Path]:
-    """A pair run of the paper's arm (RUN_S) with ``env_name`` set to each of ``paths``: its output directory."""
+def pair_runs(
+    tmp_path_factory: pytest.TempPathFactory, env_name: str, paths: Iterable[str], *extra: str
+) -> dict[str, Path]:
+    """A pair run of the paper's arm (RUN_S) with ``env_name`` set to each of ``paths``: its output directory.
+    ``extra``: bracing-pair's further arguments."""
     out = {}
     for path in paths:
         output = tmp_path_factory.mktemp(f"pair-{path}") / "run"
         env = isolated_env(**{env_name: path})
-        done = run(pair_argv(output, "--duration", str(RUN_S), "--no-animation"), env=env, timeout=300)
+        done = run(pair_argv(output, "--duration", str(RUN_S), "--no-animation", *extra), env=env, timeout=300)
         assert done.returncode == 0, done.stdout + done.stderr
         out[path] = output
     return out

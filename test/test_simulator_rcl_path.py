@@ -1,6 +1,8 @@
 """The simulator's motor_command path on rcl (bracing_sim.rcl_path, C++) against its Python path: the same bag,
 message for message and byte for byte (controller_state but its compute_time, a wall-clock measurement), with
-every command the controller sends read in C++.
+every command the controller sends read in C++, and the state and the step's reports written in C++: as the
+recorder has them from the record batches (bracing-pair's default) and as it has them from each topic
+(record_batch 0: the bytes published).
 
 The simulator's hostile-input tests (test_fuzz, test_hostile_input, test_robustness) run on both paths
 (``SIMULATOR_PATHS``)."""
@@ -9,19 +11,23 @@ from __future__ import annotations
 
 import math
 import re
+import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 import rclpy
+from geometry_msgs.msg import WrenchStamped
 from rclpy.context import Context
 from rclpy.qos import QoSProfile
 from rclpy.serialization import deserialize_message
 from ros_helpers import SIMULATOR_PATH_LINES, hold_test_domain
 from test_controller_rcl_path import RUN_S, pair_runs, same_bags
 
-from bracing_msgs.msg import MotorCommand
-from bracing_rcl import CommandPath, CommandStatus, Layout
-from bracing_ros import wire
+from bracing_msgs.msg import Contacts, MotorCommand, MotorState
+from bracing_rcl import CommandPath, CommandStatus, Layout, ReportPath
+from bracing_ros import report_encoders, wire
+from bracing_ros.report_encoders import ContactReport
 from bracing_ros.waiter import SubscriptionWaiter
 from bracing_sim.rcl_path import PATH_ENV, STATE_PATH_LINE
 
@@ -51,6 +57,22 @@ def test_each_run_took_its_path(runs: dict[str, Path]) -> None:
 
 def test_the_rcl_path_bag_equals_the_python_path_bag(runs: dict[str, Path]) -> None:
     assert len(same_bags(runs)["/joint_states"]) == round(RUN_S * 1000) + 1
+
+
+@pytest.fixture(scope="module")
+def unbatched_runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """As ``runs``, the recorder subscribed to each topic (no record batch): it records the bytes published."""
+    return pair_runs(tmp_path_factory, PATH_ENV, SIMULATOR_PATH_LINES, "--set", "record_batch=0")
+
+
+def test_the_bytes_published_are_the_python_path_s(unbatched_runs: dict[str, Path]) -> None:
+    """Every state's joint_states and /clock and every step's reports, as published on each path."""
+    log = (unbatched_runs["rcl"] / "logs" / "simulator.log").read_text()
+    assert STATE_PATH_LINE in log, log[-3000:]
+    bag = same_bags(unbatched_runs)
+    states = round(RUN_S * 1000) + 1
+    for topic in ("/joint_states", "/clock", "/contacts", "/motor_state", "/contact_wrench/elbow"):
+        assert len(bag[topic]) == states, topic
 
 
 def command(names: list[str], values: list[float], mode: int = MotorCommand.VOLTAGE) -> MotorCommand:
@@ -97,3 +119,69 @@ def test_the_command_path_reads_only_what_needs_no_word(monkeypatch: pytest.Monk
     for take, msg in zip(taken[1:], handed_over, strict=True):
         assert take.status == CommandStatus.python and take.values == []
         assert take.data is not None and repr(deserialize_message(take.data, MotorCommand)) == repr(msg)  # NaN too
+
+
+def test_the_report_path_writes_what_the_encoders_write(monkeypatch: pytest.MonkeyPatch) -> None:
+    """ReportPath on real rcl publishers in this process, two configured contacts of three, the thermal model's
+    temperatures: each report received is the Python path's encoder's bytes (a contact released, a NaN, -0.0
+    among the numbers), and the bytes kept for the record batch are the bytes published."""
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    rng = np.random.default_rng(7)
+    names, frames, joints = ["elbow", "wrist", "hand"], ["link2", "link3", "link4"], ["j1", "j2", "j3"]
+    wrench_wire = report_encoders.WrenchStampedEncoder("world")
+    contacts_wire = report_encoders.ContactsEncoder(names, frames)
+    motor_wire = report_encoders.MotorStateEncoder(joints)
+    held = np.array([True, False, True])
+    points = [rng.normal(size=(3, 3)) for _ in range(3)]  # positions, normals, slip velocities
+    normal_force, friction_force, residual = rng.normal(size=3), rng.normal(size=3), np.array([1e-4, math.nan, -0.0])
+    forces = [rng.normal(size=3), np.array([-0.0, 2.5, math.inf])]
+    motors = [rng.normal(size=3) for _ in range(4)]  # voltage, current, power, temperature
+    energies = (1.5, -0.25, 0.125)
+    stamp_ns = 12_345_678_901
+    forces_at = [(normal_force[j], friction_force[j]) for j in range(3)]
+    reports = [
+        ContactReport(bool(held[j]), points[0][j], points[1][j], *forces_at[j], points[2][j], residual[j])
+        for j in range(3)
+    ]
+    expected = {
+        "contact_wrench/elbow": wrench_wire.encode(stamp_ns, forces[0]),
+        "contact_wrench/wrist": wrench_wire.encode(stamp_ns, forces[1]),
+        "contacts": contacts_wire.encode(stamp_ns, reports),
+        "motor_state": motor_wire.encode(stamp_ns, *motors[:3], energies, motors[3]),
+    }
+    context = Context()
+    rclpy.init(context=context, domain_id=hold_test_domain())
+    try:
+        node = rclpy.create_node("report_path_test", context=context)
+        qos = QoSProfile(depth=10)
+        types = {"contact_wrench/elbow": WrenchStamped, "contact_wrench/wrist": WrenchStamped}
+        types |= {"contacts": Contacts, "motor_state": MotorState}
+        pubs = {topic: node.create_publisher(kind, topic, qos) for topic, kind in types.items()}
+        subs = {
+            topic: node.create_subscription(kind, topic, lambda _: None, qos, raw=True) for topic, kind in types.items()
+        }
+        deadline = time.monotonic() + 10.0
+        while not all(pub.get_subscription_count() for pub in pubs.values()) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        templates = (wrench_wire.template(), contacts_wire.template(), motor_wire.template(3))
+        layouts = [Layout(*template.layout()) for template in templates]
+        handles = {topic: pub.handle.pointer for topic, pub in pubs.items()}
+        wrench_pubs = [handles["contact_wrench/elbow"], handles["contact_wrench/wrist"]]
+        path = ReportPath(wrench_pubs, handles["contacts"], handles["motor_state"], *layouts, True)
+        sent = path.publish(stamp_ns, forces, held, points[0], points[1], normal_force, friction_force, points[2],
+                            residual, *motors, energies)  # fmt: skip
+        with pytest.raises(ValueError, match="contacts do not fit"):
+            path.publish(stamp_ns, forces, held[:2], points[0][:2], points[1][:2], normal_force[:2],
+                         friction_force[:2], points[2][:2], residual[:2], *motors, energies)  # fmt: skip
+        received = {}
+        for topic, sub in subs.items():
+            waiter = SubscriptionWaiter(node, sub)
+            taken = waiter.take(10.0)
+            assert len(taken) == 1, topic
+            received[topic] = bytes(taken[0])
+    finally:
+        rclpy.try_shutdown(context=context)
+    assert received == expected
+    assert sent.wrenches == [expected["contact_wrench/elbow"], expected["contact_wrench/wrist"]]
+    assert (sent.contacts, sent.motor_state) == (expected["contacts"], expected["motor_state"])
+    assert sent.written_s > 0.0

@@ -5,7 +5,8 @@ motor_command and then the controller_state on rclpy publishers' rcl handles, wi
 state until one needs Python (``Served``). What it does not answer itself goes back to the node's Python path as
 bytes (``Status.python``). ``CommandPath`` takes the simulator's motor_commands likewise: read in C++ when they
 need no word said, else their bytes for the simulator's Python path (``CommandStatus.python``); ``StatePath``
-publishes its joint_states and /clock."""
+publishes its joint_states and /clock, ``ReportPath`` a step's reports (contact_wrench/<name>, contacts,
+motor_state)."""
 
 import rclpy  # noqa: F401  first: it loads the rcl and rmw libraries this module links
 
@@ -16,6 +17,8 @@ from bracing_rcl._rcl import (
     ControllerPath,
     Layout,
     Outcome,
+    ReportPath,
+    ReportsSent,
     Served,
     StatePath,
     StateSent,
@@ -29,6 +32,8 @@ __all__ = [
     "ControllerPath",
     "Layout",
     "Outcome",
+    "ReportPath",
+    "ReportsSent",
     "Served",
     "StatePath",
     "StateSent",

@@ -64,7 +64,7 @@ inline double publish_bytes(const rcl_publisher_t* publisher, std::vector<std::u
 
 // A message's byte template: its bytes with every slot zero, the constant runs a message of this layout
 // repeats, and where each value of the slots goes. The values are a header stamp (int32 sec, uint32
-// nanosec) then float64s.
+// nanosec) then float64s and bools (a ContactState's active: one byte, 1 or 0).
 class Layout {
  public:
   Layout(nb::bytes bytes, std::vector<std::pair<std::uint32_t, std::uint32_t>> constants,
@@ -73,14 +73,16 @@ class Layout {
                static_cast<const std::uint8_t*>(bytes.data()) + bytes.size()),
         constants_(std::move(constants)), offsets_(std::move(offsets)) {
     if (codes.size() != offsets_.size() || codes.size() < 2 || codes.compare(0, 2, "iI") != 0 ||
-        codes.find_first_not_of('d', 2) != std::string::npos) {
-      throw std::invalid_argument("a layout's values are a stamp (iI) then float64s, not " + codes);
+        codes.find_first_not_of("d?", 2) != std::string::npos) {
+      throw std::invalid_argument("a layout's values are a stamp (iI) then float64s and bools, not " + codes);
     }
     for (const auto& [offset, length] : constants_) {
       if (std::size_t{offset} + length > bytes_.size()) throw std::invalid_argument("a constant run past the end");
     }
     for (std::size_t k = 0; k < offsets_.size(); ++k) {
-      if (std::size_t{offsets_[k]} + (k < 2 ? 4 : 8) > bytes_.size()) throw std::invalid_argument("a value past the end");
+      const std::size_t size = k < 2 ? 4 : codes[k] == '?' ? 1 : 8;
+      if (std::size_t{offsets_[k]} + size > bytes_.size()) throw std::invalid_argument("a value past the end");
+      if (k >= 2) bools_.push_back(codes[k] == '?');
     }
   }
   std::size_t values() const { return offsets_.size() - 2; }  // the float64s
@@ -100,6 +102,7 @@ class Layout {
     return std::int64_t{sec} * kNsPerS + nanosec;
   }
   double value(const std::uint8_t* data, std::size_t k) const {
+    if (bools_[k]) return data[offsets_[2 + k]] != 0 ? 1.0 : 0.0;
     double v;
     std::memcpy(&v, data + offsets_[2 + k], 8);
     return v;
@@ -113,13 +116,21 @@ class Layout {
     const auto nanosec32 = static_cast<std::uint32_t>(nanosec);
     std::memcpy(out.data() + offsets_[0], &sec32, 4);
     std::memcpy(out.data() + offsets_[1], &nanosec32, 4);
-    for (std::size_t k = 0; k < values.size(); ++k) std::memcpy(out.data() + offsets_[2 + k], &values[k], 8);
+    for (std::size_t k = 0; k < values.size(); ++k) {
+      std::uint8_t* at = out.data() + offsets_[2 + k];
+      if (bools_[k]) {
+        *at = values[k] != 0.0 ? 1 : 0;
+      } else {
+        std::memcpy(at, &values[k], 8);
+      }
+    }
   }
 
  private:
   std::vector<std::uint8_t> bytes_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> constants_;
   std::vector<std::uint32_t> offsets_;
+  std::vector<bool> bools_;  // per value: a bool's one byte, else a float64's eight
 };
 
 // The simulator's command path (simulator_path.cpp), bound into the module with the controller's.

@@ -4,13 +4,17 @@
 // Any other message (another layout or order, a non-finite or saturated value) goes back to Python as its
 // bytes, to the node's Python path, which says why it refuses or saturates it: one implementation of each
 // refusal. The stamp is the stepping policy's to judge (SimulatorStepper.offer) on both paths.
-// And the state out: joint_states and /clock written from their templates and published, without the GIL.
+// And the state out: joint_states and /clock written from their templates and published, without the GIL;
+// then the step's reports (contact_wrench/<name>, contacts, motor_state) likewise.
 #include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/array.h>
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/vector.h>
 #include <rcl/rcl.h>
 #include <rmw/serialized_message.h>
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <optional>
@@ -138,6 +142,118 @@ class StatePath {
   std::vector<std::uint8_t> joint_bytes_, clock_bytes_;
 };
 
+// A step's numbers as the engine's answer and the stepping policy hand them over (numpy arrays).
+using Column = nb::ndarray<const double, nb::ndim<1>, nb::device::cpu>;
+using Points = nb::ndarray<const double, nb::ndim<2>, nb::device::cpu>;  // p x 3
+using Flags = nb::ndarray<const bool, nb::ndim<1>, nb::device::cpu>;
+
+void append(std::vector<double>& values, const Column& column) {
+  for (std::size_t k = 0; k < column.shape(0); ++k) values.push_back(column(k));
+}
+
+void append_row(std::vector<double>& values, const Points& points, std::size_t row) {
+  for (std::size_t k = 0; k < 3; ++k) values.push_back(points(row, k));
+}
+
+// What one ReportPath.publish sent: its bytes (for the record batch), and the writes' time.
+struct ReportsSent {
+  std::optional<std::vector<nb::bytes>> wrenches;  // keeping bytes: each contact_wrench/<name>'s
+  std::optional<nb::bytes> contacts, motor_state;  // keeping bytes
+  double written_s = 0.0;                          // [s] in rcl_publish
+};
+
+// The step's reports out on rcl, in the Python path's order: each configured contact's WrenchStamped, then
+// Contacts, then MotorState, each written from its template (the names, frames and lengths fixed per run).
+class ReportPath {
+ public:
+  ReportPath(std::vector<std::uintptr_t> wrench_publishers, std::uintptr_t contacts_publisher,
+             std::uintptr_t motor_publisher, const Layout& wrench, const Layout& contacts, const Layout& motor_state,
+             bool keep_bytes)
+      : contacts_publisher_(reinterpret_cast<const rcl_publisher_t*>(contacts_publisher)),
+        motor_publisher_(reinterpret_cast<const rcl_publisher_t*>(motor_publisher)), wrench_(wrench),
+        contacts_(contacts), motor_state_(motor_state), keep_bytes_(keep_bytes),
+        wrench_bytes_(wrench_publishers.size()) {
+    for (const auto handle : wrench_publishers) wrench_publishers_.push_back(reinterpret_cast<const rcl_publisher_t*>(handle));
+    if (wrench_.values() != 3 || contacts_.values() % kContactValues != 0) {
+      throw std::invalid_argument("not a step's reports' layouts");
+    }
+  }
+
+  // The reports of the step stamped stamp_ns: forces[j] per configured contact; per contact of the set (p)
+  // held, positions, normals, normal_force, friction_force, slip_velocity, residual; the motors' voltage,
+  // current, power, temperature (empty without the thermal model) and energies (consumed, net, copper loss).
+  ReportsSent publish(std::int64_t stamp_ns, const std::vector<Column>& forces, const Flags& held,
+                      const Points& positions, const Points& normals, const Column& normal_force,
+                      const Column& friction_force, const Points& slip_velocity, const Column& residual,
+                      const Column& voltage, const Column& current, const Column& power, const Column& temperature,
+                      const std::array<double, 3>& energies) {
+    const std::size_t p = contacts_.values() / kContactValues;
+    if (forces.size() != wrench_publishers_.size() || held.shape(0) != p || residual.shape(0) != p) {
+      throw std::invalid_argument("a step's contacts do not fit the reports' layouts");
+    }
+    const std::size_t motor_values = voltage.shape(0) + current.shape(0) + power.shape(0) + temperature.shape(0) + 3;
+    if (motor_values != motor_state_.values()) throw std::invalid_argument("a step's motors do not fit motor_state's layout");
+    ReportsSent out;
+    {
+      nb::gil_scoped_release unlocked;
+      for (std::size_t j = 0; j < forces.size(); ++j) {
+        values_.clear();
+        append(values_, forces[j]);
+        wrench_.fill(wrench_bytes_[j], stamp_ns, values_);
+        out.written_s += publish_bytes(wrench_publishers_[j], wrench_bytes_[j], "contact_wrench");
+      }
+      contact_values(held, positions, normals, normal_force, friction_force, slip_velocity, residual);
+      contacts_.fill(contacts_bytes_, stamp_ns, values_);
+      out.written_s += publish_bytes(contacts_publisher_, contacts_bytes_, "contacts");
+      values_.clear();
+      for (const Column* column : {&voltage, &current, &power, &temperature}) append(values_, *column);
+      values_.insert(values_.end(), energies.begin(), energies.end());
+      motor_state_.fill(motor_bytes_, stamp_ns, values_);
+      out.written_s += publish_bytes(motor_publisher_, motor_bytes_, "motor_state");
+    }
+    if (keep_bytes_) keep(out);
+    return out;
+  }
+
+ private:
+  static constexpr std::size_t kContactValues = 13;  // a ContactState's: active, 3 + 3, 2, 3, 1
+
+  // values_: each contact's, in ContactState's order.
+  void contact_values(const Flags& held, const Points& positions, const Points& normals, const Column& normal_force,
+                      const Column& friction_force, const Points& slip_velocity, const Column& residual) {
+    values_.clear();
+    for (std::size_t j = 0; j < held.shape(0); ++j) {
+      values_.push_back(held(j) ? 1.0 : 0.0);
+      append_row(values_, positions, j);
+      append_row(values_, normals, j);
+      values_.push_back(normal_force(j));
+      values_.push_back(friction_force(j));
+      append_row(values_, slip_velocity, j);
+      values_.push_back(residual(j));
+    }
+  }
+
+  static nb::bytes bytes_of(const std::vector<std::uint8_t>& data) {
+    return nb::bytes(reinterpret_cast<const char*>(data.data()), data.size());
+  }
+
+  void keep(ReportsSent& out) const {
+    out.wrenches.emplace();
+    for (const auto& data : wrench_bytes_) out.wrenches->push_back(bytes_of(data));
+    out.contacts = bytes_of(contacts_bytes_);
+    out.motor_state = bytes_of(motor_bytes_);
+  }
+
+  std::vector<const rcl_publisher_t*> wrench_publishers_;
+  const rcl_publisher_t* contacts_publisher_;
+  const rcl_publisher_t* motor_publisher_;
+  Layout wrench_, contacts_, motor_state_;
+  bool keep_bytes_;
+  std::vector<double> values_;
+  std::vector<std::vector<std::uint8_t>> wrench_bytes_;
+  std::vector<std::uint8_t> contacts_bytes_, motor_bytes_;
+};
+
 }  // namespace
 
 void bind_simulator_path(nb::module_& m) {
@@ -162,6 +278,21 @@ void bind_simulator_path(nb::module_& m) {
            "clock_publisher"_a, "joint_state"_a, "clock"_a, "keep_bytes"_a)
       .def("publish", &StatePath::publish, "stamp_ns"_a, "position"_a, "velocity"_a, "effort"_a,
            "joint_states then /clock stamped stamp_ns, published");
+  nb::class_<ReportsSent>(m, "ReportsSent", "what one ReportPath.publish sent")
+      .def_ro("wrenches", &ReportsSent::wrenches, "keeping bytes: each contact_wrench/<name>'s CDR bytes")
+      .def_ro("contacts", &ReportsSent::contacts, "keeping bytes: contacts' CDR bytes")
+      .def_ro("motor_state", &ReportsSent::motor_state, "keeping bytes: motor_state's CDR bytes")
+      .def_ro("written_s", &ReportsSent::written_s, "[s] in rcl_publish");
+  nb::class_<ReportPath>(m, "ReportPath", "the simulator's step reports on rcl: contact_wrench/*, contacts, motor_state")
+      .def(nb::init<std::vector<std::uintptr_t>, std::uintptr_t, std::uintptr_t, const Layout&, const Layout&,
+                    const Layout&, bool>(),
+           "wrench_publishers"_a, "contacts_publisher"_a, "motor_publisher"_a, "wrench"_a, "contacts"_a,
+           "motor_state"_a, "keep_bytes"_a)
+      .def("publish", &ReportPath::publish, "stamp_ns"_a, "forces"_a, "held"_a, "positions"_a, "normals"_a,
+           "normal_force"_a, "friction_force"_a, "slip_velocity"_a, "residual"_a, "voltage"_a, "current"_a, "power"_a,
+           "temperature"_a, "energies"_a,
+           "the step's reports stamped stamp_ns (forces [N] per configured contact, the contact set's, the motors'), "
+           "published");
 }
 
 }  // namespace bracing_rcl

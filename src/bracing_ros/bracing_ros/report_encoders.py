@@ -4,6 +4,10 @@
 than a byte template would (see :mod:`bracing_ros.wire`'s table), and they go out after the step's
 JointState, not before it. The bytes are rclpy's (test_wire checks them against
 ``rclpy.serialization``).
+
+The three step reports' encoders also give their byte templates (``template``: derived from the
+definitions, :func:`bracing_ros.cdr_template.derive_template`), which the simulator's C++ path on rcl
+fills (``bracing_rcl.ReportPath``): the same bytes, the names, frames and lengths fixed per run.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from bracing_core.typestore import (
     WRENCH_STAMPED,
     bracing_typestore,
 )
+from bracing_ros.cdr_template import PER_MESSAGE, PerMessage, Template, derive_template
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
@@ -130,6 +135,11 @@ class WrenchStampedEncoder:
         self._wrench_stamped = _Messages(self._ser.store, WRENCH_STAMPED)
         self._wrench = _Messages(self._ser.store, "geometry_msgs/msg/Wrench")
 
+    def template(self) -> Template:
+        """The byte template: the stamp, then the force (3); the torque zero."""
+        spec = {"header": {"stamp": PER_MESSAGE, "frame_id": self._frame_id}, "wrench": {"force": PER_MESSAGE}}
+        return derive_template(WRENCH_STAMPED, spec)
+
     def encode(self, stamp_ns: int, force: Vector) -> bytes:
         ser = self._ser
         message = self._wrench_stamped(
@@ -161,6 +171,14 @@ class ContactsEncoder:
         self._contacts = _Messages(self._ser.store, CONTACTS)
         self._contact = _Messages(self._ser.store, CONTACT_STATE)
 
+    def template(self) -> Template:
+        """The byte template of the fixed contacts: the stamp, then per contact its numbers in ContactState's
+        order (active, position, normal, normal_force, friction_force, slip_velocity, residual)."""
+        numbers = ("active", "position", "normal", "normal_force", "friction_force", "slip_velocity", "residual")
+        states = [{"name": name, "frame": frame} | dict.fromkeys(numbers, PER_MESSAGE) for name, frame in self._names]
+        header = {"stamp": PER_MESSAGE, "frame_id": self._frame_id}
+        return derive_template(CONTACTS, {"header": header, "contacts": states})
+
     def encode(
         self, stamp_ns: int, contacts: Sequence[ContactReport], names: Sequence[tuple[str, str]] | None = None
     ) -> bytes:
@@ -190,6 +208,19 @@ class MotorStateEncoder:
     def __init__(self, names: Sequence[str]) -> None:
         self._ser, self._names = _Serializer(), list(names)
         self._motor_state = _Messages(self._ser.store, MOTOR_STATE)
+
+    def template(self, temperatures: int) -> Template:
+        """The byte template with ``temperatures`` windings' temperatures (0 without the thermal model): the stamp,
+        then voltage, current, power (each per joint), temperature, and the three energies."""
+        per_joint = PerMessage(len(self._names))
+        spec = {
+            "header": {"stamp": PER_MESSAGE},
+            "name": self._names,
+            **dict.fromkeys(("voltage", "current", "power"), per_joint),
+            "temperature": PerMessage(temperatures),
+            **dict.fromkeys(("energy_consumed", "energy_net", "copper_loss"), PER_MESSAGE),
+        }
+        return derive_template(MOTOR_STATE, spec)
 
     def encode(
         self,

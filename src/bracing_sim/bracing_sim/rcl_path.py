@@ -8,8 +8,9 @@ by name in the simulator's order), every value finite and within its joint's lim
 to the stepping policy (``SimulatorStepper.offer``, which judges the stamp on both paths). Any other message
 it hands to the node's Python path as its bytes, so each refusal and saturation is said by one
 implementation (``bracing_ros.commands``). When a state is joint_states and /clock alone (``state_on_rcl``)
-those two are written from their templates and published in C++ too (``bracing_rcl.StatePath``). The
-engine's step and the step's reports stay Python's.
+those two are written from their templates and published in C++ too (``bracing_rcl.StatePath``), and so are
+the step's reports, contact_wrench/<name>, contacts and motor_state (``bracing_rcl.ReportPath``: the contact
+set's names and frames and motor_state's lengths are fixed per run). The engine's step stays Python's.
 """
 
 from __future__ import annotations
@@ -20,8 +21,8 @@ import numpy as np
 
 from bracing_core.message_limits import MessageLimits
 from bracing_core.typestore import CLOCK
-from bracing_rcl import CommandPath, CommandStatus, Layout, StatePath
-from bracing_ros import wire
+from bracing_rcl import CommandPath, CommandStatus, Layout, ReportPath, StatePath
+from bracing_ros import report_encoders, wire
 from bracing_ros.cdr_template import PER_MESSAGE, derive_template
 from bracing_ros.rcl_choice import python_only_reasons
 
@@ -36,8 +37,8 @@ if TYPE_CHECKING:
 
 PATH_ENV = "BRACING_SIMULATOR_PATH"
 """The environment variable that chooses how the simulator takes motor_command: "rcl" (the default) or "python"."""
-STATE_PATH_LINE = "state path: joint_states and /clock written in C++ on rcl"
-"""What the node logs when ``state_on_rcl`` gives it a StatePath."""
+STATE_PATH_LINE = "state path: joint_states, /clock and the step's reports written in C++ on rcl"
+"""What the node logs when ``state_on_rcl`` gives it a StatePath (and ``reports_on_rcl`` a ReportPath)."""
 
 
 class CommandNode(Protocol):
@@ -120,3 +121,26 @@ def state_on_rcl(topics: StateTopics, config: SimulatorConfig, joints: int, keep
     joint = Layout(*topics.joint_wire.template.layout())
     clock = Layout(*derive_template(CLOCK, {"clock": PER_MESSAGE}).layout())
     return StatePath(topics.joint_pub.handle.pointer, topics.clock_pub.handle.pointer, joint, clock, keep_bytes)
+
+
+class ReportTopics(Protocol):
+    """What the report path uses of the simulator's topics (``bracing_sim.topics.SimulatorTopics``)."""
+
+    wrench_pubs: list[Publisher]
+    contacts_pub: Publisher
+    motor_pub: Publisher
+    wrench_wire: report_encoders.WrenchStampedEncoder
+    contacts_wire: report_encoders.ContactsEncoder
+    motor_wire: report_encoders.MotorStateEncoder
+
+
+def reports_on_rcl(topics: ReportTopics, temperatures: int, keep_bytes: bool) -> ReportPath:
+    """The step's reports (contact_wrench/<name>, contacts, motor_state) published in C++ on rcl from their
+    encoders' templates, for a run whose state is (``state_on_rcl``); ``temperatures``: motor_state's (0 without
+    the thermal model); ``keep_bytes``: as ``state_on_rcl``'s."""
+    wrench, contacts = topics.wrench_wire.template(), topics.contacts_wire.template()
+    motor = topics.motor_wire.template(temperatures)
+    handles = [pub.handle.pointer for pub in topics.wrench_pubs]
+    layouts = [Layout(*template.layout()) for template in (wrench, contacts, motor)]
+    contacts_pub, motor_pub = topics.contacts_pub.handle.pointer, topics.motor_pub.handle.pointer
+    return ReportPath(handles, contacts_pub, motor_pub, layouts[0], layouts[1], layouts[2], keep_bytes)

@@ -37,7 +37,7 @@ from bracing_ros.matching import create_waking_publisher
 from bracing_ros.qos import COMMAND_QOS, DESCRIPTION_QOS, STREAM_QOS
 from bracing_ros.record_batch import RecordBatchPublisher
 from bracing_ros.status import StatusPublisher
-from bracing_sim.rcl_path import state_on_rcl
+from bracing_sim.rcl_path import reports_on_rcl, state_on_rcl
 
 
 class SimulatorTopics:
@@ -105,6 +105,9 @@ class SimulatorTopics:
         self.status = status  # what bracing-pair follows (not a data topic: not in data_pubs)
         # joint_states and /clock written in C++ on rcl when a state is those two alone (bracing_sim.rcl_path)
         self.state_path = state_on_rcl(self, config, len(joint_names), batched is not None)
+        # and then the step's reports (motor_state's temperatures: one per joint with the thermal model)
+        temperatures = len(joint_names) if plant.thermal else 0
+        self.report_path = None if self.state_path is None else reports_on_rcl(self, temperatures, batched is not None)
 
     def publish_description(self, description: str) -> None:
         self.description_pub.publish(String(data=description))
@@ -154,6 +157,10 @@ class SimulatorTopics:
         self.batch.publish(self.odom_pubs[0], data)
 
     def publish_step(self, step: StepOut) -> None:
+        if self.report_path is not None:
+            self.publish_step_on_rcl(step)
+            self.batch.state_done()
+            return
         t_ns, d, send = step.t_ns, step.forces, self.batch.publish
         for pub, force in zip(self.wrench_pubs, step.wrenches, strict=True):
             send(pub, self.wrench_wire.encode(t_ns, force))  # at the contact point: no moment
@@ -176,6 +183,21 @@ class SimulatorTopics:
             truth = (step.voltage, step.true_current, step.power, step.energies, step.temperature)
             send(self.truth_pubs[1], self.motor_wire.encode(t_ns, *truth))
         self.batch.state_done()  # a full batch goes out while the controller works on the state
+
+    def publish_step_on_rcl(self, step: StepOut) -> None:
+        """The step's reports written and published in C++ (``report_path``), their bytes kept in the batch in
+        the Python path's order."""
+        assert self.report_path is not None
+        d = step.forces
+        contacts = (d.positions, d.normals, d.normal_force, d.friction_force, d.slip_velocity, d.residual)
+        motors = (step.voltage, step.current, step.power, step.temperature)
+        sent = self.report_path.publish(step.t_ns, step.wrenches, step.active, *contacts, *motors, step.energies)
+        self.batch.written(sent.written_s)
+        if sent.wrenches is not None and sent.contacts is not None and sent.motor_state is not None:
+            for pub, data in zip(self.wrench_pubs, sent.wrenches, strict=True):
+                self.batch.keep(pub, data)
+            self.batch.keep(self.contacts_pub, sent.contacts)
+            self.batch.keep(self.motor_pub, sent.motor_state)
 
     def sent(self) -> None:
         self.flow.sent()
