@@ -19,7 +19,8 @@ of :mod:`bracing_core.typestore`, walked by :mod:`bracing_core.cdr`); none is wr
   spec gives it a value.
 - The other messages (``Clock``, ``WrenchStamped``, ``Contacts``, ``MotorState``) go through
   rosbags' generated serialiser (``Typestore.serialize_cdr`` of the typestore's message classes),
-  in :mod:`bracing_ros.report_encoders`.
+  in :mod:`bracing_ros.report_encoders`, on the simulator's Python path; its C++ path on rcl fills
+  derived templates of them (``bracing_rcl.StatePath``, ``ReportPath``).
 - Decoders take the template's quick path when a message has the expected layout (the
   simulator's and controller's own), else rosbags' generated deserialiser reads any valid
   message of the type (a little faster than the hand-written reader it replaced).
