@@ -13,8 +13,8 @@ from __future__ import annotations
 import json
 import os
 import re
-import subprocess
 from pathlib import Path
+from typing import Any
 
 import pytest
 from ros_helpers import isolated_env, pair_argv, run
@@ -30,11 +30,18 @@ RUN_S = 1.0  # [s] of sim time: 1000 states
 TAKEN = 300  # messages the path takes before its handle is null: the failure comes mid-run
 
 
-def faulty_run(output: Path, module: str) -> subprocess.CompletedProcess[str]:
-    """A bracing-pair run of the paper's arm whose ``module`` (a node) fails in its C++ path after TAKEN messages."""
+def faulty_run(output: Path, module: str, node: str) -> tuple[str, str, dict[str, Any]]:
+    """A bracing-pair run of the paper's arm whose ``module`` (the ``node``) fails in its C++ path after TAKEN
+    messages, and exits 1: (what bracing-pair said, the node's one FATAL line, summary.json)."""
     path = os.pathsep.join([str(FAULTS), os.environ.get("PYTHONPATH", "")])
     env = isolated_env(PYTHONPATH=path, BRACING_TEST_FAULT=f"{module}:{TAKEN}")
-    return run(pair_argv(output, "--duration", str(RUN_S), "--no-animation"), env=env, timeout=300)
+    done = run(pair_argv(output, "--duration", str(RUN_S), "--no-animation"), env=env, timeout=300)
+    said = done.stdout + done.stderr
+    assert done.returncode == 1, said
+    (fatal,) = fatal_lines(output, node)  # said once
+    summary = json.loads((output / "summary.json").read_text())
+    assert summary["status"] == FAILED and summary["hint"] is None
+    return said, fatal, summary
 
 
 def fatal_lines(output: Path, node: str) -> list[str]:
@@ -43,19 +50,14 @@ def fatal_lines(output: Path, node: str) -> list[str]:
 
 def test_an_rcl_error_in_the_simulators_command_path_ends_the_run_with_its_summary(tmp_path: Path) -> None:
     output = tmp_path / "run"
-    done = faulty_run(output, "bracing_sim.node")
-    said = done.stdout + done.stderr
-    assert done.returncode == 1, said
+    said, fatal, summary = faulty_run(output, "bracing_sim.node", "simulator")
     failure = "RuntimeError: rcl_take_serialized_message failed: subscription pointer is invalid"
-    (fatal,) = fatal_lines(output, "simulator")  # said once
     where = re.escape(f"[bracing_simulator]: the run failed in {SIMULATOR_WHERE} at t = ")
     found = re.search(rf"{where}([\d.]+) s: ", fatal)
     assert found is not None and failure in fatal, fatal
     failed_at = float(found[1])
     assert 0.2 < failed_at < RUN_S  # mid-run: TAKEN commands were read first
     assert "error: the simulator failed: the run failed in the motor_command path" in said
-    summary = json.loads((output / "summary.json").read_text())
-    assert summary["status"] == FAILED and summary["hint"] is None
     assert summary["error"].startswith(f"the simulator failed: the run failed in {SIMULATOR_WHERE} at t = ")
     assert failure in summary["error"]
     series = read_series(output / "bag")  # flushed: every state up to the one whose command it could not take
@@ -66,15 +68,10 @@ def test_an_rcl_error_in_the_simulators_command_path_ends_the_run_with_its_summa
 
 def test_an_rcl_error_in_the_controllers_path_ends_the_run_with_its_summary(tmp_path: Path) -> None:
     output = tmp_path / "run"
-    done = faulty_run(output, "bracing_controller.node")
-    said = done.stdout + done.stderr
-    assert done.returncode == 1, said
+    said, fatal, summary = faulty_run(output, "bracing_controller.node", "controller")
     failure = "RuntimeError: publishing motor_command failed: publisher pointer is invalid"
-    (fatal,) = fatal_lines(output, "controller")  # said once
     assert f"[bracing_controller]: the run failed in {CONTROLLER_WHERE}: {failure}" in fatal, fatal
     assert "error: the controller failed: the run failed in the per-state path" in said
-    summary = json.loads((output / "summary.json").read_text())
-    assert summary["status"] == FAILED and summary["hint"] is None
     assert summary["error"].startswith(f"the controller failed: the run failed in {CONTROLLER_WHERE}: {failure}")
     counts = read_series(output / "bag").topic_counts
     answered = counts["/motor_command"]  # flushed: every answer before the failure

@@ -241,7 +241,7 @@ def _follow_stepping(pair: Pair, plan: RunPlan, start_wall: float) -> None:
             if name == "simulator" and exit_code == EXIT_DIVERGED and FINISHED not in pair.seen:
                 raise _Diverged(name, "the simulation diverged")
             if exit_code is not None and FINISHED not in pair.seen and (name != "recorder" or exit_code != 0):
-                said = _node_failure(pair, name) if exit_code == EXIT_NODE_FAILED and name != "recorder" else None
+                said = _said(pair, name, NODE_FAILED) if exit_code == EXIT_NODE_FAILED and name != "recorder" else None
                 if said is not None:
                     raise _NodeFailed(name, f"the {name} failed: the run failed in {said}")
                 raise _Failure(name, f"the {name} exited with code {exit_code} during the run")
@@ -321,15 +321,6 @@ def _conclude(pair: Pair, plan: RunPlan, outcome: _Outcome, wall: float, created
             timeline.mark(phase, stamp)
     timeline.write(out)
     return RunResult(code, out, wall, summary, message, pair.logs, timeline)
-
-
-def _node_failure(pair: Pair, name: str) -> str | None:
-    """What ``name`` said of the exception that ended its run (its log's ``NODE_FAILED`` line, without the
-    prefix); None if it said none."""
-    log = pair.logs.get(name)
-    lines = log.read_text(errors="replace").splitlines() if log is not None and log.exists() else []
-    said = [line.split(NODE_FAILED, 1)[1] for line in lines if NODE_FAILED in line]
-    return said[-1] if said else None
 
 
 def _stepped(timeline: Timeline, outcome: _Outcome) -> bool:
@@ -449,10 +440,16 @@ def _draw_node_failure(
 
 def _divergence(pair: Pair) -> str:
     """What the simulator said of its divergence (its log's line), without the prefix."""
-    log = pair.logs.get("simulator")
+    said = _said(pair, "simulator", DIVERGED)
+    return f"simulation diverged at t = {said}" if said else "the simulation diverged (see the simulator's log)"
+
+
+def _said(pair: Pair, name: str, prefix: str) -> str | None:
+    """The rest of the last line of ``name``'s log that says ``prefix`` (a failure's line); None if none does."""
+    log = pair.logs.get(name)
     lines = log.read_text(errors="replace").splitlines() if log is not None and log.exists() else []
-    said = [line.split(DIVERGED, 1)[1] for line in lines if DIVERGED in line]
-    return f"simulation diverged at t = {said[-1]}" if said else "the simulation diverged (see the simulator's log)"
+    said = [line.split(prefix, 1)[1] for line in lines if prefix in line]
+    return said[-1] if said else None
 
 
 def diagnose_pair(plan: RunPlan, series: Any, reason: str, warnings: list[str]) -> Failure:
