@@ -23,7 +23,7 @@ from bracing_analysis.bag import read_series
 from bracing_controller.rcl_path import PATH_WHERE as CONTROLLER_WHERE
 from bracing_core.failures import EXIT_NODE_FAILED, FAILED, NODE_FAILED
 from bracing_ros.node_failure import PathError, end_run, failure_text
-from bracing_sim.rcl_path import PATH_WHERE as SIMULATOR_WHERE
+from bracing_sim.node import COMMAND_PATH_WHERE as SIMULATOR_WHERE
 
 FAULTS = Path(__file__).resolve().parent / "faults"
 RUN_S = 1.0  # [s] of sim time: 1000 states

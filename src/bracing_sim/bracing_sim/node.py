@@ -38,7 +38,7 @@ from bracing_msgs.msg import MotorCommand, RunStatus
 from bracing_ros import parameters, wire
 from bracing_ros.commands import MODE_CODES, CommandError, command_vector, effort_vector
 from bracing_ros.matching import wait_until
-from bracing_ros.node_failure import end_run
+from bracing_ros.node_failure import PathError, end_run
 from bracing_ros.node_log import RosNodeLog
 from bracing_ros.node_main import run
 from bracing_ros.qos import COMMAND_QOS, SUBSCRIBE_QOS
@@ -50,6 +50,8 @@ from bracing_ros.waiter import SubscriptionWaiter
 from bracing_sim.rcl_path import STATE_PATH_LINE, RclCommands, commands_on_rcl
 from bracing_sim.topics import SimulatorTopics
 
+COMMAND_PATH_WHERE = "the motor_command path (C++ on rcl: CommandPath.take)"
+"""Where a failure of the command path on rcl is said to be (``bracing_ros.node_failure``)."""
 FLUSH_AT_FAILURE_S = 10.0
 """[s] wall the simulator waits, after a divergence or another failure, for the recorder to acknowledge what it
 sent: the last batch and the flow window take milliseconds on an idle machine; a loaded one may need seconds."""
@@ -222,7 +224,10 @@ def step_run(node: SimulatorNode, executor: SingleThreadedExecutor, first: bool)
         ready = waiter.wait(timeout_s)
         work.resume()
         if ready and node.command_rcl is not None:
-            node.command_rcl.take_queued()
+            try:
+                node.command_rcl.take_queued()
+            except Exception as exc:  # the node's handlers raise nothing (``defended``): the C++ path's (rcl's)
+                raise PathError(COMMAND_PATH_WHERE, exc) from exc
         else:
             for _, msg in waiter.take_ready(ready):
                 node.on_command(msg)

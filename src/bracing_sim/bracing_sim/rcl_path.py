@@ -23,7 +23,6 @@ from bracing_core.typestore import CLOCK
 from bracing_rcl import CommandPath, CommandStatus, Layout, StatePath
 from bracing_ros import wire
 from bracing_ros.cdr_template import PER_MESSAGE, derive_template
-from bracing_ros.node_failure import PathError
 from bracing_ros.rcl_choice import python_only_reasons
 
 if TYPE_CHECKING:
@@ -37,8 +36,6 @@ if TYPE_CHECKING:
 
 PATH_ENV = "BRACING_SIMULATOR_PATH"
 """The environment variable that chooses how the simulator takes motor_command: "rcl" (the default) or "python"."""
-PATH_WHERE = "the motor_command path (C++ on rcl: CommandPath.take)"
-"""Where a failure of the command path is said to be (``bracing_ros.node_failure``)."""
 STATE_PATH_LINE = "state path: joint_states and /clock written in C++ on rcl"
 """What the node logs when ``state_on_rcl`` gives it a StatePath."""
 
@@ -85,16 +82,13 @@ class RclCommands:
     def take_queued(self) -> None:
         """Take every motor_command waiting, to the stepping policy (read here, or on the Python path)."""
         node = self.node
-        try:
-            while (taken := self.path.take()).status != CommandStatus.empty:
-                if taken.status == CommandStatus.taken:
-                    self.read += 1
-                    node.on_read_command(taken.stamp_ns, np.array(taken.values))
-                else:
-                    self.handed_over += 1
-                    node.on_command(taken.data or b"")
-        except Exception as exc:  # the node's handlers raise nothing (``defended``): the C++ path's (rcl's)
-            raise PathError(PATH_WHERE, exc) from exc
+        while (taken := self.path.take()).status != CommandStatus.empty:
+            if taken.status == CommandStatus.taken:
+                self.read += 1
+                node.on_read_command(taken.stamp_ns, np.array(taken.values))
+            else:
+                self.handed_over += 1
+                node.on_command(taken.data or b"")
 
 
 def commands_on_rcl(node: CommandNode, command_sub: Subscription) -> RclCommands | None:
