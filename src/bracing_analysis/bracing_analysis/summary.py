@@ -89,14 +89,15 @@ def heading(key: str) -> tuple[str, str]:
 
 OUTCOME_KEYS_DOC = (
     "`status` is `ok` for a run that ran to its end, `failed` for one the simulator stopped (a divergence: "
-    "bracing-pair exits 3); a failed run still writes every key, measured up to the failure, and its bag holds "
-    "every state up to it. `error` (null for ok): what stopped it, the joints that ran away (their speed "
-    "0.05 s before the failure and at it) and, near a singular posture, the joints along the tasks' lost "
-    "direction. `hint` (or null): what to change, for a known cause (`bracing_core.failures`): a joint at its "
-    "limit that no task sees (`null_space_posture`), a target out of reach, a singular posture, a stiff motor "
-    "circuit (`substeps`), a braced contact lost under force feedback (its `force_feedback` gains); an ok run "
-    "carries the hint of a target out of reach or a contact lost under force feedback when its warnings name "
-    "them. An in-process run gives the same three "
+    "bracing-pair exits 3) or a node's exception ended (its per-state path's on rcl, or its loop's: exit 1); "
+    "a failed run still writes every key, measured up to the failure, and its bag holds every state up to it. "
+    "`error` (null for ok): what stopped it, the joints that ran away (their speed 0.05 s before the failure "
+    "and at it) and, near a singular posture, the joints along the tasks' lost direction; or the node, where "
+    "its exception was raised and its message (rcl's, for an rcl error). `hint` (or null): what to change, for "
+    "a known cause (`bracing_core.failures`): a joint at its limit that no task sees (`null_space_posture`), a "
+    "target out of reach, a singular posture, a stiff motor circuit (`substeps`), a braced contact lost under "
+    "force feedback (its `force_feedback` gains); an ok run carries the hint of a target out of reach or a "
+    "contact lost under force feedback when its warnings name them. An in-process run gives the same three "
     "(`bracing_core.rollout.run_recorded(..., keep_failure=True)`)."
 )
 """What summary.json's status, error and hint mean (the output reference's text)."""

@@ -8,7 +8,9 @@ Writes DIR/params.yaml (every parameter the nodes ran with), DIR/bag/ (mcap), DI
 DIR/summary.json, the report's PNGs and animation, and DIR/timeline.json (where the wall time
 went: see ``timeline``). Exit 0 on success; 3 when the simulation diverged (summary.json, the
 report and the bag up to the failure are written; its ``error`` names what ran away, its ``hint`` what
-to change); otherwise non-zero with the failing process's log tail. Ctrl-C stops the nodes and
+to change); 1 when an exception ended a node's run (its C++ path's on rcl, or its loop's: summary.json, the
+report and the bag likewise, its ``error`` the node's line); otherwise non-zero with the failing process's
+log tail. Ctrl-C stops the nodes and
 still leaves a readable bag. A recorder that dies before it closes the bag (kill -9) leaves it cut
 short: the bag is recovered (``bracing_analysis.bag_recovery``), the report drawn from it, and the
 run says so (output and summary.json's warnings) and exits 1. A run that fails (or is stopped)

@@ -16,19 +16,16 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from bracing_bringup.domains import hold_domain
 from bracing_bringup.processes import Interrupted, Pair, environment
 from bracing_bringup.run_plan import PARAMS_FILE, RunOptions, RunPlan, check_configs, plan_run, write_params
 from bracing_bringup.timeline import BAG_CLOSED, FIRST_STEP, LAST_FILE, LAST_STEP, TIMELINE_FILE, Timeline
-from bracing_core.failures import DIVERGED, EXIT_DIVERGED
+from bracing_core.failures import DIVERGED, EXIT_DIVERGED, EXIT_NODE_FAILED, FAILED, NODE_FAILED, Failure
 from bracing_core.params import ConfigError
 from bracing_recorder.topics import missing_from_counts
 from bracing_view.viewurl import free_ports, view_url, wait_for_port
-
-if TYPE_CHECKING:
-    from bracing_core.failures import Failure
 
 EXIT_FAILED = 1
 VIEWER_START_S = 60.0  # [s] --view: how long the viewer may take to serve its page before the run goes on without
@@ -63,6 +60,11 @@ class _Diverged(_Failure):
     """The simulator stopped on a divergence: the run's bag and summary are still written, up to it."""
 
 
+class _NodeFailed(_Failure):
+    """A node said the exception that ended its run (``bracing_ros.node_failure``): the run's bag and summary are
+    still written, up to it."""
+
+
 @dataclass
 class _Outcome:
     """How the supervised part of a run ended."""
@@ -73,6 +75,7 @@ class _Outcome:
     failed: str = ""  # the process whose failure ended the run
     sim_time: float | None = None  # [s] the simulator's last status when the run failed
     diverged: bool = False  # the simulator stopped on a divergence: the report is drawn from the bag up to it
+    node_error: str | None = None  # what a node said of the exception that ended the run: the report as diverged's
 
 
 def run_pair(options: RunOptions) -> RunResult:
@@ -157,6 +160,12 @@ def _supervise(pair: Pair, plan: RunPlan, domain: int, created: bool, start_wall
         outcome.code, outcome.diverged = EXIT_DIVERGED, True
         outcome.message = f"error: {failure.message}\n{pair.tail(failure.process)}"
         _keep_bag(pair, outcome)
+    except _NodeFailed as failure:
+        outcome.code, outcome.failed, outcome.sim_time = EXIT_FAILED, failure.process, pair.sim_time
+        outcome.node_error = failure.message
+        outcome.message = f"error: {failure.message}\n{pair.tail(failure.process)}"
+        pair.interrupt("simulator")  # the controller failed: the simulator would wait for its answers
+        _keep_bag(pair, outcome)
     except _Failure as failure:
         outcome.code, outcome.failed, outcome.sim_time = EXIT_FAILED, failure.process, pair.sim_time
         outcome.message = f"error: {failure.message}\n{pair.tail(failure.process)}"
@@ -232,6 +241,9 @@ def _follow_stepping(pair: Pair, plan: RunPlan, start_wall: float) -> None:
             if name == "simulator" and exit_code == EXIT_DIVERGED and FINISHED not in pair.seen:
                 raise _Diverged(name, "the simulation diverged")
             if exit_code is not None and FINISHED not in pair.seen and (name != "recorder" or exit_code != 0):
+                said = _said(pair, name, NODE_FAILED) if exit_code == EXIT_NODE_FAILED and name != "recorder" else None
+                if said is not None:
+                    raise _NodeFailed(name, f"the {name} failed: the run failed in {said}")
                 raise _Failure(name, f"the {name} exited with code {exit_code} during the run")
         t, now = pair.sim_time, time.monotonic()
         if t is not None and t > last_time:
@@ -253,7 +265,7 @@ def _keep_bag(pair: Pair, outcome: _Outcome) -> None:
     try:
         _await_bag(pair)
     except (_Failure, Interrupted) as exc:
-        outcome.diverged = False  # no bag to read: the run fails as any other
+        outcome.diverged, outcome.node_error = False, None  # no bag to read: the run fails as any other
         outcome.message += f"\n{exc}"
 
 
@@ -283,6 +295,9 @@ def _conclude(pair: Pair, plan: RunPlan, outcome: _Outcome, wall: float, created
     if outcome.diverged:  # the report of what ran until the divergence; the exit code stays
         pair.stop_all(ask=False)
         summary, message = _draw_failure(plan, pair, wall, timeline, outcome)
+    elif outcome.node_error is not None:  # likewise until a node's failure
+        pair.stop_all(ask=False)
+        summary, message = _draw_node_failure(plan, wall, timeline, outcome, outcome.node_error)
     if code == 0:
         timeline.mark(BAG_CLOSED, timeline.at("recorder closed the bag"))
         # The report is drawn while the processes finish exiting (their exit codes are checked after).
@@ -397,8 +412,6 @@ def _draw_failure(
     try:
         failure = diagnose_pair(plan, series, reason, outcome.warnings)
     except Exception as exc:  # the diagnosis is a help: its own fault must not cost the run its summary
-        from bracing_core.failures import FAILED, Failure
-
         failure = Failure(FAILED, f"{reason} (what ran away could not be told: {type(exc).__name__}: {exc})", None)
     summary = _draw(plan, series, wall, timeline, outcome.warnings, failure.keys())
     message = f"error: {failure.error}" + (f"\nhint: {failure.hint}" if failure.hint else "")
@@ -408,12 +421,35 @@ def _draw_failure(
     )
 
 
+def _draw_node_failure(
+    plan: RunPlan, wall: float, timeline: Timeline, outcome: _Outcome, error: str
+) -> tuple[dict[str, Any] | None, str]:
+    """The summary and report of a run a node's failure ended, from its bag (every state up to the failure: no
+    lockstep count to check), with ``status`` failed and the node's ``error``; the message says it."""
+    from bracing_analysis.bag import BagReadError, read_series
+
+    try:
+        series = read_series(plan.options.output / "bag")
+    except BagReadError as exc:
+        return None, f"{outcome.message}\nerror: {exc}"
+    timeline.mark("bag read")
+    summary = _draw(plan, series, wall, timeline, outcome.warnings, {"status": FAILED, "error": error, "hint": None})
+    kept = f"(summary.json, the bag and the report hold the run up to the failure: {plan.options.output})"
+    return summary, f"{outcome.message}\n{kept}"
+
+
 def _divergence(pair: Pair) -> str:
     """What the simulator said of its divergence (its log's line), without the prefix."""
-    log = pair.logs.get("simulator")
+    said = _said(pair, "simulator", DIVERGED)
+    return f"simulation diverged at t = {said}" if said else "the simulation diverged (see the simulator's log)"
+
+
+def _said(pair: Pair, name: str, prefix: str) -> str | None:
+    """The rest of the last line of ``name``'s log that says ``prefix`` (a failure's line); None if none does."""
+    log = pair.logs.get(name)
     lines = log.read_text(errors="replace").splitlines() if log is not None and log.exists() else []
-    said = [line.split(DIVERGED, 1)[1] for line in lines if DIVERGED in line]
-    return f"simulation diverged at t = {said[-1]}" if said else "the simulation diverged (see the simulator's log)"
+    said = [line.split(prefix, 1)[1] for line in lines if prefix in line]
+    return said[-1] if said else None
 
 
 def diagnose_pair(plan: RunPlan, series: Any, reason: str, warnings: list[str]) -> Failure:

@@ -42,6 +42,7 @@ from bracing_ros import parameters, wire
 from bracing_ros.ack_window import AckWindow
 from bracing_ros.commands import MODE_CODES
 from bracing_ros.matching import create_waking_publisher, wait_until
+from bracing_ros.node_failure import end_run
 from bracing_ros.node_log import RosNodeLog
 from bracing_ros.node_main import run
 from bracing_ros.qos import CMD_VEL_QOS, JOINT_STATE_QOS, STREAM_QOS, SUBSCRIBE_QOS
@@ -292,10 +293,19 @@ def wait_for_outputs(node: ControllerNode, executor: SingleThreadedExecutor) -> 
 
 
 def spin(node: ControllerNode) -> int:
+    """Answer states until stopped (``answer_states``, or effort_forward's loop); an exception that ends the run
+    (the C++ path's, or the loop's) said, the answers flushed, exit 1 (``bracing_ros.node_failure``)."""
+    try:
+        return spin_effort_forward(node) if node.effort is not None else answer_states(node)
+    except ExternalShutdownException:
+        return 0
+    except Exception as exc:
+        return end_run(node.get_logger(), exc, lambda: flush_answers(node))
+
+
+def answer_states(node: ControllerNode) -> int:
     """Answer states as they come (one wait set on joint_states and the targets), serving the executor
     in between."""
-    if node.effort is not None:
-        return spin_effort_forward(node)
     executor = StoppableExecutor()
     executor.add_node(node)
     answered, work, targets = 0, WorkTimer(), node.target_topics
@@ -342,11 +352,16 @@ def spin(node: ControllerNode) -> int:
             node.log.info(rcl.line())
         # Stopped (bracing-pair stops the controller once the simulator is done): the last
         # answers must reach the recorder before this process and its publishers are gone.
-        for k, (level, line) in enumerate(node.close(timeout_sec=10.0)):
-            node.log.limited(level, f"stop-{k}", f"stopping: {line}")  # each said (a kind of its own)
+        flush_answers(node)
         return 0
     except ExternalShutdownException:
         return 0
+
+
+def flush_answers(node: ControllerNode) -> None:
+    """At the stop (or a failure): the answers sent reach the recorder (at most 10 s); what did not, said."""
+    for k, (level, line) in enumerate(node.close(timeout_sec=10.0)):
+        node.log.limited(level, f"stop-{k}", f"stopping: {line}")  # each said (a kind of its own)
 
 
 def answer_on_rcl(node: ControllerNode, state_sub: Subscription, others: list[Subscription]) -> RclPath | None:

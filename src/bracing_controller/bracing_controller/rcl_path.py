@@ -28,6 +28,7 @@ from bracing_core.types import Vector
 from bracing_rcl import ControllerPath, Layout, Outcome, Status
 from bracing_ros import stop_signal
 from bracing_ros.cdr_template import Template
+from bracing_ros.node_failure import PathError
 from bracing_ros.rcl_choice import python_only_reasons
 
 if TYPE_CHECKING:
@@ -65,6 +66,8 @@ class AnsweringNode(Protocol):
 
 PATH_ENV = "BRACING_CONTROLLER_PATH"
 """The environment variable that chooses the controller's per-state path: "rcl" (the default) or "python"."""
+PATH_WHERE = "the per-state path (C++ on rcl: ControllerPath.serve; joint_states in, motor_command out)"
+"""Where a failure of the C++ path is said to be (``bracing_ros.node_failure``)."""
 WAIT_NS = 100_000_000
 """[ns] the longest wait for a state before the node's loop runs (its batch flushed, its executor spun)."""
 STATES_PER_SERVE = 10
@@ -133,7 +136,10 @@ class RclPath:
         node, core = self.node, self.node.core
         alone = core.law_only and not node.target_topics.pending  # only Python changes either
         with stop_signal.held:  # an answer published is kept for the recorder, even as the run stops
-            served = self.path.serve(core.previous_ns, alone, min(limit, STATES_PER_SERVE), WAIT_NS)
+            try:
+                served = self.path.serve(core.previous_ns, alone, min(limit, STATES_PER_SERVE), WAIT_NS)
+            except Exception as exc:  # rcl's failure (a RuntimeError), said with where by the node
+                raise PathError(PATH_WHERE, exc) from exc
             returned = time.perf_counter()
             outcomes = served.outcomes
             for outcome in outcomes:

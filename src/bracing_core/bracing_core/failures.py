@@ -46,6 +46,12 @@ EXIT_DIVERGED = 3
 what ran away (``error``) and what to change (``hint``)."""
 DIVERGED = "error: simulation diverged at t = "
 """How the simulator's stderr gives a divergence (bracing-pair's summary.json ``error`` reads it there)."""
+EXIT_NODE_FAILED = 1
+"""A node's exit code when an exception ended its run (its per-state path's on rcl, in C++, or its loop's), and
+then bracing-pair's: its summary.json's ``error`` says which node, where and what."""
+NODE_FAILED = "error: the run failed in "
+"""How a node's stderr gives the exception that ended its run: where, then its type and message (bracing-pair's
+summary.json ``error`` reads it there)."""
 LET_GO = re.compile(r"contact '([^']*)' let go of its surface")
 """A let-go warning (``checks.let_go_warning``): its contact's name."""
 

@@ -38,6 +38,7 @@ from bracing_msgs.msg import MotorCommand, RunStatus
 from bracing_ros import parameters, wire
 from bracing_ros.commands import MODE_CODES, CommandError, command_vector, effort_vector
 from bracing_ros.matching import wait_until
+from bracing_ros.node_failure import PathError, end_run
 from bracing_ros.node_log import RosNodeLog
 from bracing_ros.node_main import run
 from bracing_ros.qos import COMMAND_QOS, SUBSCRIBE_QOS
@@ -49,9 +50,11 @@ from bracing_ros.waiter import SubscriptionWaiter
 from bracing_sim.rcl_path import STATE_PATH_LINE, RclCommands, commands_on_rcl
 from bracing_sim.topics import SimulatorTopics
 
+COMMAND_PATH_WHERE = "the motor_command path (C++ on rcl: CommandPath.take)"
+"""Where a failure of the command path on rcl is said to be (``bracing_ros.node_failure``)."""
 FLUSH_AT_FAILURE_S = 10.0
-"""[s] wall the simulator waits, after a divergence, for the recorder to acknowledge what it sent: the last
-batch and the flow window take milliseconds on an idle machine; a loaded one may need seconds."""
+"""[s] wall the simulator waits, after a divergence or another failure, for the recorder to acknowledge what it
+sent: the last batch and the flow window take milliseconds on an idle machine; a loaded one may need seconds."""
 
 
 class SimulatorNode(Node):
@@ -221,7 +224,10 @@ def step_run(node: SimulatorNode, executor: SingleThreadedExecutor, first: bool)
         ready = waiter.wait(timeout_s)
         work.resume()
         if ready and node.command_rcl is not None:
-            node.command_rcl.take_queued()
+            try:
+                node.command_rcl.take_queued()
+            except Exception as exc:  # the node's handlers raise nothing (``defended``): the C++ path's (rcl's)
+                raise PathError(COMMAND_PATH_WHERE, exc) from exc
         else:
             for _, msg in waiter.take_ready(ready):
                 node.on_command(msg)
@@ -272,15 +278,22 @@ def spin(node: SimulatorNode) -> int:
     except DivergenceError as exc:
         node.get_logger().fatal(f"simulation diverged at t = {node.sim.time:.6f} s: {exc}")
         print(f"{DIVERGED}{node.sim.time:.6f} s: {exc}", file=sys.stderr, flush=True)
-        # Every state up to the failure reaches the recorder (the last batch too): the moment to see.
-        node.topics.close(timeout_sec=FLUSH_AT_FAILURE_S)
-        node.status.flush(FLUSH_AT_FAILURE_S)  # its STEPPING and warnings too: bracing-pair keeps the bag by them
+        flush_at_failure(node)
         return EXIT_DIVERGED
     except KeyboardInterrupt:  # stopped mid-run: what was sent still reaches the recorder, if it can soon
         node.topics.close(timeout_sec=2.0)
     except ExternalShutdownException:
         pass
+    except Exception as exc:  # the C++ path's (an rcl error) or the loop's: said, flushed, exit 1
+        return end_run(node.get_logger(), exc, lambda: flush_at_failure(node), f" at t = {node.sim.time:.6f} s")
     return 0
+
+
+def flush_at_failure(node: SimulatorNode) -> None:
+    """After a failure: every state up to it reaches the recorder (the last batch too), the moment to see; and
+    run_status's STEPPING and warnings (bracing-pair keeps the bag by them)."""
+    node.topics.close(timeout_sec=FLUSH_AT_FAILURE_S)
+    node.status.flush(FLUSH_AT_FAILURE_S)
 
 
 def main(args: list[str] | None = None) -> int:
