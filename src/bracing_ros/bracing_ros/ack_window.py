@@ -23,7 +23,8 @@ class AckWindow:
     (half the history depth), wait until every matched subscriber has acknowledged
     everything sent, so no more than ``window`` are ever unacknowledged and the history
     never overflows. (Each wait costs up to a heartbeat period, 50 ms: a wider window
-    waits less often.)
+    waits less often, and ``confirm`` before a send ends a window acknowledged meanwhile
+    without any wait.)
     """
 
     def __init__(self, node: Node, publishers: Sequence[Publisher], depth: int) -> None:
