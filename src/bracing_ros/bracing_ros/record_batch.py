@@ -62,6 +62,9 @@ class RecordBatchPublisher:
             return
         batch = self._packer.take()
         data = self._wire.encode(batch.sequence, batch.topics, batch.topic_of, batch.end, batch.data)
+        # the batches acknowledged so far end the window early: its blocking wait (up to a heartbeat period,
+        # the lockstep loop stalled meanwhile) is left for a recorder that really falls behind
+        self.flow.confirm()
         self._write(self.publisher, data)
         self.flow.sent()
 
