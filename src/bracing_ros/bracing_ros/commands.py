@@ -2,7 +2,7 @@
 
 A command is accepted only if every configured joint appears exactly once by name,
 every value is finite and the mode is the configured one. Over-limit values are
-saturated, not rejected: both by the engine's value rule (``bracing_engine.check_command``), the one the
+saturated, not rejected: both by the engine's value rule (``bracing_core.command_rule``), the one the
 simulator's C++ path applies too. ``CommandError`` says what was wrong, quoting a few names at most. A
 message larger than ``MessageLimits`` is refused before any work per element; every check is linear.
 """
@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-import bracing_engine as engine
+from bracing_core.command_rule import check_command
 from bracing_core.dynamics import InputMode
 from bracing_core.message_limits import DEFAULT_LIMITS, MessageLimits, SizeError, duplicated, quote_names
 from bracing_core.node_log import Refusal
@@ -71,8 +71,7 @@ def _in_order(
         u = np.array(values, dtype=float)
     else:
         u = _by_name(names, values, joint_names, limits)
-    # The engine's value rule, the one the C++ path (bracing_rcl.CommandPath) applies too
-    check = engine.check_command(u, np.broadcast_to(np.asarray(limit, dtype=float), u.shape))
+    check = check_command(u, limit)  # the engine's value rule, the one the C++ path applies too
     if check.non_finite:
         bad = [joint_names[k] for k in check.non_finite]
         raise CommandError("non-finite", f"non-finite {noun} for {quote_names(bad)}")

@@ -5,7 +5,7 @@ A lockstep run on motor_command takes it, unless ``BRACING_SIMULATOR_PATH=python
 than max_message_elements (the Python path refuses such a command by its size). Per message the C++ path
 reads only one that needs no word said: the MotorCommand template's layout (the configured mode, the joints
 by name in the simulator's order), every value finite and within its joint's limit (the engine's value rule,
-``bracing_engine.check_command``, which the Python path applies too); its stamp and values go
+``bracing_core.command_rule``, which the Python path applies too); its stamp and values go
 to the stepping policy (``SimulatorStepper.offer``, which judges the stamp on both paths). Any other message
 it hands to the node's Python path as its bytes, so each refusal and saturation is said by one
 implementation (``bracing_ros.commands``). When a state is joint_states and /clock alone (``state_on_rcl``)
@@ -19,9 +19,9 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
+from bracing_core.command_rule import command_api
 from bracing_core.message_limits import MessageLimits
 from bracing_core.typestore import CLOCK
-from bracing_engine import command_api
 from bracing_rcl import CommandPath, CommandStatus, Layout, StatePath
 from bracing_ros import wire
 from bracing_ros.cdr_template import PER_MESSAGE, derive_template
