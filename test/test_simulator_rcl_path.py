@@ -12,21 +12,29 @@ from __future__ import annotations
 import math
 import re
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
 import rclpy
 from geometry_msgs.msg import WrenchStamped
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from rclpy.context import Context
+from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile
 from rclpy.serialization import deserialize_message
+from rclpy.subscription import Subscription
 from ros_helpers import SIMULATOR_PATH_LINES, hold_test_domain
 from test_controller_rcl_path import RUN_S, pair_runs, same_bags
 
+from bracing_core.dynamics import InputMode
+from bracing_engine import check_command, command_api
 from bracing_msgs.msg import Contacts, MotorCommand, MotorState
-from bracing_rcl import CommandPath, CommandStatus, Layout, ReportPath
+from bracing_rcl import CommandPath, CommandStatus, CommandTake, Layout, ReportPath
 from bracing_ros import report_encoders, wire
+from bracing_ros.commands import CommandError, command_vector
 from bracing_ros.report_encoders import ContactReport
 from bracing_ros.waiter import SubscriptionWaiter
 from bracing_sim.rcl_path import PATH_ENV, STATE_PATH_LINE
@@ -104,7 +112,7 @@ def test_the_command_path_reads_only_what_needs_no_word(monkeypatch: pytest.Monk
         qos = QoSProfile(depth=100)
         subscription = node.create_subscription(MotorCommand, "motor_command", lambda _: None, qos, raw=True)
         publisher = node.create_publisher(MotorCommand, "motor_command", qos)
-        path = CommandPath(subscription.handle.pointer, Layout(*template.layout()), limit)
+        path = CommandPath(command_api(), subscription.handle.pointer, Layout(*template.layout()), limit)
         waiter = SubscriptionWaiter(node, subscription)
         taken = []
         for msg in [good, *handed_over]:
@@ -185,3 +193,103 @@ def test_the_report_path_writes_what_the_encoders_write(monkeypatch: pytest.Monk
     assert sent.wrenches == [expected["contact_wrench/elbow"], expected["contact_wrench/wrist"]]
     assert (sent.contacts, sent.motor_state) == (expected["contacts"], expected["motor_state"])
     assert sent.written_s > 0.0
+
+
+# The value rule's cases: any float (NaN, +-inf, subnormals, huge), and values at and around a joint's limit.
+JOINTS = ["joint1", "joint2", "joint3", "joint4"]
+LIMITS = st.sampled_from([0.0, 5.0, 0.5, 1e-300, 5e-324, 1e300, math.inf, -1.0, math.nan])  # <= 0, NaN: none
+
+
+@st.composite
+def limited_values(draw: st.DrawFn) -> tuple[list[float], list[float]]:
+    """(values, limit) per joint: each value any float or one next to its joint's limit (or to zero)."""
+    limit = draw(st.lists(LIMITS, min_size=len(JOINTS), max_size=len(JOINTS)))
+    values = []
+    for b in limit:
+        near = [0.0, -0.0, b, -b, math.nextafter(b, math.inf), math.nextafter(b, 0.0), math.nextafter(-b, -math.inf)]
+        values.append(draw(st.one_of(st.floats(), st.sampled_from(near))))
+    return values, limit
+
+
+def clipped_as_numpy_did(values: list[float], limit: list[float]) -> tuple[np.ndarray, bool] | None:
+    """The rule as the Python path wrote it in NumPy before the engine took it over (the oracle): None for a
+    non-finite value, else the command and whether it was saturated."""
+    u = np.array(values, dtype=float)
+    if not np.isfinite(u).all():
+        return None
+    bound = np.where(np.asarray(limit) > 0.0, limit, np.inf)
+    saturated = bool(np.any(np.abs(u) > bound))
+    return (np.clip(u, -bound, bound) if saturated else u), saturated
+
+
+CommandTopic = tuple[Publisher, Subscription, SubscriptionWaiter]
+
+
+@pytest.fixture
+def command_topic(monkeypatch: pytest.MonkeyPatch) -> Iterator[CommandTopic]:
+    """motor_command in a domain of its own: a publisher, a raw subscription and its waiter, in this process."""
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    context = Context()
+    rclpy.init(context=context, domain_id=hold_test_domain())
+    try:
+        node = rclpy.create_node("command_rule_test", context=context)
+        qos = QoSProfile(depth=100)
+        subscription = node.create_subscription(MotorCommand, "motor_command", lambda _: None, qos, raw=True)
+        yield (
+            node.create_publisher(MotorCommand, "motor_command", qos),
+            subscription,
+            SubscriptionWaiter(node, subscription),
+        )
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+def test_both_command_paths_apply_one_value_rule(command_topic: CommandTopic) -> None:
+    """Over generated values and limits (any float, at and around each limit, zero, negative and NaN limits): the
+    C++ path (CommandPath on rcl) reads a command exactly when the Python path (command_vector) takes it without a
+    word, with the same values bit for bit; the Python path refuses a non-finite value naming its joints and
+    saturates as np.clip did, bit for bit (the NumPy rule both replaced)."""
+    publisher, subscription, waiter = command_topic
+    layout = Layout(*wire.MotorCommandDecoder(JOINTS, MotorCommand.VOLTAGE).template.layout())
+
+    @settings(max_examples=300, deadline=None, derandomize=True, database=None,
+              suppress_health_check=[HealthCheck.too_slow])  # fmt: skip
+    @given(limited_values())
+    def agree(case: tuple[list[float], list[float]]) -> None:
+        values, limit = case
+        path = CommandPath(command_api(), subscription.handle.pointer, layout, limit)
+        publisher.publish(command(JOINTS, values))
+        assert waiter.wait(10.0), "the command did not come"
+        taken = path.take()
+        assert path.take().status == CommandStatus.empty
+        expected = clipped_as_numpy_did(values, limit)
+        if expected is None:
+            assert_refused_non_finite(values, limit, taken)
+        else:
+            assert_applied(values, limit, taken, *expected)
+
+    agree()
+
+
+def assert_refused_non_finite(values: list[float], limit: list[float], taken: CommandTake) -> None:
+    """Both paths refuse a non-finite value: the C++ path hands it over, the Python path says which joints."""
+    assert taken.status == CommandStatus.python and taken.values == []
+    bad = [j for j, v in zip(JOINTS, values, strict=True) if not math.isfinite(v)]
+    with pytest.raises(CommandError) as refused:
+        command_vector(JOINTS, values, MotorCommand.VOLTAGE, JOINTS, InputMode.VOLTAGE, np.array(limit))
+    named = str(bad[:3]) + (f" and {len(bad) - 3} more" if len(bad) > 3 else "")  # quote_names: 3 at most
+    assert refused.value.kind == "non-finite" and str(refused.value) == f"non-finite values for {named}"
+    assert check_command(np.array(values), np.array(limit)).non_finite == [JOINTS.index(j) for j in bad]
+
+
+def assert_applied(values: list[float], limit: list[float], taken: CommandTake, u: np.ndarray, saturated: bool) -> None:
+    """Finite: the Python path's command is np.clip's bit for bit, and the C++ path read it iff none saturated."""
+    got, got_saturated = command_vector(
+        JOINTS, values, MotorCommand.VOLTAGE, JOINTS, InputMode.VOLTAGE, np.array(limit)
+    )
+    assert got_saturated == saturated and got.tobytes() == u.tobytes(), (values, limit, got, u)
+    if saturated:
+        assert taken.status == CommandStatus.python and taken.values == []
+    else:
+        assert taken.status == CommandStatus.taken and taken.stamp_ns == 3_250_000_000
+        assert np.array(taken.values).tobytes() == u.tobytes(), (values, limit, taken.values)

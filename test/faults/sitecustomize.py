@@ -17,7 +17,7 @@ import sys
 from typing import Any
 
 FAULT_ENV = "BRACING_TEST_FAULT"
-FAILING = {"bracing_sim.node": ("CommandPath", "take", 0), "bracing_controller.node": ("ControllerPath", "serve", 5)}
+FAILING = {"bracing_sim.node": ("CommandPath", "take", 1), "bracing_controller.node": ("ControllerPath", "serve", 5)}
 """Per node module: the path's class, its method that takes messages, the argument made a null handle."""
 
 

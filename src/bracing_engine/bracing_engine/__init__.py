@@ -5,7 +5,9 @@ closed loop (law + simulator) for many steps without coming back to Python; ``Se
 real arm's controller measures and how late its commands land. Specifications cross whole, by keyword
 (``Robot``, ``Drive``, ``LawSpec``, ``SensorSpec``); answers as structures with named fields (``Answer``,
 ``StepResult``, ``State``, ``LawOutput``, ``Recording``, ``ContactEvent``, ``ContactModes``), kinds as
-enums (``StepStatus``, ``Refusal``, ``EventKind``, ``PathKind``, ``EnergySlot``). The build writes the
+enums (``StepStatus``, ``Refusal``, ``EventKind``, ``PathKind``, ``EnergySlot``). ``check_command`` is the motor
+command's value rule (finite, saturated to the limits: ``CommandCheck``) of both of the simulator's command paths,
+the C++ one through ``command_api`` (as ``state_refusal`` and ``law_api`` serve the controller's). The build writes the
 module's type stubs (``_engine.pyi``, nanobind's stub generator): mypy checks every call into it. ``bracing_core``'s
 dynamics, simulator, law and trajectory modules are its readable Python face."""
 
@@ -16,6 +18,7 @@ from bracing_engine._engine import (
     WINDING_TEMPERATURE_LIMIT,
     Answer,
     BracedContact,
+    CommandCheck,
     Contact,
     ContactEvent,
     ContactModes,
@@ -42,6 +45,8 @@ from bracing_engine._engine import (
     StepStatus,
     Surface,
     Task,
+    check_command,
+    command_api,
     law_api,
     rollout,
     stamp_seconds,
@@ -58,6 +63,7 @@ __all__ = [
     "WINDING_TEMPERATURE_LIMIT",
     "Answer",
     "BracedContact",
+    "CommandCheck",
     "Contact",
     "ContactEvent",
     "ContactModes",
@@ -84,6 +90,8 @@ __all__ = [
     "StepStatus",
     "Surface",
     "Task",
+    "check_command",
+    "command_api",
     "law_api",
     "rollout",
     "stamp_seconds",

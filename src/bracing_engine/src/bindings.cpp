@@ -414,4 +414,5 @@ NB_MODULE(_engine, m) {
   bind_sensors(m);
   bind_rollout(m);
   bind_law_api(m);
+  bind_command_api(m);
 }

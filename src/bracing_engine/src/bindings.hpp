@@ -31,5 +31,6 @@ void bind_law(nb::module_& m);
 void bind_sensors(nb::module_& m);
 void bind_rollout(nb::module_& m);
 void bind_law_api(nb::module_& m);
+void bind_command_api(nb::module_& m);
 
 }  // namespace bracing_engine::bindings

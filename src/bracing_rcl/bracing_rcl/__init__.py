@@ -4,9 +4,9 @@ check and the law are the engine's, one implementation for both of the node's pa
 motor_command and then the controller_state on rclpy publishers' rcl handles, with the GIL released, state after
 state until one needs Python (``Served``). What it does not answer itself goes back to the node's Python path as
 bytes (``Status.python``). ``CommandPath`` takes the simulator's motor_commands likewise: read in C++ when they
-need no word said, else their bytes for the simulator's Python path (``CommandStatus.python``); ``StatePath``
-publishes its joint_states and /clock, ``ReportPath`` a step's reports (contact_wrench/<name>, contacts,
-motor_state)."""
+need no word said (the engine's value rule, ``bracing_core.command_rule``, the one the Python path applies),
+else their bytes for the simulator's Python path (``CommandStatus.python``); ``StatePath`` publishes its
+joint_states and /clock, ``ReportPath`` a step's reports (contact_wrench/<name>, contacts, motor_state)."""
 
 import rclpy  # noqa: F401  first: it loads the rcl and rmw libraries this module links
 

@@ -1,9 +1,10 @@
 // The simulator node's command path on rcl's C API: take a motor_command and read it, with the GIL released,
 // when it has the layout of the MotorCommand byte template (bracing_ros.wire: the configured mode, the joints
-// by name in the simulator's order) and needs no word said: every value finite and within its joint's limit.
-// Any other message (another layout or order, a non-finite or saturated value) goes back to Python as its
-// bytes, to the node's Python path, which says why it refuses or saturates it: one implementation of each
-// refusal. The stamp is the stepping policy's to judge (SimulatorStepper.offer) on both paths.
+// by name in the simulator's order) and needs no word said under the engine's value rule (its C ABI,
+// command_api.h, which the Python path calls too): every value finite and within its joint's limit. Any other
+// message (another layout or order, a non-finite or saturated value) goes back to Python as its bytes, to the
+// node's Python path, which says why it refuses or saturates it: one implementation of each refusal. The stamp
+// is the stepping policy's to judge (SimulatorStepper.offer) on both paths.
 // And the state out: joint_states and /clock written from their templates and published, without the GIL;
 // then the step's reports (contact_wrench/<name>, contacts, motor_state) likewise.
 #include <nanobind/nanobind.h>
@@ -15,13 +16,14 @@
 #include <rmw/serialized_message.h>
 
 #include <array>
-#include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <optional>
 #include <stdexcept>
 #include <utility>
 #include <vector>
 
+#include "bracing_engine/command_api.h"
 #include "common.hpp"
 
 namespace bracing_rcl {
@@ -41,9 +43,14 @@ struct CommandTake {
 
 class CommandPath {
  public:
-  CommandPath(std::uintptr_t subscription, const Layout& command, std::vector<double> limit)
-      : subscription_(reinterpret_cast<const rcl_subscription_t*>(subscription)), command_(command),
-        limit_(std::move(limit)) {
+  CommandPath(nb::capsule command_api, std::uintptr_t subscription, const Layout& command, std::vector<double> limit)
+      : command_api_(command_api), api_(static_cast<const BracingCommandApi*>(command_api.data())),
+        subscription_(reinterpret_cast<const rcl_subscription_t*>(subscription)), command_(command),
+        limit_(std::move(limit)), values_(limit_.size()), non_finite_(limit_.size()) {
+    if (std::strcmp(command_api.name(), BRACING_COMMAND_API_CAPSULE) != 0 ||
+        api_->version != BRACING_COMMAND_API_VERSION) {
+      throw std::invalid_argument("not the engine's command_api (or another version of it)");
+    }
     if (command_.values() != limit_.size()) throw std::invalid_argument("the layout does not fit the joints' limits");
     rcutils_allocator_t allocator = rcutils_get_default_allocator();
     check(rmw_serialized_message_init(&taken_, 0, &allocator), "rmw_serialized_message_init");
@@ -67,28 +74,30 @@ class CommandPath {
   }
 
  private:
-  // Whether the message needs nothing of the Python path: the template's layout, each value finite and
-  // within its limit (0: none), as bracing_ros.commands applies it without a word.
-  bool read(CommandTake& out) const {
+  // Whether the message needs nothing of the Python path: the template's layout, and the value rule's verdict
+  // that every value is finite and none saturated (the Python path says why otherwise).
+  bool read(CommandTake& out) {
     const std::uint8_t* data = taken_.buffer;
     if (!command_.matches(data, taken_.buffer_length)) return false;
     const std::size_t n = limit_.size();
+    for (std::size_t k = 0; k < n; ++k) values_[k] = command_.value(data, k);
     out.values.resize(n);
-    for (std::size_t k = 0; k < n; ++k) {
-      const double v = command_.value(data, k);
-      if (!std::isfinite(v) || (limit_[k] > 0.0 && std::fabs(v) > limit_[k])) {
-        out.values.clear();
-        return false;
-      }
-      out.values[k] = v;
+    int saturated = 0;
+    if (api_->check_command(values_.data(), limit_.data(), n, out.values.data(), &saturated, non_finite_.data()) > 0 ||
+        saturated) {
+      out.values.clear();
+      return false;
     }
     out.stamp_ns = command_.stamp_ns(data);
     return true;
   }
 
+  nb::capsule command_api_;  // holds the engine's table
+  const BracingCommandApi* api_;
   const rcl_subscription_t* subscription_;
   Layout command_;
-  std::vector<double> limit_;
+  std::vector<double> limit_, values_;
+  std::vector<std::size_t> non_finite_;
   rcl_serialized_message_t taken_ = rmw_get_zero_initialized_serialized_message();
 };
 
@@ -267,7 +276,8 @@ void bind_simulator_path(nb::module_& m) {
       .def_ro("values", &CommandTake::values, "taken: the command, the simulator's joint order [V or N m]")
       .def_ro("data", &CommandTake::data, "python: the message's CDR bytes");
   nb::class_<CommandPath>(m, "CommandPath", "the simulator's motor_command path on rcl")
-      .def(nb::init<std::uintptr_t, const Layout&, std::vector<double>>(), "subscription"_a, "command"_a, "limit"_a)
+      .def(nb::init<nb::capsule, std::uintptr_t, const Layout&, std::vector<double>>(), "command_api"_a,
+           "subscription"_a, "command"_a, "limit"_a)
       .def("take", &CommandPath::take, "take the next motor_command and read it if it needs nothing else");
   nb::class_<StateSent>(m, "StateSent", "what one StatePath.publish sent")
       .def_ro("joint_state", &StateSent::joint_state, "keeping bytes: joint_states' CDR bytes")

@@ -2,7 +2,8 @@
 
 A command is accepted only if every configured joint appears exactly once by name,
 every value is finite and the mode is the configured one. Over-limit values are
-saturated, not rejected. ``CommandError`` says what was wrong, quoting a few names at most. A
+saturated, not rejected: both by the engine's value rule (``bracing_core.command_rule``), the one the
+simulator's C++ path applies too. ``CommandError`` says what was wrong, quoting a few names at most. A
 message larger than ``MessageLimits`` is refused before any work per element; every check is linear.
 """
 
@@ -12,6 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from bracing_core.command_rule import check_command
 from bracing_core.dynamics import InputMode
 from bracing_core.message_limits import DEFAULT_LIMITS, MessageLimits, SizeError, duplicated, quote_names
 from bracing_core.node_log import Refusal
@@ -69,14 +71,11 @@ def _in_order(
         u = np.array(values, dtype=float)
     else:
         u = _by_name(names, values, joint_names, limits)
-    if not np.isfinite(u).all():
-        bad = [j for j, v in zip(joint_names, u, strict=True) if not np.isfinite(v)]
+    check = check_command(u, limit)  # the engine's value rule, the one the C++ path applies too
+    if check.non_finite:
+        bad = [joint_names[k] for k in check.non_finite]
         raise CommandError("non-finite", f"non-finite {noun} for {quote_names(bad)}")
-    bound = np.where(np.asarray(limit) > 0.0, limit, np.inf)  # per joint; 0: none
-    saturated = bool(np.any(np.abs(u) > bound))
-    if saturated:
-        u = np.clip(u, -bound, bound)
-    return u, saturated
+    return check.values, check.saturated
 
 
 def _by_name(

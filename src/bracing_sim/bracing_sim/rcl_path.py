@@ -4,7 +4,8 @@ C++): when the node takes that path, and what it does with each command taken.
 A lockstep run on motor_command takes it, unless ``BRACING_SIMULATOR_PATH=python`` or the joints are more
 than max_message_elements (the Python path refuses such a command by its size). Per message the C++ path
 reads only one that needs no word said: the MotorCommand template's layout (the configured mode, the joints
-by name in the simulator's order), every value finite and within its joint's limit; its stamp and values go
+by name in the simulator's order), every value finite and within its joint's limit (the engine's value rule,
+``bracing_core.command_rule``, which the Python path applies too); its stamp and values go
 to the stepping policy (``SimulatorStepper.offer``, which judges the stamp on both paths). Any other message
 it hands to the node's Python path as its bytes, so each refusal and saturation is said by one
 implementation (``bracing_ros.commands``). When a state is joint_states and /clock alone (``state_on_rcl``)
@@ -19,6 +20,7 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
+from bracing_core.command_rule import command_api
 from bracing_core.message_limits import MessageLimits
 from bracing_core.typestore import CLOCK
 from bracing_rcl import CommandPath, CommandStatus, Layout, ReportPath, StatePath
@@ -72,7 +74,8 @@ class RclCommands:
         self.node = node
         limit = np.broadcast_to(np.asarray(node.core.limit, dtype=float), (len(node.joint_names),))
         template = node.command_reader.template
-        self.path = CommandPath(command_sub.handle.pointer, Layout(*template.layout()), limit.tolist())
+        layout = Layout(*template.layout())
+        self.path = CommandPath(command_api(), command_sub.handle.pointer, layout, limit.tolist())
         self.read = 0  # commands the C++ path read
         self.handed_over = 0  # commands it took and the Python path read
 
