@@ -10,7 +10,7 @@ import shutil
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bracing_analysis.bag import BagReadError
 from bracing_analysis.ratios import ratio_text, temperature_saving_text
@@ -20,6 +20,9 @@ from bracing_bringup.supervision import run_pair
 from bracing_core.numbers import number
 from bracing_core.params import ConfigError
 from bracing_core.variants import RUNS
+
+if TYPE_CHECKING:
+    from bracing_analysis.series import BagSeries
 
 RATIOS = (("braced", "free_space"), ("braced", "passive"))
 """The ratios printed, the paper's headline (braced against free space) first."""
@@ -66,6 +69,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--mode", choices=("voltage", "torque"), default=None)
     args = parser.parse_args(argv)
     summaries: dict[str, dict[str, Any]] = {}
+    read: dict[str, BagSeries] = {}  # each run's bag as its report read it: the comparison's data
     for run in RUNS:
         output = args.output / run.name
         if output.exists():
@@ -83,6 +87,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"{run.name} run failed: {result.message}", file=sys.stderr)
             return result.exit_code or 1
         summaries[run.name] = result.summary
+        if result.series is not None:
+            read[run.name] = result.series
     print()
     print(table(summaries))
     dirs = [str(args.output / name) for name in summaries]
@@ -95,7 +101,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"animation of the {name} run: " + (", ".join(map(str, movies)) or "none (see the report's message)"))
     try:
         baseline = BASELINE if BASELINE in summaries else None
-        compared = write_comparison([args.output / name / "bag" for name in summaries], args.output, baseline=baseline)
+        bags = [args.output / name / "bag" for name in summaries]
+        series = [read[name] for name in summaries] if read.keys() == summaries.keys() else None
+        compared = write_comparison(bags, args.output, baseline=baseline, series=series)
     except BagReadError as exc:
         print(f"error: comparison: {exc}", file=sys.stderr)
         return 1

@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bracing_bringup.domains import hold_domain
 from bracing_bringup.processes import Interrupted, Pair, environment
@@ -26,6 +26,9 @@ from bracing_core.failures import DIVERGED, EXIT_DIVERGED, EXIT_NODE_FAILED, FAI
 from bracing_core.params import ConfigError
 from bracing_recorder.topics import missing_from_counts
 from bracing_view.viewurl import free_ports, view_url, wait_for_port
+
+if TYPE_CHECKING:
+    from bracing_analysis.series import BagSeries
 
 EXIT_FAILED = 1
 VIEWER_START_S = 60.0  # [s] --view: how long the viewer may take to serve its page before the run goes on without
@@ -48,6 +51,9 @@ class RunResult:
     message: str = ""
     logs: dict[str, Path] = field(default_factory=dict)
     timeline: Timeline | None = None
+    series: BagSeries | None = None
+    """The bag as read for the report of a run that ended well (None otherwise): a comparison of runs draws
+    from it instead of reading the bag again."""
 
 
 class _Failure(Exception):
@@ -290,7 +296,7 @@ def _conclude(pair: Pair, plan: RunPlan, outcome: _Outcome, wall: float, created
     """The run's files and result once its processes are done: the report of a run that ended well
     (then the processes' exit codes), nothing but the logs of one that never stepped."""
     out, timeline = plan.options.output, pair.timeline
-    code, message, summary = outcome.code, outcome.message, None
+    code, message, summary, series = outcome.code, outcome.message, None, None
     timeline.add(pair.events)
     if outcome.diverged:  # the report of what ran until the divergence; the exit code stays
         pair.stop_all(ask=False)
@@ -301,7 +307,7 @@ def _conclude(pair: Pair, plan: RunPlan, outcome: _Outcome, wall: float, created
     if code == 0:
         timeline.mark(BAG_CLOSED, timeline.at("recorder closed the bag"))
         # The report is drawn while the processes finish exiting (their exit codes are checked after).
-        summary, code, message = _check_and_draw(plan, wall, timeline, outcome.warnings)
+        series, summary, code, message = _check_and_draw(plan, wall, timeline, outcome.warnings)
         for name, process_code in pair.stop_all(ask=False).items():
             if process_code != 0 and code == 0 and name != "viewer":  # a viewer's end is no run's failure
                 code, message = EXIT_FAILED, f"error: the {name} exited with code {process_code}\n{pair.tail(name)}"
@@ -320,7 +326,7 @@ def _conclude(pair: Pair, plan: RunPlan, outcome: _Outcome, wall: float, created
         if stamp is not None:
             timeline.mark(phase, stamp)
     timeline.write(out)
-    return RunResult(code, out, wall, summary, message, pair.logs, timeline)
+    return RunResult(code, out, wall, summary, message, pair.logs, timeline, series if code == 0 else None)
 
 
 def _stepped(timeline: Timeline, outcome: _Outcome) -> bool:
@@ -476,24 +482,25 @@ def diagnose_pair(plan: RunPlan, series: Any, reason: str, warnings: list[str]) 
 
 def _check_and_draw(
     plan: RunPlan, wall: float, timeline: Timeline, warnings: list[str]
-) -> tuple[dict[str, Any] | None, int, str]:
+) -> tuple[BagSeries | None, dict[str, Any] | None, int, str]:
     """Read the bag once: check it (a lockstep run promises every step), then write the summary
-    (with ``warnings``), the figures and the animation from what was read. (summary, exit code, message)."""
+    (with ``warnings``), the figures and the animation from what was read. (what was read, summary, exit code,
+    message)."""
     from bracing_analysis.bag import BagReadError, read_series  # rosbags ~100 ms, bag replay only, where used
 
     out = plan.options.output
     try:
         series = read_series(out / "bag")
     except BagReadError as exc:
-        return None, EXIT_FAILED, f"error: {exc}"
+        return None, None, EXIT_FAILED, f"error: {exc}"
     timeline.mark("bag read")
     expected_states = plan.expected_states
     if expected_states:  # lockstep
         problems = missing_from_counts(series.topic_counts, plan.contacts, expected_states, "", plan.ground_truth)
         timeline.mark("bag checked")
         if problems:
-            return None, EXIT_FAILED, "error: the bag is incomplete (lost messages): " + "; ".join(problems)
-    return _draw(plan, series, wall, timeline, warnings), 0, ""
+            return series, None, EXIT_FAILED, "error: the bag is incomplete (lost messages): " + "; ".join(problems)
+    return series, _draw(plan, series, wall, timeline, warnings), 0, ""
 
 
 def _draw(
