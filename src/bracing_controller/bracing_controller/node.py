@@ -30,6 +30,7 @@ from bracing_controller.targets import TargetTopics
 from bracing_core import schema
 from bracing_core.answering import Answer, StateAnswerer
 from bracing_core.controller_config import ControllerConfig
+from bracing_core.gc_policy import SteppingCollector
 from bracing_core.kinematics import WORLD_FRAME
 from bracing_core.message_limits import SizeError
 from bracing_core.mobile_base import CMD_VEL_TOPIC
@@ -310,6 +311,7 @@ def answer_states(node: ControllerNode) -> int:
     executor.add_node(node)
     answered, work, targets = 0, WorkTimer(), node.target_topics
     rcl: RclPath | None = None
+    collector = SteppingCollector()  # no automatic garbage collection on a state's answer
     try:
         wait_for_outputs(node, executor)
         state_sub = node.listen()
@@ -320,6 +322,7 @@ def answer_states(node: ControllerNode) -> int:
         rcl = answer_on_rcl(node, state_sub, [*targets.subscriptions, *commands])
         node.log.info("answering joint_states")
         node.command_out = work.mark
+        collector.start()
         node.status.say(RunStatus.STEPPING)
         while True:
             if rcl is None:
@@ -345,6 +348,7 @@ def answer_states(node: ControllerNode) -> int:
                 answered = 0
                 node.sync_clock()  # a parameter change is stamped with it
                 executor.spin_once(timeout_sec=0.0)  # parameter services and the like
+                collector.safe_point()
     except KeyboardInterrupt:
         if (line := work.line()) is not None:
             node.log.info(line)  # make bench's pair_step_breakdown_us
@@ -356,6 +360,8 @@ def answer_states(node: ControllerNode) -> int:
         return 0
     except ExternalShutdownException:
         return 0
+    finally:
+        collector.stop()
 
 
 def flush_answers(node: ControllerNode) -> None:
