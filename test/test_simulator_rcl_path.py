@@ -89,12 +89,34 @@ def command(names: list[str], values: list[float], mode: int = MotorCommand.VOLT
     return msg
 
 
-def test_the_command_path_reads_only_what_needs_no_word(monkeypatch: pytest.MonkeyPatch) -> None:
+CommandTopic = tuple[Publisher, Subscription, SubscriptionWaiter]
+
+
+@pytest.fixture
+def command_topic(monkeypatch: pytest.MonkeyPatch) -> Iterator[CommandTopic]:
+    """motor_command in a domain of its own: a publisher, a raw subscription and its waiter, in this process."""
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    context = Context()
+    rclpy.init(context=context, domain_id=hold_test_domain())
+    try:
+        node = rclpy.create_node("command_rule_test", context=context)
+        qos = QoSProfile(depth=100)
+        subscription = node.create_subscription(MotorCommand, "motor_command", lambda _: None, qos, raw=True)
+        yield (
+            node.create_publisher(MotorCommand, "motor_command", qos),
+            subscription,
+            SubscriptionWaiter(node, subscription),
+        )
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+def test_the_command_path_reads_only_what_needs_no_word(command_topic: CommandTopic) -> None:
     """CommandPath on a real rcl subscription in this process: a command with the template's layout, finite and
     within the limits is read (its stamp and values exactly); every other one comes back as its bytes (the
     message sent) for the Python path: the joints shuffled, a NaN, a value over its joint's limit, another mode,
     too few joints."""
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    publisher, subscription, waiter = command_topic
     names, limit = ["joint1", "joint2", "joint3", "joint4"], [5.0, 0.0, 5.0, 5.0]  # joint2: no limit
     template = wire.MotorCommandDecoder(names, MotorCommand.VOLTAGE).template
     good = command(names, [1.5, -300.0, 5.0, -0.25])
@@ -105,23 +127,13 @@ def test_the_command_path_reads_only_what_needs_no_word(monkeypatch: pytest.Monk
         command(names, [1.5, 0.0, 0.0, 0.0], MotorCommand.TORQUE),
         command(names[:3], [1.5, 0.0, 0.0]),
     ]
-    context = Context()
-    rclpy.init(context=context, domain_id=hold_test_domain())
-    try:
-        node = rclpy.create_node("command_path_test", context=context)
-        qos = QoSProfile(depth=100)
-        subscription = node.create_subscription(MotorCommand, "motor_command", lambda _: None, qos, raw=True)
-        publisher = node.create_publisher(MotorCommand, "motor_command", qos)
-        path = CommandPath(command_api(), subscription.handle.pointer, Layout(*template.layout()), limit)
-        waiter = SubscriptionWaiter(node, subscription)
-        taken = []
-        for msg in [good, *handed_over]:
-            publisher.publish(msg)
-            assert waiter.wait(10.0), "the command did not come"
-            taken.append(path.take())
-            assert path.take().status == CommandStatus.empty
-    finally:
-        rclpy.try_shutdown(context=context)
+    path = CommandPath(command_api(), subscription.handle.pointer, Layout(*template.layout()), limit)
+    taken = []
+    for msg in [good, *handed_over]:
+        publisher.publish(msg)
+        assert waiter.wait(10.0), "the command did not come"
+        taken.append(path.take())
+        assert path.take().status == CommandStatus.empty
     assert taken[0].status == CommandStatus.taken and taken[0].data is None
     assert taken[0].stamp_ns == 3_250_000_000 and taken[0].values == [1.5, -300.0, 5.0, -0.25]
     for take, msg in zip(taken[1:], handed_over, strict=True):
@@ -220,28 +232,6 @@ def clipped_as_numpy_did(values: list[float], limit: list[float]) -> tuple[np.nd
     bound = np.where(np.asarray(limit) > 0.0, limit, np.inf)
     saturated = bool(np.any(np.abs(u) > bound))
     return (np.clip(u, -bound, bound) if saturated else u), saturated
-
-
-CommandTopic = tuple[Publisher, Subscription, SubscriptionWaiter]
-
-
-@pytest.fixture
-def command_topic(monkeypatch: pytest.MonkeyPatch) -> Iterator[CommandTopic]:
-    """motor_command in a domain of its own: a publisher, a raw subscription and its waiter, in this process."""
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    context = Context()
-    rclpy.init(context=context, domain_id=hold_test_domain())
-    try:
-        node = rclpy.create_node("command_rule_test", context=context)
-        qos = QoSProfile(depth=100)
-        subscription = node.create_subscription(MotorCommand, "motor_command", lambda _: None, qos, raw=True)
-        yield (
-            node.create_publisher(MotorCommand, "motor_command", qos),
-            subscription,
-            SubscriptionWaiter(node, subscription),
-        )
-    finally:
-        rclpy.try_shutdown(context=context)
 
 
 def test_both_command_paths_apply_one_value_rule(command_topic: CommandTopic) -> None:
