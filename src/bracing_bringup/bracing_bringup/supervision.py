@@ -407,13 +407,9 @@ def _draw_failure(
     """The summary and report of a run the simulator stopped on a divergence, from its bag (every state up
     to the failure: no lockstep count to check), with ``status`` failed, the ``error`` (the simulator's, and
     what ran away) and the ``hint`` (``failures.diagnose``); the message says both."""
-    from bracing_analysis.bag import BagReadError, read_series
-
-    try:
-        series = read_series(plan.options.output / "bag")
-    except BagReadError as exc:
-        return None, f"{outcome.message}\nerror: {exc}"
-    timeline.mark("bag read")
+    series, unread = _failed_run_series(plan, timeline, outcome)
+    if series is None:
+        return None, unread
     reason = _divergence(pair)
     try:
         failure = diagnose_pair(plan, series, reason, outcome.warnings)
@@ -421,10 +417,7 @@ def _draw_failure(
         failure = Failure(FAILED, f"{reason} (what ran away could not be told: {type(exc).__name__}: {exc})", None)
     summary = _draw(plan, series, wall, timeline, outcome.warnings, failure.keys())
     message = f"error: {failure.error}" + (f"\nhint: {failure.hint}" if failure.hint else "")
-    return (
-        summary,
-        message + f"\n(summary.json, the bag and the report hold the run up to the failure: {plan.options.output})",
-    )
+    return summary, f"{message}\n{_kept_up_to_failure(plan)}"
 
 
 def _draw_node_failure(
@@ -432,6 +425,16 @@ def _draw_node_failure(
 ) -> tuple[dict[str, Any] | None, str]:
     """The summary and report of a run a node's failure ended, from its bag (every state up to the failure: no
     lockstep count to check), with ``status`` failed and the node's ``error``; the message says it."""
+    series, unread = _failed_run_series(plan, timeline, outcome)
+    if series is None:
+        return None, unread
+    summary = _draw(plan, series, wall, timeline, outcome.warnings, {"status": FAILED, "error": error, "hint": None})
+    return summary, f"{outcome.message}\n{_kept_up_to_failure(plan)}"
+
+
+def _failed_run_series(plan: RunPlan, timeline: Timeline, outcome: _Outcome) -> tuple[Any, str]:
+    """The bag of a run a failure ended, read for its report: (its series, ""), or (None, the run's message with
+    why it could not be read)."""
     from bracing_analysis.bag import BagReadError, read_series
 
     try:
@@ -439,9 +442,11 @@ def _draw_node_failure(
     except BagReadError as exc:
         return None, f"{outcome.message}\nerror: {exc}"
     timeline.mark("bag read")
-    summary = _draw(plan, series, wall, timeline, outcome.warnings, {"status": FAILED, "error": error, "hint": None})
-    kept = f"(summary.json, the bag and the report hold the run up to the failure: {plan.options.output})"
-    return summary, f"{outcome.message}\n{kept}"
+    return series, ""
+
+
+def _kept_up_to_failure(plan: RunPlan) -> str:
+    return f"(summary.json, the bag and the report hold the run up to the failure: {plan.options.output})"
 
 
 def _divergence(pair: Pair) -> str:
