@@ -159,8 +159,12 @@ class SimulatorTopics:
     def publish_step(self, step: StepOut) -> None:
         if self.report_path is not None:
             self.publish_step_on_rcl(step)
-            self.batch.state_done()
-            return
+        else:
+            self.publish_step_in_python(step)
+        self.batch.state_done()  # a full batch goes out while the controller works on the state
+
+    def publish_step_in_python(self, step: StepOut) -> None:
+        """The step's reports encoded here (``report_encoders``) and published, each into the batch."""
         t_ns, d, send = step.t_ns, step.forces, self.batch.publish
         for pub, force in zip(self.wrench_pubs, step.wrenches, strict=True):
             send(pub, self.wrench_wire.encode(t_ns, force))  # at the contact point: no moment
@@ -182,7 +186,6 @@ class SimulatorTopics:
         if self.truth_pubs:
             truth = (step.voltage, step.true_current, step.power, step.energies, step.temperature)
             send(self.truth_pubs[1], self.motor_wire.encode(t_ns, *truth))
-        self.batch.state_done()  # a full batch goes out while the controller works on the state
 
     def publish_step_on_rcl(self, step: StepOut) -> None:
         """The step's reports written and published in C++ (``report_path``), their bytes kept in the batch in
