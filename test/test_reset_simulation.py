@@ -137,7 +137,10 @@ def test_the_controller_without_the_restart_would_answer_otherwise() -> None:
 def test_reset_simulation_mid_run_repeats_the_run_byte_for_byte(tmp_path: Path) -> None:
     duration, reset_at = 1.0, 0.2  # [s] of sim time; the service is served between steps, every 100th
     urdf = str(REPO_ROOT / "config" / "paper_4link.urdf")
+    # wait_for_reset: a reset that comes after the run's end (the peer, on a loaded machine, behind the pair)
+    # is served too, and repeats the run as one mid-run does.
     sim = {"duration": duration, "min_subscribers": 2, "wait_for_recorder": False, "robot.urdf": urdf}
+    sim["wait_for_reset"] = True
     ctl = {"wait_for_recorder": False, "robot.urdf": urdf, "hand.ki": [400.0, 400.0]}
     env = isolated_env()
     out = tmp_path / "states.json"
@@ -145,21 +148,13 @@ def test_reset_simulation_mid_run_repeats_the_run_byte_for_byte(tmp_path: Path) 
     controller = start(node_argv("bracing_controller.node", params_file(tmp_path, "bracing_controller", ctl)), env)
     simulator = start(node_argv("bracing_sim.node", params_file(tmp_path, "bracing_simulator", sim)), env)
     try:
-        peer_log = peer.communicate(timeout=240)[0]
-        sim_log = simulator.communicate(timeout=60)[0]
+        peer.wait(timeout=240)
+    except subprocess.TimeoutExpired:
+        pass  # the first assert below says so, with every process's output
     finally:
-        for process in (peer, simulator):
-            if process.poll() is None:
-                process.kill()
-                process.wait()
-        controller.send_signal(signal.SIGINT)
-        try:
-            ctl_log = controller.communicate(timeout=30)[0]
-        except subprocess.TimeoutExpired:
-            controller.kill()
-            ctl_log = controller.communicate()[0]
+        peer_log, sim_log, ctl_log = (stopped(p) for p in (peer, simulator, controller))
     assert peer.returncode == 0, f"{peer_log}\n--- simulator\n{sim_log[-3000:]}\n--- controller\n{ctl_log[-3000:]}"
-    assert simulator.returncode == 0, sim_log[-3000:]
+    assert simulator.returncode == 0, sim_log[-3000:]  # stopped by SIGINT, as wait_for_reset says
     states = [(stamp, bytes.fromhex(data)) for stamp, data in json.loads(out.read_text())["states"]]
     stamps = [stamp for stamp, _ in states]
     back = next(k for k in range(1, len(stamps)) if stamps[k] < stamps[k - 1])  # where time went back
@@ -170,3 +165,14 @@ def test_reset_simulation_mid_run_repeats_the_run_byte_for_byte(tmp_path: Path) 
     assert "reset_simulation: back to the initial state at t = 0.000000 s" in sim_log
     assert "joint_states went back in time" in ctl_log
     assert "rejected" not in sim_log and "watchdog" not in sim_log  # every answer in time, none stale
+
+
+def stopped(process: subprocess.Popen[str]) -> str:
+    """``process``'s output once it has ended: asked to (SIGINT), then killed if it does not within 30 s."""
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+    try:
+        return process.communicate(timeout=30)[0]
+    except subprocess.TimeoutExpired:
+        process.kill()
+        return process.communicate()[0]

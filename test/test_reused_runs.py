@@ -28,9 +28,9 @@ node = rclpy.create_node("reused_runs_test")
 client = node.create_client(Empty, "/reset_simulation")
 assert client.wait_for_service(timeout_sec=30.0), "no reset_simulation"
 future = client.call_async(Empty.Request())
-rclpy.spin_until_future_complete(node, future, timeout_sec=30.0)
-assert future.result() is not None, "reset_simulation unanswered"
-"""
+rclpy.spin_until_future_complete(node, future, timeout_sec=10.0)
+"""  # its response not required: Fast DDS drops one whose reader the server has not matched in 100 ms (the
+# next bag, written, shows the reset was served)
 
 
 def wrote(bag: Path) -> Callable[[str], bool]:
