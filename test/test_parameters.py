@@ -274,7 +274,8 @@ def test_parameter_services_list_describe_get_and_set(controller_node: Any) -> N
     assert described["hand.kp"].type == ParameterType.PARAMETER_DOUBLE_ARRAY
     assert "hand task stiffness" in described["hand.kp"].description and "[N/m]" in described["hand.kp"].description
     assert not described["hand.kp"].read_only
-    assert described["damping_lambda"].read_only and described["damping_lambda"].type == ParameterType.PARAMETER_DOUBLE
+    assert described["damping_lambda"].type == ParameterType.PARAMETER_DOUBLE
+    assert "needs a fresh start" in described["damping_lambda"].additional_constraints  # refused by the node
 
     values = call(executor, client.get_parameters(["hand.kp", "input_mode"])).values
     assert list(values[0].double_array_value) == [300.0, 300.0] and values[1].string_value == "voltage"
@@ -288,7 +289,7 @@ def test_parameter_services_list_describe_get_and_set(controller_node: Any) -> N
     negative = call(executor, client.set_parameters([Parameter("voltage_gain", value=[1.0, -1.0, 1.0, 1.0])]))
     assert not negative.results[0].successful and "voltage_gain" in negative.results[0].reason
     read_only = call(executor, client.set_parameters([Parameter("damping_lambda", value=0.1)])).results[0]
-    assert not read_only.successful and "read-only" in read_only.reason
+    assert not read_only.successful and read_only.reason.startswith("damping_lambda: cannot change while running")
     assert list(call(executor, client.get_parameters(["hand.kp"])).values[0].double_array_value) == [150.0, 150.0]
 
     process.terminate()
