@@ -135,12 +135,13 @@ class ControllerNode(Node):
         given = [(change.name, parameters.plain(change.value)) for change in changes]
         current = parameters.current_values(self, "controller")
         reason = run_parameters.refusal("controller", [name for name, _ in given])
-        if reason is None:
+        per_run = run_parameters.per_run_changes("controller", given)
+        pending = run_parameters.per_run_values("controller", current) != self.running
+        if reason is None and (per_run or pending):  # else the retune's check is the next run's too
             try:
                 DecoupledController(self.next_config(current | dict(given)))  # the next run's start
             except ConfigError as exc:
                 reason = str(exc)
-        per_run = run_parameters.per_run_changes("controller", given)
         live = [change for change in given if change not in per_run]
         if reason is None and live:
             reason = self.core.retune(run_parameters.running_values("controller", current, self.running), live)
