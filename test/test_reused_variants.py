@@ -20,7 +20,7 @@ from test_reused_runs import RESET, wait_for, wall_time_zeroed, wrote
 
 from bracing_bringup.run_plan import PARAMS_FILE, RunOptions, RunPlan, plan_run, write_params
 from bracing_core.overrides import SIMULATOR
-from bracing_core.variants import RUNS, Variant
+from bracing_core.variants import BRACED, PASSIVE, RUNS, Variant
 
 DURATION_S = 0.3
 NODES = ("/bracing_simulator", "/bracing_controller")
@@ -44,6 +44,25 @@ print(json.dumps(results))
 """
 
 
+def comparable(bag: Path) -> dict[str, list[tuple[int, bytes]]]:
+    """The bag's messages with their wall times zeroed: each controller_state's compute_time, and each run_status
+    warning's wall_time (when it was said)."""
+    import dataclasses
+
+    from bracing_core.typestore import RUN_STATUS, bracing_typestore
+
+    store, messages = bracing_typestore(), wall_time_zeroed(raw_bag(bag))
+
+    def zeroed(data: bytes) -> bytes:
+        msg = store.deserialize_cdr(data, RUN_STATUS)
+        msg = dataclasses.replace(msg, wall_time=dataclasses.replace(msg.wall_time, sec=0, nanosec=0))
+        return bytes(store.serialize_cdr(msg, RUN_STATUS))
+
+    if "/run_status" in messages:
+        messages["/run_status"] = [(stamp, zeroed(data)) for stamp, data in messages["/run_status"]]
+    return messages
+
+
 def set_parameters(env: dict[str, str], values: dict[str, dict[str, Any]]) -> dict[str, list[list[Any]]]:
     """Set each node's parameters (``ros2 param set``'s service); node -> [[successful, reason], ...]."""
     done = subprocess.run(
@@ -53,10 +72,11 @@ def set_parameters(env: dict[str, str], values: dict[str, dict[str, Any]]) -> di
     return dict(json.loads(done.stdout.strip().splitlines()[-1]))
 
 
-def plan_of(variant: Variant, out: Path) -> RunPlan:
-    """The pair's plan of ``variant``'s run into ``out`` (its params file written there), the simulator staying at
-    the run's end for a reset."""
+def plan_of(variant: Variant, out: Path, parameters: dict[str, Any]) -> RunPlan:
+    """The pair's plan of ``variant``'s run into ``out`` (its params file written there; ``parameters``: --set),
+    the simulator staying at the run's end for a reset."""
     options = RunOptions(PAPER_YAML, out, duration=DURATION_S, bracing=variant.bracing, free_space=variant.free_space)
+    options.parameters = dict(parameters)
     plan = plan_run(options)
     params = plan.node_params
     params[SIMULATOR] |= {"wait_for_reset": True, "min_status_subscribers": 1}  # the recorder: no bracing-pair here
@@ -80,12 +100,17 @@ def stop(procs: list[subprocess.Popen[Any]]) -> list[int]:
     return codes
 
 
-def record_runs(tmp_path: Path, variants: tuple[Variant, ...], refused: dict[str, Any] | None = None) -> list[Path]:
+def record_runs(
+    tmp_path: Path,
+    variants: tuple[Variant, ...],
+    refused: dict[str, Any] | None = None,
+    parameters: dict[str, Any] | None = None,
+) -> list[Path]:
     """``variants`` run in turn by one simulator, controller and recorder, each next one's per-run parameters set
     on both nodes before its reset; their bags. ``refused``: a change asked of both nodes after the first run
-    (each node's answer kept in it under "answers")."""
+    (each node's answer kept in it under "answers"); ``parameters``: the scenario's --set."""
     outs = [tmp_path / variant.name for variant in variants]
-    plans = [plan_of(variant, out) for variant, out in zip(variants, outs, strict=True)]
+    plans = [plan_of(variant, out, parameters or {}) for variant, out in zip(variants, outs, strict=True)]
     recorder, controller, simulator = plans[0].processes(outs[0])
     env = isolated_env()
     rec = Proc([*recorder.argv(), "--stay"], env)
@@ -136,7 +161,20 @@ def test_make_run_s_three_runs_through_reused_processes_record_the_bags_of_fresh
     bags = {}
     for variant, bag in zip(RUNS, reused, strict=True):
         fresh = record_runs(tmp_path / f"fresh_{variant.name}", (variant,))[0]
-        bags[variant.name] = wall_time_zeroed(raw_bag(bag))
-        assert bags[variant.name] == wall_time_zeroed(raw_bag(fresh)), variant.name  # every topic, every message
+        bags[variant.name] = comparable(bag)
+        assert bags[variant.name] == comparable(fresh), variant.name  # every topic, every message
     assert bags["passive"]["/controller_state"] != bags["braced"]["/controller_state"]  # three runs, not one thrice
     assert bags["free_space"]["/contacts"] != bags["passive"]["/contacts"]
+
+
+def test_a_passive_run_then_a_braced_one_with_force_feedback_records_the_bags_of_fresh_runs(tmp_path: Path) -> None:
+    """The next run reads force reports the run before did not: the controller subscribes to them for it, in time
+    for the first report (else that state waits for it and is warned about, as a fresh controller's is not)."""
+    feedback = {"contacts.elbow.force_feedback.kp": 0.3, "contacts.elbow.force_feedback.ki": 50.0}
+    runs = (PASSIVE, BRACED)
+    reused = record_runs(tmp_path / "reused", runs, parameters=feedback)
+    ctl_log = (tmp_path / "reused" / "controller.log").read_text()
+    assert "no report of the last step" not in ctl_log
+    for variant, bag in zip(runs, reused, strict=True):
+        fresh = record_runs(tmp_path / f"fresh_{variant.name}", (variant,), parameters=feedback)[0]
+        assert comparable(bag) == comparable(fresh), variant.name

@@ -38,6 +38,7 @@ from bracing_core.controller_config import ControllerConfig
 from bracing_core.gc_policy import SteppingCollector
 from bracing_core.kinematics import WORLD_FRAME
 from bracing_core.law import DecoupledController
+from bracing_core.measurements import Measurements
 from bracing_core.message_limits import SizeError
 from bracing_core.mobile_base import CMD_VEL_TOPIC
 from bracing_core.params import ConfigError
@@ -60,6 +61,18 @@ from bracing_ros.sim_clock import guard_clock
 from bracing_ros.status import StatusPublisher
 from bracing_ros.stop_signal import StoppableExecutor
 from bracing_ros.waiter import SubscriptionWaiter
+
+TEMPERATURE = ("", "motor_state")
+"""The key of the windings' temperatures among the controller's measurement subscriptions."""
+
+
+def measurement_keys(measurements: Measurements | None) -> list[tuple[str, str]]:
+    """What ``measurements`` reads, in the order a fresh controller subscribes: (contact, topic) per fed-back force,
+    then TEMPERATURE."""
+    if measurements is None:
+        return []
+    keys = list(zip(measurements.forces, measurements.topics, strict=True))
+    return [*keys, TEMPERATURE] if measurements.temperature else keys
 
 
 class ControllerNode(Node):
@@ -102,10 +115,11 @@ class ControllerNode(Node):
         self.command_wire = wire.MotorCommandEncoder(self.joint_names, MODE_CODES[config.shared.input_mode])
         self.state_wire = wire.ControllerStateEncoder(contact_names, len(self.joint_names))
         self.state_reader = wire.JointStateDecoder(self.joint_names, self.core.limits)  # sizes checked first
-        # Force feedback and thermal compensation read contact_wrench/<name> and motor_state (``listen``).
+        # Force feedback and thermal compensation read contact_wrench/<name> and motor_state (``listen``): a
+        # subscription per (contact, topic), or TEMPERATURE; the run's waited on with a state.
+        self.measurement_subs: dict[tuple[str, str], Subscription] = {}
         self.measurement_waiter: SubscriptionWaiter | None = None
-        self.wrench_subs: dict[Subscription, tuple[str, str]] = {}  # contact, its topic
-        self.temperature_sub: Subscription | None = None
+        self.wrench_subs: dict[Subscription, tuple[str, str]] = {}  # the run's: contact, its topic
         self.flow = AckWindow(self, answers, STREAM_QOS.depth)
         self.command_out: Callable[[], None] | None = None  # called once a command is out (lockstep's timing)
         # record_batch: the answers also reach the recorder in batches (it subscribes to those instead)
@@ -139,9 +153,11 @@ class ControllerNode(Node):
         pending = run_parameters.per_run_values("controller", current) != self.running
         if reason is None and (per_run or pending):  # else the retune's check is the next run's too
             try:
-                DecoupledController(self.next_config(current | dict(given)))  # the next run's start
+                law = DecoupledController(self.next_config(current | dict(given)))  # the next run's start
             except ConfigError as exc:
                 reason = str(exc)
+            else:  # the reports it reads subscribed to now: the simulator's writers match them before its first
+                self.subscribe_measurements(Measurements.for_law(law), keep_others=True)
         live = [change for change in given if change not in per_run]
         if reason is None and live:
             reason = self.core.retune(run_parameters.running_values("controller", current, self.running), live)
@@ -172,7 +188,9 @@ class ControllerNode(Node):
         self.state_wire = wire.ControllerStateEncoder(contact_names, len(self.joint_names))
         self.state_reader = wire.JointStateDecoder(self.joint_names, self.core.limits)
         self.target_topics.retarget(self.core.targets, contact_names)
-        self.subscribe_measurements()
+        self.use_measurements()
+        if self.measurement_waiter is not None:  # what waits now is the run before's: this run reports after this
+            self.measurement_waiter.take_all(0.0)  # state's answer
         self.rebuilt = True
 
     def listen(self) -> Subscription:
@@ -182,37 +200,42 @@ class ControllerNode(Node):
         the simulator starts stepping when this subscription appears (it waits for it), so no
         state is answered before the answers have somewhere to be recorded.
         """
-        self.subscribe_measurements()
+        self.use_measurements()
         # joint_states last: the simulator steps once it matches this reader, and Fast DDS announces a
         # participant's endpoints in order on a reliable channel, so by then its contact_wrench and motor_state
         # writers have matched the readers above (created after it, step 0's reports could go out before they
         # matched and be lost: state 1 answered without them, 1 run in a loaded fresh-clone CI)
         return self.create_subscription(JointState, "joint_states", self.on_state, SUBSCRIBE_QOS, raw=True)
 
-    def subscribe_measurements(self) -> None:
-        """The subscriptions of the measurements the core's law reads (force reports, the windings'
-        temperatures), those of a run before that it no longer reads destroyed."""
-        for sub in [*self.wrench_subs, *([self.temperature_sub] if self.temperature_sub else [])]:
-            self.destroy_subscription(sub)
-        self.wrench_subs, self.temperature_sub, self.measurement_waiter = {}, None, None
-        measurements = self.core.measurements
-        if measurements is None:
-            return
-        # the executor (spun between states) and the waiter (while a state waits) both hand them to the core
-        # raw: a message's sizes are checked before its elements are decoded
-        self.wrench_subs = {
-            self.create_subscription(
-                WrenchStamped, topic, partial(self.on_wrench, name, topic), SUBSCRIBE_QOS, raw=True
-            ): (name, topic)
-            for name, topic in zip(measurements.forces, measurements.topics, strict=True)
-        }
-        subs = list(self.wrench_subs)
-        if measurements.temperature:
-            self.temperature_sub = self.create_subscription(
-                MotorState, "motor_state", self.on_temperature, SUBSCRIBE_QOS, raw=True
-            )
-            subs.append(self.temperature_sub)
-        self.measurement_waiter = SubscriptionWaiter(self, subs)
+    def subscribe_measurements(self, measurements: Measurements | None, keep_others: bool = False) -> None:
+        """Subscriptions to what ``measurements`` reads (force reports, the windings' temperatures), made where
+        there are none yet; unless ``keep_others``, the ones it does not read destroyed."""
+        wanted = measurement_keys(measurements)
+        for key in wanted:
+            if key not in self.measurement_subs:
+                self.measurement_subs[key] = self.measurement_subscription(key)
+        if not keep_others:
+            for key in [key for key in self.measurement_subs if key not in wanted]:
+                self.destroy_subscription(self.measurement_subs.pop(key))
+
+    def measurement_subscription(self, key: tuple[str, str]) -> Subscription:
+        """The subscription to one measurement: (contact, topic) of a force report, or TEMPERATURE. Raw: a message's
+        sizes are checked before its elements are decoded. The executor (spun between states) and the waiter (while
+        a state waits) both hand them to the core."""
+        if key == TEMPERATURE:
+            return self.create_subscription(MotorState, "motor_state", self.on_temperature, SUBSCRIBE_QOS, raw=True)
+        contact, topic = key
+        return self.create_subscription(
+            WrenchStamped, topic, partial(self.on_wrench, contact, topic), SUBSCRIBE_QOS, raw=True
+        )
+
+    def use_measurements(self) -> None:
+        """The run's measurements (the core's) subscribed to, only them, and waited on with a state."""
+        self.subscribe_measurements(self.core.measurements)
+        wanted = measurement_keys(self.core.measurements)
+        self.wrench_subs = {self.measurement_subs[key]: key for key in wanted if key != TEMPERATURE}
+        subs = [self.measurement_subs[key] for key in wanted]
+        self.measurement_waiter = SubscriptionWaiter(self, subs) if subs else None
 
     def take_measurements(self, timeout_sec: float) -> None:
         """The force and temperature reports that have come (waiting up to ``timeout_sec`` for one)."""
@@ -224,14 +247,21 @@ class ControllerNode(Node):
                 self.on_temperature(msg)
 
     def on_wrench(self, contact: str, topic: str, data: bytes) -> None:
-        """A contact's measured force (CDR bytes, from ``topic``), to the core unless it cannot be read."""
+        """A contact's measured force (CDR bytes, from ``topic``), to the core unless it cannot be read (none while
+        the run reads no such force: subscribed for the next run)."""
+        measurements = self.core.measurements
+        if measurements is None or contact not in measurements.forces:
+            return
         msg = self.read_measurement(data, topic, WRENCH_STAMPED, WrenchStamped)
         if msg is not None:
             f = msg.wrench.force
             self.core.take_force(contact, stamp_ns(msg.header.stamp), np.array([f.x, f.y, f.z]), msg.header.frame_id)
 
     def on_temperature(self, data: bytes) -> None:
-        """The windings' temperatures (motor_state, CDR bytes), to the core unless they cannot be read."""
+        """The windings' temperatures (motor_state, CDR bytes), to the core unless they cannot be read (none while the
+        run reads none: subscribed for the next run)."""
+        if self.core.measurements is None or not self.core.measurements.temperature:
+            return
         msg = self.read_measurement(data, "motor_state", MOTOR_STATE, MotorState)
         if msg is not None:
             self.core.take_temperature(stamp_ns(msg.header.stamp), np.asarray(msg.temperature, dtype=float))
