@@ -16,13 +16,12 @@ from typing import Any
 from ros_helpers import PAPER_YAML, REPO_ROOT, isolated_env
 from test_recorder_bag_switch import raw_bag, set_recorder
 from test_recorder_report import Proc
-from test_reused_runs import RESET, wait_for, wall_time_zeroed, wrote
+from test_reused_runs import DURATION_S, RESET, wait_for, wall_time_zeroed, wrote
 
 from bracing_bringup.run_plan import PARAMS_FILE, RunOptions, RunPlan, plan_run, write_params
 from bracing_core.overrides import SIMULATOR
 from bracing_core.variants import BRACED, PASSIVE, RUNS, Variant
 
-DURATION_S = 0.3
 NODES = ("/bracing_simulator", "/bracing_controller")
 SET_PARAMETERS = """
 import json, sys
@@ -106,10 +105,11 @@ def record_runs(
     refused: dict[str, Any] | None = None,
     parameters: dict[str, Any] | None = None,
 ) -> list[Path]:
-    """``variants`` run in turn by one simulator, controller and recorder, each next one's per-run parameters set
-    on both nodes before its reset; their bags. ``refused``: a change asked of both nodes after the first run
-    (each node's answer kept in it under "answers"); ``parameters``: the scenario's --set."""
-    outs = [tmp_path / variant.name for variant in variants]
+    """``variants`` run in turn by one simulator, controller and recorder (``tmp_path``: their logs), each next
+    one's per-run parameters set on both nodes before its reset if they change; their bags, each with every state.
+    ``refused``: a change asked of both nodes after the first run (each node's answer kept in it under "answers");
+    ``parameters``: the scenario's --set."""
+    outs = [tmp_path / f"{k}_{variant.name}" for k, variant in enumerate(variants)]
     plans = [plan_of(variant, out, parameters or {}) for variant, out in zip(variants, outs, strict=True)]
     recorder, controller, simulator = plans[0].processes(outs[0])
     env = isolated_env()
@@ -123,10 +123,11 @@ def record_runs(
         wait_for(rec, wrote(outs[0] / "bag"), 120.0)
         if refused is not None:
             refused["answers"] = set_parameters(env, {node: refused["change"] for node in NODES})
-        for variant, out in zip(variants[1:], outs[1:], strict=True):
+        for before, variant, out in zip(variants, variants[1:], outs[1:], strict=False):
             per_run = {"bracing": variant.bracing, "free_space": variant.free_space}
-            answers = set_parameters(env, dict.fromkeys(NODES, per_run))
-            assert answers == {node: [[True, ""], [True, ""]] for node in NODES}, answers
+            if per_run != {"bracing": before.bracing, "free_space": before.free_space}:  # else a reset alone
+                answers = set_parameters(env, dict.fromkeys(NODES, per_run))
+                assert answers == {node: [[True, ""], [True, ""]] for node in NODES}, answers
             asked = {"output": str(out / "bag"), "params_files": [str(out / PARAMS_FILE)]}
             assert set_recorder(env, asked) == (True, "")
             wait_for(rec, lambda line: line == "recorder ready", 30.0)
@@ -139,7 +140,9 @@ def record_runs(
             log.close()
     sim_log = (tmp_path / "simulator.log").read_text()
     assert codes == [0, 0, 0], f"{codes}\n{sim_log[-3000:]}\n{(tmp_path / 'controller.log').read_text()[-3000:]}"
-    assert len(raw_bag(outs[0] / "bag")["/joint_states"]) == plans[0].expected_states
+    for out, plan in zip(outs, plans, strict=True):
+        bag = raw_bag(out / "bag")
+        assert len(bag["/joint_states"]) == len(bag["/tf"]) == plan.expected_states, out
     return [out / "bag" for out in outs]
 
 
