@@ -123,7 +123,10 @@ def test_a_target_is_followed_from_the_next_state_on() -> None:
 def test_a_retune_is_checked_whole_and_applied_from_the_next_state() -> None:
     core, log, _, sent = answerer()
     values = node_params("bracing_controller")
-    assert core.retune(dict(values), [("step", 0.002)]) == "step: cannot change while running"
+    unknown = "step: cannot change while running: not a parameter of the controller"
+    assert core.retune(dict(values), [("step", 0.002)]) == unknown
+    fixed = core.retune(dict(values), [("damping_lambda", 0.1)])
+    assert fixed is not None and fixed.startswith("damping_lambda: cannot change while running: it needs a fresh start")
     refused = core.retune(dict(values), [("contacts.elbow.kp", [1.0] * 5)])  # one gain per brace axis
     assert refused is not None and "contacts.elbow.kp" in refused
     assert core.retuned is None and not log.lines

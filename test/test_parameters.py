@@ -269,12 +269,14 @@ def test_parameter_services_list_describe_get_and_set(controller_node: Any) -> N
     listed = set(call(executor, client.list_parameters()).result.names)
     assert set(schema.all_names("controller", ["elbow"])) <= listed
 
-    names = ["hand.kp", "damping_lambda"]
+    names = ["hand.kp", "damping_lambda", "bracing"]
     described = {d.name: d for d in call(executor, client.describe_parameters(names)).descriptors}
+    assert "(per run: taken from the node's next run on)" in described["bracing"].additional_constraints
     assert described["hand.kp"].type == ParameterType.PARAMETER_DOUBLE_ARRAY
     assert "hand task stiffness" in described["hand.kp"].description and "[N/m]" in described["hand.kp"].description
     assert not described["hand.kp"].read_only
-    assert described["damping_lambda"].read_only and described["damping_lambda"].type == ParameterType.PARAMETER_DOUBLE
+    assert described["damping_lambda"].type == ParameterType.PARAMETER_DOUBLE
+    assert "needs a fresh start" in described["damping_lambda"].additional_constraints  # refused by the node
 
     values = call(executor, client.get_parameters(["hand.kp", "input_mode"])).values
     assert list(values[0].double_array_value) == [300.0, 300.0] and values[1].string_value == "voltage"
@@ -288,12 +290,15 @@ def test_parameter_services_list_describe_get_and_set(controller_node: Any) -> N
     negative = call(executor, client.set_parameters([Parameter("voltage_gain", value=[1.0, -1.0, 1.0, 1.0])]))
     assert not negative.results[0].successful and "voltage_gain" in negative.results[0].reason
     read_only = call(executor, client.set_parameters([Parameter("damping_lambda", value=0.1)])).results[0]
-    assert not read_only.successful and "read-only" in read_only.reason
+    assert not read_only.successful and read_only.reason.startswith("damping_lambda: cannot change while running")
     assert list(call(executor, client.get_parameters(["hand.kp"])).values[0].double_array_value) == [150.0, 150.0]
+    per_run = call(executor, client.set_parameters([Parameter("bracing", value=False)])).results[0]
+    assert per_run.successful, per_run.reason
 
     process.terminate()
     log = process.communicate(timeout=30)[0]
     assert "retuned (from the next update): hand.kp = [150.0, 150.0]" in log
+    assert "from the next run: bracing = False" in log
 
 
 def test_the_shared_and_path_sections_are_one_class_each() -> None:

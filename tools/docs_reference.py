@@ -62,8 +62,11 @@ def parameters_page() -> str:
         "# Parameters\n\n"
         + GENERATED
         + "Every parameter of a scenario file, from `bracing_core/schema/` (name, type, default, unit,\n"
-        "bounds, whether `ros2 param set` may change it while the controller runs). How the files are\n"
-        "read: [Configuration](../guides/configuration.md).\n\n" + escape_tags(reference_markdown())
+        "bounds, whether `ros2 param set` may change it while the controller runs (tunable: from its next\n"
+        "state on) or while either node runs (per run: from the node's next run on, the simulator's at\n"
+        "`reset_simulation`, the controller's when its states go back in time); any other change is refused\n"
+        "while a node runs: it needs a fresh start. How the files are read:\n"
+        "[Configuration](../guides/configuration.md).\n\n" + escape_tags(reference_markdown())
     )
 
 

@@ -3,6 +3,11 @@
 Wiring only: ROS parameters -> ControllerConfig -> the core's answering policy
 (``bracing_core.answering.StateAnswerer``: refusals, measurements, targets, the law and its checks);
 the command is stamped with the state it answers, which is what the simulator's lockstep waits for.
+A tunable parameter set while it runs is taken from the next state on (``StateAnswerer.retune``); a per-run one
+(``bracing_core.run_parameters``: ``bracing``, ``free_space``) from the next run on: when the states go back in
+time (the simulator's reset_simulation) the run is built from the parameters as they then are, as a fresh
+process builds it (the law, the ControllerState layout, the brace targets' and force reports' subscriptions, the
+per-state path); any other change is refused (it needs a fresh start).
 """
 
 from __future__ import annotations
@@ -27,13 +32,16 @@ from sensor_msgs.msg import JointState
 from bracing_controller.effort_forward import EffortForward
 from bracing_controller.rcl_path import RclPath, python_only
 from bracing_controller.targets import TargetTopics
-from bracing_core import schema
+from bracing_core import run_parameters, schema
 from bracing_core.answering import Answer, StateAnswerer
 from bracing_core.controller_config import ControllerConfig
 from bracing_core.gc_policy import SteppingCollector
 from bracing_core.kinematics import WORLD_FRAME
+from bracing_core.law import DecoupledController
+from bracing_core.measurements import Measurements
 from bracing_core.message_limits import SizeError
 from bracing_core.mobile_base import CMD_VEL_TOPIC
+from bracing_core.params import ConfigError
 from bracing_core.stamps import stamp_ns
 from bracing_core.step_timing import WorkTimer
 from bracing_core.targets import ORIENTATION_ERROR_TOPIC
@@ -53,6 +61,18 @@ from bracing_ros.sim_clock import guard_clock
 from bracing_ros.status import StatusPublisher
 from bracing_ros.stop_signal import StoppableExecutor
 from bracing_ros.waiter import SubscriptionWaiter
+
+TEMPERATURE = ("", "motor_state")
+"""The key of the windings' temperatures among the controller's measurement subscriptions."""
+
+
+def measurement_keys(measurements: Measurements | None) -> list[tuple[str, str]]:
+    """What ``measurements`` reads, in the order a fresh controller subscribes: (contact, topic) per fed-back force,
+    then TEMPERATURE."""
+    if measurements is None:
+        return []
+    keys = list(zip(measurements.forces, measurements.topics, strict=True))
+    return [*keys, TEMPERATURE] if measurements.temperature else keys
 
 
 class ControllerNode(Node):
@@ -74,7 +94,9 @@ class ControllerNode(Node):
         self.effort_forward = config.command_output == "effort_forward"
         if not self.effort_forward:  # effort_forward: its timer keeps the node's clock (use_sim_time: /clock)
             self.clock._set_ros_time_is_active(True)
-        parameters.declare(self, "controller", values)
+        parameters.declare(self, "controller", values, checked=True)
+        self.running = run_parameters.per_run_values("controller", parameters.current_values(self, "controller"))
+        self.rebuilt = False  # a run built anew: the answering loop waits on its subscriptions, chooses its path
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.joint_names = self.core.joint_names
         contact_names = [c.name for c in config.shared.braced_contacts]
@@ -93,9 +115,11 @@ class ControllerNode(Node):
         self.command_wire = wire.MotorCommandEncoder(self.joint_names, MODE_CODES[config.shared.input_mode])
         self.state_wire = wire.ControllerStateEncoder(contact_names, len(self.joint_names))
         self.state_reader = wire.JointStateDecoder(self.joint_names, self.core.limits)  # sizes checked first
-        # Force feedback and thermal compensation read contact_wrench/<name> and motor_state (``listen``).
+        # Force feedback and thermal compensation read contact_wrench/<name> and motor_state (``listen``): a
+        # subscription per (contact, topic), or TEMPERATURE; the run's waited on with a state.
+        self.measurement_subs: dict[tuple[str, str], Subscription] = {}
         self.measurement_waiter: SubscriptionWaiter | None = None
-        self.wrench_subs: dict[Subscription, tuple[str, str]] = {}  # contact, its topic
+        self.wrench_subs: dict[Subscription, tuple[str, str]] = {}  # the run's: contact, its topic
         self.flow = AckWindow(self, answers, STREAM_QOS.depth)
         self.command_out: Callable[[], None] | None = None  # called once a command is out (lockstep's timing)
         # record_batch: the answers also reach the recorder in batches (it subscribes to those instead)
@@ -119,12 +143,55 @@ class ControllerNode(Node):
         self.clock.set_ros_time_override(Time(nanoseconds=self.core.answered_ns, clock_type=ClockType.ROS_TIME))
 
     def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
-        """A set of tunable parameters (rclpy refuses read-only ones before this), to the core."""
-        values = parameters.current_values(self, "controller")
-        reason = self.core.retune(values, [(change.name, parameters.plain(change.value)) for change in changes])
+        """A change while running (``bracing_core.run_parameters``): every one checked with the next run's
+        parameters as a start with them would be; tunable ones to the core (from the next state on), per-run ones
+        taken when the next run starts; any other refused."""
+        given = [(change.name, parameters.plain(change.value)) for change in changes]
+        current = parameters.current_values(self, "controller")
+        reason = run_parameters.refusal("controller", [name for name, _ in given])
+        per_run = run_parameters.per_run_changes("controller", given)
+        pending = run_parameters.per_run_values("controller", current) != self.running
+        if reason is None and (per_run or pending):  # else the retune's check is the next run's too
+            try:
+                law = DecoupledController(self.next_config(current | dict(given)))  # the next run's start
+            except ConfigError as exc:
+                reason = str(exc)
+            else:  # the reports it reads subscribed to now: the simulator's writers match them before its first
+                self.subscribe_measurements(Measurements.for_law(law), keep_others=True)
+        live = [change for change in given if change not in per_run]
+        if reason is None and live:
+            reason = self.core.retune(run_parameters.running_values("controller", current, self.running), live)
         if reason is not None:
             return SetParametersResult(successful=False, reason=reason)
+        if per_run:
+            self.log.info("from the next run: " + ", ".join(f"{name} = {value}" for name, value in per_run))
         return SetParametersResult(successful=True)
+
+    def next_config(self, params: dict[str, Any]) -> ControllerConfig:
+        """The configuration a fresh process started with ``params`` builds; a ConfigError as it would print it."""
+        params = {**params, "robot.urdf": str(self.config.shared.urdf)}  # as this process resolved it
+        return ControllerConfig.from_values(run_parameters.next_run_values("controller", params, []))
+
+    def begin_run(self) -> None:
+        """States went back in time: a new run. If a per-run parameter changed, the run is built from the
+        parameters as they are now, as a fresh process builds it: the core (``StateAnswerer.rebuild``), the
+        ControllerState layout, the brace targets' topics and the measurements' subscriptions (the answering
+        loop then waits on them and chooses its per-state path again: ``rebuilt``)."""
+        current = parameters.current_values(self, "controller")
+        running = run_parameters.per_run_values("controller", current)
+        if running == self.running:
+            return
+        self.running, self.config = running, self.next_config(current)
+        self.core.rebuild(self.config)
+        self.core.start()
+        contact_names = [c.name for c in self.config.shared.braced_contacts]
+        self.state_wire = wire.ControllerStateEncoder(contact_names, len(self.joint_names))
+        self.state_reader = wire.JointStateDecoder(self.joint_names, self.core.limits)
+        self.target_topics.retarget(self.core.targets, contact_names)
+        self.use_measurements()
+        if self.measurement_waiter is not None:  # what waits now is the run before's: this run reports after this
+            self.measurement_waiter.take_all(0.0)  # state's answer
+        self.rebuilt = True
 
     def listen(self) -> Subscription:
         """Subscribe to joint_states: from now on states are answered.
@@ -133,27 +200,42 @@ class ControllerNode(Node):
         the simulator starts stepping when this subscription appears (it waits for it), so no
         state is answered before the answers have somewhere to be recorded.
         """
-        measurements = self.core.measurements
-        if measurements is not None:
-            # the executor (spun between states) and the waiter (while a state waits) both hand them to the core
-            # raw: a message's sizes are checked before its elements are decoded
-            self.wrench_subs = {
-                self.create_subscription(
-                    WrenchStamped, topic, partial(self.on_wrench, name, topic), SUBSCRIBE_QOS, raw=True
-                ): (name, topic)
-                for name, topic in zip(measurements.forces, measurements.topics, strict=True)
-            }
-            subs = list(self.wrench_subs)
-            if measurements.temperature:
-                subs.append(
-                    self.create_subscription(MotorState, "motor_state", self.on_temperature, SUBSCRIBE_QOS, raw=True)
-                )
-            self.measurement_waiter = SubscriptionWaiter(self, subs)
+        self.use_measurements()
         # joint_states last: the simulator steps once it matches this reader, and Fast DDS announces a
         # participant's endpoints in order on a reliable channel, so by then its contact_wrench and motor_state
         # writers have matched the readers above (created after it, step 0's reports could go out before they
         # matched and be lost: state 1 answered without them, 1 run in a loaded fresh-clone CI)
         return self.create_subscription(JointState, "joint_states", self.on_state, SUBSCRIBE_QOS, raw=True)
+
+    def subscribe_measurements(self, measurements: Measurements | None, keep_others: bool = False) -> None:
+        """Subscriptions to what ``measurements`` reads (force reports, the windings' temperatures), made where
+        there are none yet; unless ``keep_others``, the ones it does not read destroyed."""
+        wanted = measurement_keys(measurements)
+        for key in wanted:
+            if key not in self.measurement_subs:
+                self.measurement_subs[key] = self.measurement_subscription(key)
+        if not keep_others:
+            for key in [key for key in self.measurement_subs if key not in wanted]:
+                self.destroy_subscription(self.measurement_subs.pop(key))
+
+    def measurement_subscription(self, key: tuple[str, str]) -> Subscription:
+        """The subscription to one measurement: (contact, topic) of a force report, or TEMPERATURE. Raw: a message's
+        sizes are checked before its elements are decoded. The executor (spun between states) and the waiter (while
+        a state waits) both hand them to the core."""
+        if key == TEMPERATURE:
+            return self.create_subscription(MotorState, "motor_state", self.on_temperature, SUBSCRIBE_QOS, raw=True)
+        contact, topic = key
+        return self.create_subscription(
+            WrenchStamped, topic, partial(self.on_wrench, contact, topic), SUBSCRIBE_QOS, raw=True
+        )
+
+    def use_measurements(self) -> None:
+        """The run's measurements (the core's) subscribed to, only them, and waited on with a state."""
+        self.subscribe_measurements(self.core.measurements)
+        wanted = measurement_keys(self.core.measurements)
+        self.wrench_subs = {self.measurement_subs[key]: key for key in wanted if key != TEMPERATURE}
+        subs = [self.measurement_subs[key] for key in wanted]
+        self.measurement_waiter = SubscriptionWaiter(self, subs) if subs else None
 
     def take_measurements(self, timeout_sec: float) -> None:
         """The force and temperature reports that have come (waiting up to ``timeout_sec`` for one)."""
@@ -165,14 +247,21 @@ class ControllerNode(Node):
                 self.on_temperature(msg)
 
     def on_wrench(self, contact: str, topic: str, data: bytes) -> None:
-        """A contact's measured force (CDR bytes, from ``topic``), to the core unless it cannot be read."""
+        """A contact's measured force (CDR bytes, from ``topic``), to the core unless it cannot be read (none while
+        the run reads no such force: subscribed for the next run)."""
+        measurements = self.core.measurements
+        if measurements is None or contact not in measurements.forces:
+            return
         msg = self.read_measurement(data, topic, WRENCH_STAMPED, WrenchStamped)
         if msg is not None:
             f = msg.wrench.force
             self.core.take_force(contact, stamp_ns(msg.header.stamp), np.array([f.x, f.y, f.z]), msg.header.frame_id)
 
     def on_temperature(self, data: bytes) -> None:
-        """The windings' temperatures (motor_state, CDR bytes), to the core unless they cannot be read."""
+        """The windings' temperatures (motor_state, CDR bytes), to the core unless they cannot be read (none while the
+        run reads none: subscribed for the next run)."""
+        if self.core.measurements is None or not self.core.measurements.temperature:
+            return
         msg = self.read_measurement(data, "motor_state", MOTOR_STATE, MotorState)
         if msg is not None:
             self.core.take_temperature(stamp_ns(msg.header.stamp), np.asarray(msg.temperature, dtype=float))
@@ -214,6 +303,8 @@ class ControllerNode(Node):
             return
         state = self.core.read_state(msg.name, msg.position, msg.velocity, msg.stamp_ns, refusal)
         if state is not None:
+            if self.core.goes_back(msg.stamp_ns):
+                self.begin_run()
             self.target_topics.apply(msg.stamp_ns)  # the latest of each that came: followed from this state on
             self.core.answer(msg.stamp_ns, *state, self.take_measurements, self.send)
 
@@ -315,21 +406,20 @@ def answer_states(node: ControllerNode) -> int:
     try:
         wait_for_outputs(node, executor)
         state_sub = node.listen()
-        # The targets in the same wait: a wait of their own on every state cost ~15 % of the node's time
-        # (py-spy).
-        commands = [node.cmd_vel_sub] if node.cmd_vel_sub is not None else []
-        waiter = SubscriptionWaiter(node, [state_sub, *targets.subscriptions, *commands])
-        rcl = answer_on_rcl(node, state_sub, [*targets.subscriptions, *commands])
+        waiter, rcl = answering_waits(node, state_sub)
         node.log.info("answering joint_states")
         node.command_out = work.mark
         collector.start()
         node.status.say(RunStatus.STEPPING)
         while True:
+            if node.rebuilt:  # a run built anew (per-run parameters): its subscriptions, its per-state path
+                node.rebuilt = False
+                waiter, rcl = answering_waits(node, state_sub)
             if rcl is None:
                 states, taken = 0, waiter.take_all(0.1)
             else:  # the C++ path waits for the states and answers them, this loop takes the rest
                 states, ready = rcl.serve(work, max(100 - answered, 1))
-                taken = waiter.take_ready(ready)
+                taken = [] if node.rebuilt else waiter.take_ready(ready)  # rebuilt: taken by the new wait
                 answered += states
             for subscription, msg in taken:
                 if subscription is state_sub:
@@ -368,6 +458,14 @@ def flush_answers(node: ControllerNode) -> None:
     """At the stop (or a failure): the answers sent reach the recorder (at most 10 s); what did not, said."""
     for k, (level, line) in enumerate(node.close(timeout_sec=10.0)):
         node.log.limited(level, f"stop-{k}", f"stopping: {line}")  # each said (a kind of its own)
+
+
+def answering_waits(node: ControllerNode, state_sub: Subscription) -> tuple[SubscriptionWaiter, RclPath | None]:
+    """The answering loop's wait on joint_states, the targets and cmd_vel, and its C++ path (None: Python's)."""
+    # The targets in the same wait: a wait of their own on every state cost ~15 % of the node's time (py-spy).
+    commands = [node.cmd_vel_sub] if node.cmd_vel_sub is not None else []
+    others = [*node.target_topics.subscriptions, *commands]
+    return SubscriptionWaiter(node, [state_sub, *others]), answer_on_rcl(node, state_sub, others)
 
 
 def answer_on_rcl(node: ControllerNode, state_sub: Subscription, others: list[Subscription]) -> RclPath | None:

@@ -71,6 +71,27 @@ class TargetTopics:
         self._add("hand_target", HAND_TASK, PointStamped)
         self._add("hand_path", HAND_TASK, Path)
         self._add(POSE_TOPIC, HAND_TASK, PoseStamped)
+        self.contacts = list(contacts)
+        for j, name in enumerate(contacts):
+            self._add(f"brace_target/{name}", brace_task(j), PointStamped)
+
+    def retarget(self, targets: TaskTargets, contacts: list[str]) -> None:
+        """A run built anew (per-run parameters): its ``targets``, and the brace topics of its ``contacts`` as a
+        fresh process has them (another list: those of the run before destroyed, the new ones made, after the
+        hand's); the hand's topics stay, each refusal count from zero."""
+        self.targets = targets
+        for topic in self.topics.values():
+            topic.refusals = 0
+        if contacts == self.contacts:
+            return
+        for subscription, topic in list(self.topics.items()):
+            if topic.task != HAND_TASK:
+                del self.topics[subscription]
+                self.pending.pop(topic.name, None)
+                self.node.destroy_subscription(subscription)
+                self.node.destroy_publisher(topic.accepted)
+                self.node.destroy_publisher(topic.refused)
+        self.contacts = list(contacts)
         for j, name in enumerate(contacts):
             self._add(f"brace_target/{name}", brace_task(j), PointStamped)
 
@@ -94,8 +115,11 @@ class TargetTopics:
         self.topics[node.create_subscription(msg_type, name, keep, TARGET_QOS, raw=True)] = topic
 
     def take(self, subscription: Subscription, data: bytes) -> None:
-        """A target (CDR bytes) that came on ``subscription`` (the lockstep loop takes them with its states)."""
-        self.keep(self.topics[subscription], data)
+        """A target (CDR bytes) that came on ``subscription`` (the lockstep loop takes them with its states); none
+        on a brace topic a run built anew no longer has (``retarget``)."""
+        topic = self.topics.get(subscription)
+        if topic is not None:
+            self.keep(topic, data)
 
     def keep(self, topic: TargetTopic, data: bytes) -> None:
         self.pending[topic.name] = (topic, data)  # the latest wins

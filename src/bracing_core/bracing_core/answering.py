@@ -21,7 +21,7 @@ import numpy as np
 import pinocchio as pin
 
 import bracing_engine as engine
-from bracing_core import schema
+from bracing_core import run_parameters
 from bracing_core.checks import configuration_warnings, desired_force_warning, frame_reach, null_space_warning
 from bracing_core.controller_config import ControllerConfig
 from bracing_core.dynamics import ConstrainedDynamics, reflected_terms
@@ -141,17 +141,23 @@ class StateAnswerer:
         clock: Callable[[], float] = time.monotonic,
         timer: Callable[[], float] = time.perf_counter,
     ) -> None:
+        self.log, self.clock, self.timer = log, clock, timer
+        self.previous_ns: int | None = None  # the stamp of the last state answered (None: none yet)
+        self.null_space_warned = False
+        self.answers = 0  # states answered (the null-space watch samples them)
+        self.rebuild(config)
+
+    def rebuild(self, config: ControllerConfig) -> None:
+        """What ``config`` gives the answering: the law, its targets, measurements and base drive, as a fresh
+        process builds them (``__init__``; and a run built anew from changed per-run parameters, whose first state,
+        back in time, then starts it: ``restart``)."""
         self.config = config
         self.law = DecoupledController(config)
-        self.log, self.clock, self.timer = log, clock, timer
         self.joint_names = list(self.law.plant.joint_names)
         self.limits = MessageLimits.of(config)  # what one subscribed message may carry
         self.measurements = Measurements.for_law(self.law)  # None: the law reads no measurement
         self.targets = task_targets(self.law)
         self.retuned: ControllerConfig | None = None  # applied at the next update
-        self.previous_ns: int | None = None  # the stamp of the last state answered (None: none yet)
-        self.null_space_warned = False
-        self.answers = 0  # states answered (the null-space watch samples them)
         self.base_drive = self.new_base_drive()  # base_command cmd_vel: the base follows cmd_vel (None: not)
         if self.base_drive is not None:
             plant = self.law.plant  # the law's model: J_c and Mc for B = J_c Mc^-1
@@ -185,6 +191,10 @@ class StateAnswerer:
         self.null_space_warned = False
         self.answers = 0
 
+    def goes_back(self, stamp_ns: int) -> bool:
+        """Whether a state stamped ``stamp_ns`` is earlier than the last one answered: a new run (``restart``)."""
+        return self.previous_ns is not None and stamp_ns < self.previous_ns
+
     @property
     def answered_ns(self) -> int:
         """[ns] the stamp of the last state answered (0 before the first)."""
@@ -204,10 +214,12 @@ class StateAnswerer:
     def retune(self, params: dict[str, Any], changes: Sequence[tuple[str, Any]]) -> str | None:
         """Tunable parameters changed (``params``: all of them as they are, by flat name; ``changes``: (name,
         value)): validated as a whole configuration, applied from the next update, logged. Why not, if refused."""
+        reason = run_parameters.refusal("controller", [name for name, _ in changes])
+        if reason is not None:
+            return reason
         for name, value in changes:
-            param = schema.find("controller", name)
-            if param is None or not param.tunable:
-                return f"{name}: cannot change while running"
+            if not run_parameters.takes_live("controller", name):
+                return f"{name}: cannot change before the next run (a per-run parameter)"
             params[name] = value
         params["robot.urdf"] = str(self.config.shared.urdf)  # as the node resolved it
         try:
@@ -277,7 +289,7 @@ class StateAnswerer:
     ) -> None:
         """The law's answer to the state (q, dq) stamped ``stamp_ns``, to ``send`` (the node's publishers),
         unless the law fails on it or its output is not finite (then nothing is sent)."""
-        if self.previous_ns is not None and stamp_ns < self.previous_ns:
+        if self.goes_back(stamp_ns):
             self.restart(stamp_ns)
         if self.retuned is not None:
             self.law.retune(self.retuned)

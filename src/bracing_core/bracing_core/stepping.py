@@ -141,15 +141,20 @@ class SimulatorStepper:
         outlet: StepOutlet,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        self.config, self.plant, self.sim = config, plant, sim
         self.log, self.outlet, self.clock = log, outlet, clock
+        self.state_out_yet = False  # whether a state has gone out (a reset then sends the initial one)
+        self.abandoned_ns: int | None = None  # the stamp a reset stopped waiting for (its answer dropped quietly)
+        self._build(config, plant, sim)
+
+    def _build(self, config: SimulatorConfig, plant: Plant, sim: Simulator) -> None:
+        """What a run's configuration, plant and simulator give the stepping (``__init__``, and ``reset`` to a
+        configuration rebuilt from changed per-run parameters), the run at its start."""
+        self.config, self.plant, self.sim = config, plant, sim
         self.mode = config.shared.input_mode
         self.limit = plant.command_limit  # per joint, model order (0: none)
         self.step_ns = sim.step_ns
         self.total_steps = round(config.duration / config.step) if config.duration > 0 else None
         self.initial = sim.checkpoint()  # where reset_simulation goes back to
-        self.state_out_yet = False  # whether a state has gone out (a reset then sends the initial one)
-        self.abandoned_ns: int | None = None  # the stamp a reset stopped waiting for (its answer dropped quietly)
         self._begin_run()
         # joint_commands: the limit each joint's efforts are saturated to (0: none; the drive: its voltage limit)
         self.effort_limit: Vector = plant.motors.torque_limit if self.drive is None else np.zeros(sim.n)
@@ -196,16 +201,21 @@ class SimulatorStepper:
             lines.append(f"initial position projected onto the contacts: {projected} (moved {moved:.3g} at most)")
         return lines
 
-    def reset(self) -> None:
+    def reset(self, rebuilt: tuple[SimulatorConfig, Plant, Simulator] | None = None) -> None:
         """Back to the run's initial state (reset_simulation), with the parameters as they are: the engine's
         state (q, dq, the windings' currents and temperatures, the energy integrals), its contact modes and
         events, the step count (the sim clock: the next state is stamped as the first was), the held and
-        pending commands, the sensors' filters and noise, the current loop and the run's watch. A state already
-        out is sent again from the start (the controller sees its time go back); the answer to the state
-        waited for is dropped without a word. Real time: the pace starts again now."""
+        pending commands, the sensors' filters and noise, the current loop and the run's watch. ``rebuilt``:
+        the configuration, plant and simulator a fresh process builds from the parameters as they are now (a
+        per-run one changed), the next run's instead of this one's. A state already out is sent again from the
+        start (the controller sees its time go back); the answer to the state waited for is dropped without a
+        word. Real time: the pace starts again now."""
         self.abandoned_ns = self.now_ns
-        self.sim.restore(self.initial)
-        self._begin_run()
+        if rebuilt is None:
+            self.sim.restore(self.initial)
+            self._begin_run()
+        else:
+            self._build(*rebuilt)
         self._started = self.clock()
         self.log.info(f"reset_simulation: back to the initial state at t = {self.sim.time:.6f} s")
         if self.state_out_yet:

@@ -10,7 +10,10 @@ With ``use_sim_time`` it follows its own /clock, each message checked first (``b
 Service ``reset_simulation`` (std_srvs/srv/Empty, as gazebo_ros names it): back to the initial state
 (``SimulatorStepper.reset``), answered between steps; the run's start warnings are said again. With
 ``wait_for_reset`` a lockstep simulator stays at its run's end, and a reset starts the next run: one process
-for a sequence of runs (their recorder ``bracing-recorder --stay``).
+for a sequence of runs (their recorder ``bracing-recorder --stay``). A per-run parameter set while it runs
+(``bracing_core.run_parameters``: ``bracing``, ``free_space``) is checked as at start and taken at the next
+reset, which builds the run from the parameters as they then are, as a fresh process does; any other change is
+refused (it needs a fresh start).
 """
 
 from __future__ import annotations
@@ -19,18 +22,21 @@ import sys
 import time
 from collections.abc import Callable
 
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Empty
 
-from bracing_core import schema
-from bracing_core.config import SimulatorConfig, build_simulator
+from bracing_core import run_parameters, schema
+from bracing_core.config import Plant, SimulatorConfig, build_simulator
 from bracing_core.failures import DIVERGED, EXIT_DIVERGED
 from bracing_core.meshes import missing_warning
 from bracing_core.message_limits import MessageLimits, SizeError
-from bracing_core.simulator import DivergenceError
+from bracing_core.params import ConfigError
+from bracing_core.simulator import DivergenceError, Simulator
 from bracing_core.step_timing import WorkTimer
 from bracing_core.stepping import SimulatorStepper
 from bracing_core.types import Vector
@@ -48,7 +54,7 @@ from bracing_ros.status import StatusPublisher
 from bracing_ros.stop_signal import StoppableExecutor
 from bracing_ros.waiter import SubscriptionWaiter
 from bracing_sim.rcl_path import STATE_PATH_LINE, RclCommands, commands_on_rcl
-from bracing_sim.topics import SimulatorTopics
+from bracing_sim.topics import SimulatorTopics, topics_key
 
 COMMAND_PATH_WHERE = "the motor_command path (C++ on rcl: CommandPath.take)"
 """Where a failure of the command path on rcl is said to be (``bracing_ros.node_failure``)."""
@@ -62,7 +68,8 @@ class SimulatorNode(Node):
         super().__init__("bracing_simulator", **kwargs)  # type: ignore[arg-type]
         values = schema.read("simulator", parameters.given_parameters(self))
         self.config = config = SimulatorConfig.from_values(values)
-        parameters.declare(self, "simulator", values)  # read-only: nothing changes during a run
+        parameters.declare(self, "simulator", values, checked=True)  # per-run changes: at the next reset
+        self.running = run_parameters.per_run_values("simulator", parameters.current_values(self, "simulator"))
         self.plant, self.sim = build_simulator(config)
         self.joint_names = list(self.plant.joint_names)
         self.status = StatusPublisher(self)  # what bracing-pair follows
@@ -102,12 +109,46 @@ class SimulatorNode(Node):
         self.start_warnings = [missing_warning(missing_meshes)] if missing_meshes else []
         self.core.say(self.start_warnings + self.core.watch.start())
         self.create_service(Empty, "reset_simulation", self.on_reset_simulation)
+        self.add_on_set_parameters_callback(self.on_set_parameters)
         self.status.say(RunStatus.CONFIGURED, self.sim.time)
 
     def on_reset_simulation(self, _request: Empty.Request, response: Empty.Response) -> Empty.Response:
-        self.core.reset()
+        current = parameters.current_values(self, "simulator")
+        changed = run_parameters.per_run_values("simulator", current) != self.running
+        self.core.reset(self.next_run(current) if changed else None)
+        if changed:
+            self.running = run_parameters.per_run_values("simulator", current)
+            self.config, self.plant, self.sim = self.core.config, self.core.plant, self.core.sim
+            for line in self.core.start_lines():
+                self.log.info(line)
         self.core.say(self.start_warnings + self.core.watch.start())  # a new run: warned as the first was
         return response
+
+    def next_run(self, params: dict[str, object]) -> tuple[SimulatorConfig, Plant, Simulator]:
+        """The configuration, plant and simulator a fresh process started with ``params`` builds (its start
+        checked); a ConfigError as that start would print it."""
+        params = {**params, "robot.urdf": str(self.config.shared.urdf)}  # as this process resolved it
+        config = SimulatorConfig.from_values(run_parameters.next_run_values("simulator", params, []))
+        return (config, *build_simulator(config))
+
+    def on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
+        """A change while running: per-run parameters checked as at start (taken at the next reset), any other
+        refused (``bracing_core.run_parameters``)."""
+        given = [(change.name, parameters.plain(change.value)) for change in changes]
+        reason = run_parameters.refusal("simulator", [name for name, _ in given])
+        if reason is None:
+            try:
+                config, plant, _ = self.next_run(parameters.current_values(self, "simulator") | dict(given))
+            except ConfigError as exc:
+                reason = str(exc)
+            else:
+                if topics_key(config, plant) != topics_key(self.config, self.plant):
+                    names = ", ".join(name for name, _ in given)
+                    reason = f"{names}: changes the simulator's topics: needs a fresh start"
+        if reason is not None:
+            return SetParametersResult(successful=False, reason=reason)
+        self.log.info("from the next run (reset_simulation): " + ", ".join(f"{n} = {v}" for n, v in given))
+        return SetParametersResult(successful=True)
 
     # -- messages in ----------------------------------------------------------------
     def on_joint_command(self, data: bytes) -> None:

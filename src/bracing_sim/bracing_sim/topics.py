@@ -40,6 +40,32 @@ from bracing_ros.status import StatusPublisher
 from bracing_sim.rcl_path import reports_on_rcl, state_on_rcl
 
 
+def topics_key(config: SimulatorConfig, plant: Plant) -> tuple[object, ...]:
+    """What ``SimulatorTopics`` and the node's command readers build from a configuration: two configurations with
+    the same key need the same publishers, encoders and C++ paths (a per-run parameter may change nothing else)."""
+    contacts = tuple((c.name, c.frame) for c in plant.contact_set.contacts)
+    robot, shared = plant.robot, config.shared
+    return (
+        tuple(plant.joint_names),
+        tuple(c.name for c in shared.contacts),
+        contacts,
+        config.sensors.exact,
+        shared.collision_geometry,
+        shared.base,
+        tuple(robot.locked_joints),
+        tuple(robot.locked_positions),
+        config.command_source,
+        config.joint_states_topic,
+        config.joint_commands_topic,
+        config.record_batch,
+        plant.thermal,
+        plant.mode,
+        plant.command_limit.tobytes(),
+        config.max_message_elements,
+        config.max_name_length,
+    )
+
+
 class SimulatorTopics:
     """The simulator node's publishers and encoders; a ``StepOutlet``."""
 

@@ -9,7 +9,8 @@ validates a flat parameter dict into typed values for the configuration classes
 Scenario files have a ``/**`` section read by both nodes (:data:`SHARED`, and the per-contact
 fields :data:`CONTACT` under ``contacts.<name>.``) and one section per node
 (:data:`SIMULATOR`, :data:`CONTROLLER`). ``tunable`` parameters can be set while the
-controller runs; every other parameter is read-only once a node has started.
+controller runs; ``per_run`` ones while either node runs, taken from its next run on
+(``bracing_core.run_parameters``); every other one needs a fresh start.
 """
 
 from bracing_core.schema.contact import CONTACT
@@ -119,14 +120,15 @@ def reference_markdown() -> str:
         out += [
             f"**{title}**",
             "",
-            "| parameter | type | default | unit | bounds | tunable | meaning |",
-            "|---|---|---|---|---|---|---|",
+            "| parameter | type | default | unit | bounds | tunable | per run | meaning |",
+            "|---|---|---|---|---|---|---|---|",
         ]
         for p in params:
             who = "" if p.nodes == ("simulator", "controller") else f" ({', '.join(p.nodes)})"
-            tunable = "yes" if p.tunable else ""
+            tunable, per_run = ("yes" if p.tunable else ""), ("yes" if p.per_run else "")
             meaning = p.description.replace("|", "\\|") + who
-            row = [f"`{p.name}`", p.kind.value, p.default_text(), p.unit, p.bounds_text().replace("|", "\\|"), tunable]
+            bounds = p.bounds_text().replace("|", "\\|")
+            row = [f"`{p.name}`", p.kind.value, p.default_text(), p.unit, bounds, tunable, per_run]
             out.append("| " + " | ".join([*row, meaning]) + " |")
         out.append("")
     return "\n".join(out)

@@ -54,6 +54,9 @@ class Param:
     may_be_empty: bool = False  # with a length: an empty list is allowed too (and means a default)
     required_if: tuple[str, str] | None = None  # REQUIRED only when parameter [0] equals [1]
     tunable: bool = False  # the controller accepts a new value while it runs
+    # each node accepts a new value while it runs and builds its next run from it, as a fresh process would (the
+    # simulator at reset_simulation, the controller when its states go back in time); bracing_core.run_parameters
+    per_run: bool = False
     nodes: tuple[str, ...] = ("simulator", "controller")  # CONTACT fields: who uses it
 
     @property

@@ -262,6 +262,7 @@ SHARED: tuple[Param, ...] = (
         Kind.BOOL,
         True,
         "false: no brace tasks and no desired forces; every contact is an obstacle (bracing-pair --no-bracing)",
+        per_run=True,
     ),
     Param(
         "free_space",
@@ -269,6 +270,7 @@ SHARED: tuple[Param, ...] = (
         False,
         "true: the surfaces are removed (only watched, for the penetration report); the paper's free comparison "
         "(bracing-pair --free-space)",
+        per_run=True,
     ),
 )
 
