@@ -36,8 +36,11 @@ for name, values in json.loads(sys.argv[1]).items():
     assert client.wait_for_service(timeout_sec=30.0), "no parameter service of " + name
     request = SetParameters.Request()
     request.parameters = [Parameter(k, value=v).to_parameter_msg() for k, v in values.items()]
-    future = client.call_async(request)
-    rclpy.spin_until_future_complete(node, future, timeout_sec=30.0)
+    for attempt in range(10):  # a set is idempotent: asked again if Fast DDS dropped its response (unmatched)
+        future = client.call_async(request)
+        rclpy.spin_until_future_complete(node, future, timeout_sec=3.0)
+        if future.done():
+            break
     results[name] = [[r.successful, r.reason] for r in future.result().results]
 print(json.dumps(results))
 """
