@@ -207,7 +207,9 @@ class Simulator:
         non-finite effort; the state is then as it was before the step (as ``restore`` takes it back). Kept: the
         engine's ``Advance`` (its answer, effort, the largest held |C| as ``measured``, the currents, temperatures
         and energies at the step's start)."""
-        u = self._command(command)
+        u = np.asarray(command, dtype=float)
+        if u.ndim != 1:
+            self._command(u)  # raises its ValueError
         time = self.time
         try:
             result = self.engine.advance(u, divergence_speed, divergence_residual, evaluate_effort)
@@ -216,6 +218,9 @@ class Simulator:
         finally:
             if self.engine.event_count != len(self.events):
                 self._take_events()
+        if not result.command_taken:  # the engine checks it: no u . u overflows here
+            with np.errstate(over="ignore", invalid="ignore"):
+                self._command(u)  # raises its ValueError
         self._raise_for(result.status, time)
         if result.refusal is not engine.Refusal.none:
             reason = _refusal_reason(result.refusal, result.measured, divergence_speed, divergence_residual)

@@ -330,8 +330,7 @@ class SimulatorStepper:
         t_ns = self.now_ns
         command = self.sensors.delay(command) if self.sensors is not None else command
         try:
-            with np.errstate(over="ignore", invalid="ignore"):  # an overflow is reported as a refusal
-                step = self._advance(command)
+            step = self._advance(command)  # in the engine: an overflow is reported as a refusal
         except DivergenceError as exc:
             if self.sensors is not None:
                 self.sensors.take_back()
@@ -463,8 +462,7 @@ class SimulatorStepper:
         command = self.command if self.config.watchdog_policy == "hold" else np.zeros(sim.n)
         checkpoint = sim.checkpoint()
         try:
-            with np.errstate(over="ignore", invalid="ignore"):
-                self._advance(self.sensors.delay(command) if self.sensors is not None else command)
+            self._advance(self.sensors.delay(command) if self.sensors is not None else command)
             finite = True
         except (DivergenceError, np.linalg.LinAlgError):
             finite = False

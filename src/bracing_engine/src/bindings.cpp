@@ -35,6 +35,7 @@ struct StepResult {
 // One step as the simulator node takes it (Simulator.advance): its status and refusal, and what the node sends
 // of a step kept.
 struct Advance {
+  bool command_taken = true;           // false: u is not one finite value per joint (nothing done)
   StepStatus status = StepStatus::ok;  // the engine's verdict on the step
   Refusal refusal = Refusal::none;     // the node's on a step taken (non_finite too for a non-finite effort)
   double measured = 0.0;               // the refusal's measure, or the largest held |C| of a step kept
@@ -43,13 +44,17 @@ struct Advance {
   Vector current, temperature, energy;  // at the step's start (energy in EnergySlot order)
 };
 
-// Step with u held, judge the step as the node does (the engine's status, then Simulator::refusal, then a finite
+// Step with u held (one finite value per joint, else nothing is done), judge the step as the node does (the engine's status, then Simulator::refusal, then a finite
 // effort: the model at the new state under u if `evaluate_effort`, else u itself) and take back any step not
 // kept, as the node's checkpoint and restore did: the state, the step count, the contact modes as they were
 // before the step's start, the event log. One call, the GIL released: the node's per-state path.
 Advance advance(Simulator& s, const Vector& u, double speed_limit, double residual_limit, bool evaluate_effort) {
   Advance out;
   nb::gil_scoped_release unlocked;
+  if (u.size() != s.nv() || !u.allFinite()) {
+    out.command_taken = false;
+    return out;
+  }
   const Vector start = s.state();
   const long steps = s.steps_taken;
   const ContactModes modes = s.modes();
@@ -371,6 +376,7 @@ void bind_state(nb::module_& m) {
       BRACING_RO_DOC(State, temperature, "the windings' T [degC]")
       BRACING_RO_DOC(State, energy, "the energy integrals [J], in EnergySlot order");
   nb::class_<Advance>(m, "Advance", "a step as the simulator node takes it (Simulator.advance)")
+      BRACING_RO_DOC(Advance, command_taken, "false: the command is not one finite value per joint (nothing done)")
       BRACING_RO_DOC(Advance, status, "the engine's verdict: not ok, the step was refused and the state is as it was")
       BRACING_RO_DOC(Advance, refusal, "the node's on a step taken (not none: taken back)")
       BRACING_RO_DOC(Advance, measured, "the refusal's measure (speed, temperature, |C|), or the largest held |C|")

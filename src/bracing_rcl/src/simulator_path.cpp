@@ -101,6 +101,15 @@ class CommandPath {
   rcl_serialized_message_t taken_ = rmw_get_zero_initialized_serialized_message();
 };
 
+// A step's numbers as the engine's answer and the stepping policy hand them over (numpy arrays).
+using Column = nb::ndarray<const double, nb::ndim<1>, nb::device::cpu>;
+using Points = nb::ndarray<const double, nb::ndim<2>, nb::device::cpu>;  // p x 3
+using Flags = nb::ndarray<const bool, nb::ndim<1>, nb::device::cpu>;
+
+void append(std::vector<double>& values, const Column& column) {
+  for (std::size_t k = 0; k < column.shape(0); ++k) values.push_back(column(k));
+}
+
 // What one StatePath.publish sent: its bytes (for the record batch), and the writes' time.
 struct StateSent {
   std::optional<nb::bytes> joint_state, clock;  // keeping bytes: the messages published
@@ -118,18 +127,16 @@ class StatePath {
   }
 
   // joint_states (position, velocity, effort) then /clock, stamped stamp_ns.
-  StateSent publish(std::int64_t stamp_ns, const std::vector<double>& position, const std::vector<double>& velocity,
-                    const std::vector<double>& effort) {
+  StateSent publish(std::int64_t stamp_ns, const Column& position, const Column& velocity, const Column& effort) {
     const std::size_t n = joint_state_.values() / 3;
-    if (position.size() != n || velocity.size() != n || effort.size() != n) {
+    if (position.shape(0) != n || velocity.shape(0) != n || effort.shape(0) != n) {
       throw std::invalid_argument("a state's vectors do not fit its layout");
     }
     StateSent out;
     {
       nb::gil_scoped_release unlocked;
-      values_.assign(position.begin(), position.end());
-      values_.insert(values_.end(), velocity.begin(), velocity.end());
-      values_.insert(values_.end(), effort.begin(), effort.end());
+      values_.clear();
+      for (const Column* column : {&position, &velocity, &effort}) append(values_, *column);
       joint_state_.fill(joint_bytes_, stamp_ns, values_);
       out.written_s += publish_bytes(joint_publisher_, joint_bytes_, "joint_states");
       clock_.fill(clock_bytes_, stamp_ns, {});
@@ -151,14 +158,6 @@ class StatePath {
   std::vector<std::uint8_t> joint_bytes_, clock_bytes_;
 };
 
-// A step's numbers as the engine's answer and the stepping policy hand them over (numpy arrays).
-using Column = nb::ndarray<const double, nb::ndim<1>, nb::device::cpu>;
-using Points = nb::ndarray<const double, nb::ndim<2>, nb::device::cpu>;  // p x 3
-using Flags = nb::ndarray<const bool, nb::ndim<1>, nb::device::cpu>;
-
-void append(std::vector<double>& values, const Column& column) {
-  for (std::size_t k = 0; k < column.shape(0); ++k) values.push_back(column(k));
-}
 
 void append_row(std::vector<double>& values, const Points& points, std::size_t row) {
   for (std::size_t k = 0; k < 3; ++k) values.push_back(points(row, k));
