@@ -11,7 +11,8 @@ it hands to the node's Python path as its bytes, so each refusal and saturation 
 implementation (``bracing_ros.commands``). When a state is joint_states and /clock alone (``state_on_rcl``)
 those two are written from their templates and published in C++ too (``bracing_rcl.StatePath``), and so are
 the step's reports, contact_wrench/<name>, contacts and motor_state (``bracing_rcl.ReportPath``: the contact
-set's names and frames and motor_state's lengths are fixed per run). The engine's step stays Python's.
+set's names and frames and motor_state's lengths are fixed per run). The engine's step is one call on either
+path (``bracing_core.simulator.Simulator.advance``: stepped, judged and taken back if refused, the GIL released).
 """
 
 from __future__ import annotations
