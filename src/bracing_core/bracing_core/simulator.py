@@ -210,7 +210,6 @@ class Simulator:
         u = np.asarray(command, dtype=float)
         if u.ndim != 1:
             self._command(u)  # raises its ValueError
-        time = self.time
         try:
             result = self.engine.advance(u, divergence_speed, divergence_residual, evaluate_effort)
         except engine.SingularError as exc:
@@ -221,7 +220,8 @@ class Simulator:
         if not result.command_taken:  # the engine checks it: no u . u overflows here
             with np.errstate(over="ignore", invalid="ignore"):
                 self._command(u)  # raises its ValueError
-        self._raise_for(result.status, time)
+        if result.status is not engine.StepStatus.ok:  # taken back: the time is the step's start
+            self._raise_for(result.status, self.time)
         if result.refusal is not engine.Refusal.none:
             reason = _refusal_reason(result.refusal, result.measured, divergence_speed, divergence_residual)
             raise DivergenceError(reason)
