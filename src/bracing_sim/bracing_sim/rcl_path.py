@@ -90,7 +90,7 @@ class RclCommands:
 
     def wait(self, timeout_s: float) -> bool:
         """Whether a motor_command came within ``timeout_s`` [s] (the wait in C++ on rcl, without the GIL)."""
-        ready = self.path.wait(int(timeout_s * 1e9))
+        ready = self.path.wait(max(0, int(timeout_s * 1e9)))  # rcl_wait: a negative timeout blocks for good
         if not self.node.context.ok():
             raise ExternalShutdownException()
         return ready
