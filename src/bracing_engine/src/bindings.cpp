@@ -44,10 +44,11 @@ struct Advance {
   Vector current, temperature, energy;  // at the step's start (energy in EnergySlot order)
 };
 
-// Step with u held (one finite value per joint, else nothing is done), judge the step as the node does (the engine's status, then Simulator::refusal, then a finite
-// effort: the model at the new state under u if `evaluate_effort`, else u itself) and take back any step not
-// kept, as the node's checkpoint and restore did: the state, the step count, the contact modes as they were
-// before the step's start, the event log. One call, the GIL released: the node's per-state path.
+// Step with u held (one finite value per joint, else nothing is done), judge the step as the node does (the
+// engine's status, then Simulator::refusal, then a finite effort: the model at the new state under u if
+// `evaluate_effort`, else u itself) and take back any step not kept, as the node's checkpoint and restore did:
+// the state, the step count, the contact modes as they were before the step's start, the event log. One call,
+// the GIL released: the node's per-state path.
 Advance advance(Simulator& s, const Vector& u, double speed_limit, double residual_limit, bool evaluate_effort) {
   Advance out;
   nb::gil_scoped_release unlocked;
@@ -60,7 +61,9 @@ Advance advance(Simulator& s, const Vector& u, double speed_limit, double residu
   const ContactModes modes = s.modes();
   const std::size_t events = s.events().size();
   const auto n = s.nv();
-  out.current = start.segment(2 * n, n), out.temperature = start.segment(3 * n, n), out.energy = start.tail(kEnergies);
+  out.current = start.segment(2 * n, n);
+  out.temperature = start.segment(3 * n, n);
+  out.energy = start.tail(kEnergies);
   out.status = s.step(u);
   if (out.status == StepStatus::ok) {
     out.refusal = s.refusal(speed_limit, residual_limit, out.measured);

@@ -181,7 +181,6 @@ class StatePath {
   std::vector<std::uint8_t> joint_bytes_, clock_bytes_;
 };
 
-
 void append_row(std::vector<double>& values, const Points& points, std::size_t row) {
   for (std::size_t k = 0; k < 3; ++k) values.push_back(points(row, k));
 }
@@ -298,7 +297,8 @@ void bind_simulator_path(nb::module_& m) {
       .def_ro("values", &CommandTake::values, "taken: the command, the simulator's joint order [V or N m]")
       .def_ro("data", &CommandTake::data, "python: the message's CDR bytes");
   nb::class_<CommandPath>(m, "CommandPath", "the simulator's motor_command path on rcl")
-      .def(nb::init<nb::capsule, std::uintptr_t, std::uintptr_t, std::uintptr_t, const Layout&, std::vector<double>>(),
+      .def(nb::init<nb::capsule, std::uintptr_t, std::uintptr_t, std::uintptr_t, const Layout&,
+                    std::vector<double>>(),
            "command_api"_a, "subscription"_a, "context"_a, "guard_condition"_a, "command"_a, "limit"_a)
       .def("wait", &CommandPath::wait, "timeout_ns"_a,
            "wait up to timeout_ns [ns] for a motor_command (or the guard condition), the GIL released; whether one "
