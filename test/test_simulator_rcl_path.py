@@ -14,6 +14,7 @@ import re
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -22,6 +23,7 @@ from geometry_msgs.msg import WrenchStamped
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from rclpy.context import Context
+from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile
 from rclpy.serialization import deserialize_message
@@ -89,12 +91,13 @@ def command(names: list[str], values: list[float], mode: int = MotorCommand.VOLT
     return msg
 
 
-CommandTopic = tuple[Publisher, Subscription, SubscriptionWaiter]
+CommandTopic = tuple[Publisher, Subscription, SubscriptionWaiter, Node]
 
 
 @pytest.fixture
 def command_topic(monkeypatch: pytest.MonkeyPatch) -> Iterator[CommandTopic]:
-    """motor_command in a domain of its own: a publisher, a raw subscription and its waiter, in this process."""
+    """motor_command in a domain of its own: a publisher, a raw subscription and its waiter, their node, in this
+    process."""
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     context = Context()
     rclpy.init(context=context, domain_id=hold_test_domain())
@@ -106,9 +109,19 @@ def command_topic(monkeypatch: pytest.MonkeyPatch) -> Iterator[CommandTopic]:
             node.create_publisher(MotorCommand, "motor_command", qos),
             subscription,
             SubscriptionWaiter(node, subscription),
+            node,
         )
     finally:
         rclpy.try_shutdown(context=context)
+
+
+def command_path(node: Node, subscription: Subscription, layout: Layout, limit: list[float]) -> CommandPath:
+    """A CommandPath on ``subscription`` (its wait's guard condition one of ``node``'s)."""
+    interrupt = node.create_guard_condition(lambda: None)
+    context: Any = node.context.handle  # rclpy's stubs know no pointer (its rcl_context_t*)
+    return CommandPath(
+        command_api(), subscription.handle.pointer, context.pointer, interrupt.handle.pointer, layout, limit
+    )
 
 
 def test_the_command_path_reads_only_what_needs_no_word(command_topic: CommandTopic) -> None:
@@ -116,7 +129,7 @@ def test_the_command_path_reads_only_what_needs_no_word(command_topic: CommandTo
     within the limits is read (its stamp and values exactly); every other one comes back as its bytes (the
     message sent) for the Python path: the joints shuffled, a NaN, a value over its joint's limit, another mode,
     too few joints."""
-    publisher, subscription, waiter = command_topic
+    publisher, subscription, _, node = command_topic
     names, limit = ["joint1", "joint2", "joint3", "joint4"], [5.0, 0.0, 5.0, 5.0]  # joint2: no limit
     template = wire.MotorCommandDecoder(names, MotorCommand.VOLTAGE).template
     good = command(names, [1.5, -300.0, 5.0, -0.25])
@@ -127,13 +140,14 @@ def test_the_command_path_reads_only_what_needs_no_word(command_topic: CommandTo
         command(names, [1.5, 0.0, 0.0, 0.0], MotorCommand.TORQUE),
         command(names[:3], [1.5, 0.0, 0.0]),
     ]
-    path = CommandPath(command_api(), subscription.handle.pointer, Layout(*template.layout()), limit)
+    path = command_path(node, subscription, Layout(*template.layout()), limit)
     taken = []
     for msg in [good, *handed_over]:
         publisher.publish(msg)
-        assert waiter.wait(10.0), "the command did not come"
+        assert path.wait(10_000_000_000), "the command did not come"  # its wait on rcl, in C++
         taken.append(path.take())
         assert path.take().status == CommandStatus.empty
+    assert not path.wait(1_000_000)  # nothing more came
     assert taken[0].status == CommandStatus.taken and taken[0].data is None
     assert taken[0].stamp_ns == 3_250_000_000 and taken[0].values == [1.5, -300.0, 5.0, -0.25]
     for take, msg in zip(taken[1:], handed_over, strict=True):
@@ -239,7 +253,7 @@ def test_both_command_paths_apply_one_value_rule(command_topic: CommandTopic) ->
     C++ path (CommandPath on rcl) reads a command exactly when the Python path (command_vector) takes it without a
     word, with the same values bit for bit; the Python path refuses a non-finite value naming its joints and
     saturates as np.clip did, bit for bit (the NumPy rule both replaced)."""
-    publisher, subscription, waiter = command_topic
+    publisher, subscription, waiter, node = command_topic
     layout = Layout(*wire.MotorCommandDecoder(JOINTS, MotorCommand.VOLTAGE).template.layout())
 
     @settings(max_examples=300, deadline=None, derandomize=True, database=None,
@@ -247,7 +261,7 @@ def test_both_command_paths_apply_one_value_rule(command_topic: CommandTopic) ->
     @given(limited_values())
     def agree(case: tuple[list[float], list[float]]) -> None:
         values, limit = case
-        path = CommandPath(command_api(), subscription.handle.pointer, layout, limit)
+        path = command_path(node, subscription, layout, limit)
         publisher.publish(command(JOINTS, values))
         assert waiter.wait(10.0), "the command did not come"
         taken = path.take()

@@ -144,6 +144,43 @@ def test_a_refused_step_rolls_back_exactly_and_sends_nothing() -> None:
     assert core.refusal and np.array_equal(core.command, U)
 
 
+def engine_snapshot(core: SimulatorStepper) -> tuple[Any, ...]:
+    """``snapshot`` and the engine's contact modes (sticking contacts, slide directions, signs of f_n held)."""
+    modes = core.sim.engine.modes
+    return (*snapshot(core), list(modes.held), list(modes.sticking), modes.slide.tobytes(), modes.pushing.tobytes())
+
+
+@pytest.mark.parametrize(
+    ("command", "speed", "residual", "reason"),
+    [
+        (np.full(4, 1e300), np.inf, np.inf, "non-finite"),  # the engine's status: the state diverged
+        (U, 0.0, np.inf, "joint speed exceeds divergence_speed 0.0"),  # the node's refusal of a step taken
+        (U, np.inf, 0.0, "constraint residual"),
+    ],
+)
+def test_a_step_the_engine_takes_back_leaves_what_checkpoint_and_restore_leave(
+    command: np.ndarray, speed: float, residual: float, reason: str
+) -> None:
+    """Simulator.advance takes a refused step back in the engine, to where the node's checkpoint and restore
+    took it (the contact modes as before the step's start, the event log, the step count), so the next step
+    is the same bit for bit."""
+    core, *_ = stepper()
+    twin, *_ = stepper()
+    for c in (core, twin):
+        c.advance(U)  # a state with contacts held and energies integrated
+    checkpoint = twin.sim.checkpoint()
+    with np.errstate(over="ignore", invalid="ignore"), pytest.raises(DivergenceError, match=reason):
+        core.sim.advance(command, speed, residual, True)
+    with np.errstate(over="ignore", invalid="ignore"), pytest.raises(DivergenceError):  # the Python path
+        twin.sim.step(command)
+        twin.sim.check(speed, residual)
+    twin.sim.restore(checkpoint)
+    assert engine_snapshot(core) == engine_snapshot(twin)
+    for c in (core, twin):
+        assert c.advance(-U)
+    assert engine_snapshot(core) == engine_snapshot(twin)
+
+
 def test_a_refused_command_is_said_and_the_next_valid_one_is_taken() -> None:
     """The step continues exactly as if the absurd command had never come."""
     core, log, _, clock = stepper()

@@ -185,10 +185,7 @@ class Simulator:
         command of the wrong shape or with non-finite values, DivergenceError if the new
         state is not finite; in both cases the state is unchanged.
         """
-        u = np.asarray(command, dtype=float)
-        # A finite u . u means every entry is finite; otherwise check exactly (u . u may overflow).
-        if u.shape != (self.n,) or (not math.isfinite(u.dot(u)) and not np.isfinite(u).all()):
-            raise ValueError(f"command: expected {self.n} finite values, got {np.ravel(u).tolist()}")
+        u = self._command(command)
         time = self.time
         try:
             result = self.engine.step(u)
@@ -200,6 +197,43 @@ class Simulator:
         self._raise_for(result.status, time)
         assert result.answer is not None  # a step taken (ok) has its answer
         return result.answer
+
+    def advance(
+        self, command: Vector, divergence_speed: float, divergence_residual: float, evaluate_effort: bool
+    ) -> engine.Advance:
+        """The simulator node's step (``step``, then ``check``, then the new state's effort: the model's under
+        ``command`` if ``evaluate_effort``, else the command), in one engine call
+        (``bracing_engine.Simulator.advance``). Raises as ``step`` and ``check`` do, and DivergenceError for a
+        non-finite effort; the state is then as it was before the step (as ``restore`` takes it back). Kept: the
+        engine's ``Advance`` (its answer, effort, the largest held |C| as ``measured``, the currents, temperatures
+        and energies at the step's start)."""
+        u = np.asarray(command, dtype=float)
+        if u.ndim != 1:
+            self._command(u)  # raises its ValueError
+        try:
+            result = self.engine.advance(u, divergence_speed, divergence_residual, evaluate_effort)
+        except engine.SingularError as exc:
+            raise np.linalg.LinAlgError(str(exc)) from None
+        finally:
+            if self.engine.event_count != len(self.events):
+                self._take_events()
+        if not result.command_taken:  # the engine checks it: no u . u overflows here
+            with np.errstate(over="ignore", invalid="ignore"):
+                self._command(u)  # raises its ValueError
+        if result.status is not engine.StepStatus.ok:  # taken back: the time is the step's start
+            self._raise_for(result.status, self.time)
+        if result.refusal is not engine.Refusal.none:
+            reason = _refusal_reason(result.refusal, result.measured, divergence_speed, divergence_residual)
+            raise DivergenceError(reason)
+        return result
+
+    def _command(self, command: Vector) -> Vector:
+        """``command`` as the step holds it, or ValueError for one of the wrong shape or with non-finite values."""
+        u = np.asarray(command, dtype=float)
+        # A finite u . u means every entry is finite; otherwise check exactly (u . u may overflow).
+        if u.shape != (self.n,) or (not math.isfinite(u.dot(u)) and not np.isfinite(u).all()):
+            raise ValueError(f"command: expected {self.n} finite values, got {np.ravel(u).tolist()}")
+        return u
 
     def rollout(
         self,

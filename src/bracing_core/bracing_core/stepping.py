@@ -338,26 +338,20 @@ class SimulatorStepper:
         """
         sim = self.sim
         t_ns = self.now_ns
-        current, temperature, energy = sim.current, sim.temperature, sim.energy  # at the step's start
-        checkpoint = sim.checkpoint()
         command = self.sensors.delay(command) if self.sensors is not None else command
         try:
-            with np.errstate(over="ignore", invalid="ignore"):  # an overflow is reported as a refusal
-                answer = sim.step(command)
-                residual = sim.check(self.config.divergence_speed, self.config.divergence_residual)
-                effort = self.state_effort(command)
-            if not all_finite(effort):
-                raise DivergenceError("non-finite forces or effort")
+            step = self._advance(command)  # in the engine: an overflow is reported as a refusal
         except DivergenceError as exc:
-            sim.restore(checkpoint)
             if self.sensors is not None:
                 self.sensors.take_back()
             self.refusal = str(exc)
             return False
         self.command = command
-        self.max_residual = max(self.max_residual, residual)
-        self.outlet.publish_state(self.state_out(effort))
-        self.outlet.publish_step(self.step_out(t_ns, command, answer, current, temperature, energy))
+        self.max_residual = max(self.max_residual, step.measured)
+        self.outlet.publish_state(self.state_out(step.effort))
+        answer, energy = step.answer, Energy(*step.energy.tolist())  # a kept step has its answer
+        assert answer is not None
+        self.outlet.publish_step(self.step_out(t_ns, command, answer, step.current, step.temperature, energy))
         self.outlet.sent()
         self._take_events()
         self._watch_state(t_ns, answer)
@@ -365,6 +359,14 @@ class SimulatorStepper:
             self.log.info(self.progress_line())
             self.outlet.progress(sim.time)
         return True
+
+    def _advance(self, command: Vector) -> engine.Advance:
+        """The step with ``command`` as the node judges it, in one engine call (``Simulator.advance``): taken back
+        and DivergenceError if refused."""
+        config = self.config
+        return self.sim.advance(
+            command, config.divergence_speed, config.divergence_residual, self.mode is InputMode.VOLTAGE
+        )
 
     def _take_events(self) -> None:
         """Log the contact events of the step just taken (not Coulomb friction's) and give them to the watch."""
@@ -470,10 +472,8 @@ class SimulatorStepper:
         command = self.command if self.config.watchdog_policy == "hold" else np.zeros(sim.n)
         checkpoint = sim.checkpoint()
         try:
-            with np.errstate(over="ignore", invalid="ignore"):
-                sim.step(self.sensors.delay(command) if self.sensors is not None else command)
-                sim.check(self.config.divergence_speed, self.config.divergence_residual)
-                finite = all_finite(self.state_effort(command))
+            self._advance(self.sensors.delay(command) if self.sensors is not None else command)
+            finite = True
         except (DivergenceError, np.linalg.LinAlgError):
             finite = False
         finally:

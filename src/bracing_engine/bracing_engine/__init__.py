@@ -4,7 +4,8 @@ contacts), ``Law`` is the decoupled control law with its task ``Path``s, and ``r
 closed loop (law + simulator) for many steps without coming back to Python; ``Sensors`` is what a
 real arm's controller measures and how late its commands land. Specifications cross whole, by keyword
 (``Robot``, ``Drive``, ``LawSpec``, ``SensorSpec``); answers as structures with named fields (``Answer``,
-``StepResult``, ``State``, ``LawOutput``, ``Recording``, ``ContactEvent``, ``ContactModes``), kinds as
+``StepResult``, ``Advance``: the simulator node's step, ``State``, ``LawOutput``, ``Recording``, ``ContactEvent``,
+``ContactModes``), kinds as
 enums (``StepStatus``, ``Refusal``, ``EventKind``, ``PathKind``, ``EnergySlot``). ``check_command`` is the motor
 command's value rule (finite, saturated to the limits: ``CommandCheck``) of both of the simulator's command paths,
 the C++ one through ``command_api`` (as ``state_refusal`` and ``law_api`` serve the controller's). The build writes the
@@ -16,6 +17,7 @@ import pinocchio  # first: the engine links the libpinocchio this loads (one cop
 from bracing_engine._engine import (
     PINOCCHIO_VERSION,
     WINDING_TEMPERATURE_LIMIT,
+    Advance,
     Answer,
     BracedContact,
     CommandCheck,
@@ -61,6 +63,7 @@ if PINOCCHIO_VERSION != pinocchio.__version__:
 
 __all__ = [
     "WINDING_TEMPERATURE_LIMIT",
+    "Advance",
     "Answer",
     "BracedContact",
     "CommandCheck",

@@ -32,6 +32,57 @@ struct StepResult {
   std::optional<ModalAnswer> answer;  // moved in and out: the answer's arrays are copied once
 };
 
+// One step as the simulator node takes it (Simulator.advance): its status and refusal, and what the node sends
+// of a step kept.
+struct Advance {
+  bool command_taken = true;           // false: u is not one finite value per joint (nothing done)
+  StepStatus status = StepStatus::ok;  // the engine's verdict on the step
+  Refusal refusal = Refusal::none;     // the node's on a step taken (non_finite too for a non-finite effort)
+  double measured = 0.0;               // the refusal's measure, or the largest held |C| of a step kept
+  std::optional<ModalAnswer> answer;   // kept: the model at the step's start
+  Vector effort;                       // kept: JointState.effort at the new state under the command
+  Vector current, temperature, energy;  // at the step's start (energy in EnergySlot order)
+};
+
+// Step with u held (one finite value per joint, else nothing is done), judge the step as the node does (the
+// engine's status, then Simulator::refusal, then a finite effort: the model at the new state under u if
+// `evaluate_effort`, else u itself) and take back any step not kept, as the node's checkpoint and restore did:
+// the state, the step count, the contact modes as they were before the step's start, the event log. One call,
+// the GIL released: the node's per-state path.
+Advance advance(Simulator& s, const Vector& u, double speed_limit, double residual_limit, bool evaluate_effort) {
+  Advance out;
+  nb::gil_scoped_release unlocked;
+  if (u.size() != s.nv() || !u.allFinite()) {
+    out.command_taken = false;
+    return out;
+  }
+  const Vector start = s.state();
+  const long steps = s.steps_taken;
+  const ContactModes modes = s.modes();
+  const std::size_t events = s.events().size();
+  const auto n = s.nv();
+  out.current = start.segment(2 * n, n);
+  out.temperature = start.segment(3 * n, n);
+  out.energy = start.tail(kEnergies);
+  out.status = s.step(u);
+  if (out.status == StepStatus::ok) {
+    out.refusal = s.refusal(speed_limit, residual_limit, out.measured);
+    if (out.refusal == Refusal::none) {
+      out.answer.emplace(s.report, s.report_modes());  // before evaluate replaces the report
+      if (evaluate_effort) s.evaluate(u);
+      out.effort = evaluate_effort ? s.report.effort : u;
+      if (!out.effort.allFinite()) out.refusal = Refusal::non_finite;
+    }
+    if (out.refusal == Refusal::none) return out;
+  }
+  s.set_state(start);
+  s.steps_taken = steps;
+  s.truncate_events(events);
+  s.set_modes(modes);
+  out.answer.reset();
+  return out;
+}
+
 // A contact event as Python reads it: when (the state's stamp as the controller reads it, plus the offset into
 // the step) and which contact, by name.
 struct TimedEvent {
@@ -327,6 +378,16 @@ void bind_state(nb::module_& m) {
       BRACING_RO_DOC(State, current, "i [A] (zeros in torque mode)")
       BRACING_RO_DOC(State, temperature, "the windings' T [degC]")
       BRACING_RO_DOC(State, energy, "the energy integrals [J], in EnergySlot order");
+  nb::class_<Advance>(m, "Advance", "a step as the simulator node takes it (Simulator.advance)")
+      BRACING_RO_DOC(Advance, command_taken, "false: the command is not one finite value per joint (nothing done)")
+      BRACING_RO_DOC(Advance, status, "the engine's verdict: not ok, the step was refused and the state is as it was")
+      BRACING_RO_DOC(Advance, refusal, "the node's on a step taken (not none: taken back)")
+      BRACING_RO_DOC(Advance, measured, "the refusal's measure (speed, temperature, |C|), or the largest held |C|")
+      BRACING_RO_DOC(Advance, answer, "a step kept: the model's answer at its start (else None)")
+      BRACING_RO_DOC(Advance, effort, "a step kept: JointState.effort at the new state under the command")
+      BRACING_RO_DOC(Advance, current, "i [A] at the step's start")
+      BRACING_RO_DOC(Advance, temperature, "the windings' T [degC] at the step's start")
+      BRACING_RO_DOC(Advance, energy, "the energy integrals [J] at the step's start, in EnergySlot order");
   nb::class_<StepResult>(m, "StepResult", "a step's outcome (Simulator.step)")
       BRACING_RO(StepResult, status)
       BRACING_RO_DOC(StepResult, answer, "the model's answer at the step's start; None unless status is ok");
@@ -347,6 +408,10 @@ void bind_simulator(nb::module_& m) {
           },
           "u"_a, "the step's status and the answer at its start (None unless ok: the state is then unchanged, "
           "failed_joint names a joint limit)")
+      .def("advance", &advance, "u"_a, "speed_limit"_a, "residual_limit"_a, "evaluate_effort"_a,
+           "a step with u held as the simulator node takes it: stepped, judged (the status, the refusal, a finite "
+           "effort: the model's under u at the new state if evaluate_effort, else u) and taken back unless kept, "
+           "the GIL released")
       .def(
           "evaluate",
           [](Simulator& s, const Vector& u) {

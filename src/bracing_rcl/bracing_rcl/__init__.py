@@ -3,8 +3,8 @@ rclpy subscription's rcl handle and takes it, checks it, runs the engine's law (
 check and the law are the engine's, one implementation for both of the node's paths), and publishes the
 motor_command and then the controller_state on rclpy publishers' rcl handles, with the GIL released, state after
 state until one needs Python (``Served``). What it does not answer itself goes back to the node's Python path as
-bytes (``Status.python``). ``CommandPath`` takes the simulator's motor_commands likewise: read in C++ when they
-need no word said (the engine's value rule, ``bracing_core.command_rule``, the one the Python path applies),
+bytes (``Status.python``). ``CommandPath`` waits for and takes the simulator's motor_commands likewise: read in C++
+when they need no word said (the engine's value rule, ``bracing_core.command_rule``, the one the Python path applies),
 else their bytes for the simulator's Python path (``CommandStatus.python``); ``StatePath`` publishes its
 joint_states and /clock, ``ReportPath`` a step's reports (contact_wrench/<name>, contacts, motor_state)."""
 

@@ -1,4 +1,5 @@
-// The simulator node's command path on rcl's C API: take a motor_command and read it, with the GIL released,
+// The simulator node's command path on rcl's C API: wait for a motor_command (on a wait set of its own, with a
+// stop signal's guard condition), take it and read it, with the GIL released,
 // when it has the layout of the MotorCommand byte template (bracing_ros.wire: the configured mode, the joints
 // by name in the simulator's order) and needs no word said under the engine's value rule (its C ABI,
 // command_api.h, which the Python path calls too): every value finite and within its joint's limit. Any other
@@ -43,9 +44,11 @@ struct CommandTake {
 
 class CommandPath {
  public:
-  CommandPath(nb::capsule command_api, std::uintptr_t subscription, const Layout& command, std::vector<double> limit)
+  CommandPath(nb::capsule command_api, std::uintptr_t subscription, std::uintptr_t context,
+              std::uintptr_t guard_condition, const Layout& command, std::vector<double> limit)
       : command_api_(command_api), api_(static_cast<const BracingCommandApi*>(command_api.data())),
-        subscription_(reinterpret_cast<const rcl_subscription_t*>(subscription)), command_(command),
+        subscription_(reinterpret_cast<const rcl_subscription_t*>(subscription)),
+        guard_condition_(reinterpret_cast<const rcl_guard_condition_t*>(guard_condition)), command_(command),
         limit_(std::move(limit)), values_(limit_.size()), non_finite_(limit_.size()) {
     if (std::strcmp(command_api.name(), BRACING_COMMAND_API_CAPSULE) != 0 ||
         api_->version != BRACING_COMMAND_API_VERSION) {
@@ -54,10 +57,28 @@ class CommandPath {
     if (command_.values() != limit_.size()) throw std::invalid_argument("the layout does not fit the joints' limits");
     rcutils_allocator_t allocator = rcutils_get_default_allocator();
     check(rmw_serialized_message_init(&taken_, 0, &allocator), "rmw_serialized_message_init");
+    check(rcl_wait_set_init(&wait_set_, 1, 1, 0, 0, 0, 0, reinterpret_cast<rcl_context_t*>(context), allocator),
+          "rcl_wait_set_init");
   }
-  ~CommandPath() { (void)rmw_serialized_message_fini(&taken_); }
+  ~CommandPath() {
+    if (rcl_wait_set_fini(&wait_set_) != RCL_RET_OK) rcl_reset_error();  // nothing more to do at the end
+    (void)rmw_serialized_message_fini(&taken_);
+  }
   CommandPath(const CommandPath&) = delete;
   CommandPath& operator=(const CommandPath&) = delete;
+
+  // Wait up to timeout_ns for a motor_command (or the guard condition: a stop signal), the GIL released; whether
+  // one is there to take.
+  bool wait(std::int64_t timeout_ns) {
+    nb::gil_scoped_release unlocked;
+    check(rcl_wait_set_clear(&wait_set_), "rcl_wait_set_clear");
+    check(rcl_wait_set_add_subscription(&wait_set_, subscription_, nullptr), "rcl_wait_set_add_subscription");
+    check(rcl_wait_set_add_guard_condition(&wait_set_, guard_condition_, nullptr), "rcl_wait_set_add_guard_condition");
+    const rcl_ret_t ret = rcl_wait(&wait_set_, timeout_ns);
+    if (ret == RCL_RET_TIMEOUT) return false;
+    check(ret, "rcl_wait");
+    return wait_set_.subscriptions[0] != nullptr;
+  }
 
   // Take the next motor_command, if one is there: read here, or its bytes for the Python path.
   CommandTake take() {
@@ -95,11 +116,22 @@ class CommandPath {
   nb::capsule command_api_;  // holds the engine's table
   const BracingCommandApi* api_;
   const rcl_subscription_t* subscription_;
+  const rcl_guard_condition_t* guard_condition_;
   Layout command_;
   std::vector<double> limit_, values_;
   std::vector<std::size_t> non_finite_;
   rcl_serialized_message_t taken_ = rmw_get_zero_initialized_serialized_message();
+  rcl_wait_set_t wait_set_ = rcl_get_zero_initialized_wait_set();
 };
+
+// A step's numbers as the engine's answer and the stepping policy hand them over (numpy arrays).
+using Column = nb::ndarray<const double, nb::ndim<1>, nb::device::cpu>;
+using Points = nb::ndarray<const double, nb::ndim<2>, nb::device::cpu>;  // p x 3
+using Flags = nb::ndarray<const bool, nb::ndim<1>, nb::device::cpu>;
+
+void append(std::vector<double>& values, const Column& column) {
+  for (std::size_t k = 0; k < column.shape(0); ++k) values.push_back(column(k));
+}
 
 // What one StatePath.publish sent: its bytes (for the record batch), and the writes' time.
 struct StateSent {
@@ -118,18 +150,16 @@ class StatePath {
   }
 
   // joint_states (position, velocity, effort) then /clock, stamped stamp_ns.
-  StateSent publish(std::int64_t stamp_ns, const std::vector<double>& position, const std::vector<double>& velocity,
-                    const std::vector<double>& effort) {
+  StateSent publish(std::int64_t stamp_ns, const Column& position, const Column& velocity, const Column& effort) {
     const std::size_t n = joint_state_.values() / 3;
-    if (position.size() != n || velocity.size() != n || effort.size() != n) {
+    if (position.shape(0) != n || velocity.shape(0) != n || effort.shape(0) != n) {
       throw std::invalid_argument("a state's vectors do not fit its layout");
     }
     StateSent out;
     {
       nb::gil_scoped_release unlocked;
-      values_.assign(position.begin(), position.end());
-      values_.insert(values_.end(), velocity.begin(), velocity.end());
-      values_.insert(values_.end(), effort.begin(), effort.end());
+      values_.clear();
+      for (const Column* column : {&position, &velocity, &effort}) append(values_, *column);
       joint_state_.fill(joint_bytes_, stamp_ns, values_);
       out.written_s += publish_bytes(joint_publisher_, joint_bytes_, "joint_states");
       clock_.fill(clock_bytes_, stamp_ns, {});
@@ -150,15 +180,6 @@ class StatePath {
   std::vector<double> values_;
   std::vector<std::uint8_t> joint_bytes_, clock_bytes_;
 };
-
-// A step's numbers as the engine's answer and the stepping policy hand them over (numpy arrays).
-using Column = nb::ndarray<const double, nb::ndim<1>, nb::device::cpu>;
-using Points = nb::ndarray<const double, nb::ndim<2>, nb::device::cpu>;  // p x 3
-using Flags = nb::ndarray<const bool, nb::ndim<1>, nb::device::cpu>;
-
-void append(std::vector<double>& values, const Column& column) {
-  for (std::size_t k = 0; k < column.shape(0); ++k) values.push_back(column(k));
-}
 
 void append_row(std::vector<double>& values, const Points& points, std::size_t row) {
   for (std::size_t k = 0; k < 3; ++k) values.push_back(points(row, k));
@@ -276,8 +297,12 @@ void bind_simulator_path(nb::module_& m) {
       .def_ro("values", &CommandTake::values, "taken: the command, the simulator's joint order [V or N m]")
       .def_ro("data", &CommandTake::data, "python: the message's CDR bytes");
   nb::class_<CommandPath>(m, "CommandPath", "the simulator's motor_command path on rcl")
-      .def(nb::init<nb::capsule, std::uintptr_t, const Layout&, std::vector<double>>(), "command_api"_a,
-           "subscription"_a, "command"_a, "limit"_a)
+      .def(nb::init<nb::capsule, std::uintptr_t, std::uintptr_t, std::uintptr_t, const Layout&,
+                    std::vector<double>>(),
+           "command_api"_a, "subscription"_a, "context"_a, "guard_condition"_a, "command"_a, "limit"_a)
+      .def("wait", &CommandPath::wait, "timeout_ns"_a,
+           "wait up to timeout_ns [ns] for a motor_command (or the guard condition), the GIL released; whether one "
+           "is there")
       .def("take", &CommandPath::take, "take the next motor_command and read it if it needs nothing else");
   nb::class_<StateSent>(m, "StateSent", "what one StatePath.publish sent")
       .def_ro("joint_state", &StateSent::joint_state, "keeping bytes: joint_states' CDR bytes")

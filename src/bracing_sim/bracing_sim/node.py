@@ -21,6 +21,7 @@ from __future__ import annotations
 import sys
 import time
 from collections.abc import Callable
+from typing import TypeVar
 
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -56,7 +57,7 @@ from bracing_ros.waiter import SubscriptionWaiter
 from bracing_sim.rcl_path import STATE_PATH_LINE, RclCommands, commands_on_rcl
 from bracing_sim.topics import SimulatorTopics, topics_key
 
-COMMAND_PATH_WHERE = "the motor_command path (C++ on rcl: CommandPath.take)"
+COMMAND_PATH_WHERE = "the motor_command path (C++ on rcl: CommandPath.wait and take)"
 """Where a failure of the command path on rcl is said to be (``bracing_ros.node_failure``)."""
 FLUSH_AT_FAILURE_S = 10.0
 """[s] wall the simulator waits, after a divergence or another failure, for the recorder to acknowledge what it
@@ -254,6 +255,20 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
             executor.spin_once(timeout_sec=0.1)
 
 
+T = TypeVar("T")
+
+
+def on_rcl_path(call: Callable[[], T]) -> T:
+    """``call`` on the C++ path; a failure of it (rcl's: the node's handlers raise nothing, ``defended``) as a
+    PathError, a stop as itself."""
+    try:
+        return call()
+    except ExternalShutdownException:
+        raise
+    except Exception as exc:
+        raise PathError(COMMAND_PATH_WHERE, exc) from exc
+
+
 def step_run(node: SimulatorNode, executor: SingleThreadedExecutor, first: bool) -> None:
     """One lockstep run to its end (the final state's reports, FINISHED), from its initial state: sent here
     if ``first``, else by the reset that began the run."""
@@ -261,17 +276,18 @@ def step_run(node: SimulatorNode, executor: SingleThreadedExecutor, first: bool)
     waiter, core, work = SubscriptionWaiter(node, node.command_sub), node.core, WorkTimer()
 
     def receive(timeout_s: float) -> None:
+        rcl = node.command_rcl
         work.pause()  # waiting for the controller is not this node's work
-        ready = waiter.wait(timeout_s)
-        work.resume()
-        if ready and node.command_rcl is not None:
-            try:
-                node.command_rcl.take_queued()
-            except Exception as exc:  # the node's handlers raise nothing (``defended``): the C++ path's (rcl's)
-                raise PathError(COMMAND_PATH_WHERE, exc) from exc
-        else:
+        if rcl is None:
+            ready = waiter.wait(timeout_s)
+            work.resume()
             for _, msg in waiter.take_ready(ready):
                 node.on_command(msg)
+            return
+        came = on_rcl_path(lambda: rcl.wait(timeout_s))
+        work.resume()
+        if came:
+            on_rcl_path(rcl.take_queued)
 
     node.topics.state_out = work.mark  # the controller's wait ends there; the step's reports follow
     if first:

@@ -1,5 +1,5 @@
-"""The simulator's motor_commands taken and its state sent on rcl (``bracing_rcl.CommandPath``, ``StatePath``,
-C++): when the node takes that path, and what it does with each command taken.
+"""The simulator's motor_commands waited for and taken and its state sent on rcl (``bracing_rcl.CommandPath``,
+``StatePath``, C++): when the node takes that path, and what it does with each command taken.
 
 A lockstep run on motor_command takes it, unless ``BRACING_SIMULATOR_PATH=python`` or the joints are more
 than max_message_elements (the Python path refuses such a command by its size). Per message the C++ path
@@ -11,14 +11,17 @@ it hands to the node's Python path as its bytes, so each refusal and saturation 
 implementation (``bracing_ros.commands``). When a state is joint_states and /clock alone (``state_on_rcl``)
 those two are written from their templates and published in C++ too (``bracing_rcl.StatePath``), and so are
 the step's reports, contact_wrench/<name>, contacts and motor_state (``bracing_rcl.ReportPath``: the contact
-set's names and frames and motor_state's lengths are fixed per run). The engine's step stays Python's.
+set's names and frames and motor_state's lengths are fixed per run). The engine's step is one call on either
+path (``bracing_core.simulator.Simulator.advance``: stepped, judged and taken back if refused, the GIL released).
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
+from rclpy.executors import ExternalShutdownException
+from rclpy.signals import SignalHandlerGuardCondition
 
 from bracing_core.command_rule import command_api
 from bracing_core.message_limits import MessageLimits
@@ -29,6 +32,7 @@ from bracing_ros.cdr_template import PER_MESSAGE, derive_template
 from bracing_ros.rcl_choice import python_only_reasons
 
 if TYPE_CHECKING:
+    from rclpy.context import Context
     from rclpy.publisher import Publisher
     from rclpy.subscription import Subscription
 
@@ -54,6 +58,8 @@ class CommandNode(Protocol):
 
     @property
     def log(self) -> NodeLog: ...  # read-only: the node's is a NodeLog's subclass
+    @property
+    def context(self) -> Context: ...
     def on_command(self, data: bytes) -> None: ...
     def on_read_command(self, stamp_ns: int, command: Vector) -> None: ...
 
@@ -68,16 +74,26 @@ def python_only(config: SimulatorConfig, limits: MessageLimits, joints: int) -> 
 
 
 class RclCommands:
-    """The node's motor_commands taken by ``bracing_rcl.CommandPath`` (see the module docstring)."""
+    """The node's motor_commands waited for and taken by ``bracing_rcl.CommandPath`` (see the module docstring)."""
 
     def __init__(self, node: CommandNode, command_sub: Subscription) -> None:
         self.node = node
         limit = np.broadcast_to(np.asarray(node.core.limit, dtype=float), (len(node.joint_names),))
         template = node.command_reader.template
         layout = Layout(*template.layout())
-        self.path = CommandPath(command_api(), command_sub.handle.pointer, layout, limit.tolist())
+        self.interrupt = SignalHandlerGuardCondition(context=node.context)  # a stop signal ends a wait
+        context: Any = node.context.handle  # rclpy's stubs know no pointer (its rcl_context_t*)
+        handles = (command_sub.handle.pointer, context.pointer, self.interrupt.handle.pointer)
+        self.path = CommandPath(command_api(), *handles, layout, limit.tolist())
         self.read = 0  # commands the C++ path read
         self.handed_over = 0  # commands it took and the Python path read
+
+    def wait(self, timeout_s: float) -> bool:
+        """Whether a motor_command came within ``timeout_s`` [s] (the wait in C++ on rcl, without the GIL)."""
+        ready = self.path.wait(max(0, int(timeout_s * 1e9)))  # rcl_wait: a negative timeout blocks for good
+        if not self.node.context.ok():
+            raise ExternalShutdownException()
+        return ready
 
     def line(self) -> str:
         """The log line of what each path did."""

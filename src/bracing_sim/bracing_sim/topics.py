@@ -141,8 +141,7 @@ class SimulatorTopics:
     def publish_state(self, state: StateOut) -> None:
         t_ns = state.t_ns
         if self.state_path is not None:
-            vectors = (state.position.tolist(), state.velocity.tolist(), state.effort.tolist())
-            sent = self.state_path.publish(t_ns, *vectors)
+            sent = self.state_path.publish(t_ns, state.position, state.velocity, state.effort)
             self.batch.written(sent.written_s)
             if sent.joint_state is not None and sent.clock is not None:
                 self.batch.keep(self.joint_pub, sent.joint_state)
