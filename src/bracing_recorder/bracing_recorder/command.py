@@ -38,6 +38,10 @@ time; the two nodes alone 2.61x) for a bag closed ~0.4 s sooner after a 10 s run
 step stays under 10 % this way."""
 
 
+STEPPING_CPU_LINE = "recorder process CPU while the run stepped"
+"""The start of the line that gives ``Recorder.stepping_cpu_us_per_state`` at a bag's close (make bench reads it)."""
+
+
 TUNINGS: tuple[tuple[str, type, float, str], ...] = (
     (
         "--batch",
@@ -206,6 +210,8 @@ def _close_bag(writer: BagWriter, node: Recorder | None, status: StatusPublisher
     print(f"recorder wrote {total} messages to {output}", flush=True)  # a line of its own: tools wait for it
     if node is not None and states:
         print(f"recorder took and wrote them in {node.record_time / states * 1e6:.0f} us of CPU per state", flush=True)
+    if node is not None and (per_state := node.stepping_cpu_us_per_state) is not None:
+        print(f"{STEPPING_CPU_LINE}: {per_state:.1f} us per state", flush=True)  # make bench reads it
     if node is not None and node.derived:
         states = node.counts.get("/tf", 0)
         cost = f", {node.scene_time / states * 1e6:.0f} us of CPU per state" if states else ""

@@ -228,6 +228,7 @@ class Recorder(Node):
         self.derived = 0
         self.scene_time = 0.0  # [s] of CPU spent deriving /tf and markers (what the lockstep loop shares)
         self.record_time = 0.0  # [s] of CPU spent taking and writing messages (what the lockstep loop shares)
+        self.stepping_cpu: tuple[float, int, float, int] | None = None  # see ``_note_stepping_cpu``
         self.last_receive = time.monotonic()
         self._recorded: dict[str, tuple[Connection, str]] = {}  # resolved topic: its connection, its role
         for resolved, type_name, role in self._recorded_table:
@@ -341,7 +342,7 @@ class Recorder(Node):
 
     def record(self, timeout_sec: float) -> int:
         """Write every message available now, waiting up to ``timeout_sec``; the count of samples taken."""
-        start = time.thread_time()  # the wait costs no CPU; the take (rclpy's deserialising) does
+        start, process_start = time.thread_time(), time.process_time()  # the wait costs no CPU; the take does
         taken = self._waiter.take_all(timeout_sec)
         written = 0
         for sub, data in taken:
@@ -363,8 +364,30 @@ class Recorder(Node):
         if taken:
             self.received += written
             self.last_receive = time.monotonic()
+            self._note_stepping_cpu(process_start)
         self.record_time += time.thread_time() - start
         return len(taken)
+
+    def _note_stepping_cpu(self, take_start: float) -> None:
+        """After a take that began at ``take_start`` (``time.process_time``): the process's CPU time [s] (every
+        thread's: DDS's receiving too) and the states recorded (/clock) before the first take that brought
+        states and after the latest, as ``stepping_cpu`` (first time, its states, latest time, its states). What
+        the recorder costs the machine while a run steps, without its start-up (imports, the robot's model)
+        or the scene derived at the end (``stepping_cpu_us_per_state``)."""
+        states = self.counts.get("/clock", 0)
+        if not states:
+            return
+        first, first_states = (take_start, 0) if self.stepping_cpu is None else self.stepping_cpu[:2]
+        self.stepping_cpu = (first, first_states, time.process_time(), states)
+
+    @property
+    def stepping_cpu_us_per_state(self) -> float | None:
+        """The recorder process's CPU time [us] per state recorded while the run stepped (``_note_stepping_cpu``:
+        from the first take with states to the last; None before any)."""
+        if self.stepping_cpu is None:
+            return None
+        first, first_states, last, last_states = self.stepping_cpu
+        return (last - first) / (last_states - first_states) * 1e6
 
     def _write(self, topic: str, data: bytes) -> None:
         """One message of a recorded topic (resolved name) into the bag, at its header stamp (at 0 if that
