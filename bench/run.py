@@ -286,8 +286,8 @@ def pair_run(duration: float, *extra: str) -> dict[str, Any]:
     """One bracing-pair run in lockstep, as a user starts it: its timeline (``DIR/timeline.json``:
     startup, stepping, shutdown, report, whole run), the wall time of the command from start to
     exit, and the stepping real-time factor (sim time over the wall time from the first step to
-    the last), and the recorder's process CPU per state while it stepped over the step (``recorder_cpu_share``,
-    ``recorder_cpu_us_per_state``: its log's ``STEPPING_CPU_LINE``)."""
+    the last), and the share of a core the recorder process took while the pair stepped (``recorder_cpu_share``:
+    its log's ``STEPPING_CPU_LINE``; its CPU time per state over a step) and that CPU time per state [us]."""
     from bracing_recorder.command import STEPPING_CPU_LINE
 
     out = scratch("bench_pair_") / "run"
@@ -300,13 +300,13 @@ def pair_run(duration: float, *extra: str) -> dict[str, Any]:
         raise RuntimeError(f"bracing-pair failed: {done.stderr[-2000:]}")
     timeline = json.loads((out / "timeline.json").read_text())
     phases = {key: timeline[key] for key in ("startup_s", "stepping_s", "shutdown_s", "report_s", "whole_run_s")}
-    found = re.search(re.escape(STEPPING_CPU_LINE) + r": ([0-9.]+) us", (out / "logs" / "recorder.log").read_text())
+    found = re.search(re.escape(STEPPING_CPU_LINE) + r": ([0-9.]+)%", (out / "logs" / "recorder.log").read_text())
     if found is None:
         raise RuntimeError(f"no '{STEPPING_CPU_LINE}' line in the recorder's log ({out / 'logs'})")
-    step_us = phases["stepping_s"] / duration * 1e3  # wall time per 1 ms step
+    cpu_share = float(found[1]) / 100.0  # of a core while the pair stepped: its CPU time per state over a step
     return {
-        "recorder_cpu_us_per_state": float(found[1]),
-        "recorder_cpu_share": float(found[1]) / step_us,
+        "recorder_cpu_us_per_state": cpu_share * phases["stepping_s"] / duration * 1e3,
+        "recorder_cpu_share": cpu_share,
         **phases,
         "command_s": command_s,
         "stepping_real_time_factor": duration / phases["stepping_s"],

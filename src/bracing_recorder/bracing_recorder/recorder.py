@@ -148,6 +148,13 @@ LATCHED = Qos(
 """Offered QoS stored for /tf_static and robot_description: ``ros2 bag play`` replays them latched."""
 
 
+MAX_RECORD_BACKLOG = 32 * 2**20
+"""[bytes] of batches ``Recorder.record(defer=True)`` keeps unwritten while a lockstep run steps (a 10 s paper
+run brings ~11 MB): past it, they are written then, beside the loop. Written as they came, the bag's writing
+took ~20 us of the recorder's ~27 us of process CPU per state while the pair stepped, on the two cores the
+nodes share; kept, it is written after the simulator's FINISHED (the same bytes, in the same order)."""
+
+
 _TARGET_TYPES: dict[str, type] = {
     POINT_STAMPED: PointStamped,
     PATH: PathMsg,
@@ -215,6 +222,8 @@ class Recorder(Node):
             self._batches = self.create_subscription(RecordBatch, RECORD_BATCH_TOPIC, _never_called, RECORD_QOS)
             subscriptions.append(self._batches)
         self._waiter = SubscriptionWaiter(self, subscriptions)
+        per_state = [sub for sub, role in self._roles.items() if sub in self._topic_of and role != "description"]
+        self._per_state = {*per_state, *self._optional_of, *([self._batches] if self._batches else [])}
         self._scene_roles = {"joint_states", "contacts", "description", *(f"contact_wrench/{c}" for c in contacts)}
         self.description: bytes | None = None  # the robot_description received (latched: delivered once)
         self._open_bag(writer, shapes)
@@ -228,7 +237,10 @@ class Recorder(Node):
         self.derived = 0
         self.scene_time = 0.0  # [s] of CPU spent deriving /tf and markers (what the lockstep loop shares)
         self.record_time = 0.0  # [s] of CPU spent taking and writing messages (what the lockstep loop shares)
-        self.stepping_cpu: tuple[float, int, float, int] | None = None  # see ``_note_stepping_cpu``
+        self.stepping_cpu: tuple[float, float, float, float] | None = None  # see ``_note_stepping_cpu``
+        self._pending: deque[tuple[Subscription, Any]] = deque()  # taken, not yet written (``record(defer=True)``)
+        self._pending_bytes = 0
+        self._finish_taken = False  # the simulator's FINISHED is among the samples taken: the run stepped its last
         self.last_receive = time.monotonic()
         self._recorded: dict[str, tuple[Connection, str]] = {}  # resolved topic: its connection, its role
         for resolved, type_name, role in self._recorded_table:
@@ -340,54 +352,78 @@ class Recorder(Node):
             )
             self.counts[resolved] = 0
 
-    def record(self, timeout_sec: float) -> int:
-        """Write every message available now, waiting up to ``timeout_sec``; the count of samples taken."""
-        start, process_start = time.thread_time(), time.process_time()  # the wait costs no CPU; the take does
-        taken = self._waiter.take_all(timeout_sec)
-        written = 0
-        for sub, data in taken:
-            if sub is self._batches:
-                written += self._record_batch(data)
-            elif sub is self._events:
-                written += self._record_event(data)
-            elif sub is self._status:
-                written += self._record_status(data)
-            elif sub in self._targets:
-                self._record_target(sub, data)
-                written += 1
-            elif sub in self._optional_of:
-                self._write_optional(self._optional_of[sub], data)
-                written += 1
-            else:
-                self._write(self._topic_of[sub], data)
-                written += 1
+    def record(self, timeout_sec: float, defer: bool = False) -> int:
+        """Write every message available now, waiting up to ``timeout_sec``; the count of samples taken.
+
+        ``defer``: while the simulator has not said FINISHED, keep what is taken to write it later, in the
+        order it came (``write_pending``: at the next call without ``defer``, at FINISHED, or once the taken
+        batches pass ``MAX_RECORD_BACKLOG`` bytes), so that a lockstep run's loop does not share the CPU
+        with the bag's writing."""
+        start = time.thread_time()  # the wait costs no CPU; the take and the writing do
+        ready = self._waiter.wait(timeout_sec)
+        arrived = (time.process_time(), time.monotonic())
+        taken = self._waiter.take_ready(ready)
+        self._pending.extend(taken)
+        self._pending_bytes += sum(len(data.data) for sub, data in taken if sub is self._batches)
+        self._finish_taken |= any(self._says_finished(data) for sub, data in taken if sub is self._status)
+        if not defer or self._finish_taken or self._pending_bytes > MAX_RECORD_BACKLOG:
+            self.write_pending()
         if taken:
-            self.received += written
-            self.last_receive = time.monotonic()
-            self._note_stepping_cpu(process_start)
+            self.last_receive = arrived[1]
+            if not self._finish_taken and not self._per_state.isdisjoint(sub for sub, _ in taken):
+                self._note_stepping_cpu(arrived)
         self.record_time += time.thread_time() - start
         return len(taken)
 
-    def _note_stepping_cpu(self, take_start: float) -> None:
-        """After a take that began at ``take_start`` (``time.process_time``): the process's CPU time [s] (every
-        thread's: DDS's receiving too) and the states recorded (/clock) before the first take that brought
-        states and after the latest, as ``stepping_cpu`` (first time, its states, latest time, its states). What
-        the recorder costs the machine while a run steps, without its start-up (imports, the robot's model)
-        or the scene derived at the end (``stepping_cpu_us_per_state``)."""
-        states = self.counts.get("/clock", 0)
-        if not states:
-            return
-        first, first_states = (take_start, 0) if self.stepping_cpu is None else self.stepping_cpu[:2]
-        self.stepping_cpu = (first, first_states, time.process_time(), states)
+    def write_pending(self) -> None:
+        """Write what was taken and not yet written (``record``'s ``defer``), in the order it came."""
+        written = 0
+        while self._pending:
+            written += self._write_taken(*self._pending.popleft())
+        self._pending_bytes = 0
+        self.received += written
+
+    def _write_taken(self, sub: Subscription, data: Any) -> int:
+        """One sample taken from ``sub`` into the bag as its topic is recorded; the count of messages written."""
+        if sub is self._batches:
+            return self._record_batch(data)
+        if sub is self._events:
+            return int(self._record_event(data))
+        if sub is self._status:
+            return int(self._record_status(data))
+        if sub in self._targets:
+            self._record_target(sub, data)
+        elif sub in self._optional_of:
+            self._write_optional(self._optional_of[sub], data)
+        else:
+            self._write(self._topic_of[sub], data)
+        return 1
+
+    def _says_finished(self, data: bytes) -> bool:
+        """Whether a run_status sample is the simulator's FINISHED (one that cannot be read is not)."""
+        try:
+            status: Any = self.typestore.deserialize_cdr(data, RUN_STATUS)
+        except (SerdeError, ValueError, IndexError, KeyError):
+            return False
+        return bool(status.node == SIMULATOR and status.event == status.FINISHED)
+
+    def _note_stepping_cpu(self, arrived: tuple[float, float]) -> None:
+        """After a take of per-state messages before the simulator's FINISHED whose samples ``arrived`` at
+        (``time.process_time``, ``time.monotonic``): ``stepping_cpu``, the process's CPU time (every thread's:
+        DDS's receiving too) and the wall time [s] when the first such take's samples arrived and after the
+        latest. What the recorder costs the machine while a run steps, without its start-up (imports, the
+        robot's model), nor the end's writing and scene (``stepping_cpu_share``)."""
+        first = arrived if self.stepping_cpu is None else self.stepping_cpu[:2]
+        self.stepping_cpu = (*first, time.process_time(), time.monotonic())
 
     @property
-    def stepping_cpu_us_per_state(self) -> float | None:
-        """The recorder process's CPU time [us] per state recorded while the run stepped (``_note_stepping_cpu``:
-        from the first take with states to the last; None before any)."""
-        if self.stepping_cpu is None:
+    def stepping_cpu_share(self) -> float | None:
+        """The recorder process's CPU time over the wall time while the run stepped (``_note_stepping_cpu``): the
+        share of one core it took, which is its CPU time per state over a step. None before any such take."""
+        if self.stepping_cpu is None or self.stepping_cpu[3] <= self.stepping_cpu[1]:
             return None
-        first, first_states, last, last_states = self.stepping_cpu
-        return (last - first) / (last_states - first_states) * 1e6
+        cpu_first, wall_first, cpu_last, wall_last = self.stepping_cpu
+        return (cpu_last - cpu_first) / (wall_last - wall_first)
 
     def _write(self, topic: str, data: bytes) -> None:
         """One message of a recorded topic (resolved name) into the bag, at its header stamp (at 0 if that
