@@ -41,6 +41,11 @@ about, also in its log), stamped with their sim time; the topic is in the bag fr
 closed once every topic has its messages and the simulator has said FINISHED on run_status (after its last
 warning: one writer, in order). Only FINISHED says nothing more will come: a reader of run_status that
 matches the simulator's writer late hears nothing of it until then, and a 0.3 s run can end before that.
+Such a lockstep bag is written after the last step: the messages are taken as they come (the nodes' flow
+control sees them acknowledged) and kept, then written at FINISHED in the order they came, the same bag
+byte for byte (``Recorder.record``'s ``defer``; at once past ``MAX_RECORD_BACKLOG``, or when nothing came for
+0.1 s). The loop's CPU is not shared with the bag's writing; the recorder logs the share of a core it took
+while the run stepped (``command.STEPPING_CPU_LINE``, make bench's ``recorder_cpu_share_of_step``).
 
 With ``--from-batches`` the per-state topics come in ``bracing_msgs/RecordBatch`` samples on
 ``record_batch`` (the nodes' ``record_batch`` parameter; bracing-pair sets both): each message is
@@ -86,7 +91,6 @@ from std_msgs.msg import String
 from bracing_analysis import surfaces
 from bracing_core.kinematics import DescriptionError
 from bracing_core.overrides import SIMULATOR
-from bracing_core.record_batch import BatchError, batch_layout
 from bracing_core.stamps import cdr_stamp_ns
 from bracing_core.typestore import BRACING_MSGS as BRACING_MSGS  # re-exported: the typestore lives in bracing_core
 from bracing_core.typestore import (
@@ -110,7 +114,8 @@ from bracing_core.typestore import (
 )
 from bracing_core.typestore import bracing_msgs_dir as bracing_msgs_dir
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState, RecordBatch, RunStatus
-from bracing_recorder.bag_batch import STAMPED_MIN_BYTES, BagWriter, header_stamps_ns, message_starts
+from bracing_recorder.bag_batch import BagWriter
+from bracing_recorder.batch_writing import BatchWriting
 from bracing_recorder.scene import Derived, SceneBuilder
 from bracing_recorder.topics import (
     COMMAND_TOPICS,
@@ -150,9 +155,10 @@ LATCHED = Qos(
 
 MAX_RECORD_BACKLOG = 32 * 2**20
 """[bytes] of batches ``Recorder.record(defer=True)`` keeps unwritten while a lockstep run steps (a 10 s paper
-run brings ~11 MB): past it, they are written then, beside the loop. Written as they came, the bag's writing
-took ~20 us of the recorder's ~27 us of process CPU per state while the pair stepped, on the two cores the
-nodes share; kept, it is written after the simulator's FINISHED (the same bytes, in the same order)."""
+run brings ~10 MB): past it, they are written then, beside the loop. Written as they came, the bag's writing
+took about half of the recorder's process CPU while the pair stepped (23 -> 11 us per state kept, paper arm,
+on the two cores the nodes share); kept, it is written after the simulator's FINISHED, the same bytes in the
+same order, while the nodes stop."""
 
 
 _TARGET_TYPES: dict[str, type] = {
@@ -190,7 +196,7 @@ def missing_messages(bag: Path, contacts: Sequence[str], expected: int, namespac
     return missing_from_counts(topic_counts(bag), contacts, expected, namespace)
 
 
-class Recorder(Node):
+class Recorder(BatchWriting, Node):
     """Subscribes to the bracing topics and writes them to an open rosbag2 writer."""
 
     def __init__(
@@ -438,85 +444,6 @@ class Recorder(Node):
         self.counts[topic] += 1
         if self.scene is not None and role in self._scene_roles:
             self._scene_inputs.append((role, data))
-
-    def _record_batch(self, batch: RecordBatch) -> int:
-        """Write a RecordBatch's messages, each under its own topic, in bulk (``bag_batch``); the count
-        written (0 for a batch that cannot be unpacked, or that names a topic this recorder does not record)."""
-        expected = self._next_batch.get(batch.node, 0)
-        if batch.sequence != expected:
-            lost = f"{batch.sequence - expected} batch(es)" if batch.sequence > expected else "a batch out of order"
-            print(f"recorder: error: {lost} from {batch.node} lost (sequence {batch.sequence})", file=sys.stderr)
-        self._next_batch[batch.node] = batch.sequence + 1
-        raw = bytes(batch.data)
-        try:
-            topic_of, end = batch_layout(batch.topics, batch.topic_of, batch.end, len(raw))
-            unknown = sorted({t for t in batch.topics if t not in self._recorded and t not in self._optional})
-            if unknown:
-                raise BatchError(f"it names topics this recorder does not record: {', '.join(unknown)}")
-            sizes = end - message_starts(end)
-            if len(short := np.flatnonzero(sizes < STAMPED_MIN_BYTES)):
-                raise BatchError(f"message {short[0]}: {sizes[short[0]]} bytes, no header stamp")
-        except BatchError as exc:
-            print(f"recorder: error: a record_batch from {batch.node} left out: {exc}", file=sys.stderr, flush=True)
-            return 0
-        self._write_batch(list(batch.topics), topic_of, raw, end)
-        return len(end)
-
-    def _write_batch(self, topics: list[str], topic_of: np.ndarray, raw: bytes, end: np.ndarray) -> None:
-        """A batch's messages (``topics[topic_of[k]]``, back to back in ``raw`` up to ``end``) into the bag in
-        bulk, as ``_write`` and ``_write_optional`` would one by one (an optional topic's connection added
-        at its first message, as there), at their header stamps; their counts, the last /clock, the scene's inputs."""
-        data = np.frombuffer(raw, np.uint8)
-        starts = message_starts(end)
-        stamps = np.maximum(header_stamps_ns(data, starts), 0)
-        first = 0
-        for at, topic in self._first_optional(topics, topic_of):
-            self._write_span(topics, topic_of[first:at], stamps[first:at], data, end[:at], first)
-            self._optional_connections[topic] = self.writer.add_connection(
-                topic, self._optional[topic], typestore=self.typestore
-            )
-            self.counts[topic] = 0
-            first = at
-        self._write_span(topics, topic_of[first:], stamps[first:], data, end, first)
-        for index, count in enumerate(np.bincount(topic_of, minlength=len(topics)).tolist()):
-            if count:
-                self.counts[topics[index]] += count
-        roles = [self._recorded[t][1] if t in self._recorded else "" for t in topics]
-        if "/clock" in roles and len(clocks := np.flatnonzero(topic_of == roles.index("/clock"))):
-            self._sim_time_ns = int(stamps[clocks[-1]])
-        if self.scene is not None:
-            wanted = np.flatnonzero(np.array([role in self._scene_roles for role in roles])[topic_of])
-            spans = zip(starts[wanted].tolist(), end[wanted].tolist(), strict=True)
-            inputs = zip([roles[i] for i in topic_of[wanted].tolist()], [raw[a:b] for a, b in spans], strict=True)
-            self._scene_inputs.extend(inputs)
-
-    def _first_optional(self, topics: list[str], topic_of: np.ndarray) -> list[tuple[int, str]]:
-        """(message index, topic) of the first message of each optional topic not yet in the bag, in order."""
-        firsts = []
-        for index, topic in enumerate(topics):
-            if topic in self._optional and topic not in self._optional_connections:
-                at = np.flatnonzero(topic_of == index)
-                if len(at):
-                    firsts.append((int(at[0]), topic))
-        return sorted(firsts)
-
-    def _write_span(
-        self, topics: list[str], topic_of: np.ndarray, stamps: np.ndarray, data: np.ndarray, end: np.ndarray, first: int
-    ) -> None:
-        """A batch's messages from ``first`` up to the last of ``end`` into the bag (``topic_of`` and ``stamps``
-        theirs), every topic among them in the bag."""
-        # an optional topic not in the bag yet has no message here (0 stands for its connection)
-        ids = np.array([self._connection_id(t) for t in topics], np.uint16)
-        base = int(end[first - 1]) if first else 0
-        self.writer.write_batch(ids[topic_of], stamps, data[base:], end[first:] - base)
-
-    def _connection_id(self, topic: str) -> int:
-        """The bag connection id of a recorded or optional topic (resolved name; 0: an optional one not yet
-        in the bag)."""
-        if topic in self._recorded:
-            return self._recorded[topic][0].id
-        connection = self._optional_connections.get(topic)
-        return connection.id if connection is not None else 0
 
     def _record_event(self, data: bytes) -> bool:
         """Write a /parameter_events message if it is worth the bag: the run's controller changing a value.
