@@ -15,7 +15,9 @@ rendered from (tools/docs_reference.py; bracing_experiments.recorded: its date, 
   nodes' own transport, times the step, measured before and after the pair (bench/dds_bound.py); and
   against the bound without Python: the same ping-pong between two C++ processes on rcl's C API
   (src/bracing_rcl_bench's rcl_pingpong);
-  and the two nodes alone (no recorder), alternately with the pair: the recorder's share of a step;
+  and the two nodes alone (no recorder), alternately with the pair: the recorder's share of a step (the
+  wall time it adds; a difference of two runs on a shared machine, so it swings), and, steadier, the recorder
+  process's CPU time per state while the pair steps over the recorded step (its log; every thread's);
 - turnaround: the timeline of those pair runs (startup_s, stepping_s, shutdown_s, report_s,
   whole_run_s: see bracing_bringup.timeline), a `bracing-pair --duration 0.01` from command to
   exit, and `make run` against its runs' stepping time (the runs of bracing_bringup.paper_run);
@@ -39,6 +41,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import signal
 import statistics
 import subprocess
@@ -283,7 +286,10 @@ def pair_run(duration: float, *extra: str) -> dict[str, Any]:
     """One bracing-pair run in lockstep, as a user starts it: its timeline (``DIR/timeline.json``:
     startup, stepping, shutdown, report, whole run), the wall time of the command from start to
     exit, and the stepping real-time factor (sim time over the wall time from the first step to
-    the last)."""
+    the last), and the share of a core the recorder process took while the pair stepped (``recorder_cpu_share``:
+    its log's ``STEPPING_CPU_LINE``; its CPU time per state over a step) and that CPU time per state [us]."""
+    from bracing_recorder.command import STEPPING_CPU_LINE
+
     out = scratch("bench_pair_") / "run"
     argv = [sys.executable, "-m", "bracing_bringup.pair", "--config", str(PAPER), "--duration", str(duration)]
     argv += ["--output", str(out), "--quiet", *extra]  # the pair holds a free domain id of its own
@@ -294,7 +300,13 @@ def pair_run(duration: float, *extra: str) -> dict[str, Any]:
         raise RuntimeError(f"bracing-pair failed: {done.stderr[-2000:]}")
     timeline = json.loads((out / "timeline.json").read_text())
     phases = {key: timeline[key] for key in ("startup_s", "stepping_s", "shutdown_s", "report_s", "whole_run_s")}
+    found = re.search(re.escape(STEPPING_CPU_LINE) + r": ([0-9.]+)%", (out / "logs" / "recorder.log").read_text())
+    if found is None:
+        raise RuntimeError(f"no '{STEPPING_CPU_LINE}' line in the recorder's log ({out / 'logs'})")
+    cpu_share = float(found[1]) / 100.0  # of a core while the pair stepped: its CPU time per state over a step
     return {
+        "recorder_cpu_us_per_state": cpu_share * phases["stepping_s"] / duration * 1e3,
+        "recorder_cpu_share": cpu_share,
         **phases,
         "command_s": command_s,
         "stepping_real_time_factor": duration / phases["stepping_s"],
@@ -435,6 +447,7 @@ def target_figures(result: dict[str, Any], sweep: dict[str, Any]) -> dict[str, f
         "pair_vs_bound": result["pair_vs_bound"],
         "pair_vs_no_recorder": result["pair_real_time_factor"] / result["pair_real_time_factor_no_recorder"],
         "recorder_share_of_step": result["recorder_share_of_step"],
+        "recorder_cpu_share_of_step": result["recorder_cpu_share_of_step"],
         "controller_callback_p50_vs_law": statistics.median(w["p50"] for w in works) / law_us,
         "controller_callback_p99_vs_law": statistics.median(w["p99"] for w in works) / law_us,
         "engine_vs_mujoco": result["engine_vs_mujoco"],
@@ -449,6 +462,7 @@ TARGETS = {
     "pair_vs_bound": ">= 0.6",
     "pair_vs_no_recorder": ">= 0.9",
     "recorder_share_of_step": "<= 0.10",
+    "recorder_cpu_share_of_step": "<= 0.10",
     "controller_callback_p50_vs_law": "<= 1.5",
     "controller_callback_p99_vs_law": "<= 3",
     "engine_vs_mujoco": ">= 2",
@@ -650,6 +664,8 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
         "pair_real_time_factor_whole_run": pair["whole_run"],
         "pair_real_time_factor_no_recorder": without_recorder,
         "recorder_share_of_step": recorder_share,
+        "recorder_cpu_us_per_state": pair["recorder_cpu_us_per_state"],
+        "recorder_cpu_share_of_step": pair["recorder_cpu_share"],
         "pair_sim_time_s": duration,
         "startup_s": pair["startup_s"],
         "stepping_s": pair["stepping_s"],
@@ -708,7 +724,11 @@ def _measure(quick: bool, mujoco_steps_per_s: Any) -> tuple[dict[str, Any], list
         ("pair real-time factor (lockstep stepping)", f"{pair['stepping']:.2f}"),
         ("pair real-time factor (whole run, with start-up)", f"{pair['whole_run']:.2f}"),
         ("the two nodes without the recorder: real-time factor", f"{without_recorder:.2f}"),
-        ("recorder's share of a lockstep step", f"{recorder_share:.1%}"),
+        ("recorder's share of a lockstep step (the pair with it against the two nodes alone)", f"{recorder_share:.1%}"),
+        (
+            "recorder's process CPU while the pair steps, per state [us]; over the recorded step",
+            f"{pair['recorder_cpu_us_per_state']:.1f}; {pair['recorder_cpu_share']:.1%}",
+        ),
         (
             f"timeline of a {duration:g} s run: startup / stepping / shutdown / report / whole [s]",
             " / ".join(f"{pair[k]:.2f}" for k in ("startup_s", "stepping_s", "shutdown_s", "report_s", "whole_run_s")),

@@ -194,3 +194,67 @@ def test_a_batch_with_a_message_too_short_for_its_stamp_is_left_out_and_an_empty
     assert recorder.counts["/joint_states"] == 0
     writer.close()
     recorder.destroy_node()
+
+
+class _Takes:
+    """A recorder's waiter that hands out prepared takes, one per wait: lists of (subscription, sample)."""
+
+    def __init__(self, takes: list[list[tuple[object, object]]]) -> None:
+        self._takes = list(takes)
+
+    def wait(self, timeout_sec: float) -> list[object]:
+        del timeout_sec
+        return []
+
+    def take_ready(self, ready: list[object]) -> list[tuple[object, object]]:
+        del ready
+        return self._takes.pop(0) if self._takes else []
+
+
+def _status(event: int, sim_time: float, text: str = "") -> bytes:
+    """A run_status sample of the simulator (CDR bytes)."""
+    from bracing_core.overrides import SIMULATOR
+    from bracing_core.typestore import RUN_STATUS
+
+    store = bracing_typestore()
+    time_type = store.types["builtin_interfaces/msg/Time"]
+    message = store.types[RUN_STATUS](time_type(sec=1, nanosec=0), SIMULATOR, event, sim_time, float("nan"), text)
+    return bytes(store.serialize_cdr(message, RUN_STATUS))
+
+
+def test_a_lockstep_bag_written_after_the_last_step_is_the_bag_written_as_it_came(
+    tmp_path: Path, rclpy_default: None
+) -> None:
+    """``record(defer=True)`` writes nothing until the simulator's FINISHED, then the same bag byte for byte as
+    ``record`` writing every take at once (warnings between batches in place), with its CPU share while it stepped."""
+    from bracing_msgs.msg import RunStatus
+    from bracing_recorder.recorder import Recorder
+
+    batches = _batches(400, 100)
+    files, counts = [], []
+    for name, defer in (("as_it_came", False), ("deferred", True)):
+        writer = BagWriter(tmp_path / name / "bag", version=BAG_VERSION)
+        writer.open()
+        recorder = Recorder(writer, bracing_typestore(), contacts=["elbow"], from_batches=True)
+        assert recorder._batches is not None
+        sim, status = recorder._batches, recorder._status
+        takes: list[list[tuple[object, object]]] = [
+            [(sim, batches[0]), (status, _status(RunStatus.WARNING, 0.05, "a warning"))],
+            [(sim, batches[1])],
+            [(status, _status(RunStatus.PROGRESS, 0.2)), (sim, batches[2])],
+            [(status, _status(RunStatus.WARNING, 0.3, "another")), (status, _status(RunStatus.FINISHED, 0.399))],
+            [(sim, batches[3])],
+        ]
+        recorder._waiter = _Takes(takes)  # type: ignore[assignment]
+        for k in range(len(takes)):
+            assert recorder.record(0.0, defer=defer) == len(takes[k])
+            if k < 3:  # before FINISHED: kept (deferred), or written
+                assert recorder.counts["/clock"] == (0 if defer else 100 * (k + 1))
+        counts.append(dict(recorder.counts))
+        share = recorder.stepping_cpu_share
+        assert share is not None and share > 0
+        writer.close()
+        recorder.destroy_node()
+        files.append((tmp_path / name / "bag" / "bag.mcap").read_bytes())
+    assert counts[1] == counts[0] and counts[0]["/clock"] == 400 and counts[0]["/run_status"] == 2
+    assert files[1] == files[0]

@@ -58,6 +58,8 @@ SPEC_KEYS = (
 REPORTED_KEYS = (
     "pair_real_time_factor_whole_run",
     "recorder_share_of_step",
+    "recorder_cpu_us_per_state",
+    "recorder_cpu_share_of_step",
     "last_step_to_last_file_s",
     "tiny_run_command_s",
     "make_run_s",
@@ -148,6 +150,12 @@ def test_quick_bench_produces_every_key(tmp_path: Path) -> None:
     beside += ("simulator_dds_writes", "controller_dds_writes")
     assert set(parts) == {"step", *beside, *named}
     assert math.isclose(sum(parts[name] for name in named), parts["step"], rel_tol=1e-9)
+    # The recorder's process CPU while the pair stepped, from its own log, over the recorded step.
+    assert result["recorder_cpu_us_per_state"] > 0
+    step_us = 1e3 / result["pair_real_time_factor"]
+    assert math.isclose(
+        result["recorder_cpu_share_of_step"], result["recorder_cpu_us_per_state"] / step_us, rel_tol=1e-9
+    )
     callback = [result[f"controller_callback_us_{key}"] for key in ("p50", "p99", "p99_9", "max")]
     assert 0 < callback[0] <= callback[1] <= callback[2] <= callback[3]  # the tail, in order
     assert result["pair_vs_rcl_bound"] == result["pair_real_time_factor"] / result["dds_bound_rcl_real_time_factor"]

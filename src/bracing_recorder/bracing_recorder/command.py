@@ -38,6 +38,10 @@ time; the two nodes alone 2.61x) for a bag closed ~0.4 s sooner after a 10 s run
 step stays under 10 % this way."""
 
 
+STEPPING_CPU_LINE = "recorder process CPU while the run stepped"
+"""The start of the line that gives ``Recorder.stepping_cpu_share`` at a bag's close (make bench reads it)."""
+
+
 TUNINGS: tuple[tuple[str, type, float, str], ...] = (
     (
         "--batch",
@@ -160,8 +164,11 @@ def _record_until_stopped(
     )
     while not stop.requested:
         serve()
-        got = node.record(0.0 if idle and node.scene_backlog else 0.1)
+        # a lockstep bag's messages are written after the last step (``Recorder.record``'s defer)
+        got = node.record(0.0 if idle and node.scene_backlog else 0.1, defer=wanted is not None)
         idle = not got
+        if idle:
+            node.write_pending()  # the run paused or ended: the CPU is free
         if got and wanted is not None and node.simulator_finished and node.has_every_message(wanted):
             return True  # nothing more will come (the simulator's last warning came before FINISHED): no drain
         if node.scene_backlog and (idle or node.scene_backlog > MAX_SCENE_BACKLOG):
@@ -196,6 +203,8 @@ def _close(writer: BagWriter | None, node: Recorder | None, status: StatusPublis
 
 
 def _close_bag(writer: BagWriter, node: Recorder | None, status: StatusPublisher | None, output: Path) -> None:
+    if node is not None:
+        node.write_pending()  # stopped while a run stepped
     writer.close()
     print(f"recorder closed the bag at {time.time():.6f}", flush=True)
     if status is not None:
@@ -206,6 +215,8 @@ def _close_bag(writer: BagWriter, node: Recorder | None, status: StatusPublisher
     print(f"recorder wrote {total} messages to {output}", flush=True)  # a line of its own: tools wait for it
     if node is not None and states:
         print(f"recorder took and wrote them in {node.record_time / states * 1e6:.0f} us of CPU per state", flush=True)
+    if node is not None and (share := node.stepping_cpu_share) is not None:
+        print(f"{STEPPING_CPU_LINE}: {share:.2%} of a core", flush=True)  # make bench reads it
     if node is not None and node.derived:
         states = node.counts.get("/tf", 0)
         cost = f", {node.scene_time / states * 1e6:.0f} us of CPU per state" if states else ""

@@ -41,6 +41,11 @@ about, also in its log), stamped with their sim time; the topic is in the bag fr
 closed once every topic has its messages and the simulator has said FINISHED on run_status (after its last
 warning: one writer, in order). Only FINISHED says nothing more will come: a reader of run_status that
 matches the simulator's writer late hears nothing of it until then, and a 0.3 s run can end before that.
+Such a lockstep bag is written after the last step: the messages are taken as they come (the nodes' flow
+control sees them acknowledged) and kept, then written at FINISHED in the order they came, the same bag
+byte for byte (``Recorder.record``'s ``defer``; at once past ``MAX_RECORD_BACKLOG``, or when nothing came for
+0.1 s). The loop's CPU is not shared with the bag's writing; the recorder logs the share of a core it took
+while the run stepped (``command.STEPPING_CPU_LINE``, make bench's ``recorder_cpu_share_of_step``).
 
 With ``--from-batches`` the per-state topics come in ``bracing_msgs/RecordBatch`` samples on
 ``record_batch`` (the nodes' ``record_batch`` parameter; bracing-pair sets both): each message is
@@ -86,7 +91,6 @@ from std_msgs.msg import String
 from bracing_analysis import surfaces
 from bracing_core.kinematics import DescriptionError
 from bracing_core.overrides import SIMULATOR
-from bracing_core.record_batch import BatchError, batch_layout
 from bracing_core.stamps import cdr_stamp_ns
 from bracing_core.typestore import BRACING_MSGS as BRACING_MSGS  # re-exported: the typestore lives in bracing_core
 from bracing_core.typestore import (
@@ -110,7 +114,8 @@ from bracing_core.typestore import (
 )
 from bracing_core.typestore import bracing_msgs_dir as bracing_msgs_dir
 from bracing_msgs.msg import Contacts, ControllerState, MotorCommand, MotorState, RecordBatch, RunStatus
-from bracing_recorder.bag_batch import STAMPED_MIN_BYTES, BagWriter, header_stamps_ns, message_starts
+from bracing_recorder.bag_batch import BagWriter
+from bracing_recorder.batch_writing import BatchWriting
 from bracing_recorder.scene import Derived, SceneBuilder
 from bracing_recorder.topics import (
     COMMAND_TOPICS,
@@ -148,6 +153,14 @@ LATCHED = Qos(
 """Offered QoS stored for /tf_static and robot_description: ``ros2 bag play`` replays them latched."""
 
 
+MAX_RECORD_BACKLOG = 32 * 2**20
+"""[bytes] of batches ``Recorder.record(defer=True)`` keeps unwritten while a lockstep run steps (a 10 s paper
+run brings ~10 MB): past it, they are written then, beside the loop. Written as they came, the bag's writing
+took about half of the recorder's process CPU while the pair stepped (23 -> 11 us per state kept, paper arm,
+on the two cores the nodes share); kept, it is written after the simulator's FINISHED, the same bytes in the
+same order, while the nodes stop."""
+
+
 _TARGET_TYPES: dict[str, type] = {
     POINT_STAMPED: PointStamped,
     PATH: PathMsg,
@@ -183,7 +196,7 @@ def missing_messages(bag: Path, contacts: Sequence[str], expected: int, namespac
     return missing_from_counts(topic_counts(bag), contacts, expected, namespace)
 
 
-class Recorder(Node):
+class Recorder(BatchWriting, Node):
     """Subscribes to the bracing topics and writes them to an open rosbag2 writer."""
 
     def __init__(
@@ -215,6 +228,8 @@ class Recorder(Node):
             self._batches = self.create_subscription(RecordBatch, RECORD_BATCH_TOPIC, _never_called, RECORD_QOS)
             subscriptions.append(self._batches)
         self._waiter = SubscriptionWaiter(self, subscriptions)
+        per_state = [sub for sub, role in self._roles.items() if sub in self._topic_of and role != "description"]
+        self._per_state = {*per_state, *self._optional_of, *([self._batches] if self._batches else [])}
         self._scene_roles = {"joint_states", "contacts", "description", *(f"contact_wrench/{c}" for c in contacts)}
         self.description: bytes | None = None  # the robot_description received (latched: delivered once)
         self._open_bag(writer, shapes)
@@ -228,6 +243,10 @@ class Recorder(Node):
         self.derived = 0
         self.scene_time = 0.0  # [s] of CPU spent deriving /tf and markers (what the lockstep loop shares)
         self.record_time = 0.0  # [s] of CPU spent taking and writing messages (what the lockstep loop shares)
+        self.stepping_cpu: tuple[float, float, float, float] | None = None  # see ``_note_stepping_cpu``
+        self._pending: deque[tuple[Subscription, Any]] = deque()  # taken, not yet written (``record(defer=True)``)
+        self._pending_bytes = 0
+        self._finish_taken = False  # the simulator's FINISHED is among the samples taken: the run stepped its last
         self.last_receive = time.monotonic()
         self._recorded: dict[str, tuple[Connection, str]] = {}  # resolved topic: its connection, its role
         for resolved, type_name, role in self._recorded_table:
@@ -339,32 +358,78 @@ class Recorder(Node):
             )
             self.counts[resolved] = 0
 
-    def record(self, timeout_sec: float) -> int:
-        """Write every message available now, waiting up to ``timeout_sec``; the count of samples taken."""
-        start = time.thread_time()  # the wait costs no CPU; the take (rclpy's deserialising) does
-        taken = self._waiter.take_all(timeout_sec)
-        written = 0
-        for sub, data in taken:
-            if sub is self._batches:
-                written += self._record_batch(data)
-            elif sub is self._events:
-                written += self._record_event(data)
-            elif sub is self._status:
-                written += self._record_status(data)
-            elif sub in self._targets:
-                self._record_target(sub, data)
-                written += 1
-            elif sub in self._optional_of:
-                self._write_optional(self._optional_of[sub], data)
-                written += 1
-            else:
-                self._write(self._topic_of[sub], data)
-                written += 1
+    def record(self, timeout_sec: float, defer: bool = False) -> int:
+        """Write every message available now, waiting up to ``timeout_sec``; the count of samples taken.
+
+        ``defer``: while the simulator has not said FINISHED, keep what is taken to write it later, in the
+        order it came (``write_pending``: at the next call without ``defer``, at FINISHED, or once the taken
+        batches pass ``MAX_RECORD_BACKLOG`` bytes), so that a lockstep run's loop does not share the CPU
+        with the bag's writing."""
+        start = time.thread_time()  # the wait costs no CPU; the take and the writing do
+        ready = self._waiter.wait(timeout_sec)
+        arrived = (time.process_time(), time.monotonic())
+        taken = self._waiter.take_ready(ready)
+        self._pending.extend(taken)
+        self._pending_bytes += sum(len(data.data) for sub, data in taken if sub is self._batches)
+        self._finish_taken |= any(self._says_finished(data) for sub, data in taken if sub is self._status)
+        if not defer or self._finish_taken or self._pending_bytes > MAX_RECORD_BACKLOG:
+            self.write_pending()
         if taken:
-            self.received += written
-            self.last_receive = time.monotonic()
+            self.last_receive = arrived[1]
+            if not self._finish_taken and not self._per_state.isdisjoint(sub for sub, _ in taken):
+                self._note_stepping_cpu(arrived)
         self.record_time += time.thread_time() - start
         return len(taken)
+
+    def write_pending(self) -> None:
+        """Write what was taken and not yet written (``record``'s ``defer``), in the order it came."""
+        written = 0
+        while self._pending:
+            written += self._write_taken(*self._pending.popleft())
+        self._pending_bytes = 0
+        self.received += written
+
+    def _write_taken(self, sub: Subscription, data: Any) -> int:
+        """One sample taken from ``sub`` into the bag as its topic is recorded; the count of messages written."""
+        if sub is self._batches:
+            return self._record_batch(data)
+        if sub is self._events:
+            return int(self._record_event(data))
+        if sub is self._status:
+            return int(self._record_status(data))
+        if sub in self._targets:
+            self._record_target(sub, data)
+        elif sub in self._optional_of:
+            self._write_optional(self._optional_of[sub], data)
+        else:
+            self._write(self._topic_of[sub], data)
+        return 1
+
+    def _says_finished(self, data: bytes) -> bool:
+        """Whether a run_status sample is the simulator's FINISHED (one that cannot be read is not)."""
+        try:
+            status: Any = self.typestore.deserialize_cdr(data, RUN_STATUS)
+        except (SerdeError, ValueError, IndexError, KeyError):
+            return False
+        return bool(status.node == SIMULATOR and status.event == status.FINISHED)
+
+    def _note_stepping_cpu(self, arrived: tuple[float, float]) -> None:
+        """After a take of per-state messages before the simulator's FINISHED whose samples ``arrived`` at
+        (``time.process_time``, ``time.monotonic``): ``stepping_cpu``, the process's CPU time (every thread's:
+        DDS's receiving too) and the wall time [s] when the first such take's samples arrived and after the
+        latest. What the recorder costs the machine while a run steps, without its start-up (imports, the
+        robot's model), nor the end's writing and scene (``stepping_cpu_share``)."""
+        first = arrived if self.stepping_cpu is None else self.stepping_cpu[:2]
+        self.stepping_cpu = (*first, time.process_time(), time.monotonic())
+
+    @property
+    def stepping_cpu_share(self) -> float | None:
+        """The recorder process's CPU time over the wall time while the run stepped (``_note_stepping_cpu``): the
+        share of one core it took, which is its CPU time per state over a step. None before any such take."""
+        if self.stepping_cpu is None or self.stepping_cpu[3] <= self.stepping_cpu[1]:
+            return None
+        cpu_first, wall_first, cpu_last, wall_last = self.stepping_cpu
+        return (cpu_last - cpu_first) / (wall_last - wall_first)
 
     def _write(self, topic: str, data: bytes) -> None:
         """One message of a recorded topic (resolved name) into the bag, at its header stamp (at 0 if that
@@ -379,85 +444,6 @@ class Recorder(Node):
         self.counts[topic] += 1
         if self.scene is not None and role in self._scene_roles:
             self._scene_inputs.append((role, data))
-
-    def _record_batch(self, batch: RecordBatch) -> int:
-        """Write a RecordBatch's messages, each under its own topic, in bulk (``bag_batch``); the count
-        written (0 for a batch that cannot be unpacked, or that names a topic this recorder does not record)."""
-        expected = self._next_batch.get(batch.node, 0)
-        if batch.sequence != expected:
-            lost = f"{batch.sequence - expected} batch(es)" if batch.sequence > expected else "a batch out of order"
-            print(f"recorder: error: {lost} from {batch.node} lost (sequence {batch.sequence})", file=sys.stderr)
-        self._next_batch[batch.node] = batch.sequence + 1
-        raw = bytes(batch.data)
-        try:
-            topic_of, end = batch_layout(batch.topics, batch.topic_of, batch.end, len(raw))
-            unknown = sorted({t for t in batch.topics if t not in self._recorded and t not in self._optional})
-            if unknown:
-                raise BatchError(f"it names topics this recorder does not record: {', '.join(unknown)}")
-            sizes = end - message_starts(end)
-            if len(short := np.flatnonzero(sizes < STAMPED_MIN_BYTES)):
-                raise BatchError(f"message {short[0]}: {sizes[short[0]]} bytes, no header stamp")
-        except BatchError as exc:
-            print(f"recorder: error: a record_batch from {batch.node} left out: {exc}", file=sys.stderr, flush=True)
-            return 0
-        self._write_batch(list(batch.topics), topic_of, raw, end)
-        return len(end)
-
-    def _write_batch(self, topics: list[str], topic_of: np.ndarray, raw: bytes, end: np.ndarray) -> None:
-        """A batch's messages (``topics[topic_of[k]]``, back to back in ``raw`` up to ``end``) into the bag in
-        bulk, as ``_write`` and ``_write_optional`` would one by one (an optional topic's connection added
-        at its first message, as there), at their header stamps; their counts, the last /clock, the scene's inputs."""
-        data = np.frombuffer(raw, np.uint8)
-        starts = message_starts(end)
-        stamps = np.maximum(header_stamps_ns(data, starts), 0)
-        first = 0
-        for at, topic in self._first_optional(topics, topic_of):
-            self._write_span(topics, topic_of[first:at], stamps[first:at], data, end[:at], first)
-            self._optional_connections[topic] = self.writer.add_connection(
-                topic, self._optional[topic], typestore=self.typestore
-            )
-            self.counts[topic] = 0
-            first = at
-        self._write_span(topics, topic_of[first:], stamps[first:], data, end, first)
-        for index, count in enumerate(np.bincount(topic_of, minlength=len(topics)).tolist()):
-            if count:
-                self.counts[topics[index]] += count
-        roles = [self._recorded[t][1] if t in self._recorded else "" for t in topics]
-        if "/clock" in roles and len(clocks := np.flatnonzero(topic_of == roles.index("/clock"))):
-            self._sim_time_ns = int(stamps[clocks[-1]])
-        if self.scene is not None:
-            wanted = np.flatnonzero(np.array([role in self._scene_roles for role in roles])[topic_of])
-            spans = zip(starts[wanted].tolist(), end[wanted].tolist(), strict=True)
-            inputs = zip([roles[i] for i in topic_of[wanted].tolist()], [raw[a:b] for a, b in spans], strict=True)
-            self._scene_inputs.extend(inputs)
-
-    def _first_optional(self, topics: list[str], topic_of: np.ndarray) -> list[tuple[int, str]]:
-        """(message index, topic) of the first message of each optional topic not yet in the bag, in order."""
-        firsts = []
-        for index, topic in enumerate(topics):
-            if topic in self._optional and topic not in self._optional_connections:
-                at = np.flatnonzero(topic_of == index)
-                if len(at):
-                    firsts.append((int(at[0]), topic))
-        return sorted(firsts)
-
-    def _write_span(
-        self, topics: list[str], topic_of: np.ndarray, stamps: np.ndarray, data: np.ndarray, end: np.ndarray, first: int
-    ) -> None:
-        """A batch's messages from ``first`` up to the last of ``end`` into the bag (``topic_of`` and ``stamps``
-        theirs), every topic among them in the bag."""
-        # an optional topic not in the bag yet has no message here (0 stands for its connection)
-        ids = np.array([self._connection_id(t) for t in topics], np.uint16)
-        base = int(end[first - 1]) if first else 0
-        self.writer.write_batch(ids[topic_of], stamps, data[base:], end[first:] - base)
-
-    def _connection_id(self, topic: str) -> int:
-        """The bag connection id of a recorded or optional topic (resolved name; 0: an optional one not yet
-        in the bag)."""
-        if topic in self._recorded:
-            return self._recorded[topic][0].id
-        connection = self._optional_connections.get(topic)
-        return connection.id if connection is not None else 0
 
     def _record_event(self, data: bytes) -> bool:
         """Write a /parameter_events message if it is worth the bag: the run's controller changing a value.
