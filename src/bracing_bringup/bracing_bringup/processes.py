@@ -63,6 +63,14 @@ class Pair:
         self.sim_time: float | None = None  # [s] the simulator's last status
         self._followers: dict[str, threading.Thread] = {}
 
+    def next_run(self, options: RunOptions, timeline: Timeline) -> None:
+        """The same processes for another run (a session's): its options and timeline, nothing seen yet.
+        The processes' logs stay where they started (the session's first run's DIR/logs)."""
+        self.options, self.timeline = options, timeline
+        self.interrupted = 0
+        self.seen, self.events, self.sim_time = set(), [], None
+        self.changed.clear()
+
     def say(self, text: str, end: str = "\n") -> None:
         if not self.options.quiet:
             print(text, end=end, flush=True)
