@@ -107,13 +107,13 @@ class Session:
         self.watcher = watcher
 
     def begin(self, plan: RunPlan) -> None:
-        """The next run through the kept processes: its bag asked of the recorder (waited for until open), its
-        per-run parameters set on both nodes, the simulation reset."""
+        """The next run through the kept processes: its per-run parameters set on both nodes, its bag asked of the
+        recorder (waited for until open), the simulation reset."""
         assert self.pair is not None
         out = plan.options.output
-        self._set(NEXT_BAG, {"output": str(out / "bag"), "params_files": [str(out / PARAMS_FILE)]})
-        for node in (SIMULATOR, CONTROLLER):
+        for node in (SIMULATOR, CONTROLLER):  # before the bag opens: their parameter events are no run's
             self._set("/" + node, {key: getattr(plan.options, key) for key in PER_RUN})
+        self._set(NEXT_BAG, {"output": str(out / "bag"), "params_files": [str(out / PARAMS_FILE)]})
         while "recorder ready" not in self.pair.seen:
             if self.pair.exit_code("recorder") is not None:
                 raise _Failure("recorder", "the recorder exited before it opened the next bag")
