@@ -1,5 +1,6 @@
 """make run: the paper's claim, reproduced. The paper scenario three ways, each as a bracing-pair
-run (two node processes over DDS, recorded, reported with an animation): braced; passive (no brace
+run (two node processes over DDS, recorded, reported with an animation), all three through one simulator,
+controller and recorder (``session``: the next run begun by reset_simulation): braced; passive (no brace
 task, the floor kept as an obstacle the elbow can rest on); in free space (the planes removed: the
 paper's comparison). Then a side-by-side table and the comparison figures (compare_*.png, compare.md)."""
 

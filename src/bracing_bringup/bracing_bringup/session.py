@@ -88,7 +88,11 @@ class Session:
         if self.options is None:
             domain = self._domain.enter_context(hold_domain(options.domain_id))
             self.domain_id, self.options = domain.domain_id, processes_of(options)
-        return _run_pair(options, self.domain_id, self)
+        try:
+            return _run_pair(options, self.domain_id, self)
+        except BaseException:  # a ConfigError, Ctrl-C...: the processes are not left for a next run
+            self.close()
+            raise
 
     def prepare(self, plan: RunPlan) -> None:
         """The run's parameters as the kept processes need them: the simulator stays at its run's end."""
