@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from bracing_bringup.domains import hold_domain
 from bracing_bringup.processes import Interrupted, Pair, environment
@@ -29,7 +29,7 @@ from bracing_view.viewurl import free_ports, view_url, wait_for_port
 
 if TYPE_CHECKING:
     from bracing_analysis.series import BagSeries
-    from bracing_bringup.session import Session
+    from bracing_ros.status import StatusWatcher
 
 EXIT_FAILED = 1
 VIEWER_START_S = 60.0  # [s] --view: how long the viewer may take to serve its page before the run goes on without
@@ -55,6 +55,23 @@ class RunResult:
     series: BagSeries | None = None
     """The bag as read for the report of a run that ended well (None otherwise): a comparison of runs draws
     from it instead of reading the bag again."""
+
+
+class Session(Protocol):
+    """Processes kept between runs (``bracing_bringup.session``), as a run sees them."""
+
+    @property
+    def running(self) -> bool: ...  # processes are kept: the run goes through them
+
+    def prepare(self, plan: RunPlan) -> None: ...  # the run's parameters as kept processes need them
+
+    def pair_for(self, options: RunOptions, timeline: Timeline) -> Pair: ...  # the kept processes, or new ones
+
+    def started(self, watcher: StatusWatcher) -> None: ...  # new processes started: kept from now on
+
+    def begin(self, plan: RunPlan) -> None: ...  # the next run begun through the kept processes
+
+    def close(self) -> dict[str, int | None]: ...  # the kept processes stopped
 
 
 class _Failure(Exception):
