@@ -1,5 +1,6 @@
 """make run: the paper's claim, reproduced. The paper scenario three ways, each as a bracing-pair
-run (two node processes over DDS, recorded, reported with an animation): braced; passive (no brace
+run (two node processes over DDS, recorded, reported with an animation), all three through one simulator,
+controller and recorder (``session``: the next run begun by reset_simulation): braced; passive (no brace
 task, the floor kept as an obstacle the elbow can rest on); in free space (the planes removed: the
 paper's comparison). Then a side-by-side table and the comparison figures (compare_*.png, compare.md)."""
 
@@ -16,7 +17,7 @@ from bracing_analysis.bag import BagReadError
 from bracing_analysis.ratios import ratio_text, temperature_saving_text
 from bracing_analysis.summary import SUMMARY_KEYS, heading
 from bracing_bringup.run_plan import RunOptions
-from bracing_bringup.supervision import run_pair
+from bracing_bringup.session import Session
 from bracing_core.numbers import number
 from bracing_core.params import ConfigError
 from bracing_core.variants import RUNS
@@ -68,6 +69,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--duration", type=float, default=None)
     parser.add_argument("--mode", choices=("voltage", "torque"), default=None)
     args = parser.parse_args(argv)
+    with Session() as session:  # the three runs through one simulator, controller and recorder
+        summaries, read, code = _run_all(args, session)
+        if code == 0:
+            code = _closed(session)
+    if code != 0:
+        return code
+    return _compare(args, summaries, read)
+
+
+def _run_all(args: argparse.Namespace, session: Session) -> tuple[dict[str, dict[str, Any]], dict[str, Any], int]:
+    """RUNS in turn through ``session``: their summaries and bags as read (by run name), the exit code."""
     summaries: dict[str, dict[str, Any]] = {}
     read: dict[str, BagSeries] = {}  # each run's bag as its report read it: the comparison's data
     for run in RUNS:
@@ -79,16 +91,29 @@ def main(argv: Sequence[str] | None = None) -> int:
             args.config, output, args.duration, args.mode, bracing=run.bracing, free_space=run.free_space
         )
         try:
-            result = run_pair(options)
+            result = session.run(options)
         except ConfigError as exc:
             print(f"error: {exc}", file=sys.stderr)
-            return 2
+            return summaries, read, 2
         if result.exit_code != 0 or result.summary is None:
             print(f"{run.name} run failed: {result.message}", file=sys.stderr)
-            return result.exit_code or 1
+            return summaries, read, result.exit_code or 1
         summaries[run.name] = result.summary
         if result.series is not None:
             read[run.name] = result.series
+    return summaries, read, 0
+
+
+def _closed(session: Session) -> int:
+    """The session's processes stopped: 0 if each exited well (as a fresh run's last check), else 1."""
+    failed = {name: code for name, code in session.close().items() if code not in (0, None)}
+    for name, code in failed.items():
+        print(f"error: the {name} exited with code {code}", file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _compare(args: argparse.Namespace, summaries: dict[str, dict[str, Any]], read: dict[str, Any]) -> int:
+    """The table, the runs' files and the comparison figures."""
     print()
     print(table(summaries))
     dirs = [str(args.output / name) for name in summaries]

@@ -63,6 +63,17 @@ class Pair:
         self.sim_time: float | None = None  # [s] the simulator's last status
         self._followers: dict[str, threading.Thread] = {}
 
+    def next_run(self, options: RunOptions, timeline: Timeline) -> None:
+        """The same processes for another run (a session's): its options and timeline, nothing seen yet.
+        Their output goes on into this run's DIR/logs from now on."""
+        for name in self.logs:
+            self.logs[name] = options.output / "logs" / f"{name}.log"
+            self.logs[name].touch()
+        self.options, self.timeline = options, timeline
+        self.interrupted = 0
+        self.seen, self.events, self.sim_time = set(), [], None
+        self.changed.clear()
+
     def say(self, text: str, end: str = "\n") -> None:
         if not self.options.quiet:
             print(text, end=end, flush=True)
@@ -72,17 +83,23 @@ class Pair:
         self.logs[name] = log
         proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env, start_new_session=True)
         self.procs[name] = proc
-        follower = threading.Thread(target=self._follow, args=(proc, log), name=f"log-{name}", daemon=True)
+        follower = threading.Thread(target=self._follow, args=(proc, name), name=f"log-{name}", daemon=True)
         follower.start()
         self._followers[name] = follower
         return proc
 
-    def _follow(self, proc: subprocess.Popen[bytes], log: Path) -> None:
+    def _follow(self, proc: subprocess.Popen[bytes], name: str) -> None:
         assert proc.stdout is not None
-        with log.open("wb") as handle:
-            for line in iter(proc.stdout.readline, b""):
-                handle.write(line)
-                handle.flush()  # the log is whole whenever someone reads it (a failure's tail)
+        log = self.logs[name]
+        handle = log.open("wb")
+        for line in iter(proc.stdout.readline, b""):
+            if self.logs[name] != log:  # a session's next run (next_run): its own log from here on
+                handle.close()
+                log = self.logs[name]
+                handle = log.open("ab")
+            handle.write(line)
+            handle.flush()  # the log is whole whenever someone reads it (a failure's tail)
+        handle.close()
         self.changed.set()  # end of output: the process exited
 
     def on_status(self, status: Status) -> None:

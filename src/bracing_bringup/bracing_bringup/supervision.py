@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from bracing_bringup.domains import hold_domain
 from bracing_bringup.processes import Interrupted, Pair, environment
@@ -29,6 +29,7 @@ from bracing_view.viewurl import free_ports, view_url, wait_for_port
 
 if TYPE_CHECKING:
     from bracing_analysis.series import BagSeries
+    from bracing_ros.status import StatusWatcher
 
 EXIT_FAILED = 1
 VIEWER_START_S = 60.0  # [s] --view: how long the viewer may take to serve its page before the run goes on without
@@ -54,6 +55,23 @@ class RunResult:
     series: BagSeries | None = None
     """The bag as read for the report of a run that ended well (None otherwise): a comparison of runs draws
     from it instead of reading the bag again."""
+
+
+class Session(Protocol):
+    """Processes kept between runs (``bracing_bringup.session``), as a run sees them."""
+
+    @property
+    def running(self) -> bool: ...  # processes are kept: the run goes through them
+
+    def prepare(self, plan: RunPlan) -> None: ...  # the run's parameters as kept processes need them
+
+    def pair_for(self, options: RunOptions, timeline: Timeline) -> Pair: ...  # the kept processes, or new ones
+
+    def started(self, watcher: StatusWatcher) -> None: ...  # new processes started: kept from now on
+
+    def begin(self, plan: RunPlan) -> None: ...  # the next run begun through the kept processes
+
+    def close(self) -> dict[str, int | None]: ...  # the kept processes stopped
 
 
 class _Failure(Exception):
@@ -101,7 +119,8 @@ def run_pair(options: RunOptions) -> RunResult:
         return _run_pair(options, domain.domain_id)
 
 
-def _run_pair(options: RunOptions, domain: int) -> RunResult:
+def _run_pair(options: RunOptions, domain: int, session: Session | None = None) -> RunResult:
+    """One run, its processes fresh or (``session``) those the session keeps between runs."""
     timeline = Timeline(options.command_start if options.command_start is not None else time.time())
     start_wall = time.monotonic()
     plan = plan_run(options)  # checked against the schemas; the configurations' checks follow while processes import
@@ -110,12 +129,18 @@ def _run_pair(options: RunOptions, domain: int) -> RunResult:
         raise ConfigError(f"--output: {out / 'bag'} exists already; choose a new output directory")
     created = not out.exists()
     (out / "logs").mkdir(parents=True, exist_ok=True)
+    if session is not None:
+        session.prepare(plan)
     write_params(out / PARAMS_FILE, plan.node_params)  # the nodes read only this file
-    pair = Pair(options, timeline)
+    pair = Pair(options, timeline) if session is None else session.pair_for(options, timeline)
     with _stopped_by_signals(pair):
-        outcome = _supervise(pair, plan, domain, created, start_wall)
+        outcome = _supervise(pair, plan, domain, created, start_wall, session)
     wall = time.monotonic() - start_wall
-    return _conclude(pair, plan, outcome, wall, created)
+    keep = session is not None and outcome.code == 0
+    result = _conclude(pair, plan, outcome, wall, created, keep)
+    if session is not None and result.exit_code != 0:
+        session.close()  # a failed run ends the session: the next run starts fresh processes
+    return result
 
 
 @contextmanager
@@ -136,13 +161,23 @@ def _stopped_by_signals(pair: Pair) -> Iterator[None]:
             signal.signal(sig, handler)
 
 
-def _supervise(pair: Pair, plan: RunPlan, domain: int, created: bool, start_wall: float) -> _Outcome:
-    """Start the processes and follow them until the bag is closed; stop them all should the run fail."""
+def _supervise(
+    pair: Pair, plan: RunPlan, domain: int, created: bool, start_wall: float, session: Session | None = None
+) -> _Outcome:
+    """Start the processes (or, in a ``session`` that has them, begin the next run through them) and follow
+    them until the bag is closed; stop them all should the run fail."""
     outcome, finished, watcher = _Outcome(), False, None
     env = environment(plan.options, domain)
     try:
         pair.say(f"bracing-pair: ROS_DOMAIN_ID={domain}, output {plan.options.output}")
-        outcome.warnings = _start(pair, plan, env, created)
+        if session is not None and session.running:
+            outcome.warnings = check_configs(plan)
+            session.begin(plan)  # the next bag asked for, the per-run parameters set, the simulation reset
+            _follow_stepping(pair, plan, start_wall)
+            finished = True
+            _await_closed(pair)
+            return outcome
+        outcome.warnings = _start(pair, plan, env, created, stay=session is not None)
         if plan.duration <= EARLY_DRAWING_MAX_S:
             from bracing_analysis.drawing import prepare_drawing
 
@@ -153,12 +188,14 @@ def _supervise(pair: Pair, plan: RunPlan, domain: int, created: bool, start_wall
         from bracing_ros.status import StatusWatcher  # rclpy (~0.1 s): after the check, not competing with it
 
         watcher = StatusWatcher(domain, pair.on_status, env).start()
+        if session is not None:
+            session.started(watcher)
         _follow_stepping(pair, plan, start_wall)
         finished = True
         from bracing_analysis.drawing import prepare_drawing  # rosbags and numpy: needed from here on
 
         prepare_drawing()  # the drawing processes load matplotlib while the nodes exit and the bag is read
-        _await_bag(pair)
+        _await_closed(pair) if session is not None else _await_bag(pair)
     except Interrupted:
         outcome.code = 128 + int(pair.interrupted)
         outcome.message = f"interrupted ({signal.Signals(pair.interrupted).name}): nodes stopped, bag finalised"
@@ -178,14 +215,15 @@ def _supervise(pair: Pair, plan: RunPlan, domain: int, created: bool, start_wall
     finally:
         if not finished or outcome.code != 0:
             pair.stop_all()
-        if watcher is not None:
+        if watcher is not None and session is None:
             watcher.stop()
     return outcome
 
 
-def _start(pair: Pair, plan: RunPlan, env: dict[str, str], created: bool) -> list[str]:
-    """Start the viewer (--view), then the processes, and check the configurations while they import;
-    the controller's configuration warnings. A ConfigError kills them and discards the run."""
+def _start(pair: Pair, plan: RunPlan, env: dict[str, str], created: bool, stay: bool = False) -> list[str]:
+    """Start the viewer (--view), then the processes (``stay``: the recorder stays for the next bag), and check
+    the configurations while they import; the controller's configuration warnings. A ConfigError kills them and
+    discards the run."""
     # All three at once: each imports and discovers the others while the rest start. No state
     # goes out before the recorder is there: the simulator steps only once the recorder (and
     # the controller) subscribe to every topic it publishes, and the controller answers only
@@ -194,7 +232,7 @@ def _start(pair: Pair, plan: RunPlan, env: dict[str, str], created: bool) -> lis
     if plan.options.view:
         _start_viewer(pair, plan, env)
     for process in plan.processes(out):
-        pair.start(process.name, process.argv(), env)
+        pair.start(process.name, process.argv() + (["--stay"] if stay and process.name == "recorder" else []), env)
     pair.timeline.mark("processes started")
     try:
         warnings = check_configs(plan)
@@ -275,6 +313,19 @@ def _keep_bag(pair: Pair, outcome: _Outcome) -> None:
         outcome.message += f"\n{exc}"
 
 
+def _await_closed(pair: Pair) -> None:
+    """A run through kept processes: until the recorder closed its bag (it then waits for the next); _Failure
+    should a process exit meanwhile."""
+    deadline = time.monotonic() + 120.0  # the recorder's drain (<= 75 s)
+    while RECORDER_CLOSED not in pair.seen:
+        exited = [name for name in ("simulator", "controller", "recorder") if pair.exit_code(name) is not None]
+        if exited:
+            raise _Failure(exited[0], f"the {exited[0]} exited with code {pair.exit_code(exited[0])} during the run")
+        if time.monotonic() > deadline:
+            raise _Failure("recorder", "the recorder did not close the bag")
+        pair.wait_for_change(0.1)
+
+
 def _await_bag(pair: Pair) -> None:
     """The controller's answers are all out (the simulator had the last one): it flushes and exits
     while the simulator exits by itself. The recorder closes the bag once it has every message (or,
@@ -292,9 +343,12 @@ def _await_bag(pair: Pair) -> None:
         raise _Failure("recorder", f"the recorder exited with code {code} before it closed the bag")
 
 
-def _conclude(pair: Pair, plan: RunPlan, outcome: _Outcome, wall: float, created: bool) -> RunResult:
+def _conclude(
+    pair: Pair, plan: RunPlan, outcome: _Outcome, wall: float, created: bool, keep: bool = False
+) -> RunResult:
     """The run's files and result once its processes are done: the report of a run that ended well
-    (then the processes' exit codes), nothing but the logs of one that never stepped."""
+    (then the processes' exit codes, unless ``keep``: they stay for the next run), nothing but the logs of one
+    that never stepped."""
     out, timeline = plan.options.output, pair.timeline
     code, message, summary, series = outcome.code, outcome.message, None, None
     timeline.add(pair.events)
@@ -308,7 +362,7 @@ def _conclude(pair: Pair, plan: RunPlan, outcome: _Outcome, wall: float, created
         timeline.mark(BAG_CLOSED, timeline.at("recorder closed the bag"))
         # The report is drawn while the processes finish exiting (their exit codes are checked after).
         series, summary, code, message = _check_and_draw(plan, wall, timeline, outcome.warnings)
-        for name, process_code in pair.stop_all(ask=False).items():
+        for name, process_code in ({} if keep else pair.stop_all(ask=False)).items():
             if process_code != 0 and code == 0 and name != "viewer":  # a viewer's end is no run's failure
                 code, message = EXIT_FAILED, f"error: the {name} exited with code {process_code}\n{pair.tail(name)}"
     recovered = _recover_recording(pair, plan, outcome, wall, message) if code != 0 else None

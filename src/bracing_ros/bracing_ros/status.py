@@ -98,6 +98,8 @@ class StatusWatcher:
         self._context = rclpy.Context()
         self._stopping = threading.Event()
         self._thread = threading.Thread(target=self._spin, name="run-status", daemon=True)
+        self.node: Node | None = None  # once ``ready``: its node (services may be called through it from any thread)
+        self.ready = threading.Event()
 
     def start(self) -> StatusWatcher:
         self._thread.start()
@@ -125,6 +127,8 @@ class StatusWatcher:
         node.create_subscription(RunStatus, STATUS_TOPIC, lambda msg: self._on_status(Status.of(msg)), STATUS_QOS)
         executor = SingleThreadedExecutor(context=self._context)
         executor.add_node(node)
+        self.node = node
+        self.ready.set()
         try:
             while self._context.ok() and not self._stopping.is_set():
                 executor.spin_once(timeout_sec=0.1)
