@@ -10,6 +10,7 @@ import json
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -97,6 +98,8 @@ def stop(procs: list[subprocess.Popen[Any]]) -> list[int]:
         try:
             codes.append(proc.wait(timeout=30))
         except subprocess.TimeoutExpired:
+            proc.send_signal(signal.SIGUSR1)  # every thread's stack into its log (report_faults): where it hung
+            time.sleep(1.0)
             proc.kill()
             codes.append(proc.wait())
     return codes

@@ -53,6 +53,13 @@ held = _Held()
 kept for the recorder): its KeyboardInterrupt comes at the end of the block. Never around a wait."""
 
 
+def raise_if_requested() -> None:
+    """KeyboardInterrupt if a stop signal has come: a wait that outlives one (its KeyboardInterrupt lost in a
+    library, as above) still ends at its next round."""
+    if _requested:
+        raise KeyboardInterrupt()
+
+
 def install() -> None:
     """``request_stop`` for SIGINT and SIGTERM (also when started with SIGINT ignored: bracing-pair
     stops the nodes with it; seen: the controller of a backgrounded make bench ignored it)."""

@@ -52,7 +52,7 @@ from bracing_ros.qos import COMMAND_QOS, SUBSCRIBE_QOS
 from bracing_ros.raw_messages import read_joint_state, read_motor_command
 from bracing_ros.sim_clock import guard_clock
 from bracing_ros.status import StatusPublisher
-from bracing_ros.stop_signal import StoppableExecutor
+from bracing_ros.stop_signal import StoppableExecutor, raise_if_requested
 from bracing_ros.waiter import SubscriptionWaiter
 from bracing_sim.rcl_path import STATE_PATH_LINE, RclCommands, commands_on_rcl
 from bracing_sim.topics import SimulatorTopics, topics_key
@@ -252,6 +252,7 @@ def spin_lockstep(node: SimulatorNode, executor: SingleThreadedExecutor) -> None
             return
         node.log.info("wait_for_reset: the run is over; reset_simulation starts the next")
         while node.core.done():  # a reset sends the initial state again: the next run has begun
+            raise_if_requested()
             executor.spin_once(timeout_sec=0.1)
 
 
